@@ -1,0 +1,19 @@
+//! Lightloom's coefficient math and (later) graph model and evaluation engine.
+//! No GPU and no UI code lives here, so everything is testable headless.
+//!
+//! The math core, used by every lighting technique:
+//! - [`sh`]: real orthonormal spherical harmonics (evaluation, projection, rotation,
+//!   zonal harmonics, convolution, windows, Gaunt products).
+//! - [`cubemap`]: cube-map and equirectangular parameterisations and resampling.
+//! - [`wavelet`]: Haar wavelets on cube faces and on the subdivided icosahedron, sparse
+//!   nonlinear approximation and triple product integrals.
+//! - [`sat`]: summed-area tables.
+
+pub mod cubemap;
+pub mod envmap_io;
+pub mod quadrature;
+pub mod sampling;
+pub mod sat;
+pub mod sh;
+pub mod sky;
+pub mod wavelet;

@@ -177,15 +177,24 @@ pub fn project_samples<'a>(bands: usize, samples: impl IntoIterator<Item = (DVec
 pub fn project_equirect(image: &crate::cubemap::Equirect, bands: usize) -> ShRgb {
     use rayon::prelude::*;
     let basis = ShBasis::new(bands);
+    // Per-column azimuth terms, so the inner loop has no trigonometry.
+    let columns: Vec<(f64, f64)> = (0..image.width)
+        .map(|x| {
+            let phi = 2.0 * PI * ((x as f64 + 0.5) / image.width as f64 - 0.5);
+            (phi.sin(), -phi.cos())
+        })
+        .collect();
     (0..image.height)
         .into_par_iter()
         .fold(
             || (ShRgb::zero(bands), vec![0.0; basis.len()]),
             |(mut acc, mut y), row| {
                 let solid_angle = image.row_solid_angle(row);
-                for x in 0..image.width {
+                let theta = PI * (row as f64 + 0.5) / image.height as f64;
+                let (sin_t, cos_t) = theta.sin_cos();
+                for (x, (sin_p, neg_cos_p)) in columns.iter().enumerate() {
                     let p = image.pixels[row * image.width + x];
-                    basis.eval(image.pixel_dir(x, row), &mut y);
+                    basis.eval(DVec3::new(sin_t * sin_p, cos_t, sin_t * neg_cos_p), &mut y);
                     let rgb = p.map(|v| v as f64 * solid_angle);
                     for (o, y) in acc.coeffs.iter_mut().zip(&y) {
                         o[0] += rgb[0] * y;

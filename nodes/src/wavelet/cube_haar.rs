@@ -18,7 +18,7 @@
 
 use super::{SparseVector, node_triple};
 use crate::cubemap::{FACES, face_rect_solid_angle};
-use std::collections::HashMap;
+use rustc_hash::FxHashMap as HashMap;
 
 /// Haar transform and products for cube maps of one face size.
 #[derive(Clone, Debug)]
@@ -143,25 +143,24 @@ impl CubeHaar {
     pub fn triple_product(&self, a: &SparseVector, b: &SparseVector, c: &SparseVector) -> f64 {
         let n = self.size as f64;
         let mut scaling = [[0.0f64; 3]; FACES];
-        let mut nodes: HashMap<Node, [[f64; 3]; 3]> = HashMap::new();
-        let mut present: HashMap<Node, u8> = HashMap::new();
+        let mut nodes: HashMap<Node, NodeCoefficients> = HashMap::default();
         for (f, v) in [a, b, c].into_iter().enumerate() {
             for &(index, value) in &v.entries {
                 match self.decode(index as usize) {
                     Coefficient::Scaling { face } => scaling[face as usize][f] = value,
                     Coefficient::Wavelet { node, kind } => {
-                        nodes.entry(node).or_insert([[0.0; 3]; 3])[f][kind] = value;
-                        *present.entry(node).or_insert(0) |= 1 << f;
+                        let entry = nodes.entry(node).or_insert(([[0.0; 3]; 3], 0));
+                        entry.0[f][kind] = value;
+                        entry.1 |= 1 << f;
                     }
                 }
             }
         }
         let mut sum: f64 = scaling.iter().map(|s| s[0] * s[1] * s[2] / n).sum();
-        for (node, mask) in &present {
+        for (node, (w, mask)) in &nodes {
             if mask.count_ones() < 2 {
                 continue;
             }
-            let w = &nodes[node];
             let parents = self.parent_values(node, &scaling, &nodes);
             let amplitude = (1u64 << node.level) as f64 / n;
             sum += node_triple([&w[0], &w[1], &w[2]], parents, 1.0, amplitude);
@@ -174,14 +173,14 @@ impl CubeHaar {
         &self,
         node: &Node,
         scaling: &[[f64; 3]; FACES],
-        nodes: &HashMap<Node, [[f64; 3]; 3]>,
+        nodes: &HashMap<Node, NodeCoefficients>,
     ) -> [f64; 3] {
         let n = self.size as f64;
         let mut p = scaling[node.face as usize].map(|s| s / n);
         for level in 0..node.level {
             let shift = node.level - level;
             let ancestor = Node { face: node.face, level, i: node.i >> shift, j: node.j >> shift };
-            if let Some(w) = nodes.get(&ancestor) {
+            if let Some((w, _)) = nodes.get(&ancestor) {
                 let (qx, qy) = ((node.i >> (shift - 1)) & 1, (node.j >> (shift - 1)) & 1);
                 let signs = quadrant_signs(qx, qy);
                 let amplitude = (1u64 << level) as f64 / n;
@@ -193,6 +192,9 @@ impl CubeHaar {
         p
     }
 }
+
+/// The three functions' three wavelet coefficients at one node, and which are present.
+type NodeCoefficients = ([[f64; 3]; 3], u8);
 
 /// Signs of the three wavelet types on child quadrant `(qx, qy)` (0 = left/top).
 fn quadrant_signs(qx: u32, qy: u32) -> [f64; 3] {

@@ -48,7 +48,7 @@ impl SphericalHaar {
         assert!(depth <= 9, "icosahedral depth {depth} is absurd (20·4^{depth} cells)");
         let mut levels = vec![icosahedron()];
         for _ in 0..depth {
-            let next = levels.last().unwrap().iter().flat_map(|t| subdivide(t)).collect();
+            let next = levels.last().unwrap().iter().flat_map(subdivide).collect();
             levels.push(next);
         }
         Self { depth, levels }
@@ -202,10 +202,10 @@ impl SphericalHaar {
     /// (3) two identical wavelets times the third function's coarser value on their support,
     /// `A_l · P` (with `φ⁰` counted as coarser than the level-0 wavelets).
     pub fn triple_product(&self, a: &SparseVector, b: &SparseVector, c: &SparseVector) -> f64 {
-        use std::collections::HashMap;
+        use rustc_hash::FxHashMap as HashMap;
         let mut scaling = [[0.0f64; 3]; 20];
         // Key: (level, triangle).
-        let mut nodes: HashMap<(u32, u32), ([[f64; 3]; 3], u8)> = HashMap::new();
+        let mut nodes: HashMap<(u32, u32), NodeCoefficients> = HashMap::default();
         for (f, v) in [a, b, c].into_iter().enumerate() {
             for &(k, value) in &v.entries {
                 let k = k as usize;
@@ -241,6 +241,9 @@ impl SphericalHaar {
         sum
     }
 }
+
+/// The three functions' three wavelet coefficients at one triangle, and which are present.
+type NodeCoefficients = ([[f64; 3]; 3], u8);
 
 fn centroid(t: &[DVec3; 3]) -> DVec3 {
     (t[0] + t[1] + t[2]).normalize()

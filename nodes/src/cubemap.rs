@@ -83,7 +83,7 @@ pub fn equirect_uv_to_dir(u: f64, v: f64) -> DVec3 {
 }
 
 /// An equirectangular (lat-long) linear-radiance image.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Equirect {
     pub width: usize,
     pub height: usize,
@@ -206,7 +206,7 @@ impl Equirect {
 }
 
 /// A cube map of linear radiance, faces in wgpu/Vulkan order, each `size × size`.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct CubeMap {
     pub size: usize,
     /// `face * size² + y * size + x`.

@@ -1,4 +1,4 @@
-//! Lightloom's coefficient math and (later) graph model and evaluation engine.
+//! Lightloom's coefficient math, graph model and evaluation engine.
 //! No GPU and no UI code lives here, so everything is testable headless.
 //!
 //! The math core, used by every lighting technique:
@@ -10,7 +10,12 @@
 //! - [`sat`]: summed-area tables.
 
 pub mod cubemap;
+pub mod engine;
 pub mod envmap_io;
+pub mod graph;
+pub mod kinds;
+pub mod mesh;
+pub mod project;
 pub mod quadrature;
 pub mod sampling;
 pub mod sat;

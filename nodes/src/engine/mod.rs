@@ -1,0 +1,688 @@
+//! The evaluation engine: stages, keys and dirty propagation (see `ARCHITECTURE.md`).
+//!
+//! Every stage of every node gets a key, the hash of exactly the parameters, own stages and
+//! upstream stages it reads. A stage runs only when no cache holds its key. Stages run in
+//! parallel in dependency waves, can be cancelled, report progress, and every evaluation
+//! produces a [`Report`] of what ran and why.
+
+pub mod cache;
+pub mod graph;
+pub mod key;
+
+pub use graph::{Graph, GraphError, GraphNode, Link};
+pub use key::Key;
+
+use crate::graph::{ParamValue, StageSpec};
+use cache::{DiskCache, DiskLookup, MemoryCache};
+use serde::{Deserialize, Serialize};
+use std::collections::{BTreeMap, HashMap};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::Sender;
+use std::sync::{Arc, Mutex};
+use std::time::Instant;
+
+/// The result of a stage.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub enum StageValue {
+    Image(crate::cubemap::Equirect),
+    CubeMap(crate::cubemap::CubeMap),
+    Sh(crate::sh::ShRgb),
+    Wavelet(crate::kinds::environment::WaveletLighting),
+    Meshes(crate::mesh::MeshSet),
+    Material(crate::kinds::brdf::Material),
+    Medium(crate::kinds::fog::Medium),
+    Lights(Vec<crate::kinds::lights::PointLight>),
+    Spheres(Vec<([f64; 3], f64)>),
+    Output(crate::kinds::output::OutputSettings),
+    /// Test stages: a number.
+    Number(f64),
+}
+
+impl StageValue {
+    /// Approximate heap size, for the memory budget.
+    pub fn approx_bytes(&self) -> usize {
+        64 + match self {
+            StageValue::Image(i) => i.pixels.len() * 12,
+            StageValue::CubeMap(c) => c.texels.len() * 12,
+            StageValue::Sh(s) => s.coeffs.len() * 24,
+            StageValue::Wavelet(w) => w.channels.iter().map(|c| c.len() * 16).sum(),
+            StageValue::Meshes(m) => m.approx_bytes(),
+            StageValue::Lights(l) => l.len() * 48,
+            StageValue::Spheres(s) => s.len() * 32,
+            _ => 64,
+        }
+    }
+
+    pub fn type_name(&self) -> &'static str {
+        match self {
+            StageValue::Image(_) => "image",
+            StageValue::CubeMap(_) => "cube map",
+            StageValue::Sh(_) => "SH",
+            StageValue::Wavelet(_) => "wavelet",
+            StageValue::Meshes(_) => "meshes",
+            StageValue::Material(_) => "material",
+            StageValue::Medium(_) => "medium",
+            StageValue::Lights(_) => "lights",
+            StageValue::Spheres(_) => "spheres",
+            StageValue::Output(_) => "output settings",
+            StageValue::Number(_) => "number",
+        }
+    }
+}
+
+/// Why a stage failed.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum StageError {
+    #[error("cancelled")]
+    Cancelled,
+    #[error("{0}")]
+    Failed(String),
+    #[error("upstream stage {0} failed")]
+    Upstream(String),
+    #[error("internal error: {0}")]
+    Internal(String),
+}
+
+/// A shared cancellation flag; stages poll it in their loops.
+#[derive(Clone, Debug, Default)]
+pub struct CancelToken(Arc<AtomicBool>);
+
+impl CancelToken {
+    pub fn cancel(&self) {
+        self.0.store(true, Ordering::SeqCst);
+    }
+
+    pub fn is_cancelled(&self) -> bool {
+        self.0.load(Ordering::SeqCst)
+    }
+
+    pub fn check(&self) -> Result<(), StageError> {
+        if self.is_cancelled() { Err(StageError::Cancelled) } else { Ok(()) }
+    }
+}
+
+/// Progress events, sent while an evaluation runs.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub enum EvalEvent {
+    Started { stages: usize },
+    StageStarted { node: String, stage: String },
+    StageProgress { node: String, stage: String, fraction: f64 },
+    StageFinished { node: String, stage: String, status: StageStatus, ms: f64 },
+    Finished,
+}
+
+/// What a stage's computation sees: only what it declared it reads.
+pub struct StageContext<'a> {
+    pub node_id: &'a str,
+    pub stage: &'static str,
+    params: BTreeMap<&'static str, &'a ParamValue>,
+    stages: HashMap<&'static str, Arc<StageValue>>,
+    inputs: HashMap<(&'static str, &'static str), Arc<StageValue>>,
+    project_dir: &'a Path,
+    cancel: &'a CancelToken,
+    events: Option<&'a Sender<EvalEvent>>,
+}
+
+impl StageContext<'_> {
+    fn param(&self, name: &str) -> Result<&ParamValue, StageError> {
+        self.params.get(name).copied().ok_or_else(|| {
+            StageError::Internal(format!("stage `{}` read parameter `{name}` it did not declare", self.stage))
+        })
+    }
+
+    pub fn float(&self, name: &str) -> Result<f64, StageError> {
+        match self.param(name)? {
+            ParamValue::Float(v) => Ok(*v),
+            ParamValue::Int(v) => Ok(*v as f64),
+            other => Err(StageError::Internal(format!("parameter `{name}` is {}, not Float", other.type_name()))),
+        }
+    }
+
+    pub fn int(&self, name: &str) -> Result<i64, StageError> {
+        match self.param(name)? {
+            ParamValue::Int(v) => Ok(*v),
+            other => Err(StageError::Internal(format!("parameter `{name}` is {}, not Int", other.type_name()))),
+        }
+    }
+
+    pub fn boolean(&self, name: &str) -> Result<bool, StageError> {
+        match self.param(name)? {
+            ParamValue::Bool(v) => Ok(*v),
+            other => Err(StageError::Internal(format!("parameter `{name}` is {}, not Bool", other.type_name()))),
+        }
+    }
+
+    pub fn vec3(&self, name: &str) -> Result<[f64; 3], StageError> {
+        match self.param(name)? {
+            ParamValue::Vec3(v) | ParamValue::Color(v) => Ok(*v),
+            other => Err(StageError::Internal(format!("parameter `{name}` is {}, not Vec3", other.type_name()))),
+        }
+    }
+
+    pub fn choice(&self, name: &str) -> Result<&str, StageError> {
+        match self.param(name)? {
+            ParamValue::Choice(v) => Ok(v),
+            other => Err(StageError::Internal(format!("parameter `{name}` is {}, not Choice", other.type_name()))),
+        }
+    }
+
+    /// A path parameter resolved against the project directory (`None` when empty).
+    pub fn path(&self, name: &str) -> Result<Option<PathBuf>, StageError> {
+        match self.param(name)? {
+            ParamValue::Path(p) if p.is_empty() => Ok(None),
+            ParamValue::Path(p) => Ok(Some(self.project_dir.join(p))),
+            other => Err(StageError::Internal(format!("parameter `{name}` is {}, not Path", other.type_name()))),
+        }
+    }
+
+    pub fn value(&self, name: &str) -> Result<&ParamValue, StageError> {
+        self.param(name)
+    }
+
+    /// An earlier stage of this node.
+    pub fn stage(&self, name: &str) -> Result<&StageValue, StageError> {
+        self.stages.get(name).map(|v| v.as_ref()).ok_or_else(|| {
+            StageError::Internal(format!("stage `{}` read stage `{name}` it did not declare", self.stage))
+        })
+    }
+
+    /// An upstream stage through an input port; `None` when the port is unconnected.
+    pub fn input(&self, port: &str, stage: &str) -> Option<&StageValue> {
+        self.inputs.iter().find(|((p, s), _)| *p == port && *s == stage).map(|(_, v)| v.as_ref())
+    }
+
+    pub fn check_cancel(&self) -> Result<(), StageError> {
+        self.cancel.check()
+    }
+
+    pub fn cancel_token(&self) -> &CancelToken {
+        self.cancel
+    }
+
+    /// Reports progress in `[0, 1]` (throttling is the receiver's business).
+    pub fn progress(&self, fraction: f64) {
+        if let Some(tx) = self.events {
+            let _ = tx.send(EvalEvent::StageProgress {
+                node: self.node_id.to_string(),
+                stage: self.stage.to_string(),
+                fraction,
+            });
+        }
+    }
+}
+
+/// How a stage's value was obtained.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum StageStatus {
+    Computed,
+    MemoryHit,
+    DiskHit,
+    Failed,
+    /// Failed before with the same key; not retried until something it reads changes.
+    KnownFailure,
+    /// Not run because a stage it reads failed.
+    Blocked,
+    Cancelled,
+}
+
+/// One line of the evaluation report.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct StageReport {
+    pub node: String,
+    pub kind: String,
+    pub stage: String,
+    pub key: String,
+    pub status: StageStatus,
+    /// Why it ran: "first evaluation", "parameter `x` changed", "input `p.s` changed", ...
+    pub reasons: Vec<String>,
+    pub ms: f64,
+    pub error: Option<String>,
+}
+
+/// What an evaluation did.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Report {
+    pub stages: Vec<StageReport>,
+    pub total_ms: f64,
+    pub memory_cache_bytes: usize,
+    pub notes: Vec<String>,
+}
+
+impl Report {
+    /// `(node, stage)` of every stage that was computed.
+    pub fn computed(&self) -> Vec<(String, String)> {
+        self.stages
+            .iter()
+            .filter(|s| s.status == StageStatus::Computed)
+            .map(|s| (s.node.clone(), s.stage.clone()))
+            .collect()
+    }
+
+    pub fn failed(&self) -> Vec<&StageReport> {
+        self.stages
+            .iter()
+            .filter(|s| matches!(s.status, StageStatus::Failed | StageStatus::KnownFailure | StageStatus::Blocked))
+            .collect()
+    }
+}
+
+/// The result of one stage in an evaluation.
+#[derive(Clone, Debug)]
+pub struct StageResult {
+    pub key: Key,
+    pub value: Result<Arc<StageValue>, StageError>,
+}
+
+/// The outcome of evaluating a graph.
+#[derive(Clone, Debug)]
+pub struct Evaluation {
+    pub results: HashMap<(String, String), StageResult>,
+    pub report: Report,
+}
+
+impl Evaluation {
+    pub fn get(&self, node: &str, stage: &str) -> Option<&StageResult> {
+        self.results.get(&(node.to_string(), stage.to_string()))
+    }
+
+    pub fn value(&self, node: &str, stage: &str) -> Result<Arc<StageValue>, StageError> {
+        match self.get(node, stage) {
+            Some(r) => r.value.clone(),
+            None => Err(StageError::Internal(format!("no stage `{stage}` on node `{node}`"))),
+        }
+    }
+}
+
+/// Engine settings.
+#[derive(Clone, Debug)]
+pub struct EngineConfig {
+    pub memory_budget_bytes: usize,
+    /// `None` disables the disk cache.
+    pub disk_cache: Option<PathBuf>,
+}
+
+impl Default for EngineConfig {
+    fn default() -> Self {
+        Self { memory_budget_bytes: 2 << 30, disk_cache: Some(DiskCache::default_dir()) }
+    }
+}
+
+#[derive(Clone, Debug)]
+struct StageRecord {
+    key: Key,
+    components: Vec<(String, u64)>,
+}
+
+/// The evaluation engine: caches and the memory of the previous keys (for "why" reports).
+pub struct Engine {
+    memory: Mutex<MemoryCache>,
+    disk: Option<DiskCache>,
+    last: Mutex<HashMap<(String, String), StageRecord>>,
+    /// Keys whose computation failed (deterministic failures are not retried).
+    failures: Mutex<HashMap<Key, StageError>>,
+    file_hashes: Mutex<HashMap<PathBuf, (std::time::SystemTime, u64, u64)>>,
+}
+
+/// A stage instance scheduled in one evaluation.
+struct Instance<'g> {
+    node: &'g GraphNode,
+    spec: &'g StageSpec,
+    /// Indices of the instances it reads, with the label they are read under.
+    deps: Vec<(usize, DepLabel)>,
+    key: Key,
+    components: Vec<(String, u64)>,
+}
+
+/// A finished instance: its value or error, how it was obtained, milliseconds, reasons.
+type Outcome = (Result<Arc<StageValue>, StageError>, StageStatus, f64, Vec<String>);
+
+#[derive(Clone, Copy)]
+enum DepLabel {
+    Own(&'static str),
+    Input(&'static str, &'static str),
+}
+
+impl Engine {
+    pub fn new(config: EngineConfig) -> Self {
+        Self {
+            memory: Mutex::new(MemoryCache::new(config.memory_budget_bytes)),
+            disk: config.disk_cache.map(DiskCache::new),
+            last: Mutex::new(HashMap::new()),
+            failures: Mutex::new(HashMap::new()),
+            file_hashes: Mutex::new(HashMap::new()),
+        }
+    }
+
+    /// An engine with no disk cache (tests, one-off runs).
+    pub fn in_memory() -> Self {
+        Self::new(EngineConfig { disk_cache: None, ..Default::default() })
+    }
+
+    pub fn disk_cache(&self) -> Option<&DiskCache> {
+        self.disk.as_ref()
+    }
+
+    /// Evaluates every stage of `graph` (blocking; stages run in parallel on the rayon pool).
+    pub fn evaluate(&self, graph: &Graph, cancel: &CancelToken, events: Option<&Sender<EvalEvent>>) -> Evaluation {
+        let start = Instant::now();
+        let instances = self.schedule(graph);
+        if let Some(tx) = events {
+            let _ = tx.send(EvalEvent::Started { stages: instances.len() });
+        }
+        let mut results: Vec<Option<Outcome>> = (0..instances.len()).map(|_| None).collect();
+        let mut notes = Vec::new();
+        // Waves: every instance whose dependencies are done.
+        loop {
+            let ready: Vec<usize> = (0..instances.len())
+                .filter(|&i| results[i].is_none() && instances[i].deps.iter().all(|(d, _)| results[*d].is_some()))
+                .collect();
+            if ready.is_empty() {
+                break;
+            }
+            use rayon::prelude::*;
+            let done: Vec<(usize, _)> = ready
+                .par_iter()
+                .map(|&i| (i, self.run_instance(graph, &instances, i, &results, cancel, events)))
+                .collect();
+            for (i, (outcome, note)) in done {
+                if let Some(n) = note {
+                    notes.push(n);
+                }
+                results[i] = Some(outcome);
+            }
+        }
+        let mut last = self.last.lock().unwrap();
+        let mut report = Report::default();
+        let mut out = HashMap::new();
+        for (inst, result) in instances.iter().zip(results) {
+            let (value, status, ms, reasons) = result.expect("every instance ran");
+            let id = (inst.node.id.clone(), inst.spec.name.to_string());
+            if value.is_ok() {
+                last.insert(id.clone(), StageRecord { key: inst.key, components: inst.components.clone() });
+            }
+            report.stages.push(StageReport {
+                node: inst.node.id.clone(),
+                kind: inst.node.kind.name.to_string(),
+                stage: inst.spec.name.to_string(),
+                key: key::key_hex(inst.key),
+                status,
+                reasons,
+                ms,
+                error: value.as_ref().err().map(|e| e.to_string()),
+            });
+            out.insert(id, StageResult { key: inst.key, value });
+        }
+        report.total_ms = start.elapsed().as_secs_f64() * 1e3;
+        report.memory_cache_bytes = self.memory.lock().unwrap().used_bytes();
+        report.notes = notes;
+        if let Some(tx) = events {
+            let _ = tx.send(EvalEvent::Finished);
+        }
+        Evaluation { results: out, report }
+    }
+
+    /// Builds stage instances in topological order and computes their keys.
+    fn schedule<'g>(&self, graph: &'g Graph) -> Vec<Instance<'g>> {
+        let mut instances: Vec<Instance<'g>> = Vec::new();
+        let mut index: HashMap<(&str, &str), usize> = HashMap::new();
+        for node in graph.topological_order() {
+            for spec in &node.kind.stages {
+                let mut builder = key::KeyBuilder::new(node.kind.name, spec.name, spec.version);
+                for &param in spec.params {
+                    let value = &node.params[param];
+                    builder.add(format!("parameter `{param}`"), &self.param_bytes(graph, value));
+                }
+                let mut deps = Vec::new();
+                for &own in spec.stages {
+                    let d = index[&(node.id.as_str(), own)];
+                    builder.add(format!("stage `{own}`"), &instances[d].key.to_le_bytes());
+                    deps.push((d, DepLabel::Own(own)));
+                }
+                for &(port, stage) in spec.inputs {
+                    match graph.upstream(&node.id, port) {
+                        Some(up) => {
+                            let d = index[&(up.id.as_str(), stage)];
+                            builder.add(format!("input `{port}.{stage}`"), &instances[d].key.to_le_bytes());
+                            deps.push((d, DepLabel::Input(port, stage)));
+                        }
+                        None => builder.add(format!("input `{port}.{stage}`"), b"unconnected"),
+                    }
+                }
+                let (key, components) = builder.finish();
+                index.insert((node.id.as_str(), spec.name), instances.len());
+                instances.push(Instance { node, spec, deps, key, components });
+            }
+        }
+        instances
+    }
+
+    /// Canonical bytes of a parameter value; file paths also hash the file's content.
+    fn param_bytes(&self, graph: &Graph, value: &ParamValue) -> Vec<u8> {
+        let mut bytes = postcard::to_stdvec(value).unwrap_or_default();
+        if let ParamValue::Path(p) = value
+            && !p.is_empty()
+        {
+            let path = graph.project_dir.join(p);
+            bytes.extend_from_slice(&self.file_hash(&path).to_le_bytes());
+        }
+        bytes
+    }
+
+    /// Content hash of a file, memoised on (mtime, size); 0 when unreadable.
+    fn file_hash(&self, path: &Path) -> u64 {
+        let Ok(meta) = std::fs::metadata(path) else { return 0 };
+        let mtime = meta.modified().unwrap_or(std::time::UNIX_EPOCH);
+        if let Some((t, size, hash)) = self.file_hashes.lock().unwrap().get(path)
+            && *t == mtime
+            && *size == meta.len()
+        {
+            return *hash;
+        }
+        let hash = std::fs::read(path).map(|b| xxhash_rust::xxh3::xxh3_64(&b)).unwrap_or(0);
+        self.file_hashes.lock().unwrap().insert(path.to_path_buf(), (mtime, meta.len(), hash));
+        hash
+    }
+
+    fn run_instance(
+        &self,
+        graph: &Graph,
+        instances: &[Instance],
+        i: usize,
+        results: &[Option<Outcome>],
+        cancel: &CancelToken,
+        events: Option<&Sender<EvalEvent>>,
+    ) -> (Outcome, Option<String>) {
+        let inst = &instances[i];
+        let start = Instant::now();
+        let node_id = inst.node.id.clone();
+        let stage_name = inst.spec.name.to_string();
+        let finish = |value: Result<Arc<StageValue>, StageError>, status: StageStatus, reasons: Vec<String>| {
+            let ms = start.elapsed().as_secs_f64() * 1e3;
+            if let Some(tx) = events {
+                let _ =
+                    tx.send(EvalEvent::StageFinished { node: node_id.clone(), stage: stage_name.clone(), status, ms });
+            }
+            (value, status, ms, reasons)
+        };
+        // Upstream failures propagate without running.
+        for (d, _) in &inst.deps {
+            if let Some((Err(e), ..)) = &results[*d] {
+                let what = format!("{}.{}", instances[*d].node.id, instances[*d].spec.name);
+                let err = if *e == StageError::Cancelled { StageError::Cancelled } else { StageError::Upstream(what) };
+                let status = if err == StageError::Cancelled { StageStatus::Cancelled } else { StageStatus::Blocked };
+                return (finish(Err(err), status, vec![]), None);
+            }
+        }
+        if let Some(value) = self.memory.lock().unwrap().get(inst.key) {
+            return (finish(Ok(value), StageStatus::MemoryHit, vec![]), None);
+        }
+        if let Some(error) = self.failures.lock().unwrap().get(&inst.key) {
+            return (finish(Err(error.clone()), StageStatus::KnownFailure, vec![]), None);
+        }
+        if cancel.is_cancelled() {
+            return (finish(Err(StageError::Cancelled), StageStatus::Cancelled, vec![]), None);
+        }
+        let mut reasons = self.reasons(inst);
+        let mut note = None;
+        if inst.spec.persist
+            && let Some(disk) = &self.disk
+        {
+            match disk.load(inst.key) {
+                DiskLookup::Hit(value) => {
+                    let value = Arc::new(value);
+                    self.memory.lock().unwrap().insert(inst.key, value.clone());
+                    return (finish(Ok(value), StageStatus::DiskHit, reasons), None);
+                }
+                DiskLookup::Corrupt(why) => {
+                    reasons.push(format!("corrupt disk cache entry recomputed ({why})"));
+                    note = Some(format!(
+                        "{}.{}: corrupt disk cache entry recomputed: {why}",
+                        inst.node.id, inst.spec.name
+                    ));
+                }
+                DiskLookup::Miss => {}
+            }
+        }
+        if let Some(tx) = events {
+            let _ = tx.send(EvalEvent::StageStarted { node: node_id.clone(), stage: stage_name.clone() });
+        }
+        let mut ctx = StageContext {
+            node_id: &inst.node.id,
+            stage: inst.spec.name,
+            params: inst.spec.params.iter().map(|p| (*p, &inst.node.params[*p])).collect(),
+            stages: HashMap::new(),
+            inputs: HashMap::new(),
+            project_dir: &graph.project_dir,
+            cancel,
+            events,
+        };
+        for (d, label) in &inst.deps {
+            let value = results[*d].as_ref().unwrap().0.as_ref().unwrap().clone();
+            match label {
+                DepLabel::Own(name) => {
+                    ctx.stages.insert(name, value);
+                }
+                DepLabel::Input(port, stage) => {
+                    ctx.inputs.insert((port, stage), value);
+                }
+            }
+        }
+        let outcome = (inst.spec.compute)(&ctx);
+        // A result computed while the evaluation was cancelled is still correct for its key,
+        // but we drop it to keep cancellation prompt and simple to reason about.
+        match outcome {
+            Ok(value) if !cancel.is_cancelled() => {
+                let value = Arc::new(value);
+                if inst.spec.persist
+                    && let Some(disk) = &self.disk
+                    && let Err(e) = disk.store(inst.key, &value)
+                {
+                    note = Some(format!("{}.{}: could not write the disk cache: {e}", inst.node.id, inst.spec.name));
+                }
+                self.memory.lock().unwrap().insert(inst.key, value.clone());
+                (finish(Ok(value), StageStatus::Computed, reasons), note)
+            }
+            Ok(_) | Err(StageError::Cancelled) => {
+                (finish(Err(StageError::Cancelled), StageStatus::Cancelled, reasons), note)
+            }
+            Err(e) => {
+                let mut failures = self.failures.lock().unwrap();
+                if failures.len() > 10_000 {
+                    failures.clear();
+                }
+                failures.insert(inst.key, e.clone());
+                (finish(Err(e), StageStatus::Failed, reasons), note)
+            }
+        }
+    }
+
+    /// Why an instance must run, compared with the last successful evaluation of the same stage.
+    fn reasons(&self, inst: &Instance) -> Vec<String> {
+        let last = self.last.lock().unwrap();
+        match last.get(&(inst.node.id.clone(), inst.spec.name.to_string())) {
+            None => vec!["first evaluation".into()],
+            Some(prev) if prev.key == inst.key => vec!["not in the memory cache".into()],
+            Some(prev) => {
+                let old: HashMap<&str, u64> = prev.components.iter().map(|(l, h)| (l.as_str(), *h)).collect();
+                let changed: Vec<String> = inst
+                    .components
+                    .iter()
+                    .filter(|(label, hash)| old.get(label.as_str()) != Some(hash))
+                    .map(|(label, _)| format!("{label} changed"))
+                    .collect();
+                if changed.is_empty() { vec!["stage definition changed".into()] } else { changed }
+            }
+        }
+    }
+
+    /// Runs [`Engine::evaluate`] on a background thread.
+    pub fn spawn(self: &Arc<Self>, graph: Graph) -> EvalJob {
+        let cancel = CancelToken::default();
+        let (tx, rx) = std::sync::mpsc::channel();
+        let engine = Arc::clone(self);
+        let token = cancel.clone();
+        let handle = std::thread::Builder::new()
+            .name("lightloom-eval".into())
+            .spawn(move || engine.evaluate(&graph, &token, Some(&tx)))
+            .expect("spawn evaluation thread");
+        EvalJob { cancel, events: rx, handle: Some(handle) }
+    }
+}
+
+/// A running background evaluation.
+pub struct EvalJob {
+    cancel: CancelToken,
+    pub events: std::sync::mpsc::Receiver<EvalEvent>,
+    handle: Option<std::thread::JoinHandle<Evaluation>>,
+}
+
+impl EvalJob {
+    /// Marks the evaluation stale: running stages stop at their next check, nothing partial is
+    /// cached.
+    pub fn cancel(&self) {
+        self.cancel.cancel();
+    }
+
+    pub fn is_finished(&self) -> bool {
+        self.handle.as_ref().is_none_or(|h| h.is_finished())
+    }
+
+    /// Waits for the result.
+    pub fn wait(mut self) -> Evaluation {
+        self.handle.take().expect("joined once").join().expect("evaluation thread panicked")
+    }
+}
+
+/// Keeps at most one evaluation in flight: submitting a new graph cancels the stale one.
+#[derive(Default)]
+pub struct Scheduler {
+    current: Option<EvalJob>,
+}
+
+impl Scheduler {
+    pub fn submit(&mut self, engine: &Arc<Engine>, graph: Graph) {
+        if let Some(old) = self.current.take() {
+            old.cancel();
+            // Let it wind down on its own thread; its results are discarded.
+            std::thread::spawn(move || drop(old.wait()));
+        }
+        self.current = Some(engine.spawn(graph));
+    }
+
+    /// The finished evaluation, if the current one is done.
+    pub fn poll(&mut self) -> Option<Evaluation> {
+        if self.current.as_ref().is_some_and(|j| j.is_finished()) {
+            return self.current.take().map(|j| j.wait());
+        }
+        None
+    }
+
+    pub fn current(&self) -> Option<&EvalJob> {
+        self.current.as_ref()
+    }
+}
+
+#[cfg(test)]
+mod tests;

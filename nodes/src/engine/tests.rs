@@ -1,0 +1,504 @@
+use super::*;
+use crate::graph::{Availability, NodeKindSpec, ParamKind, ParamSpec, PortSpec, PortType, StageSpec};
+use crate::project::{Project, ProjectLink, ProjectNode, default_project};
+use std::collections::BTreeSet;
+use std::sync::atomic::AtomicUsize;
+
+fn default_graph() -> Graph {
+    default_project().graph(Path::new("default.ron")).expect("default project is valid")
+}
+
+fn ran(report: &Report) -> BTreeSet<String> {
+    report
+        .stages
+        .iter()
+        .filter(|s| matches!(s.status, StageStatus::Computed | StageStatus::Failed))
+        .map(|s| format!("{}.{}", s.node, s.stage))
+        .collect()
+}
+
+fn set(names: &[&str]) -> BTreeSet<String> {
+    names.iter().map(|s| s.to_string()).collect()
+}
+
+const SKY_ALL: &[&str] =
+    &["sky.source", "sky.radiance", "sky.sh_unrotated", "sky.rotated_radiance", "sky.sh", "sky.haar"];
+const SKY_AFTER_SOURCE: &[&str] = &["sky.radiance", "sky.sh_unrotated", "sky.rotated_radiance", "sky.sh", "sky.haar"];
+
+#[test]
+fn each_parameter_recomputes_exactly_its_stages() {
+    use ParamValue::*;
+    // (node, parameter, new value, stages expected to run) — written from the design, not
+    // derived from the stage declarations.
+    let table: Vec<(&str, &str, ParamValue, &[&str])> = vec![
+        ("sky", "rotation", Vec3([30.0, 0.0, 0.0]), &["sky.rotated_radiance", "sky.sh", "sky.haar"]),
+        ("sky", "exposure", Float(1.0), SKY_AFTER_SOURCE),
+        ("sky", "tint", Color([1.0, 0.9, 0.8]), SKY_AFTER_SOURCE),
+        ("sky", "resolution", Choice("32".into()), SKY_AFTER_SOURCE),
+        ("sky", "sh_bands", Int(3), &["sky.sh_unrotated", "sky.sh"]),
+        ("sky", "wavelet_terms", Int(64), &["sky.haar"]),
+        ("sky", "sun_elevation", Float(20.0), SKY_ALL),
+        ("sky", "sun_azimuth", Float(-30.0), SKY_ALL),
+        ("sky", "sun_intensity", Float(100.0), SKY_ALL),
+        ("sky", "sun_size", Float(1.0), SKY_ALL),
+        ("scene", "tessellation", Int(24), &["scene.geometry"]),
+        ("scene", "objects", Objects(crate::kinds::scene::default_objects()[..2].to_vec()), &["scene.geometry"]),
+        ("material", "model", Choice("ggx".into()), &["material.material"]),
+        ("material", "albedo", Color([0.5, 0.5, 0.5]), &["material.material"]),
+        ("material", "specular", Color([0.2, 0.2, 0.2]), &["material.material"]),
+        ("material", "roughness", Float(0.2), &["material.material"]),
+        ("material", "exponent", Float(10.0), &["material.material"]),
+        ("material", "anisotropy", Float(0.5), &["material.material"]),
+        ("material", "f0", Float(0.5), &["material.material"]),
+        ("output", "mode", Choice("sh_irradiance".into()), &[]),
+        ("output", "exposure", Float(-1.0), &["output.settings"]),
+        ("output", "tonemap", Choice("reinhard".into()), &["output.settings"]),
+        ("output", "background", Bool(false), &["output.settings"]),
+    ];
+    let engine = Engine::in_memory();
+    let mut graph = default_graph();
+    let first = engine.evaluate(&graph, &CancelToken::default(), None);
+    assert!(first.report.failed().is_empty(), "{:?}", first.report.failed());
+    assert_eq!(first.report.computed().len(), 9);
+    let again = engine.evaluate(&graph, &CancelToken::default(), None);
+    assert!(ran(&again.report).is_empty(), "an unchanged graph recomputed {:?}", ran(&again.report));
+    for (node, param, value, expected) in table {
+        graph.set_param(node, param, value).unwrap();
+        let eval = engine.evaluate(&graph, &CancelToken::default(), None);
+        assert_eq!(ran(&eval.report), set(expected), "changing {node}.{param}");
+    }
+}
+
+#[test]
+fn environment_rotation_reports_why_and_reuses_the_projection() {
+    let engine = Engine::in_memory();
+    let mut graph = default_graph();
+    engine.evaluate(&graph, &CancelToken::default(), None);
+    graph.set_param("sky", "rotation", ParamValue::Vec3([0.0, 0.0, 45.0])).unwrap();
+    let eval = engine.evaluate(&graph, &CancelToken::default(), None);
+    let sh = eval.report.stages.iter().find(|s| s.node == "sky" && s.stage == "sh").unwrap();
+    assert_eq!(sh.reasons, vec!["parameter `rotation` changed".to_string()]);
+    let haar = eval.report.stages.iter().find(|s| s.node == "sky" && s.stage == "haar").unwrap();
+    assert_eq!(haar.reasons, vec!["stage `rotated_radiance` changed".to_string()]);
+    let projection = eval.report.stages.iter().find(|s| s.stage == "sh_unrotated").unwrap();
+    assert_eq!(projection.status, StageStatus::MemoryHit);
+    // Going back to the old value is a cache hit (undo costs nothing).
+    graph.set_param("sky", "rotation", ParamValue::Vec3([0.0; 3])).unwrap();
+    let back = engine.evaluate(&graph, &CancelToken::default(), None);
+    assert!(ran(&back.report).is_empty(), "{:?}", ran(&back.report));
+}
+
+#[test]
+fn rotated_sh_matches_projecting_the_rotated_cube_map() {
+    // The `sh` stage rotates coefficients; projecting the resampled cube map must agree.
+    let engine = Engine::in_memory();
+    let mut graph = default_graph();
+    graph.set_param("sky", "rotation", ParamValue::Vec3([70.0, 25.0, -10.0])).unwrap();
+    graph.set_param("sky", "sun_size", ParamValue::Float(12.0)).unwrap();
+    graph.set_param("sky", "resolution", ParamValue::Choice("128".into())).unwrap();
+    let eval = engine.evaluate(&graph, &CancelToken::default(), None);
+    let StageValue::Sh(rotated) = eval.value("sky", "sh").unwrap().as_ref().clone() else { panic!() };
+    let StageValue::CubeMap(cube) = eval.value("sky", "rotated_radiance").unwrap().as_ref().clone() else { panic!() };
+    let direct = crate::sh::project_samples(rotated.bands, cube.samples());
+    let scale = direct.coeffs[0][0].abs();
+    for (a, b) in rotated.coeffs.iter().zip(&direct.coeffs) {
+        for c in 0..3 {
+            assert!((a[c] - b[c]).abs() < 0.02 * scale, "{a:?} vs {b:?}");
+        }
+    }
+}
+
+// ---- test kinds ------------------------------------------------------------------------
+
+static EXPENSIVE_RUNS: AtomicUsize = AtomicUsize::new(0);
+static CONCURRENT: AtomicUsize = AtomicUsize::new(0);
+
+fn expensive(ctx: &StageContext) -> Result<StageValue, StageError> {
+    EXPENSIVE_RUNS.fetch_add(1, Ordering::SeqCst);
+    Ok(StageValue::Number(ctx.float("x")? * 2.0))
+}
+
+fn slow(ctx: &StageContext) -> Result<StageValue, StageError> {
+    // Runs until cancelled or 10 s pass.
+    for i in 0..1000 {
+        ctx.check_cancel()?;
+        ctx.progress(i as f64 / 1000.0);
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    }
+    Ok(StageValue::Number(ctx.float("x")?))
+}
+
+fn meet(ctx: &StageContext) -> Result<StageValue, StageError> {
+    CONCURRENT.fetch_add(1, Ordering::SeqCst);
+    let start = Instant::now();
+    while CONCURRENT.load(Ordering::SeqCst) < 2 && start.elapsed().as_secs() < 5 {
+        std::thread::yield_now();
+    }
+    Ok(StageValue::Number(if CONCURRENT.load(Ordering::SeqCst) >= 2 { 1.0 } else { 0.0 } + ctx.float("x")? * 0.0))
+}
+
+fn fails(_: &StageContext) -> Result<StageValue, StageError> {
+    Err(StageError::Failed("deliberate failure".into()))
+}
+
+fn sum(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let a = match ctx.input("a", "value") {
+        Some(StageValue::Number(v)) => *v,
+        _ => 0.0,
+    };
+    Ok(StageValue::Number(a + ctx.float("x")?))
+}
+
+fn test_kind(name: &'static str, compute: StageFn, persist: bool) -> NodeKindSpec {
+    NodeKindSpec {
+        name,
+        label: name,
+        doc: "test",
+        inputs: vec![PortSpec { name: "a", ty: PortType::Medium, required: false }],
+        outputs: vec![PortSpec { name: "out", ty: PortType::Medium, required: false }],
+        params: vec![ParamSpec {
+            name: "x",
+            label: "x",
+            unit: "",
+            kind: ParamKind::Float { min: -1e9, max: 1e9, default: 1.0 },
+            doc: "",
+        }],
+        stages: vec![StageSpec {
+            name: "medium",
+            version: 1,
+            params: &["x"],
+            stages: &[],
+            inputs: &[("a", "value")],
+            persist,
+            compute,
+        }],
+        availability: Availability::Ready,
+    }
+}
+
+use crate::graph::StageFn;
+
+fn test_registry() -> &'static [NodeKindSpec] {
+    static REGISTRY: std::sync::OnceLock<Vec<NodeKindSpec>> = std::sync::OnceLock::new();
+    REGISTRY.get_or_init(|| {
+        let mut kinds = vec![
+            test_kind("Expensive", expensive, true),
+            test_kind("Slow", slow, false),
+            test_kind("Meet", meet, false),
+            test_kind("Fails", fails, false),
+            test_kind("Sum", sum, false),
+        ];
+        for k in &mut kinds {
+            // The test stages read their upstream stage as `value`.
+            k.stages[0].name = "value";
+        }
+        kinds
+    })
+}
+
+fn test_graph(nodes: &[(&str, &str)], links: &[(&str, &str)]) -> Graph {
+    let params = BTreeMap::new();
+    let inputs: Vec<graph::NodeInput> =
+        nodes.iter().map(|(id, kind)| graph::NodeInput { id, kind, params: &params }).collect();
+    let links: Vec<Link> = links
+        .iter()
+        .map(|(a, b)| Link {
+            from_node: a.to_string(),
+            from_port: "out".into(),
+            to_node: b.to_string(),
+            to_port: "a".into(),
+        })
+        .collect();
+    Graph::build(&inputs, &links, PathBuf::from("."), test_registry()).unwrap()
+}
+
+fn temp_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("lightloom-engine-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+#[test]
+fn disk_cache_serves_fresh_engines_and_recomputes_corrupt_entries() {
+    let dir = temp_dir("disk");
+    let config = || EngineConfig { memory_budget_bytes: 1 << 20, disk_cache: Some(dir.clone()) };
+    let mut graph = test_graph(&[("e", "Expensive")], &[]);
+    graph.set_param("e", "x", ParamValue::Float(21.0)).unwrap();
+    let before = EXPENSIVE_RUNS.load(Ordering::SeqCst);
+    let first = Engine::new(config()).evaluate(&graph, &CancelToken::default(), None);
+    assert_eq!(first.report.stages[0].status, StageStatus::Computed);
+    let second = Engine::new(config()).evaluate(&graph, &CancelToken::default(), None);
+    assert_eq!(second.report.stages[0].status, StageStatus::DiskHit);
+    assert_eq!(*second.value("e", "value").unwrap(), StageValue::Number(42.0));
+    assert_eq!(EXPENSIVE_RUNS.load(Ordering::SeqCst) - before, 1);
+    // Corrupt the entry: flip a payload byte; then truncate it.
+    let path = Engine::new(config()).disk_cache().unwrap().path_for(first.results.values().next().unwrap().key);
+    for corrupt in [
+        |b: &mut Vec<u8>| {
+            let last = b.len() - 1;
+            b[last] ^= 0xff;
+        },
+        |b: &mut Vec<u8>| b.truncate(b.len() / 2),
+        |b: &mut Vec<u8>| b[0] = b'X',
+    ] {
+        let mut bytes = std::fs::read(&path).unwrap();
+        corrupt(&mut bytes);
+        std::fs::write(&path, &bytes).unwrap();
+        let eval = Engine::new(config()).evaluate(&graph, &CancelToken::default(), None);
+        let stage = &eval.report.stages[0];
+        assert_eq!(stage.status, StageStatus::Computed, "corrupt entry must be recomputed");
+        assert!(stage.reasons.iter().any(|r| r.contains("corrupt")), "{:?}", stage.reasons);
+        assert_eq!(*eval.value("e", "value").unwrap(), StageValue::Number(42.0));
+        // The recomputed entry replaced the corrupt one.
+        let next = Engine::new(config()).evaluate(&graph, &CancelToken::default(), None);
+        assert_eq!(next.report.stages[0].status, StageStatus::DiskHit);
+    }
+}
+
+#[test]
+fn cancellation_stops_running_stages_and_caches_nothing_partial() {
+    let engine = Arc::new(Engine::in_memory());
+    let graph = test_graph(&[("slow", "Slow"), ("after", "Sum")], &[("slow", "after")]);
+    let job = engine.spawn(graph.clone());
+    // Wait until the slow stage reports progress, then mark the evaluation stale.
+    loop {
+        match job.events.recv_timeout(std::time::Duration::from_secs(10)).expect("progress") {
+            EvalEvent::StageProgress { .. } => break,
+            _ => continue,
+        }
+    }
+    let t = Instant::now();
+    job.cancel();
+    let eval = job.wait();
+    assert!(t.elapsed().as_secs_f64() < 2.0, "cancellation took {:?}", t.elapsed());
+    let statuses: Vec<StageStatus> = eval.report.stages.iter().map(|s| s.status).collect();
+    assert_eq!(statuses, vec![StageStatus::Cancelled, StageStatus::Cancelled]);
+    let key = eval.get("slow", "value").unwrap().key;
+    assert!(!engine.memory.lock().unwrap().contains(key), "a cancelled stage left a cache entry");
+    // A later evaluation of a different graph (x changed) is unaffected.
+    let mut fast = test_graph(&[("e", "Expensive"), ("after", "Sum")], &[("e", "after")]);
+    fast.set_param("after", "x", ParamValue::Float(0.5)).unwrap();
+    let eval = engine.evaluate(&fast, &CancelToken::default(), None);
+    assert!(eval.report.failed().is_empty());
+    assert_eq!(*eval.value("after", "value").unwrap(), StageValue::Number(2.5));
+}
+
+#[test]
+fn scheduler_cancels_the_stale_evaluation() {
+    let engine = Arc::new(Engine::in_memory());
+    let mut scheduler = Scheduler::default();
+    scheduler.submit(&engine, test_graph(&[("slow", "Slow")], &[]));
+    std::thread::sleep(std::time::Duration::from_millis(50));
+    let t = Instant::now();
+    scheduler.submit(&engine, test_graph(&[("e", "Expensive")], &[]));
+    let eval = loop {
+        if let Some(e) = scheduler.poll() {
+            break e;
+        }
+        assert!(t.elapsed().as_secs() < 10, "the new evaluation never finished");
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    };
+    assert_eq!(*eval.value("e", "value").unwrap(), StageValue::Number(2.0));
+}
+
+#[test]
+fn independent_stages_run_in_parallel_off_the_calling_thread() {
+    let engine = Arc::new(Engine::in_memory());
+    let graph = test_graph(&[("a", "Meet"), ("b", "Meet")], &[]);
+    let job = engine.spawn(graph);
+    let eval = job.wait();
+    assert_eq!(*eval.value("a", "value").unwrap(), StageValue::Number(1.0), "stages did not overlap");
+    assert_eq!(*eval.value("b", "value").unwrap(), StageValue::Number(1.0));
+}
+
+#[test]
+fn failures_propagate_downstream_and_leave_the_rest() {
+    let engine = Engine::in_memory();
+    let graph = test_graph(&[("bad", "Fails"), ("down", "Sum"), ("ok", "Sum")], &[("bad", "down")]);
+    let eval = engine.evaluate(&graph, &CancelToken::default(), None);
+    assert_eq!(eval.value("bad", "value").unwrap_err(), StageError::Failed("deliberate failure".into()));
+    assert_eq!(eval.value("down", "value").unwrap_err(), StageError::Upstream("bad.value".into()));
+    assert_eq!(*eval.value("ok", "value").unwrap(), StageValue::Number(1.0));
+}
+
+#[test]
+fn memory_cache_stays_within_budget_evicting_least_recently_used() {
+    let mut cache = MemoryCache::new(1000);
+    let item = |v: f64| Arc::new(StageValue::Number(v)); // 128 bytes each
+    for k in 0..7u128 {
+        cache.insert(k, item(k as f64));
+    }
+    assert!(cache.get(0).is_some()); // touch 0 so 1 is the oldest
+    cache.insert(7, item(7.0));
+    cache.insert(8, item(8.0));
+    assert!(cache.used_bytes() <= 1000);
+    assert!(cache.get(0).is_some(), "recently used entry evicted");
+    assert!(cache.get(1).is_none(), "least recently used entry kept");
+    assert!(cache.get(8).is_some());
+}
+
+#[test]
+fn validation_names_nodes_ports_and_parameters() {
+    let mut project = default_project();
+    project.nodes.push(ProjectNode {
+        id: "mystery".into(),
+        kind: "Teapot".into(),
+        label: String::new(),
+        position: [0.0; 2],
+        params: BTreeMap::new(),
+    });
+    project.nodes[0].params.insert("exposure".into(), ParamValue::Float(1e9));
+    project.nodes[0].params.insert("colour".into(), ParamValue::Float(1.0));
+    project.nodes[2].params.insert("albedo".into(), ParamValue::Float(0.5));
+    project
+        .links
+        .push(ProjectLink { from: ("sky".into(), "environment".into()), to: ("output".into(), "material".into()) });
+    project.links.push(ProjectLink { from: ("ghost".into(), "x".into()), to: ("output".into(), "lights".into()) });
+    project.links.retain(|l| l.to.1 != "scene");
+    let errors = project.graph(Path::new("p.ron")).unwrap_err();
+    let text: Vec<String> = errors.iter().map(|e| e.to_string()).collect();
+    let has =
+        |needle: &str| assert!(text.iter().any(|t| t.contains(needle)), "no error containing {needle:?} in {text:#?}");
+    has("node `mystery`: unknown node kind `Teapot`");
+    has("node `sky` parameter `exposure`: 1000000000 EV is outside -20..=20");
+    has("node `sky` parameter `colour`: EnvironmentMap has no such parameter");
+    has("node `material` parameter `albedo`: expected Color, found Float");
+    has("node `output` port `material`: expects Material, but `sky.environment` provides Environment");
+    has("node `ghost` port `x`: link refers to a node that does not exist");
+    has("node `output` port `scene`: required Scene input is not connected");
+}
+
+#[test]
+fn cycles_are_reported_with_their_path() {
+    let params = BTreeMap::new();
+    let nodes: Vec<graph::NodeInput> =
+        ["a", "b", "c"].iter().map(|id| graph::NodeInput { id, kind: "Sum", params: &params }).collect();
+    let link = |a: &str, b: &str| Link {
+        from_node: a.into(),
+        from_port: "out".into(),
+        to_node: b.into(),
+        to_port: "a".into(),
+    };
+    let errors =
+        Graph::build(&nodes, &[link("a", "b"), link("b", "c"), link("c", "a")], PathBuf::new(), test_registry())
+            .unwrap_err();
+    assert_eq!(errors.len(), 1);
+    assert!(errors[0].message.starts_with("links form a cycle: "), "{}", errors[0]);
+    for id in ["a", "b", "c"] {
+        assert!(errors[0].message.contains(id));
+    }
+}
+
+#[test]
+fn project_ron_round_trips_and_migrates_version_one() {
+    let project = default_project();
+    let text = project.to_ron();
+    let back = Project::from_ron(&text, Path::new("x.ron")).unwrap();
+    assert_eq!(back, project);
+    assert_eq!(back.to_ron(), text, "saving is deterministic");
+    let v1 = r#"(
+        version: 1,
+        name: "old",
+        camera: Some((eye: (0.0, 1.0, 5.0), look_at: (0.0, 0.0, 0.0), fov: 50.0)),
+        nodes: [
+            (id: "env", kind: "EnvironmentMap", pos: (10.0, 20.0), params: {"exposure": Float(1.5)}),
+            (id: "geo", kind: "Scene"),
+            (id: "out", kind: "Output"),
+        ],
+        links: ["env.environment -> out.environment", "geo.scene -> out.scene"],
+    )"#;
+    let migrated = Project::from_ron(v1, Path::new("old.ron")).unwrap();
+    assert_eq!(migrated.version, crate::project::CURRENT_VERSION);
+    assert_eq!(migrated.cameras[0].position, [0.0, 1.0, 5.0]);
+    assert_eq!(migrated.nodes[0].position, [10.0, 20.0]);
+    assert_eq!(migrated.links[1].from, ("geo".to_string(), "scene".to_string()));
+    migrated.graph(Path::new("old.ron")).expect("migrated project is valid");
+}
+
+#[test]
+fn saves_are_atomic_and_keep_a_backup() {
+    let dir = temp_dir("save");
+    let path = dir.join("scene.ron");
+    let mut project = default_project();
+    project.save(&path).unwrap();
+    project.name = "second".into();
+    project.save(&path).unwrap();
+    let current = Project::from_ron(&std::fs::read_to_string(&path).unwrap(), &path).unwrap();
+    let backup = Project::from_ron(&std::fs::read_to_string(dir.join("scene.ron.bak")).unwrap(), &path).unwrap();
+    assert_eq!(current.name, "second");
+    assert_eq!(backup.name, default_project().name);
+    let leftovers: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_string_lossy().contains("tmp"))
+        .collect();
+    assert!(leftovers.is_empty());
+    // Saving into a missing folder fails with a message naming the file, and the old file stays.
+    let err = project.save(&dir.join("missing/x.ron")).unwrap_err().to_string();
+    assert!(err.contains("missing/x.ron"), "{err}");
+}
+
+#[test]
+fn planned_kinds_recompute_exactly_their_stages_too() {
+    use ParamValue::*;
+    let mut project = default_project();
+    let node = |id: &str, kind: &str| ProjectNode {
+        id: id.into(),
+        kind: kind.into(),
+        label: String::new(),
+        position: [0.0; 2],
+        params: BTreeMap::new(),
+    };
+    let link =
+        |a: &str, p: &str, b: &str, q: &str| ProjectLink { from: (a.into(), p.into()), to: (b.into(), q.into()) };
+    project.nodes.extend([
+        node("fog", "FogMedium"),
+        node("light1", "PointLight"),
+        node("light2", "PointLight"),
+        node("blockers", "BlockerSpheres"),
+        node("rsl", "RslDecomposer"),
+        node("area", "AreaLightPainter"),
+    ]);
+    project.links.extend([
+        link("fog", "medium", "output", "medium"),
+        link("light1", "lights", "light2", "lights"),
+        link("light2", "lights", "output", "lights"),
+        link("blockers", "blockers", "output", "blockers"),
+        link("sky", "environment", "rsl", "environment"),
+        link("rsl", "square_lights", "output", "square_lights"),
+    ]);
+    let mut graph = project.graph(std::path::Path::new("p.ron")).unwrap();
+    let table: Vec<(&str, &str, ParamValue, Vec<&str>)> = vec![
+        ("fog", "beta", Color([0.1, 0.1, 0.2]), vec!["fog.medium"]),
+        ("fog", "phase", Choice("polynomial".into()), vec!["fog.medium"]),
+        ("fog", "phase_coefficients", Vec3([1.0, 0.5, 0.0]), vec!["fog.medium"]),
+        ("fog", "table_resolution", Choice("64".into()), vec!["fog.medium"]),
+        ("light1", "position", Vec3([1.0, 2.0, 3.0]), vec!["light1.lights", "light2.lights"]),
+        ("light1", "intensity", Color([1.0, 1.0, 1.0]), vec!["light1.lights", "light2.lights"]),
+        ("light2", "intensity", Color([2.0, 1.0, 1.0]), vec!["light2.lights"]),
+        (
+            "blockers",
+            "spheres",
+            Spheres(vec![([0.0, 1.0, 0.0], 0.3), ([1.0, 1.0, 0.0], 0.2)]),
+            vec!["blockers.spheres"],
+        ),
+        ("blockers", "sh_bands", Int(6), vec!["blockers.spheres"]),
+        ("rsl", "light_count", Int(10), vec!["rsl.square_lights"]),
+        ("area", "size", Float(2.0), vec!["area.lights"]),
+        ("area", "intensity", Float(3.0), vec!["area.lights"]),
+        ("area", "position", Vec3([0.0, 3.0, 0.0]), vec!["area.lights"]),
+        ("sky", "exposure", Float(2.0), [SKY_AFTER_SOURCE, &["rsl.square_lights"]].concat()),
+    ];
+    let engine = Engine::in_memory();
+    let first = engine.evaluate(&graph, &CancelToken::default(), None);
+    let failed: BTreeSet<String> = first.report.failed().iter().map(|s| format!("{}.{}", s.node, s.stage)).collect();
+    assert_eq!(failed, set(&["area.lights", "rsl.square_lights"]), "only the planned techniques fail");
+    let StageValue::Lights(lights) = first.value("light2", "lights").unwrap().as_ref().clone() else { panic!() };
+    assert_eq!(lights.len(), 2, "point lights chain");
+    for (node, param, value, expected) in table {
+        graph.set_param(node, param, value).unwrap();
+        let eval = engine.evaluate(&graph, &CancelToken::default(), None);
+        assert_eq!(ran(&eval.report), set(&expected), "changing {node}.{param}");
+    }
+}

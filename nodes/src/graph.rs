@@ -1,0 +1,307 @@
+//! The graph model: node kinds with typed ports and typed, ranged, unit-labelled parameters,
+//! and the stages each kind computes. Kinds are registered in [`crate::kinds::registry`].
+
+use crate::engine::{StageContext, StageError, StageValue};
+use serde::{Deserialize, Serialize};
+use std::fmt;
+
+/// The value of one parameter, as stored in project files.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub enum ParamValue {
+    Float(f64),
+    Int(i64),
+    Bool(bool),
+    /// Three numbers with a unit (angles, positions).
+    Vec3([f64; 3]),
+    /// Linear RGB.
+    Color([f64; 3]),
+    /// One of a fixed set of options.
+    Choice(String),
+    /// A file path, relative to the project file (or absolute). Empty means none.
+    Path(String),
+    /// Scene objects (the Scene node's object list).
+    Objects(Vec<crate::kinds::scene::SceneObject>),
+    /// Spheres `(centre, radius)` (blocker sphere sets).
+    Spheres(Vec<([f64; 3], f64)>),
+}
+
+impl ParamValue {
+    pub fn type_name(&self) -> &'static str {
+        match self {
+            ParamValue::Float(_) => "Float",
+            ParamValue::Int(_) => "Int",
+            ParamValue::Bool(_) => "Bool",
+            ParamValue::Vec3(_) => "Vec3",
+            ParamValue::Color(_) => "Color",
+            ParamValue::Choice(_) => "Choice",
+            ParamValue::Path(_) => "Path",
+            ParamValue::Objects(_) => "Objects",
+            ParamValue::Spheres(_) => "Spheres",
+        }
+    }
+
+    /// Parses a command-line override (`--set node.param=value`) against the parameter's kind.
+    pub fn parse_for(kind: &ParamKind, text: &str) -> Result<ParamValue, String> {
+        let text = text.trim();
+        let float = |s: &str| s.trim().parse::<f64>().map_err(|_| format!("`{s}` is not a number"));
+        let triple = |s: &str| -> Result<[f64; 3], String> {
+            let parts: Vec<&str> =
+                s.trim_matches(|c| c == '(' || c == ')' || c == '[' || c == ']').split(',').collect();
+            if parts.len() != 3 {
+                return Err(format!("`{s}` is not three comma-separated numbers"));
+            }
+            Ok([float(parts[0])?, float(parts[1])?, float(parts[2])?])
+        };
+        Ok(match kind {
+            ParamKind::Float { .. } => ParamValue::Float(float(text)?),
+            ParamKind::Int { .. } => ParamValue::Int(text.parse().map_err(|_| format!("`{text}` is not an integer"))?),
+            ParamKind::Bool { .. } => ParamValue::Bool(match text {
+                "true" | "1" | "on" | "yes" => true,
+                "false" | "0" | "off" | "no" => false,
+                _ => return Err(format!("`{text}` is not true or false")),
+            }),
+            ParamKind::Vec3 { .. } => ParamValue::Vec3(triple(text)?),
+            ParamKind::Color { .. } => ParamValue::Color(triple(text)?),
+            ParamKind::Choice { .. } => ParamValue::Choice(text.to_string()),
+            ParamKind::Path { .. } => ParamValue::Path(text.to_string()),
+            ParamKind::Objects { .. } | ParamKind::Spheres { .. } => {
+                return Err("object lists cannot be set from the command line; edit the project".into());
+            }
+        })
+    }
+}
+
+impl fmt::Display for ParamValue {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ParamValue::Float(v) => write!(f, "{v}"),
+            ParamValue::Int(v) => write!(f, "{v}"),
+            ParamValue::Bool(v) => write!(f, "{v}"),
+            ParamValue::Vec3(v) | ParamValue::Color(v) => write!(f, "({}, {}, {})", v[0], v[1], v[2]),
+            ParamValue::Choice(v) | ParamValue::Path(v) => write!(f, "{v}"),
+            ParamValue::Objects(v) => write!(f, "{} object(s)", v.len()),
+            ParamValue::Spheres(v) => write!(f, "{} sphere(s)", v.len()),
+        }
+    }
+}
+
+/// The type, range and default of a parameter.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ParamKind {
+    Float { min: f64, max: f64, default: f64 },
+    Int { min: i64, max: i64, default: i64 },
+    Bool { default: bool },
+    Vec3 { min: f64, max: f64, default: [f64; 3] },
+    Color { max: f64, default: [f64; 3] },
+    Choice { options: &'static [&'static str], default: &'static str },
+    Path { extensions: &'static [&'static str] },
+    Objects { default: Vec<crate::kinds::scene::SceneObject> },
+    Spheres { default: Vec<([f64; 3], f64)> },
+}
+
+/// A parameter of a node kind.
+#[derive(Clone, Debug)]
+pub struct ParamSpec {
+    pub name: &'static str,
+    pub label: &'static str,
+    /// Unit label shown beside the value ("deg", "EV", "m", "1/m", "" for none).
+    pub unit: &'static str,
+    pub kind: ParamKind,
+    pub doc: &'static str,
+}
+
+impl ParamSpec {
+    pub fn default_value(&self) -> ParamValue {
+        match &self.kind {
+            ParamKind::Float { default, .. } => ParamValue::Float(*default),
+            ParamKind::Int { default, .. } => ParamValue::Int(*default),
+            ParamKind::Bool { default } => ParamValue::Bool(*default),
+            ParamKind::Vec3 { default, .. } => ParamValue::Vec3(*default),
+            ParamKind::Color { default, .. } => ParamValue::Color(*default),
+            ParamKind::Choice { default, .. } => ParamValue::Choice(default.to_string()),
+            ParamKind::Path { .. } => ParamValue::Path(String::new()),
+            ParamKind::Objects { default } => ParamValue::Objects(default.clone()),
+            ParamKind::Spheres { default } => ParamValue::Spheres(default.clone()),
+        }
+    }
+
+    /// Checks type and range; the error says what was expected.
+    pub fn check(&self, value: &ParamValue) -> Result<(), String> {
+        let finite = |v: f64| if v.is_finite() { Ok(()) } else { Err(format!("{v} is not a finite number")) };
+        match (&self.kind, value) {
+            (ParamKind::Float { min, max, .. }, ParamValue::Float(v)) => {
+                finite(*v)?;
+                if v < min || v > max {
+                    return Err(format!("{v} {} is outside {min}..={max}", self.unit).replace("  ", " "));
+                }
+            }
+            (ParamKind::Int { min, max, .. }, ParamValue::Int(v)) => {
+                if v < min || v > max {
+                    return Err(format!("{v} is outside {min}..={max}"));
+                }
+            }
+            (ParamKind::Bool { .. }, ParamValue::Bool(_)) | (ParamKind::Path { .. }, ParamValue::Path(_)) => {}
+            (ParamKind::Vec3 { min, max, .. }, ParamValue::Vec3(v)) => {
+                for c in v {
+                    finite(*c)?;
+                    if c < min || c > max {
+                        return Err(format!("component {c} is outside {min}..={max}"));
+                    }
+                }
+            }
+            (ParamKind::Color { max, .. }, ParamValue::Color(v)) => {
+                for c in v {
+                    finite(*c)?;
+                    if *c < 0.0 || c > max {
+                        return Err(format!("colour component {c} is outside 0..={max}"));
+                    }
+                }
+            }
+            (ParamKind::Choice { options, .. }, ParamValue::Choice(v)) => {
+                if !options.contains(&v.as_str()) {
+                    return Err(format!("`{v}` is not one of {}", options.join(", ")));
+                }
+            }
+            (ParamKind::Objects { .. }, ParamValue::Objects(objects)) => {
+                for o in objects {
+                    o.check()?;
+                }
+            }
+            (ParamKind::Spheres { .. }, ParamValue::Spheres(spheres)) => {
+                for (c, r) in spheres {
+                    for v in c.iter().chain(std::iter::once(r)) {
+                        finite(*v)?;
+                    }
+                    if *r <= 0.0 || *r > 1e6 {
+                        return Err(format!("sphere radius {r} must be in (0, 1e6]"));
+                    }
+                }
+            }
+            (kind, value) => {
+                return Err(format!("expected {}, found {}", kind_name(kind), value.type_name()));
+            }
+        }
+        Ok(())
+    }
+}
+
+fn kind_name(kind: &ParamKind) -> &'static str {
+    match kind {
+        ParamKind::Float { .. } => "Float",
+        ParamKind::Int { .. } => "Int",
+        ParamKind::Bool { .. } => "Bool",
+        ParamKind::Vec3 { .. } => "Vec3",
+        ParamKind::Color { .. } => "Color",
+        ParamKind::Choice { .. } => "Choice",
+        ParamKind::Path { .. } => "Path",
+        ParamKind::Objects { .. } => "Objects",
+        ParamKind::Spheres { .. } => "Spheres",
+    }
+}
+
+/// What flows along a link. Each type is a contract: the stages an output of that type offers.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub enum PortType {
+    /// Distant lighting: radiance cube map, SH and wavelet projections.
+    Environment,
+    /// A BRDF and its projections.
+    Material,
+    /// Geometry, receivers and transport.
+    Scene,
+    /// A participating medium (fog).
+    Medium,
+    /// Local lights (point lights, painted area lights).
+    Lights,
+    /// Sphere sets that cast soft shadows.
+    Blockers,
+    /// Rotatable square lights decomposed from an environment.
+    SquareLights,
+}
+
+impl PortType {
+    /// The stages every producer of this type provides (what consumers may read).
+    pub fn provided_stages(self) -> &'static [&'static str] {
+        match self {
+            PortType::Environment => &["radiance", "rotated_radiance", "sh", "haar"],
+            PortType::Material => &["material"],
+            PortType::Scene => &["geometry"],
+            PortType::Medium => &["medium"],
+            PortType::Lights => &["lights"],
+            PortType::Blockers => &["spheres"],
+            PortType::SquareLights => &["square_lights"],
+        }
+    }
+}
+
+impl fmt::Display for PortType {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        fmt::Debug::fmt(self, f)
+    }
+}
+
+/// An input or output of a node kind.
+#[derive(Clone, Debug)]
+pub struct PortSpec {
+    pub name: &'static str,
+    pub ty: PortType,
+    /// Inputs only: evaluation fails when a required input is unconnected.
+    pub required: bool,
+}
+
+/// The signature of a stage computation.
+pub type StageFn = fn(&StageContext) -> Result<StageValue, StageError>;
+
+/// A stage: a pure function of some parameters, some earlier stages of the same node and some
+/// upstream stages (through input ports). Its key hashes exactly these.
+#[derive(Clone, Debug)]
+pub struct StageSpec {
+    pub name: &'static str,
+    /// Bumped when the computation changes, invalidating cached results.
+    pub version: u32,
+    pub params: &'static [&'static str],
+    pub stages: &'static [&'static str],
+    /// `(input port, upstream stage)` pairs.
+    pub inputs: &'static [(&'static str, &'static str)],
+    /// Expensive results also go to the on-disk cache.
+    pub persist: bool,
+    pub compute: StageFn,
+}
+
+/// Whether a kind's technique is in the product yet.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Availability {
+    Ready,
+    /// Parameters and ports are defined; the technique lands later (which issue).
+    Planned(&'static str),
+}
+
+/// A node kind: what the graph editor offers and the engine evaluates.
+#[derive(Clone, Debug)]
+pub struct NodeKindSpec {
+    pub name: &'static str,
+    pub label: &'static str,
+    pub doc: &'static str,
+    pub inputs: Vec<PortSpec>,
+    pub outputs: Vec<PortSpec>,
+    pub params: Vec<ParamSpec>,
+    pub stages: Vec<StageSpec>,
+    pub availability: Availability,
+}
+
+impl NodeKindSpec {
+    pub fn param(&self, name: &str) -> Option<&ParamSpec> {
+        self.params.iter().find(|p| p.name == name)
+    }
+
+    pub fn input(&self, name: &str) -> Option<&PortSpec> {
+        self.inputs.iter().find(|p| p.name == name)
+    }
+
+    pub fn output(&self, name: &str) -> Option<&PortSpec> {
+        self.outputs.iter().find(|p| p.name == name)
+    }
+
+    pub fn stage(&self, name: &str) -> Option<&StageSpec> {
+        self.stages.iter().find(|s| s.name == name)
+    }
+}

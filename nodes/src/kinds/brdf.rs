@@ -1,0 +1,101 @@
+//! BRDF editor node. Today it provides the material parameters that the viewport's diffuse SH
+//! mode reads (albedo); the tabulated local-frame BRDF and its SH and spherical-Haar
+//! projections (Ma et al. §3.2) arrive with the relighting issue.
+
+use crate::engine::{StageContext, StageError, StageValue};
+use crate::graph::{Availability, NodeKindSpec, ParamKind, ParamSpec, PortSpec, PortType, StageSpec};
+use serde::{Deserialize, Serialize};
+
+/// A material's parameters.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Material {
+    pub model: String,
+    pub albedo: [f64; 3],
+    pub specular: [f64; 3],
+    pub roughness: f64,
+    pub exponent: f64,
+    pub anisotropy: f64,
+    pub f0: f64,
+}
+
+impl Default for Material {
+    fn default() -> Self {
+        Self {
+            model: "lambert".into(),
+            albedo: [0.8; 3],
+            specular: [0.04; 3],
+            roughness: 0.4,
+            exponent: 64.0,
+            anisotropy: 0.0,
+            f0: 0.04,
+        }
+    }
+}
+
+pub const MODELS: &[&str] = &["lambert", "phong", "blinn_phong", "ggx", "ggx_anisotropic", "ward"];
+
+pub fn spec() -> NodeKindSpec {
+    let float = |name, label, unit, min, max, default, doc| ParamSpec {
+        name,
+        label,
+        unit,
+        kind: ParamKind::Float { min, max, default },
+        doc,
+    };
+    NodeKindSpec {
+        name: "BrdfEditor",
+        label: "BRDF editor",
+        doc: "Analytic BRDFs: Lambert, Phong, Blinn-Phong, GGX (isotropic/anisotropic), Ward.",
+        inputs: vec![],
+        outputs: vec![PortSpec { name: "material", ty: PortType::Material, required: false }],
+        params: vec![
+            ParamSpec {
+                name: "model",
+                label: "Model",
+                unit: "",
+                kind: ParamKind::Choice { options: MODELS, default: "lambert" },
+                doc: "BRDF model.",
+            },
+            ParamSpec {
+                name: "albedo",
+                label: "Albedo",
+                unit: "",
+                kind: ParamKind::Color { max: 1.0, default: [0.8; 3] },
+                doc: "Diffuse reflectance.",
+            },
+            ParamSpec {
+                name: "specular",
+                label: "Specular colour",
+                unit: "",
+                kind: ParamKind::Color { max: 1.0, default: [0.04; 3] },
+                doc: "Specular reflectance.",
+            },
+            float("roughness", "Roughness", "", 0.01, 1.0, 0.4, "GGX/Ward roughness (alpha = roughness²)."),
+            float("exponent", "Exponent", "", 1.0, 10000.0, 64.0, "Phong/Blinn-Phong exponent."),
+            float("anisotropy", "Anisotropy", "", -1.0, 1.0, 0.0, "Stretch of the lobe along the tangent."),
+            float("f0", "Fresnel F0", "", 0.0, 1.0, 0.04, "Reflectance at normal incidence (Schlick)."),
+        ],
+        stages: vec![StageSpec {
+            name: "material",
+            version: 1,
+            params: &["model", "albedo", "specular", "roughness", "exponent", "anisotropy", "f0"],
+            stages: &[],
+            inputs: &[],
+            persist: false,
+            compute: material,
+        }],
+        availability: Availability::Ready,
+    }
+}
+
+fn material(ctx: &StageContext) -> Result<StageValue, StageError> {
+    Ok(StageValue::Material(Material {
+        model: ctx.choice("model")?.to_string(),
+        albedo: ctx.vec3("albedo")?,
+        specular: ctx.vec3("specular")?,
+        roughness: ctx.float("roughness")?,
+        exponent: ctx.float("exponent")?,
+        anisotropy: ctx.float("anisotropy")?,
+        f0: ctx.float("f0")?,
+    }))
+}

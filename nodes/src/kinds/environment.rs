@@ -1,0 +1,257 @@
+//! Environment map node: an equirect HDR file or the procedural sky, as radiance cube map,
+//! SH (Sun 2008 eq. 2.12) and cube-map Haar wavelets (Ng et al.). Rotating the environment
+//! re-resamples the cube map and rotates the SH (per-band matrices); it never re-projects the
+//! unrotated SH.
+
+use crate::cubemap::CubeMap;
+use crate::engine::{StageContext, StageError, StageValue};
+use crate::graph::{Availability, NodeKindSpec, ParamKind, ParamSpec, PortSpec, PortType, StageSpec};
+use crate::sh::{self, ShRotation};
+use crate::sky::ProceduralSky;
+use crate::wavelet::SparseVector;
+use crate::wavelet::cube_haar::CubeHaar;
+use glam::{DMat3, DVec3};
+use serde::{Deserialize, Serialize};
+
+/// Sparse Haar lighting per colour channel.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct WaveletLighting {
+    pub size: usize,
+    pub channels: [SparseVector; 3],
+}
+
+pub const RESOLUTIONS: &[&str] = &["16", "32", "64", "128", "256", "512"];
+
+pub fn spec() -> NodeKindSpec {
+    NodeKindSpec {
+        name: "EnvironmentMap",
+        label: "Environment map",
+        doc: "Distant HDR lighting from an equirectangular .exr/.hdr file or the built-in sky.",
+        inputs: vec![],
+        outputs: vec![PortSpec { name: "environment", ty: PortType::Environment, required: false }],
+        params: vec![
+            ParamSpec {
+                name: "source",
+                label: "Source",
+                unit: "",
+                kind: ParamKind::Choice { options: &["procedural_sky", "file"], default: "procedural_sky" },
+                doc: "Built-in sky with sun, or an image file.",
+            },
+            ParamSpec {
+                name: "file",
+                label: "File",
+                unit: "",
+                kind: ParamKind::Path { extensions: &["exr", "hdr"] },
+                doc: "Equirectangular image, relative to the project.",
+            },
+            ParamSpec {
+                name: "sun_elevation",
+                label: "Sun elevation",
+                unit: "deg",
+                kind: ParamKind::Float { min: -10.0, max: 90.0, default: 35.0 },
+                doc: "Procedural sky only.",
+            },
+            ParamSpec {
+                name: "sun_azimuth",
+                label: "Sun azimuth",
+                unit: "deg",
+                kind: ParamKind::Float { min: -180.0, max: 180.0, default: 40.0 },
+                doc: "Procedural sky only; 0 is -Z, 90 is +X.",
+            },
+            ParamSpec {
+                name: "sun_intensity",
+                label: "Sun radiance",
+                unit: "",
+                kind: ParamKind::Float { min: 0.0, max: 1e6, default: 400.0 },
+                doc: "Procedural sky only.",
+            },
+            ParamSpec {
+                name: "sun_size",
+                label: "Sun radius",
+                unit: "deg",
+                kind: ParamKind::Float { min: 0.1, max: 20.0, default: 2.5 },
+                doc: "Procedural sky only.",
+            },
+            ParamSpec {
+                name: "rotation",
+                label: "Rotation (yaw, pitch, roll)",
+                unit: "deg",
+                kind: ParamKind::Vec3 { min: -360.0, max: 360.0, default: [0.0; 3] },
+                doc: "R = Ry(yaw) Rx(pitch) Rz(roll); the lighting is turned by R.",
+            },
+            ParamSpec {
+                name: "exposure",
+                label: "Exposure",
+                unit: "EV",
+                kind: ParamKind::Float { min: -20.0, max: 20.0, default: 0.0 },
+                doc: "Scales radiance by 2^EV.",
+            },
+            ParamSpec {
+                name: "tint",
+                label: "Tint",
+                unit: "",
+                kind: ParamKind::Color { max: 100.0, default: [1.0; 3] },
+                doc: "Multiplies radiance per channel.",
+            },
+            ParamSpec {
+                name: "resolution",
+                label: "Cube face size",
+                unit: "px",
+                kind: ParamKind::Choice { options: RESOLUTIONS, default: "64" },
+                doc: "Resolution of the radiance cube map (and its wavelets).",
+            },
+            ParamSpec {
+                name: "sh_bands",
+                label: "SH bands",
+                unit: "",
+                kind: ParamKind::Int { min: 1, max: 16, default: 4 },
+                doc: "Bands of the SH projection (N bands = N² coefficients).",
+            },
+            ParamSpec {
+                name: "wavelet_terms",
+                label: "Wavelet terms",
+                unit: "",
+                kind: ParamKind::Int { min: 1, max: 1 << 20, default: 256 },
+                doc: "Haar coefficients kept per channel (largest area-weighted).",
+            },
+        ],
+        stages: vec![
+            StageSpec {
+                name: "source",
+                version: 1,
+                params: &["source", "file", "sun_elevation", "sun_azimuth", "sun_intensity", "sun_size"],
+                stages: &[],
+                inputs: &[],
+                persist: false,
+                compute: source,
+            },
+            StageSpec {
+                name: "radiance",
+                version: 1,
+                params: &["exposure", "tint", "resolution"],
+                stages: &["source"],
+                inputs: &[],
+                persist: false,
+                compute: radiance,
+            },
+            StageSpec {
+                name: "sh_unrotated",
+                version: 1,
+                params: &["sh_bands"],
+                stages: &["radiance"],
+                inputs: &[],
+                persist: false,
+                compute: sh_unrotated,
+            },
+            StageSpec {
+                name: "rotated_radiance",
+                version: 1,
+                params: &["rotation"],
+                stages: &["radiance"],
+                inputs: &[],
+                persist: false,
+                compute: rotated_radiance,
+            },
+            StageSpec {
+                name: "sh",
+                version: 1,
+                params: &["rotation"],
+                stages: &["sh_unrotated"],
+                inputs: &[],
+                persist: false,
+                compute: sh_rotated,
+            },
+            StageSpec {
+                name: "haar",
+                version: 1,
+                params: &["wavelet_terms"],
+                stages: &["rotated_radiance"],
+                inputs: &[],
+                persist: false,
+                compute: haar,
+            },
+        ],
+        availability: Availability::Ready,
+    }
+}
+
+/// `R = Ry(yaw) Rx(pitch) Rz(roll)` from degrees.
+pub fn rotation_matrix(yaw_pitch_roll_deg: [f64; 3]) -> DMat3 {
+    let [y, p, r] = yaw_pitch_roll_deg.map(f64::to_radians);
+    DMat3::from_rotation_y(y) * DMat3::from_rotation_x(p) * DMat3::from_rotation_z(r)
+}
+
+fn source(ctx: &StageContext) -> Result<StageValue, StageError> {
+    match ctx.choice("source")? {
+        "file" => {
+            let path =
+                ctx.path("file")?.ok_or_else(|| StageError::Failed("source is `file` but no file is set".into()))?;
+            let loaded = crate::envmap_io::load_equirect(&path).map_err(|e| StageError::Failed(e.to_string()))?;
+            Ok(StageValue::Image(loaded.image))
+        }
+        _ => {
+            let (elevation, azimuth) =
+                (ctx.float("sun_elevation")?.to_radians(), ctx.float("sun_azimuth")?.to_radians());
+            let sun = DVec3::new(elevation.cos() * azimuth.sin(), elevation.sin(), -elevation.cos() * azimuth.cos());
+            let intensity = ctx.float("sun_intensity")?;
+            let sky = ProceduralSky {
+                sun_direction: sun.to_array(),
+                sun_radius_deg: ctx.float("sun_size")?,
+                sun_radiance: [intensity, intensity * 0.925, intensity * 0.8],
+                ..ProceduralSky::default()
+            };
+            Ok(StageValue::Image(crate::cubemap::Equirect::from_fn(512, 256, 3, |d| sky.radiance(d))))
+        }
+    }
+}
+
+fn radiance(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let StageValue::Image(image) = ctx.stage("source")? else { return Err(wrong("source")) };
+    let size: usize = ctx.choice("resolution")?.parse().map_err(|_| StageError::Internal("resolution".into()))?;
+    let scale = 2f64.powf(ctx.float("exposure")?);
+    let tint = ctx.vec3("tint")?;
+    let mut cube = image.to_cubemap(size);
+    for t in &mut cube.texels {
+        for c in 0..3 {
+            t[c] = (t[c] as f64 * scale * tint[c]) as f32;
+        }
+    }
+    Ok(StageValue::CubeMap(cube))
+}
+
+fn sh_unrotated(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let StageValue::CubeMap(cube) = ctx.stage("radiance")? else { return Err(wrong("radiance")) };
+    Ok(StageValue::Sh(sh::project_samples(ctx.int("sh_bands")? as usize, cube.samples())))
+}
+
+fn rotated_radiance(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let StageValue::CubeMap(cube) = ctx.stage("radiance")? else { return Err(wrong("radiance")) };
+    let rotation = ctx.vec3("rotation")?;
+    if rotation == [0.0; 3] {
+        return Ok(StageValue::CubeMap(cube.clone()));
+    }
+    // L'(d) = L(R⁻¹ d), box-filtered.
+    let inverse = rotation_matrix(rotation).transpose();
+    Ok(StageValue::CubeMap(CubeMap::from_fn(cube.size, 2, |d| cube.sample(inverse * d))))
+}
+
+fn sh_rotated(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let StageValue::Sh(sh) = ctx.stage("sh_unrotated")? else { return Err(wrong("sh_unrotated")) };
+    let rotation = rotation_matrix(ctx.vec3("rotation")?);
+    Ok(StageValue::Sh(ShRotation::new(sh.bands, rotation).apply_rgb(sh)))
+}
+
+fn haar(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let StageValue::CubeMap(cube) = ctx.stage("rotated_radiance")? else { return Err(wrong("rotated_radiance")) };
+    let keep = ctx.int("wavelet_terms")? as usize;
+    let transform = CubeHaar::new(cube.size);
+    let channels = [0, 1, 2].map(|c| {
+        let values: Vec<f64> = cube.texels.iter().map(|t| t[c] as f64).collect();
+        transform.approximate(&values, keep)
+    });
+    Ok(StageValue::Wavelet(WaveletLighting { size: cube.size, channels }))
+}
+
+pub(crate) fn wrong(stage: &str) -> StageError {
+    StageError::Internal(format!("stage `{stage}` produced an unexpected value type"))
+}

@@ -1,0 +1,57 @@
+//! Point light node: isotropic point lights, chained into a light list.
+
+use crate::engine::{StageContext, StageError, StageValue};
+use crate::graph::{Availability, NodeKindSpec, ParamKind, ParamSpec, PortSpec, PortType, StageSpec};
+use serde::{Deserialize, Serialize};
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PointLight {
+    pub position: [f64; 3],
+    /// Radiant intensity per channel, W/sr.
+    pub intensity: [f64; 3],
+}
+
+pub fn point_light_spec() -> NodeKindSpec {
+    NodeKindSpec {
+        name: "PointLight",
+        label: "Point light",
+        doc: "An isotropic point light; chain several through the `lights` input.",
+        inputs: vec![PortSpec { name: "lights", ty: PortType::Lights, required: false }],
+        outputs: vec![PortSpec { name: "lights", ty: PortType::Lights, required: false }],
+        params: vec![
+            ParamSpec {
+                name: "position",
+                label: "Position",
+                unit: "m",
+                kind: ParamKind::Vec3 { min: -1e4, max: 1e4, default: [0.0, 3.0, 0.0] },
+                doc: "World-space position.",
+            },
+            ParamSpec {
+                name: "intensity",
+                label: "Intensity",
+                unit: "W/sr",
+                kind: ParamKind::Color { max: 1e7, default: [50.0, 45.0, 40.0] },
+                doc: "Radiant intensity per channel.",
+            },
+        ],
+        stages: vec![StageSpec {
+            name: "lights",
+            version: 1,
+            params: &["position", "intensity"],
+            stages: &[],
+            inputs: &[("lights", "lights")],
+            persist: false,
+            compute: lights,
+        }],
+        availability: Availability::Planned("issue 7 (fog medium and point lights)"),
+    }
+}
+
+fn lights(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let mut list = match ctx.input("lights", "lights") {
+        Some(StageValue::Lights(upstream)) => upstream.clone(),
+        _ => Vec::new(),
+    };
+    list.push(PointLight { position: ctx.vec3("position")?, intensity: ctx.vec3("intensity")? });
+    Ok(StageValue::Lights(list))
+}

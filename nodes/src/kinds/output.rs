@@ -1,0 +1,158 @@
+//! Output node: what the viewport and `lightloom render` draw, and how (relighting mode,
+//! exposure, tone mapping).
+
+use crate::engine::{Evaluation, Graph, Key, StageContext, StageError, StageValue};
+use crate::graph::{Availability, NodeKindSpec, ParamKind, ParamSpec, PortSpec, PortType, StageSpec};
+use serde::{Deserialize, Serialize};
+use std::sync::Arc;
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct OutputSettings {
+    pub mode: String,
+    pub exposure: f64,
+    pub tonemap: String,
+    pub background: bool,
+}
+
+/// Relighting modes the renderer implements today.
+pub const MODES: &[&str] = &["sh_irradiance"];
+pub const TONEMAPS: &[&str] = &["aces", "reinhard", "linear"];
+
+pub fn spec() -> NodeKindSpec {
+    let input = |name, ty, required| PortSpec { name, ty, required };
+    NodeKindSpec {
+        name: "Output",
+        label: "Output",
+        doc: "The rendered view: relighting mode, exposure and tone mapping.",
+        inputs: vec![
+            input("scene", PortType::Scene, true),
+            input("environment", PortType::Environment, false),
+            input("material", PortType::Material, false),
+            input("medium", PortType::Medium, false),
+            input("lights", PortType::Lights, false),
+            input("blockers", PortType::Blockers, false),
+            input("square_lights", PortType::SquareLights, false),
+        ],
+        outputs: vec![],
+        params: vec![
+            ParamSpec {
+                name: "mode",
+                label: "Relighting mode",
+                unit: "",
+                kind: ParamKind::Choice { options: MODES, default: "sh_irradiance" },
+                doc: "sh_irradiance: unshadowed diffuse lighting from the environment's SH (Sun 2008 eq. 2.20).",
+            },
+            ParamSpec {
+                name: "exposure",
+                label: "Exposure",
+                unit: "EV",
+                kind: ParamKind::Float { min: -20.0, max: 20.0, default: 0.0 },
+                doc: "Display exposure.",
+            },
+            ParamSpec {
+                name: "tonemap",
+                label: "Tone mapping",
+                unit: "",
+                kind: ParamKind::Choice { options: TONEMAPS, default: "aces" },
+                doc: "Applied to PNG output and the viewport; EXR output stays linear.",
+            },
+            ParamSpec {
+                name: "background",
+                label: "Show environment",
+                unit: "",
+                kind: ParamKind::Bool { default: true },
+                doc: "Draw the environment behind the scene.",
+            },
+        ],
+        stages: vec![StageSpec {
+            name: "settings",
+            version: 1,
+            params: &["mode", "exposure", "tonemap", "background"],
+            stages: &[],
+            inputs: &[],
+            persist: false,
+            compute: settings,
+        }],
+        availability: Availability::Ready,
+    }
+}
+
+fn settings(ctx: &StageContext) -> Result<StageValue, StageError> {
+    Ok(StageValue::Output(OutputSettings {
+        mode: ctx.choice("mode")?.to_string(),
+        exposure: ctx.float("exposure")?,
+        tonemap: ctx.choice("tonemap")?.to_string(),
+        background: ctx.boolean("background")?,
+    }))
+}
+
+/// A stage value with its key (renderers re-upload only when the key changes).
+#[derive(Clone, Debug)]
+pub struct Keyed {
+    pub key: Key,
+    pub value: Arc<StageValue>,
+}
+
+/// Everything the renderer needs for one frame, gathered from an evaluation.
+#[derive(Clone, Debug)]
+pub struct FrameInputs {
+    pub meshes: Keyed,
+    pub sh: Option<Keyed>,
+    pub radiance: Option<Keyed>,
+    pub material: crate::kinds::brdf::Material,
+    pub settings: OutputSettings,
+    /// Connected inputs the renderer does not draw yet, to tell the user.
+    pub ignored_inputs: Vec<String>,
+}
+
+/// Finds the output node (the one named, or the only one).
+pub fn find_output<'g>(graph: &'g Graph, name: Option<&str>) -> Result<&'g crate::engine::GraphNode, String> {
+    let outputs: Vec<_> = graph.nodes.iter().filter(|n| n.kind.name == "Output").collect();
+    match name {
+        Some(id) => outputs.into_iter().find(|n| n.id == id).ok_or_else(|| format!("no Output node with id `{id}`")),
+        None => match outputs.as_slice() {
+            [one] => Ok(one),
+            [] => Err("the project has no Output node".into()),
+            _ => Err(format!(
+                "the project has {} Output nodes; choose one ({})",
+                outputs.len(),
+                outputs.iter().map(|n| n.id.as_str()).collect::<Vec<_>>().join(", ")
+            )),
+        },
+    }
+}
+
+impl FrameInputs {
+    pub fn gather(evaluation: &Evaluation, graph: &Graph, output: &str) -> Result<Self, String> {
+        let keyed = |node: &str, stage: &str| -> Result<Keyed, String> {
+            let r = evaluation.get(node, stage).ok_or_else(|| format!("stage {node}.{stage} was not evaluated"))?;
+            match &r.value {
+                Ok(v) => Ok(Keyed { key: r.key, value: v.clone() }),
+                Err(e) => Err(format!("{node}.{stage} failed: {e}")),
+            }
+        };
+        let upstream = |port: &str| graph.upstream(output, port).map(|n| n.id.clone());
+        let scene = upstream("scene").ok_or("the Output node's scene input is not connected")?;
+        let meshes = keyed(&scene, "geometry")?;
+        let (sh, radiance) = match upstream("environment") {
+            Some(env) => (Some(keyed(&env, "sh")?), Some(keyed(&env, "rotated_radiance")?)),
+            None => (None, None),
+        };
+        let material = match upstream("material") {
+            Some(m) => match keyed(&m, "material")?.value.as_ref() {
+                StageValue::Material(m) => m.clone(),
+                _ => return Err("material stage produced an unexpected value".into()),
+            },
+            None => Default::default(),
+        };
+        let settings = match keyed(output, "settings")?.value.as_ref() {
+            StageValue::Output(s) => s.clone(),
+            _ => return Err("settings stage produced an unexpected value".into()),
+        };
+        let ignored_inputs = ["medium", "lights", "blockers", "square_lights"]
+            .into_iter()
+            .filter_map(|p| upstream(p).map(|n| format!("`{p}` (from `{n}`) is not drawn yet")))
+            .collect();
+        Ok(Self { meshes, sh, radiance, material, settings, ignored_inputs })
+    }
+}

@@ -1,0 +1,133 @@
+//! Node kinds whose techniques land in later issues. Their parameters, ports and stage
+//! structure are defined now so projects, validation and the editor treat them like any other
+//! kind; their stages report that the technique is not available yet.
+
+use crate::engine::{StageContext, StageError, StageValue};
+use crate::graph::{Availability, NodeKindSpec, ParamKind, ParamSpec, PortSpec, PortType, StageSpec};
+
+fn not_yet(ctx: &StageContext) -> Result<StageValue, StageError> {
+    Err(StageError::Failed(format!("node `{}`: this technique is not available yet", ctx.node_id)))
+}
+
+pub fn area_light_painter_spec() -> NodeKindSpec {
+    NodeKindSpec {
+        name: "AreaLightPainter",
+        label: "Area light painter",
+        doc: "A textured area light for near-field relighting (Sun 2008 ch. 4).",
+        inputs: vec![],
+        outputs: vec![PortSpec { name: "lights", ty: PortType::Lights, required: false }],
+        params: vec![
+            ParamSpec {
+                name: "texture",
+                label: "Texture",
+                unit: "",
+                kind: ParamKind::Path { extensions: &["png", "exr", "hdr"] },
+                doc: "Painted emission.",
+            },
+            ParamSpec {
+                name: "position",
+                label: "Centre",
+                unit: "m",
+                kind: ParamKind::Vec3 { min: -1e4, max: 1e4, default: [0.0, 2.0, 0.0] },
+                doc: "Centre of the light.",
+            },
+            ParamSpec {
+                name: "size",
+                label: "Size",
+                unit: "m",
+                kind: ParamKind::Float { min: 1e-3, max: 1e3, default: 1.0 },
+                doc: "Side length.",
+            },
+            ParamSpec {
+                name: "intensity",
+                label: "Intensity",
+                unit: "",
+                kind: ParamKind::Float { min: 0.0, max: 1e6, default: 10.0 },
+                doc: "Emitted radiance scale.",
+            },
+        ],
+        stages: vec![StageSpec {
+            name: "lights",
+            version: 1,
+            params: &["texture", "position", "size", "intensity"],
+            stages: &[],
+            inputs: &[],
+            persist: true,
+            compute: not_yet,
+        }],
+        availability: Availability::Planned("the area-light painter issue"),
+    }
+}
+
+pub fn rsl_decomposer_spec() -> NodeKindSpec {
+    NodeKindSpec {
+        name: "RslDecomposer",
+        label: "RSL decomposer",
+        doc: "Fits rotatable square lights to an environment (Xu et al. 2006).",
+        inputs: vec![PortSpec { name: "environment", ty: PortType::Environment, required: true }],
+        outputs: vec![PortSpec { name: "square_lights", ty: PortType::SquareLights, required: false }],
+        params: vec![ParamSpec {
+            name: "light_count",
+            label: "Lights",
+            unit: "",
+            kind: ParamKind::Int { min: 1, max: 300, default: 30 },
+            doc: "Number of square lights.",
+        }],
+        stages: vec![StageSpec {
+            name: "square_lights",
+            version: 1,
+            params: &["light_count"],
+            stages: &[],
+            inputs: &[("environment", "radiance")],
+            persist: true,
+            compute: not_yet,
+        }],
+        availability: Availability::Planned("the RSL decomposer issue"),
+    }
+}
+
+pub fn blocker_spheres_spec() -> NodeKindSpec {
+    NodeKindSpec {
+        name: "BlockerSpheres",
+        label: "Blocker sphere set",
+        doc: "Spheres casting soft shadows via SH exponentials (Sun 2008 §5.2).",
+        inputs: vec![],
+        outputs: vec![PortSpec { name: "blockers", ty: PortType::Blockers, required: false }],
+        params: vec![
+            ParamSpec {
+                name: "spheres",
+                label: "Spheres",
+                unit: "m",
+                kind: ParamKind::Spheres { default: vec![([0.0, 1.0, 0.0], 0.5)] },
+                doc: "Centres and radii.",
+            },
+            ParamSpec {
+                name: "sh_bands",
+                label: "SH bands",
+                unit: "",
+                kind: ParamKind::Int { min: 2, max: 8, default: 4 },
+                doc: "Order of the SH visibility.",
+            },
+        ],
+        stages: vec![StageSpec {
+            name: "spheres",
+            version: 1,
+            params: &["spheres", "sh_bands"],
+            stages: &[],
+            inputs: &[],
+            persist: false,
+            compute: blocker_spheres,
+        }],
+        availability: Availability::Planned("the blocker sphere issue"),
+    }
+}
+
+fn blocker_spheres(ctx: &StageContext) -> Result<StageValue, StageError> {
+    match ctx.value("spheres")? {
+        crate::graph::ParamValue::Spheres(s) => {
+            let _ = ctx.int("sh_bands")?;
+            Ok(StageValue::Spheres(s.clone()))
+        }
+        _ => Err(StageError::Internal("spheres".into())),
+    }
+}

@@ -1,0 +1,282 @@
+//! Triangle meshes and the built-in procedural shapes (plane, sphere, box, torus, Cornell
+//! box), so projects need no files.
+
+use glam::{DMat3, DMat4, DVec3};
+use serde::{Deserialize, Serialize};
+use std::f64::consts::PI;
+
+/// An indexed triangle mesh in world space (counter-clockwise front faces).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Mesh {
+    pub name: String,
+    pub positions: Vec<[f32; 3]>,
+    pub normals: Vec<[f32; 3]>,
+    pub uvs: Vec<[f32; 2]>,
+    pub indices: Vec<u32>,
+    /// Linear RGB base colour (multiplies the material albedo).
+    pub base_color: [f32; 3],
+}
+
+impl Mesh {
+    pub fn triangle_count(&self) -> usize {
+        self.indices.len() / 3
+    }
+
+    /// Applies an affine transform (normals by the inverse transpose).
+    pub fn transformed(mut self, transform: DMat4) -> Self {
+        let normal_matrix = DMat3::from_mat4(transform).inverse().transpose();
+        for p in &mut self.positions {
+            *p = transform.transform_point3(DVec3::from(p.map(f64::from))).as_vec3().to_array();
+        }
+        for n in &mut self.normals {
+            *n = (normal_matrix * DVec3::from(n.map(f64::from))).normalize_or_zero().as_vec3().to_array();
+        }
+        // A mirroring transform flips the winding.
+        if transform.determinant() < 0.0 {
+            for t in self.indices.chunks_mut(3) {
+                t.swap(1, 2);
+            }
+        }
+        self
+    }
+
+    /// Axis-aligned bounds `(min, max)`.
+    pub fn bounds(&self) -> ([f32; 3], [f32; 3]) {
+        let mut lo = [f32::MAX; 3];
+        let mut hi = [f32::MIN; 3];
+        for p in &self.positions {
+            for c in 0..3 {
+                lo[c] = lo[c].min(p[c]);
+                hi[c] = hi[c].max(p[c]);
+            }
+        }
+        (lo, hi)
+    }
+
+    fn push_vertex(&mut self, p: DVec3, n: DVec3, uv: [f64; 2]) -> u32 {
+        self.positions.push(p.as_vec3().to_array());
+        self.normals.push(n.normalize().as_vec3().to_array());
+        self.uvs.push([uv[0] as f32, uv[1] as f32]);
+        (self.positions.len() - 1) as u32
+    }
+
+    /// A `rows × cols` grid of vertices from `f(u, v) -> (position, normal)`, triangulated.
+    fn grid(&mut self, cols: usize, rows: usize, f: impl Fn(f64, f64) -> (DVec3, DVec3)) {
+        let base = self.positions.len() as u32;
+        for j in 0..=rows {
+            for i in 0..=cols {
+                let (u, v) = (i as f64 / cols as f64, j as f64 / rows as f64);
+                let (p, n) = f(u, v);
+                self.push_vertex(p, n, [u, v]);
+            }
+        }
+        let stride = cols as u32 + 1;
+        for j in 0..rows as u32 {
+            for i in 0..cols as u32 {
+                let a = base + j * stride + i;
+                let (b, c, d) = (a + 1, a + stride, a + stride + 1);
+                self.indices.extend_from_slice(&[a, c, b, b, c, d]);
+            }
+        }
+    }
+}
+
+/// All meshes of a scene.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct MeshSet {
+    pub meshes: Vec<Mesh>,
+}
+
+impl MeshSet {
+    pub fn approx_bytes(&self) -> usize {
+        self.meshes.iter().map(|m| m.positions.len() * 32 + m.indices.len() * 4).sum()
+    }
+
+    pub fn triangle_count(&self) -> usize {
+        self.meshes.iter().map(Mesh::triangle_count).sum()
+    }
+
+    pub fn bounds(&self) -> ([f32; 3], [f32; 3]) {
+        let mut lo = [f32::MAX; 3];
+        let mut hi = [f32::MIN; 3];
+        for m in &self.meshes {
+            let (a, b) = m.bounds();
+            for c in 0..3 {
+                lo[c] = lo[c].min(a[c]);
+                hi[c] = hi[c].max(b[c]);
+            }
+        }
+        (lo, hi)
+    }
+}
+
+/// A square in the XZ plane, normal +Y, side `size`, centred at the origin.
+pub fn plane(size: f64, segments: usize) -> Mesh {
+    let mut m = Mesh::default();
+    let h = size / 2.0;
+    m.grid(segments.max(1), segments.max(1), |u, v| (DVec3::new(-h + size * u, 0.0, -h + size * v), DVec3::Y));
+    m
+}
+
+/// A UV sphere of `radius` centred at the origin.
+pub fn sphere(radius: f64, segments: usize) -> Mesh {
+    let mut m = Mesh::default();
+    let (cols, rows) = (segments.max(3) * 2, segments.max(2));
+    m.grid(cols, rows, |u, v| {
+        let (theta, phi) = (PI * v, 2.0 * PI * u);
+        let n = DVec3::new(theta.sin() * phi.sin(), theta.cos(), theta.sin() * phi.cos());
+        (n * radius, n)
+    });
+    m
+}
+
+/// A torus around +Y with major radius `major` and tube radius `minor`.
+pub fn torus(major: f64, minor: f64, segments: usize) -> Mesh {
+    let mut m = Mesh::default();
+    let (cols, rows) = (segments.max(3) * 2, segments.max(3));
+    m.grid(cols, rows, |u, v| {
+        let (phi, theta) = (2.0 * PI * u, -2.0 * PI * v);
+        let ring = DVec3::new(phi.sin(), 0.0, phi.cos());
+        let n = ring * theta.cos() + DVec3::Y * theta.sin();
+        (ring * major + n * minor, n)
+    });
+    m
+}
+
+/// An axis-aligned box of `size`, centred at the origin, normals outwards (or inwards).
+pub fn cuboid(size: [f64; 3], segments: usize, inward: bool) -> Mesh {
+    let mut m = Mesh::default();
+    let h = DVec3::from(size) / 2.0;
+    let s = segments.max(1);
+    for (axis, sign) in [(0, 1.0), (0, -1.0), (1, 1.0), (1, -1.0), (2, 1.0), (2, -1.0)] {
+        let normal = {
+            let mut n = DVec3::ZERO;
+            n[axis] = sign;
+            n
+        };
+        // Tangent directions chosen so (t1 × t2) = normal (counter-clockwise seen from outside).
+        let t1 = {
+            let mut t = DVec3::ZERO;
+            t[(axis + 1) % 3] = 1.0;
+            t
+        };
+        let t2 = normal.cross(t1);
+        let (n_out, flip) = if inward { (-normal, true) } else { (normal, false) };
+        let first = m.indices.len();
+        m.grid(s, s, |u, v| {
+            let local =
+                normal * h[axis] + t1 * (u - 0.5) * 2.0 * h[(axis + 1) % 3] + t2 * (v - 0.5) * 2.0 * h[(axis + 2) % 3];
+            (local, n_out)
+        });
+        // grid winds (u, v) counter-clockwise about u × v = t1 × t2 = -normal, so flip for outward.
+        if !flip {
+            for t in m.indices[first..].chunks_mut(3) {
+                t.swap(1, 2);
+            }
+        }
+    }
+    m
+}
+
+/// A Cornell-style box: floor, ceiling, back wall (white), left wall red, right wall green;
+/// open towards +Z, normals inwards. `size` is the side length; the floor is at y = 0.
+pub fn cornell_box(size: f64, segments: usize) -> Vec<Mesh> {
+    let h = size / 2.0;
+    let wall = |name: &str, color: [f32; 3], rot: DMat4| {
+        let mut m = plane(size, segments).transformed(rot);
+        m.name = name.to_string();
+        m.base_color = color;
+        m
+    };
+    let lift = DMat4::from_translation(DVec3::new(0.0, h, 0.0));
+    vec![
+        wall("floor", [0.73, 0.73, 0.73], DMat4::IDENTITY),
+        wall("ceiling", [0.73, 0.73, 0.73], lift * DMat4::from_translation(DVec3::Y * h) * DMat4::from_rotation_x(PI)),
+        wall(
+            "back",
+            [0.73, 0.73, 0.73],
+            lift * DMat4::from_translation(-DVec3::Z * h) * DMat4::from_rotation_x(PI / 2.0),
+        ),
+        wall(
+            "left",
+            [0.63, 0.065, 0.05],
+            lift * DMat4::from_translation(-DVec3::X * h) * DMat4::from_rotation_z(-PI / 2.0),
+        ),
+        wall(
+            "right",
+            [0.14, 0.45, 0.091],
+            lift * DMat4::from_translation(DVec3::X * h) * DMat4::from_rotation_z(PI / 2.0),
+        ),
+    ]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Signed volume by the divergence theorem; positive for outward-facing closed meshes.
+    fn volume(m: &Mesh) -> f64 {
+        m.indices
+            .chunks(3)
+            .map(|t| {
+                let p = |i: u32| DVec3::from(m.positions[i as usize].map(f64::from));
+                p(t[0]).dot(p(t[1]).cross(p(t[2]))) / 6.0
+            })
+            .sum()
+    }
+
+    fn area(m: &Mesh) -> f64 {
+        m.indices
+            .chunks(3)
+            .map(|t| {
+                let p = |i: u32| DVec3::from(m.positions[i as usize].map(f64::from));
+                0.5 * (p(t[1]) - p(t[0])).cross(p(t[2]) - p(t[0])).length()
+            })
+            .sum()
+    }
+
+    #[test]
+    fn closed_shapes_have_their_analytic_volumes_and_outward_winding() {
+        assert!((volume(&sphere(2.0, 64)) - 4.0 / 3.0 * PI * 8.0).abs() < 0.01 * 4.0 / 3.0 * PI * 8.0);
+        assert!((volume(&cuboid([1.0, 2.0, 3.0], 2, false)) - 6.0).abs() < 1e-5);
+        assert!((volume(&cuboid([1.0, 2.0, 3.0], 2, true)) + 6.0).abs() < 1e-5);
+        let t = torus(2.0, 0.5, 64);
+        let exact = 2.0 * PI * PI * 2.0 * 0.25;
+        assert!((volume(&t) - exact).abs() < 0.01 * exact, "{} vs {exact}", volume(&t));
+        assert!((area(&plane(3.0, 4)) - 9.0).abs() < 1e-5);
+    }
+
+    #[test]
+    fn normals_agree_with_the_winding() {
+        for m in [sphere(1.0, 16), cuboid([1.0, 1.0, 1.0], 1, false), torus(1.0, 0.3, 12), plane(1.0, 2)] {
+            for t in m.indices.chunks(3) {
+                let p = |i: u32| DVec3::from(m.positions[i as usize].map(f64::from));
+                let face = (p(t[1]) - p(t[0])).cross(p(t[2]) - p(t[0]));
+                if face.length() < 1e-9 {
+                    continue; // degenerate pole triangles
+                }
+                let n = DVec3::from(m.normals[t[0] as usize].map(f64::from));
+                assert!(face.dot(n) > 0.0);
+            }
+        }
+        for wall in cornell_box(2.0, 1) {
+            let centre =
+                (DVec3::from(wall.bounds().0.map(f64::from)) + DVec3::from(wall.bounds().1.map(f64::from))) / 2.0;
+            let n = DVec3::from(wall.normals[0].map(f64::from));
+            // Inward: the normal points towards the box centre (0, 1, 0).
+            assert!(n.dot(DVec3::new(0.0, 1.0, 0.0) - centre) > 0.0, "{}", wall.name);
+        }
+    }
+
+    #[test]
+    fn transforms_move_points_and_keep_normals_unit() {
+        let m = sphere(1.0, 8).transformed(DMat4::from_scale_rotation_translation(
+            DVec3::new(2.0, 1.0, 1.0),
+            glam::DQuat::from_rotation_y(0.3),
+            DVec3::new(5.0, 0.0, 0.0),
+        ));
+        let (lo, hi) = m.bounds();
+        assert!(lo[0] > 2.9 && hi[0] < 7.1);
+        assert!(m.normals.iter().all(|n| (DVec3::from(n.map(f64::from)).length() - 1.0).abs() < 1e-5));
+    }
+}

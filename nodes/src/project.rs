@@ -1,0 +1,414 @@
+//! Project files: RON, versioned with migrations, saved atomically with a backup.
+//!
+//! See `projects/README.md` for the schema with an example.
+
+use crate::engine::{Graph, GraphError, Link, graph::NodeInput};
+use crate::graph::ParamValue;
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// The version this build writes.
+pub const CURRENT_VERSION: u32 = 2;
+
+/// A project: cameras, render settings, nodes and links.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Project {
+    pub version: u32,
+    #[serde(default)]
+    pub name: String,
+    #[serde(default)]
+    pub cameras: Vec<Camera>,
+    #[serde(default)]
+    pub render: RenderSettings,
+    pub nodes: Vec<ProjectNode>,
+    #[serde(default)]
+    pub links: Vec<ProjectLink>,
+}
+
+/// A perspective camera looking from `position` at `target`, +Y up.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Camera {
+    pub name: String,
+    pub position: [f64; 3],
+    pub target: [f64; 3],
+    /// Vertical field of view, degrees.
+    #[serde(default = "default_fov")]
+    pub fov_y_deg: f64,
+}
+
+fn default_fov() -> f64 {
+    45.0
+}
+
+/// Defaults for `lightloom render` and the viewport.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RenderSettings {
+    pub width: u32,
+    pub height: u32,
+    /// Camera name; empty means the first camera.
+    pub camera: String,
+    /// Output node id; empty means the only Output node.
+    pub output: String,
+}
+
+impl Default for RenderSettings {
+    fn default() -> Self {
+        Self { width: 960, height: 540, camera: String::new(), output: String::new() }
+    }
+}
+
+/// A node instance.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ProjectNode {
+    pub id: String,
+    pub kind: String,
+    /// Display name in the editor (defaults to the id).
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub label: String,
+    /// Position in the graph editor.
+    #[serde(default)]
+    pub position: [f32; 2],
+    /// Parameters that differ from the kind's defaults (all of them after a save).
+    #[serde(default)]
+    pub params: BTreeMap<String, ParamValue>,
+}
+
+/// A link `from: (node, output port)` → `to: (node, input port)`.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ProjectLink {
+    pub from: (String, String),
+    pub to: (String, String),
+}
+
+/// Why a project could not be loaded or saved. Messages name the file and, where known, the
+/// line:column, node and parameter.
+#[derive(Debug, thiserror::Error)]
+pub enum ProjectError {
+    #[error("cannot read project {path}: {source}")]
+    Io { path: PathBuf, source: std::io::Error },
+    #[error("{path}:{line}:{column}: {message}")]
+    Syntax { path: PathBuf, line: usize, column: usize, message: String },
+    #[error(
+        "{path}: version {found} is newer than this Lightloom understands (up to {CURRENT_VERSION}); update Lightloom"
+    )]
+    TooNew { path: PathBuf, found: u32 },
+    #[error("{path}: {}", format_graph_errors(errors))]
+    Invalid { path: PathBuf, errors: Vec<(Option<usize>, GraphError)> },
+    #[error("cannot save project {path}: {source}")]
+    Save { path: PathBuf, source: std::io::Error },
+}
+
+fn format_graph_errors(errors: &[(Option<usize>, GraphError)]) -> String {
+    let lines: Vec<String> = errors
+        .iter()
+        .map(|(line, e)| match line {
+            Some(l) => format!("line {l}: {e}"),
+            None => e.to_string(),
+        })
+        .collect();
+    if lines.len() == 1 { lines[0].clone() } else { format!("{} problems:\n  {}", lines.len(), lines.join("\n  ")) }
+}
+
+#[derive(Deserialize)]
+struct VersionProbe {
+    #[serde(default)]
+    version: u32,
+}
+
+impl Project {
+    /// Parses RON text (any supported version), migrating to the current version.
+    pub fn from_ron(text: &str, path: &Path) -> Result<Self, ProjectError> {
+        let syntax = |e: ron::error::SpannedError| ProjectError::Syntax {
+            path: path.into(),
+            line: e.span.start.line,
+            column: e.span.start.col,
+            message: e.code.to_string(),
+        };
+        let options = ron::Options::default();
+        let probe: VersionProbe = options.from_str(text).map_err(syntax)?;
+        match probe.version {
+            CURRENT_VERSION => options.from_str(text).map_err(syntax),
+            1 => {
+                let v1: v1::ProjectV1 = options.from_str(text).map_err(syntax)?;
+                v1.migrate().map_err(|message| ProjectError::Syntax { path: path.into(), line: 1, column: 1, message })
+            }
+            0 => Err(ProjectError::Syntax {
+                path: path.into(),
+                line: 1,
+                column: 1,
+                message: "missing `version` field (a Lightloom project starts with `(version: 2, ...`)".into(),
+            }),
+            found if found > CURRENT_VERSION => Err(ProjectError::TooNew { path: path.into(), found }),
+            found => Err(ProjectError::Syntax {
+                path: path.into(),
+                line: 1,
+                column: 1,
+                message: format!("unknown project version {found}"),
+            }),
+        }
+    }
+
+    /// Loads and validates a project file; returns the project and its graph.
+    pub fn load(path: &Path) -> Result<(Self, Graph), ProjectError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ProjectError::Io { path: path.into(), source })?;
+        let project = Self::from_ron(&text, path)?;
+        let graph = project.graph(path).map_err(|errors| ProjectError::Invalid {
+            path: path.into(),
+            errors: errors.into_iter().map(|e| (e.node.as_deref().and_then(|n| node_line(&text, n)), e)).collect(),
+        })?;
+        Ok((project, graph))
+    }
+
+    /// Builds the evaluable graph; relative asset paths resolve against the project's folder.
+    pub fn graph(&self, path: &Path) -> Result<Graph, Vec<GraphError>> {
+        let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        let mut errors = Vec::new();
+        for (i, c) in self.cameras.iter().enumerate() {
+            let numbers = c.position.iter().chain(&c.target).chain(std::iter::once(&c.fov_y_deg));
+            if numbers.clone().any(|v| !v.is_finite())
+                || !(1.0..=170.0).contains(&c.fov_y_deg)
+                || c.position == c.target
+            {
+                errors.push(GraphError {
+                    node: None,
+                    port: None,
+                    param: None,
+                    message: format!(
+                        "camera {i} (`{}`): needs finite numbers, fov_y_deg in 1..=170, position != target",
+                        c.name
+                    ),
+                });
+            }
+        }
+        let (w, h) = (self.render.width, self.render.height);
+        if !(1..=16384).contains(&w) || !(1..=16384).contains(&h) {
+            errors.push(GraphError {
+                node: None,
+                port: None,
+                param: None,
+                message: format!("render size {w}x{h} must be within 1..=16384 on each side"),
+            });
+        }
+        let inputs: Vec<NodeInput> =
+            self.nodes.iter().map(|n| NodeInput { id: &n.id, kind: &n.kind, params: &n.params }).collect();
+        let links: Vec<Link> = self
+            .links
+            .iter()
+            .map(|l| Link {
+                from_node: l.from.0.clone(),
+                from_port: l.from.1.clone(),
+                to_node: l.to.0.clone(),
+                to_port: l.to.1.clone(),
+            })
+            .collect();
+        match Graph::build(&inputs, &links, dir, crate::kinds::registry()) {
+            Ok(graph) if errors.is_empty() => Ok(graph),
+            Ok(_) => Err(errors),
+            Err(mut more) => {
+                errors.append(&mut more);
+                Err(errors)
+            }
+        }
+    }
+
+    /// The camera to render with (by name, or the first; a default view when there is none).
+    pub fn camera(&self, name: Option<&str>) -> Result<Camera, String> {
+        let name = name.or(Some(self.render.camera.as_str()).filter(|n| !n.is_empty()));
+        match name {
+            Some(n) => self.cameras.iter().find(|c| c.name == n).cloned().ok_or_else(|| {
+                let known: Vec<&str> = self.cameras.iter().map(|c| c.name.as_str()).collect();
+                format!(
+                    "no camera named `{n}` (cameras: {})",
+                    if known.is_empty() { "none".into() } else { known.join(", ") }
+                )
+            }),
+            None => Ok(self.cameras.first().cloned().unwrap_or(Camera {
+                name: "default".into(),
+                position: [0.0, 2.0, 6.0],
+                target: [0.0, 0.5, 0.0],
+                fov_y_deg: 45.0,
+            })),
+        }
+    }
+
+    /// RON text with a stable order (nodes and links as listed; parameters sorted).
+    pub fn to_ron(&self) -> String {
+        let config = ron::ser::PrettyConfig::new().depth_limit(6).indentor("    ".to_string());
+        let mut text = ron::ser::to_string_pretty(self, config).expect("projects serialise");
+        text.push('\n');
+        text
+    }
+
+    /// Saves atomically: write a temporary file, fsync, keep the previous file as `NAME.bak`,
+    /// rename into place, fsync the folder. The target never exists half-written.
+    pub fn save(&self, path: &Path) -> Result<(), ProjectError> {
+        let save_err = |source| ProjectError::Save { path: path.into(), source };
+        let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+        let file_name =
+            path.file_name().ok_or_else(|| save_err(std::io::Error::other("not a file path")))?.to_string_lossy();
+        let tmp = dir.join(format!(".{file_name}.tmp{}", std::process::id()));
+        {
+            let mut file = std::fs::File::create(&tmp).map_err(save_err)?;
+            file.write_all(self.to_ron().as_bytes()).map_err(save_err)?;
+            file.sync_all().map_err(save_err)?;
+        }
+        if path.exists() {
+            let bak = dir.join(format!("{file_name}.bak"));
+            let bak_tmp = dir.join(format!(".{file_name}.bak.tmp{}", std::process::id()));
+            std::fs::copy(path, &bak_tmp).map_err(save_err)?;
+            std::fs::rename(&bak_tmp, &bak).map_err(save_err)?;
+        }
+        std::fs::rename(&tmp, path).map_err(save_err)?;
+        if let Ok(d) = std::fs::File::open(dir) {
+            let _ = d.sync_all();
+        }
+        Ok(())
+    }
+
+    /// Applies `node.param=value` overrides (command line `--set`).
+    pub fn apply_override(&mut self, assignment: &str) -> Result<(), String> {
+        let (target, value) =
+            assignment.split_once('=').ok_or_else(|| format!("`{assignment}` is not NODE.PARAM=VALUE"))?;
+        let (node_id, param) = target.split_once('.').ok_or_else(|| format!("`{target}` is not NODE.PARAM"))?;
+        let node = self
+            .nodes
+            .iter_mut()
+            .find(|n| n.id == node_id)
+            .ok_or_else(|| format!("--set {assignment}: no node `{node_id}`"))?;
+        let kind = crate::kinds::kind(&node.kind)
+            .ok_or_else(|| format!("--set {assignment}: node `{node_id}` has unknown kind"))?;
+        let spec = kind.param(param).ok_or_else(|| {
+            let known: Vec<&str> = kind.params.iter().map(|p| p.name).collect();
+            format!("--set {assignment}: {} has no parameter `{param}` (known: {})", kind.name, known.join(", "))
+        })?;
+        let parsed = ParamValue::parse_for(&spec.kind, value).map_err(|e| format!("--set {assignment}: {e}"))?;
+        spec.check(&parsed).map_err(|e| format!("--set {assignment}: {e}"))?;
+        node.params.insert(param.to_string(), parsed);
+        Ok(())
+    }
+}
+
+/// The 1-based line where node `id` is declared, if it can be found.
+fn node_line(text: &str, id: &str) -> Option<usize> {
+    let needle = format!("\"{id}\"");
+    text.lines().position(|l| l.contains("id:") && l.contains(&needle)).map(|i| i + 1)
+}
+
+/// Version 1: the first prototype's format (positions as `pos`, links as `"a.port -> b.port"`
+/// strings, a single `camera`).
+mod v1 {
+    use super::*;
+
+    #[derive(Deserialize)]
+    pub struct ProjectV1 {
+        #[allow(dead_code)]
+        pub version: u32,
+        #[serde(default)]
+        pub name: String,
+        pub camera: Option<CameraV1>,
+        pub nodes: Vec<NodeV1>,
+        #[serde(default)]
+        pub links: Vec<String>,
+    }
+
+    #[derive(Deserialize)]
+    pub struct CameraV1 {
+        pub eye: [f64; 3],
+        pub look_at: [f64; 3],
+        pub fov: f64,
+    }
+
+    #[derive(Deserialize)]
+    pub struct NodeV1 {
+        pub id: String,
+        pub kind: String,
+        #[serde(default)]
+        pub pos: (f32, f32),
+        #[serde(default)]
+        pub params: BTreeMap<String, ParamValue>,
+    }
+
+    impl ProjectV1 {
+        pub fn migrate(self) -> Result<Project, String> {
+            let links = self
+                .links
+                .iter()
+                .map(|l| {
+                    let (from, to) =
+                        l.split_once("->").ok_or_else(|| format!("link `{l}` is not `a.port -> b.port`"))?;
+                    let split = |s: &str| {
+                        s.trim()
+                            .split_once('.')
+                            .map(|(n, p)| (n.to_string(), p.to_string()))
+                            .ok_or_else(|| format!("`{s}` in link `{l}` is not node.port"))
+                    };
+                    Ok(ProjectLink { from: split(from)?, to: split(to)? })
+                })
+                .collect::<Result<Vec<_>, String>>()?;
+            Ok(Project {
+                version: CURRENT_VERSION,
+                name: self.name,
+                cameras: self
+                    .camera
+                    .into_iter()
+                    .map(|c| Camera { name: "main".into(), position: c.eye, target: c.look_at, fov_y_deg: c.fov })
+                    .collect(),
+                render: RenderSettings::default(),
+                nodes: self
+                    .nodes
+                    .into_iter()
+                    .map(|n| ProjectNode {
+                        id: n.id,
+                        kind: n.kind,
+                        label: String::new(),
+                        position: [n.pos.0, n.pos.1],
+                        params: n.params,
+                    })
+                    .collect(),
+                links,
+            })
+        }
+    }
+}
+
+/// The built-in default project: procedural sky, a sphere and a torus on a floor.
+pub fn default_project() -> Project {
+    let node = |id: &str, kind: &str, x: f32, y: f32| ProjectNode {
+        id: id.into(),
+        kind: kind.into(),
+        label: String::new(),
+        position: [x, y],
+        params: BTreeMap::new(),
+    };
+    let link =
+        |a: &str, p: &str, b: &str, q: &str| ProjectLink { from: (a.into(), p.into()), to: (b.into(), q.into()) };
+    Project {
+        version: CURRENT_VERSION,
+        name: "Default: sphere and torus under a procedural sky".into(),
+        cameras: vec![Camera {
+            name: "main".into(),
+            position: [0.0, 2.2, 5.5],
+            target: [0.0, 0.6, 0.0],
+            fov_y_deg: 40.0,
+        }],
+        render: RenderSettings::default(),
+        nodes: vec![
+            node("sky", "EnvironmentMap", 0.0, 0.0),
+            node("scene", "Scene", 0.0, 200.0),
+            node("material", "BrdfEditor", 0.0, 400.0),
+            node("output", "Output", 320.0, 150.0),
+        ],
+        links: vec![
+            link("sky", "environment", "output", "environment"),
+            link("scene", "scene", "output", "scene"),
+            link("material", "material", "output", "material"),
+        ],
+    }
+}

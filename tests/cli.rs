@@ -110,15 +110,178 @@ fn bad_input_gives_a_clear_error_and_exit_code_two() {
 }
 
 #[test]
-fn default_job_runs_on_the_builtin_sky() {
-    let out = lightloom().output().unwrap();
-    assert!(out.status.success());
+fn default_job_renders_the_builtin_project() {
+    let dir = tempdir("default-job");
+    let out = lightloom().current_dir(&dir).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let text = String::from_utf8_lossy(&out.stdout);
-    assert!(text.contains("built-in procedural sky") && text.contains("+Y"), "{text}");
+    assert!(text.contains("rendered 960x540"), "{text}");
+    let image = image::open(dir.join("lightloom-default.png")).unwrap().into_rgb8();
+    // Not blank: the image has both dark and bright regions and many distinct colours.
+    let lum: Vec<u32> = image.pixels().map(|p| p[0] as u32 + p[1] as u32 + p[2] as u32).collect();
+    let (lo, hi) = (lum.iter().min().unwrap(), lum.iter().max().unwrap());
+    assert!(hi - lo > 200, "contrast {lo}..{hi}");
+    let distinct: std::collections::HashSet<_> = image.pixels().map(|p| p.0).collect();
+    assert!(distinct.len() > 1000, "{} colours", distinct.len());
 }
 
 fn tempdir(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("lightloom-cli-{name}-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     dir
+}
+
+fn workspace() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+#[test]
+fn malformed_projects_fail_with_clear_errors_and_exit_code_two() {
+    // (file, text the error must contain)
+    let corpus = [
+        ("truncated.ron", "truncated.ron:6:"),
+        ("binary.ron", "not a text file"),
+        ("wrong_types.ron", "line 4: node `sky` parameter `exposure`: expected Float, found Int"),
+        ("unknown_kind.ron", "node `pot`: unknown node kind `Teapot`"),
+        ("dangling_link.ron", "node `sky` port `environment`: link refers to a node that does not exist"),
+        ("cycle.ron", "links form a cycle"),
+        ("absurd_numbers.ron", "1e300 EV is outside -20..=20"),
+        ("not_a_number.ron", "object `ball` has a size outside"),
+        ("missing_asset.ron", "no/such/sky.exr does not exist"),
+        ("missing_version.ron", "missing `version` field"),
+        ("future_version.ron", "version 99 is newer"),
+        ("unknown_field.ron", "Unexpected field named `colour`"),
+        ("missing_output_input.ron", "node `out` port `scene`: required Scene input is not connected"),
+    ];
+    let dir = workspace().join("tests/malformed");
+    let listed: Vec<&str> = corpus.iter().map(|c| c.0).collect();
+    for entry in std::fs::read_dir(&dir).unwrap() {
+        let name = entry.unwrap().file_name().to_string_lossy().to_string();
+        assert!(listed.contains(&name.as_str()), "{name} is in the corpus but not in this table");
+    }
+    let out_png = tempdir("malformed").join("x.png");
+    for (file, needle) in corpus {
+        let path = dir.join(file);
+        for args in [
+            vec!["info"],
+            vec!["render", "-o", out_png.to_str().unwrap(), "--no-disk-cache"],
+            vec!["eval", "--no-disk-cache"],
+        ] {
+            let out = lightloom().args(&args[..1]).arg(&path).args(&args[1..]).output().unwrap();
+            let stderr = String::from_utf8_lossy(&out.stderr);
+            assert_eq!(out.status.code(), Some(2), "{file} {args:?}: {stderr}");
+            assert!(stderr.contains(needle), "{file} {args:?}: expected {needle:?} in {stderr}");
+            assert!(!stderr.contains("panicked"), "{file}: {stderr}");
+        }
+    }
+}
+
+#[test]
+fn white_furnace_through_the_whole_pipeline() {
+    // A white Lambert object under a constant environment with no occluders reflects exactly
+    // the environment radiance: E = πL, L_out = albedo·E/π = L. The EXR is linear radiance.
+    let dir = tempdir("furnace");
+    write_hdr(&dir.join("grey.hdr"), 128, 64, |_, _| [0.25, 0.5, 1.0]);
+    let project = r#"(
+        version: 2,
+        cameras: [(name: "c", position: (0.0, 0.0, 4.0), target: (0.0, 0.0, 0.0), fov_y_deg: 30.0)],
+        render: (width: 64, height: 64),
+        nodes: [
+            (id: "env", kind: "EnvironmentMap", params: {"source": Choice("file"), "file": Path("grey.hdr")}),
+            (id: "scene", kind: "Scene", params: {"objects": Objects([(name: "s", shape: Sphere(radius: 1.0), color: (1.0, 1.0, 1.0))])}),
+            (id: "white", kind: "BrdfEditor", params: {"albedo": Color((1.0, 1.0, 1.0))}),
+            (id: "out", kind: "Output"),
+        ],
+        links: [
+            (from: ("env", "environment"), to: ("out", "environment")),
+            (from: ("scene", "scene"), to: ("out", "scene")),
+            (from: ("white", "material"), to: ("out", "material")),
+        ],
+    )"#;
+    let path = dir.join("furnace.ron");
+    std::fs::write(&path, project).unwrap();
+    let exr = dir.join("furnace.exr");
+    let out = lightloom()
+        .args(["render", path.to_str().unwrap(), "-o", exr.to_str().unwrap(), "--no-disk-cache", "-q"])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let image = image::open(&exr).unwrap().into_rgb32f();
+    // Every pixel, sphere or background, is the environment radiance (half-float precision).
+    let mut worst: f32 = 0.0;
+    for p in image.pixels() {
+        for (c, want) in [0.25f32, 0.5, 1.0].iter().enumerate() {
+            worst = worst.max((p[c] - want).abs() / want);
+        }
+    }
+    assert!(worst < 0.01, "white furnace violated by {worst:.4} relative");
+    // The PNG is tone-mapped and not blank.
+    let png = dir.join("furnace.png");
+    let out = lightloom()
+        .args(["render", path.to_str().unwrap(), "-o", png.to_str().unwrap(), "--no-disk-cache", "-q"])
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    assert_eq!(image::open(&png).unwrap().into_rgb8().dimensions(), (64, 64));
+}
+
+#[test]
+fn eval_reports_that_rotating_the_environment_recomputes_no_projection() {
+    let project = workspace().join("projects/default.ron");
+    let out = lightloom()
+        .args([
+            "eval",
+            project.to_str().unwrap(),
+            "--set",
+            "sky.rotation=30,0,0",
+            "--report",
+            "json",
+            "--no-disk-cache",
+        ])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let recomputed: Vec<&str> = report["recomputed"].as_array().unwrap().iter().map(|v| v.as_str().unwrap()).collect();
+    assert_eq!(recomputed, ["sky.rotated_radiance", "sky.sh", "sky.haar"]);
+    let sh = report["after_overrides"]["stages"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|s| s["node"] == "sky" && s["stage"] == "sh")
+        .unwrap();
+    assert_eq!(sh["reasons"][0], "parameter `rotation` changed");
+    // A bad override is a clear error.
+    let out = lightloom().args(["eval", project.to_str().unwrap(), "--set", "sky.rotation=sideways"]).output().unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("sky.rotation=sideways"));
+}
+
+#[test]
+fn replay_matches_every_golden() {
+    // Every project in projects/ and tests/projects/ renders within tolerance of its golden.
+    // Needs a wgpu adapter: lavapipe (mesa-vulkan-drivers) on machines without a GPU.
+    let root = workspace();
+    let mut projects: Vec<PathBuf> = Vec::new();
+    for dir in ["projects", "tests/projects"] {
+        for entry in std::fs::read_dir(root.join(dir)).unwrap() {
+            let p = entry.unwrap().path();
+            if p.extension().is_some_and(|e| e == "ron") {
+                projects.push(p);
+            }
+        }
+    }
+    assert!(projects.len() >= 3);
+    let out = lightloom().current_dir(&root).arg("replay").args(&projects).arg("--no-disk-cache").output().unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "replay failed:\n{stdout}\n{}", String::from_utf8_lossy(&out.stderr));
+    assert_eq!(stdout.lines().filter(|l| l.ends_with(" ok")).count(), projects.len(), "{stdout}");
+}
+
+#[test]
+fn the_default_project_file_is_the_builtin_default() {
+    let path = workspace().join("projects/default.ron");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let project = lightloom_nodes::project::Project::from_ron(&text, &path).unwrap();
+    assert_eq!(project, lightloom_nodes::project::default_project());
 }

@@ -28,12 +28,6 @@ pub struct ShArgs {
     pub json: bool,
 }
 
-impl ShArgs {
-    pub fn builtin_default() -> Self {
-        Self { envmap: None, builtin_sky: true, bands: 3, window: "none".into(), json: false }
-    }
-}
-
 #[derive(Serialize)]
 struct Report {
     source: String,

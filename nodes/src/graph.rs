@@ -128,11 +128,13 @@ impl ParamSpec {
     /// Checks type and range; the error says what was expected.
     pub fn check(&self, value: &ParamValue) -> Result<(), String> {
         let finite = |v: f64| if v.is_finite() { Ok(()) } else { Err(format!("{v} is not a finite number")) };
+        let num =
+            |v: f64| if v != 0.0 && (v.abs() >= 1e6 || v.abs() < 1e-4) { format!("{v:e}") } else { format!("{v}") };
         match (&self.kind, value) {
             (ParamKind::Float { min, max, .. }, ParamValue::Float(v)) => {
                 finite(*v)?;
                 if v < min || v > max {
-                    return Err(format!("{v} {} is outside {min}..={max}", self.unit).replace("  ", " "));
+                    return Err(format!("{} {} is outside {min}..={max}", num(*v), self.unit).replace("  ", " "));
                 }
             }
             (ParamKind::Int { min, max, .. }, ParamValue::Int(v)) => {
@@ -145,7 +147,7 @@ impl ParamSpec {
                 for c in v {
                     finite(*c)?;
                     if c < min || c > max {
-                        return Err(format!("component {c} is outside {min}..={max}"));
+                        return Err(format!("component {} is outside {min}..={max}", num(*c)));
                     }
                 }
             }
@@ -153,7 +155,7 @@ impl ParamSpec {
                 for c in v {
                     finite(*c)?;
                     if *c < 0.0 || c > max {
-                        return Err(format!("colour component {c} is outside 0..={max}"));
+                        return Err(format!("colour component {} is outside 0..={max}", num(*c)));
                     }
                 }
             }

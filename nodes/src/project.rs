@@ -101,6 +101,8 @@ pub enum ProjectError {
     TooNew { path: PathBuf, found: u32 },
     #[error("{path}: {}", format_graph_errors(errors))]
     Invalid { path: PathBuf, errors: Vec<(Option<usize>, GraphError)> },
+    #[error("{path}: {message}")]
+    MissingAsset { path: PathBuf, message: String },
     #[error("cannot save project {path}: {source}")]
     Save { path: PathBuf, source: std::io::Error },
 }
@@ -157,13 +159,49 @@ impl Project {
 
     /// Loads and validates a project file; returns the project and its graph.
     pub fn load(path: &Path) -> Result<(Self, Graph), ProjectError> {
-        let text = std::fs::read_to_string(path).map_err(|source| ProjectError::Io { path: path.into(), source })?;
-        let project = Self::from_ron(&text, path)?;
+        Self::load_with_overrides(path, &[])
+    }
+
+    /// Loads a project, applies `node.param=value` overrides, then validates it. Validation
+    /// errors carry the line where the offending node is declared.
+    pub fn load_with_overrides(path: &Path, overrides: &[String]) -> Result<(Self, Graph), ProjectError> {
+        let text = std::fs::read_to_string(path).map_err(|source| match source.kind() {
+            std::io::ErrorKind::InvalidData => ProjectError::Syntax {
+                path: path.into(),
+                line: 1,
+                column: 1,
+                message: "not a text file (invalid UTF-8); a project is a RON text file".into(),
+            },
+            _ => ProjectError::Io { path: path.into(), source },
+        })?;
+        let mut project = Self::from_ron(&text, path)?;
+        for o in overrides {
+            project.apply_override(o).map_err(|message| ProjectError::Invalid {
+                path: path.into(),
+                errors: vec![(None, GraphError { node: None, port: None, param: None, message })],
+            })?;
+        }
         let graph = project.graph(path).map_err(|errors| ProjectError::Invalid {
             path: path.into(),
             errors: errors.into_iter().map(|e| (e.node.as_deref().and_then(|n| node_line(&text, n)), e)).collect(),
         })?;
         Ok((project, graph))
+    }
+
+    /// Asset files named by parameters that do not exist, as `(node, parameter, path)`.
+    pub fn missing_assets(&self, graph: &Graph) -> Vec<(String, String, PathBuf)> {
+        let mut missing = Vec::new();
+        for node in &graph.nodes {
+            for (name, value) in &node.params {
+                if let ParamValue::Path(p) = value
+                    && !p.is_empty()
+                    && !graph.project_dir.join(p).is_file()
+                {
+                    missing.push((node.id.clone(), name.clone(), graph.project_dir.join(p)));
+                }
+            }
+        }
+        missing
     }
 
     /// Builds the evaluable graph; relative asset paths resolve against the project's folder.

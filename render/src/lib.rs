@@ -1,1 +1,11 @@
-//! placeholder
+//! Lightloom's renderer: a wgpu device (windowed or headless), the viewport renderer that
+//! draws a [`FrameInputs`](lightloom_nodes::kinds::output::FrameInputs), and offscreen capture
+//! to PNG/EXR. It knows nothing of the editor; WGSL lives in `shaders/`.
+
+pub mod capture;
+pub mod device;
+pub mod viewport;
+
+pub use capture::{CapturedFrame, write_exr, write_png};
+pub use device::{GpuContext, RenderError};
+pub use viewport::{CameraView, ViewportRenderer};

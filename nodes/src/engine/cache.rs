@@ -3,7 +3,7 @@
 
 use super::StageValue;
 use super::key::{Key, key_hex};
-use std::collections::HashMap;
+use rustc_hash::FxHashMap as HashMap;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -18,7 +18,7 @@ pub struct MemoryCache {
 
 impl MemoryCache {
     pub fn new(budget_bytes: usize) -> Self {
-        Self { budget: budget_bytes, used: 0, tick: 0, entries: HashMap::new() }
+        Self { budget: budget_bytes, used: 0, tick: 0, entries: HashMap::default() }
     }
 
     pub fn get(&mut self, key: Key) -> Option<Arc<StageValue>> {

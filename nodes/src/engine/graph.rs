@@ -77,6 +77,8 @@ pub struct Graph {
     /// Relative asset paths resolve against this directory.
     pub project_dir: PathBuf,
     order: Vec<usize>,
+    /// `(node, input port)` → index of the node feeding it.
+    feeds: HashMap<(String, String), usize>,
 }
 
 impl Graph {
@@ -192,7 +194,8 @@ impl Graph {
         }
         let mut links = valid_links;
         links.sort_by(|a, b| (&a.to_node, &a.to_port).cmp(&(&b.to_node, &b.to_port)));
-        Ok(Self { nodes: built, links, project_dir, order })
+        let feeds = links.iter().map(|l| ((l.to_node.clone(), l.to_port.clone()), ids[l.from_node.as_str()])).collect();
+        Ok(Self { nodes: built, links, project_dir, order, feeds })
     }
 
     pub fn node(&self, id: &str) -> Option<&GraphNode> {
@@ -206,7 +209,7 @@ impl Graph {
 
     /// The node feeding `port` of `node`, if connected.
     pub fn upstream(&self, node: &str, port: &str) -> Option<&GraphNode> {
-        self.links.iter().find(|l| l.to_node == node && l.to_port == port).and_then(|l| self.node(&l.from_node))
+        self.feeds.get(&(node.to_string(), port.to_string())).map(|&i| &self.nodes[i])
     }
 
     /// Sets a parameter after checking it against the kind's spec.

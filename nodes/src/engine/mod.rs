@@ -14,8 +14,9 @@ pub use key::Key;
 
 use crate::graph::{ParamValue, StageSpec};
 use cache::{DiskCache, DiskLookup, MemoryCache};
+use rustc_hash::FxHashMap as HashMap;
 use serde::{Deserialize, Serialize};
-use std::collections::{BTreeMap, HashMap};
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::Sender;
@@ -312,14 +313,15 @@ impl Default for EngineConfig {
 #[derive(Clone, Debug)]
 struct StageRecord {
     key: Key,
-    components: Vec<(String, u64)>,
+    components: Vec<(key::Component, u64)>,
 }
 
 /// The evaluation engine: caches and the memory of the previous keys (for "why" reports).
 pub struct Engine {
     memory: Mutex<MemoryCache>,
     disk: Option<DiskCache>,
-    last: Mutex<HashMap<(String, String), StageRecord>>,
+    /// Last successful key per `(node, stage)` (hashed), for "why" reports.
+    last: Mutex<HashMap<u64, StageRecord>>,
     /// Keys whose computation failed (deterministic failures are not retried).
     failures: Mutex<HashMap<Key, StageError>>,
     file_hashes: Mutex<HashMap<PathBuf, (std::time::SystemTime, u64, u64)>>,
@@ -332,7 +334,16 @@ struct Instance<'g> {
     /// Indices of the instances it reads, with the label they are read under.
     deps: Vec<(usize, DepLabel)>,
     key: Key,
-    components: Vec<(String, u64)>,
+    components: Vec<(key::Component, u64)>,
+}
+
+/// A hash of `(node id, stage name)` identifying a stage across evaluations.
+fn stage_slot(node: &str, stage: &str) -> u64 {
+    let mut h = xxhash_rust::xxh3::Xxh3::new();
+    h.update(node.as_bytes());
+    h.update(&[0]);
+    h.update(stage.as_bytes());
+    h.digest()
 }
 
 /// A finished instance: its value or error, how it was obtained, milliseconds, reasons.
@@ -349,9 +360,9 @@ impl Engine {
         Self {
             memory: Mutex::new(MemoryCache::new(config.memory_budget_bytes)),
             disk: config.disk_cache.map(DiskCache::new),
-            last: Mutex::new(HashMap::new()),
-            failures: Mutex::new(HashMap::new()),
-            file_hashes: Mutex::new(HashMap::new()),
+            last: Mutex::new(HashMap::default()),
+            failures: Mutex::new(HashMap::default()),
+            file_hashes: Mutex::new(HashMap::default()),
         }
     }
 
@@ -381,11 +392,23 @@ impl Engine {
             if ready.is_empty() {
                 break;
             }
-            use rayon::prelude::*;
-            let done: Vec<(usize, _)> = ready
-                .par_iter()
+            // Cache hits resolve inline; only real work goes to the thread pool.
+            let (cached, work): (Vec<usize>, Vec<usize>) = {
+                let memory = self.memory.lock().unwrap();
+                ready.iter().partition(|&&i| memory.contains(instances[i].key))
+            };
+            let mut done: Vec<(usize, _)> = cached
+                .iter()
                 .map(|&i| (i, self.run_instance(graph, &instances, i, &results, cancel, events)))
                 .collect();
+            if work.len() == 1 {
+                done.push((work[0], self.run_instance(graph, &instances, work[0], &results, cancel, events)));
+            } else {
+                use rayon::prelude::*;
+                done.par_extend(
+                    work.par_iter().map(|&i| (i, self.run_instance(graph, &instances, i, &results, cancel, events))),
+                );
+            }
             for (i, (outcome, note)) in done {
                 if let Some(n) = note {
                     notes.push(n);
@@ -394,14 +417,15 @@ impl Engine {
             }
         }
         let mut last = self.last.lock().unwrap();
-        let mut report = Report::default();
-        let mut out = HashMap::new();
+        let mut report = Report { stages: Vec::with_capacity(instances.len()), ..Default::default() };
+        let mut out = HashMap::with_capacity_and_hasher(instances.len(), Default::default());
         for (inst, result) in instances.iter().zip(results) {
             let (value, status, ms, reasons) = result.expect("every instance ran");
-            let id = (inst.node.id.clone(), inst.spec.name.to_string());
-            if value.is_ok() {
-                last.insert(id.clone(), StageRecord { key: inst.key, components: inst.components.clone() });
+            let slot = stage_slot(&inst.node.id, inst.spec.name);
+            if value.is_ok() && last.get(&slot).is_none_or(|r| r.key != inst.key) {
+                last.insert(slot, StageRecord { key: inst.key, components: inst.components.clone() });
             }
+            let id = (inst.node.id.clone(), inst.spec.name.to_string());
             report.stages.push(StageReport {
                 node: inst.node.id.clone(),
                 kind: inst.node.kind.name.to_string(),
@@ -425,29 +449,32 @@ impl Engine {
 
     /// Builds stage instances in topological order and computes their keys.
     fn schedule<'g>(&self, graph: &'g Graph) -> Vec<Instance<'g>> {
-        let mut instances: Vec<Instance<'g>> = Vec::new();
-        let mut index: HashMap<(&str, &str), usize> = HashMap::new();
+        let count: usize = graph.nodes.iter().map(|n| n.kind.stages.len()).sum();
+        let mut instances: Vec<Instance<'g>> = Vec::with_capacity(count);
+        let mut index: HashMap<(&str, &str), usize> = HashMap::with_capacity_and_hasher(count, Default::default());
+        let mut buffer = Vec::new();
         for node in graph.topological_order() {
             for spec in &node.kind.stages {
                 let mut builder = key::KeyBuilder::new(node.kind.name, spec.name, spec.version);
                 for &param in spec.params {
                     let value = &node.params[param];
-                    builder.add(format!("parameter `{param}`"), &self.param_bytes(graph, value));
+                    self.param_bytes(graph, value, &mut buffer);
+                    builder.add(key::Component::Param(param), &buffer);
                 }
                 let mut deps = Vec::new();
                 for &own in spec.stages {
                     let d = index[&(node.id.as_str(), own)];
-                    builder.add(format!("stage `{own}`"), &instances[d].key.to_le_bytes());
+                    builder.add(key::Component::Stage(own), &instances[d].key.to_le_bytes());
                     deps.push((d, DepLabel::Own(own)));
                 }
                 for &(port, stage) in spec.inputs {
                     match graph.upstream(&node.id, port) {
                         Some(up) => {
                             let d = index[&(up.id.as_str(), stage)];
-                            builder.add(format!("input `{port}.{stage}`"), &instances[d].key.to_le_bytes());
+                            builder.add(key::Component::Input(port, stage), &instances[d].key.to_le_bytes());
                             deps.push((d, DepLabel::Input(port, stage)));
                         }
-                        None => builder.add(format!("input `{port}.{stage}`"), b"unconnected"),
+                        None => builder.add(key::Component::Input(port, stage), b"unconnected"),
                     }
                 }
                 let (key, components) = builder.finish();
@@ -459,15 +486,16 @@ impl Engine {
     }
 
     /// Canonical bytes of a parameter value; file paths also hash the file's content.
-    fn param_bytes(&self, graph: &Graph, value: &ParamValue) -> Vec<u8> {
-        let mut bytes = postcard::to_stdvec(value).unwrap_or_default();
+    fn param_bytes(&self, graph: &Graph, value: &ParamValue, bytes: &mut Vec<u8>) {
+        bytes.clear();
+        let taken = std::mem::take(bytes);
+        *bytes = postcard::to_extend(value, taken).unwrap_or_default();
         if let ParamValue::Path(p) = value
             && !p.is_empty()
         {
             let path = graph.project_dir.join(p);
             bytes.extend_from_slice(&self.file_hash(&path).to_le_bytes());
         }
-        bytes
     }
 
     /// Content hash of a file, memoised on (mtime, size); 0 when unreadable.
@@ -546,14 +574,14 @@ impl Engine {
             }
         }
         if let Some(tx) = events {
-            let _ = tx.send(EvalEvent::StageStarted { node: node_id.clone(), stage: stage_name.clone() });
+            let _ = tx.send(EvalEvent::StageStarted { node: inst.node.id.clone(), stage: inst.spec.name.to_string() });
         }
         let mut ctx = StageContext {
             node_id: &inst.node.id,
             stage: inst.spec.name,
             params: inst.spec.params.iter().map(|p| (*p, &inst.node.params[*p])).collect(),
-            stages: HashMap::new(),
-            inputs: HashMap::new(),
+            stages: HashMap::default(),
+            inputs: HashMap::default(),
             project_dir: &graph.project_dir,
             cancel,
             events,
@@ -601,15 +629,15 @@ impl Engine {
     /// Why an instance must run, compared with the last successful evaluation of the same stage.
     fn reasons(&self, inst: &Instance) -> Vec<String> {
         let last = self.last.lock().unwrap();
-        match last.get(&(inst.node.id.clone(), inst.spec.name.to_string())) {
+        match last.get(&stage_slot(&inst.node.id, inst.spec.name)) {
             None => vec!["first evaluation".into()],
             Some(prev) if prev.key == inst.key => vec!["not in the memory cache".into()],
             Some(prev) => {
-                let old: HashMap<&str, u64> = prev.components.iter().map(|(l, h)| (l.as_str(), *h)).collect();
+                let old: HashMap<key::Component, u64> = prev.components.iter().copied().collect();
                 let changed: Vec<String> = inst
                     .components
                     .iter()
-                    .filter(|(label, hash)| old.get(label.as_str()) != Some(hash))
+                    .filter(|(label, hash)| old.get(label) != Some(hash))
                     .map(|(label, _)| format!("{label} changed"))
                     .collect();
                 if changed.is_empty() { vec!["stage definition changed".into()] } else { changed }

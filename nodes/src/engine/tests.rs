@@ -361,7 +361,7 @@ fn validation_names_nodes_ports_and_parameters() {
     let has =
         |needle: &str| assert!(text.iter().any(|t| t.contains(needle)), "no error containing {needle:?} in {text:#?}");
     has("node `mystery`: unknown node kind `Teapot`");
-    has("node `sky` parameter `exposure`: 1000000000 EV is outside -20..=20");
+    has("node `sky` parameter `exposure`: 1e9 EV is outside -20..=20");
     has("node `sky` parameter `colour`: EnvironmentMap has no such parameter");
     has("node `material` parameter `albedo`: expected Color, found Float");
     has("node `output` port `material`: expects Material, but `sky.environment` provides Environment");

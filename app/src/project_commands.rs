@@ -1,0 +1,354 @@
+//! `lightloom render | eval | replay | info`: the headless side of the editor.
+
+use anyhow::{Context, Result, anyhow, bail};
+use clap::Args;
+use indicatif::{ProgressBar, ProgressStyle};
+use lightloom_nodes::engine::{Engine, EngineConfig, EvalEvent, Evaluation, Graph, StageStatus};
+use lightloom_nodes::graph::Availability;
+use lightloom_nodes::kinds::output::{FrameInputs, find_output};
+use lightloom_nodes::project::Project;
+use lightloom_render::{CameraView, CapturedFrame, GpuContext, ViewportRenderer};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::Instant;
+
+/// Options shared by the commands that evaluate a project.
+#[derive(Args, Clone, Debug, Default)]
+pub struct EvalOptions {
+    /// Override a parameter: NODE.PARAM=VALUE (repeatable).
+    #[arg(long = "set", value_name = "NODE.PARAM=VALUE")]
+    pub overrides: Vec<String>,
+    /// Disk cache for expensive stages [default: $XDG_CACHE_HOME/lightloom or ~/.cache/lightloom].
+    #[arg(long, value_name = "DIR")]
+    pub cache_dir: Option<PathBuf>,
+    /// Do not read or write the disk cache.
+    #[arg(long)]
+    pub no_disk_cache: bool,
+    /// Print only errors.
+    #[arg(short, long)]
+    pub quiet: bool,
+}
+
+impl EvalOptions {
+    fn engine(&self) -> Engine {
+        let disk_cache = if self.no_disk_cache {
+            None
+        } else {
+            Some(self.cache_dir.clone().unwrap_or_else(lightloom_nodes::engine::cache::DiskCache::default_dir))
+        };
+        Engine::new(EngineConfig { disk_cache, ..Default::default() })
+    }
+}
+
+#[derive(Args, Debug)]
+pub struct RenderArgs {
+    /// Project file (.ron).
+    pub project: PathBuf,
+    /// Output image: .png (tone-mapped) or .exr (linear radiance).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    #[arg(long)]
+    pub width: Option<u32>,
+    #[arg(long)]
+    pub height: Option<u32>,
+    /// Camera name [default: the project's render camera].
+    #[arg(long)]
+    pub camera: Option<String>,
+    /// Output node id [default: the only Output node].
+    #[arg(long)]
+    pub output_node: Option<String>,
+    #[command(flatten)]
+    pub eval: EvalOptions,
+}
+
+#[derive(Args, Debug)]
+pub struct EvalArgs {
+    pub project: PathBuf,
+    /// Report format.
+    #[arg(long, default_value = "text", value_parser = ["text", "json"])]
+    pub report: String,
+    #[command(flatten)]
+    pub eval: EvalOptions,
+}
+
+#[derive(Args, Debug)]
+pub struct ReplayArgs {
+    /// Projects to replay [default: every projects/*.ron].
+    pub projects: Vec<PathBuf>,
+    /// Rewrite the golden images instead of comparing.
+    #[arg(long)]
+    pub update: bool,
+    /// Largest RMSE (sRGB, 0..1) accepted.
+    #[arg(long, default_value_t = 0.02)]
+    pub tolerance: f64,
+    #[command(flatten)]
+    pub eval: EvalOptions,
+}
+
+#[derive(Args, Debug)]
+pub struct InfoArgs {
+    pub project: PathBuf,
+}
+
+fn load(path: &Path, overrides: &[String]) -> Result<(Project, Graph)> {
+    let (project, graph) = Project::load_with_overrides(path, overrides)?;
+    let missing = project.missing_assets(&graph);
+    if let Some((node, param, file)) = missing.first() {
+        bail!("{}: node `{node}` parameter `{param}`: asset {} does not exist", path.display(), file.display());
+    }
+    Ok((project, graph))
+}
+
+/// Evaluates on a background thread, driving a progress bar from its events.
+fn evaluate(engine: Arc<Engine>, graph: &Graph, quiet: bool) -> Evaluation {
+    let job = engine.spawn(graph.clone());
+    let bar = if quiet { ProgressBar::hidden() } else { ProgressBar::new(0) };
+    bar.set_style(
+        ProgressStyle::with_template("{spinner} evaluating [{bar:30}] {pos}/{len} {msg}")
+            .unwrap()
+            .progress_chars("=> "),
+    );
+    for event in job.events.iter() {
+        match event {
+            EvalEvent::Started { stages } => bar.set_length(stages as u64),
+            EvalEvent::StageStarted { node, stage } => bar.set_message(format!("{node}.{stage}")),
+            EvalEvent::StageFinished { .. } => bar.inc(1),
+            EvalEvent::Finished => break,
+            EvalEvent::StageProgress { .. } => bar.tick(),
+        }
+    }
+    bar.finish_and_clear();
+    job.wait()
+}
+
+fn fail_on_errors(evaluation: &Evaluation, needed: &[String]) -> Result<()> {
+    for s in evaluation.report.failed() {
+        if needed.contains(&s.node) {
+            bail!("{}.{}: {}", s.node, s.stage, s.error.as_deref().unwrap_or("failed"));
+        }
+    }
+    Ok(())
+}
+
+/// Nodes the output depends on (transitively).
+fn upstream_of(graph: &Graph, node: &str) -> Vec<String> {
+    let mut out = vec![node.to_string()];
+    let mut i = 0;
+    while i < out.len() {
+        let current = out[i].clone();
+        for l in graph.links.iter().filter(|l| l.to_node == current) {
+            if !out.contains(&l.from_node) {
+                out.push(l.from_node.clone());
+            }
+        }
+        i += 1;
+    }
+    out
+}
+
+/// Evaluates and renders a loaded project.
+pub fn render_project(
+    project: &Project,
+    graph: &Graph,
+    engine: Arc<Engine>,
+    camera: Option<&str>,
+    output_node: Option<&str>,
+    size: (Option<u32>, Option<u32>),
+    quiet: bool,
+) -> Result<(CapturedFrame, f64, f64)> {
+    let output_name = output_node.or(Some(project.render.output.as_str()).filter(|s| !s.is_empty()));
+    let output = find_output(graph, output_name).map_err(|e| anyhow!(e))?;
+    let camera = project.camera(camera).map_err(|e| anyhow!(e))?;
+    let start = Instant::now();
+    let evaluation = evaluate(engine, graph, quiet);
+    let eval_ms = start.elapsed().as_secs_f64() * 1e3;
+    fail_on_errors(&evaluation, &upstream_of(graph, &output.id))?;
+    let frame = FrameInputs::gather(&evaluation, graph, &output.id).map_err(|e| anyhow!(e))?;
+    if !quiet {
+        for note in &frame.ignored_inputs {
+            eprintln!("note: output `{}`: {note}", output.id);
+        }
+    }
+    let (width, height) = (size.0.unwrap_or(project.render.width), size.1.unwrap_or(project.render.height));
+    let start = Instant::now();
+    let gpu = GpuContext::headless()?;
+    let mut renderer = ViewportRenderer::new(&gpu);
+    let captured = renderer.render_offscreen(&gpu, &frame, &CameraView::from_project(&camera), width, height)?;
+    Ok((captured, eval_ms, start.elapsed().as_secs_f64() * 1e3))
+}
+
+pub fn write_image(frame: &CapturedFrame, path: &Path) -> Result<()> {
+    match path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()).as_deref() {
+        Some("png") => lightloom_render::write_png(frame, path).map_err(|e| anyhow!(e)),
+        Some("exr") => lightloom_render::write_exr(frame, path).map_err(|e| anyhow!(e)),
+        _ => bail!("{}: the output must end in .png (tone-mapped) or .exr (linear radiance)", path.display()),
+    }
+}
+
+pub fn render(args: &RenderArgs) -> Result<()> {
+    if !matches!(args.output.extension().and_then(|e| e.to_str()), Some("png" | "exr" | "PNG" | "EXR")) {
+        bail!("{}: the output must end in .png (tone-mapped) or .exr (linear radiance)", args.output.display());
+    }
+    let (project, graph) = load(&args.project, &args.eval.overrides)?;
+    let engine = Arc::new(args.eval.engine());
+    let (frame, eval_ms, render_ms) = render_project(
+        &project,
+        &graph,
+        engine,
+        args.camera.as_deref(),
+        args.output_node.as_deref(),
+        (args.width, args.height),
+        args.eval.quiet,
+    )?;
+    write_image(&frame, &args.output)?;
+    if !args.eval.quiet {
+        println!(
+            "{} -> {} ({}x{}; evaluation {eval_ms:.0} ms, render {render_ms:.0} ms)",
+            args.project.display(),
+            args.output.display(),
+            frame.width,
+            frame.height
+        );
+    }
+    Ok(())
+}
+
+pub fn eval(args: &EvalArgs) -> Result<()> {
+    let (_, base) = load(&args.project, &[])?;
+    let (_, changed) = load(&args.project, &args.eval.overrides)?;
+    let engine = Arc::new(args.eval.engine());
+    let initial = evaluate(engine.clone(), &base, true);
+    let after = evaluate(engine, &changed, true);
+    if args.report == "json" {
+        let json = serde_json::json!({
+            "project": args.project.display().to_string(),
+            "overrides": args.eval.overrides,
+            "initial": initial.report,
+            "after_overrides": after.report,
+            "recomputed": after.report.computed().iter().map(|(n, s)| format!("{n}.{s}")).collect::<Vec<_>>(),
+        });
+        println!("{}", serde_json::to_string_pretty(&json)?);
+    } else {
+        println!("initial evaluation: {} stages, {:.1} ms", initial.report.stages.len(), initial.report.total_ms);
+        println!("after {:?}: {:.1} ms", args.eval.overrides, after.report.total_ms);
+        for s in &after.report.stages {
+            let status = match s.status {
+                StageStatus::Computed => "computed",
+                StageStatus::MemoryHit => "cached",
+                StageStatus::DiskHit => "disk cache",
+                StageStatus::Failed => "FAILED",
+                StageStatus::KnownFailure => "FAILED (known)",
+                StageStatus::Blocked => "blocked",
+                StageStatus::Cancelled => "cancelled",
+            };
+            let why = if s.reasons.is_empty() { String::new() } else { format!(" — {}", s.reasons.join("; ")) };
+            let err = s.error.as_deref().map(|e| format!(" [{e}]")).unwrap_or_default();
+            println!("  {:<24} {:<14} {:>8.2} ms{why}{err}", format!("{}.{}", s.node, s.stage), status, s.ms);
+        }
+    }
+    Ok(())
+}
+
+/// Golden image of a project: `goldens/<stem>.png` beside it.
+pub fn golden_path(project: &Path) -> PathBuf {
+    let stem = project.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_default();
+    project.parent().unwrap_or(Path::new(".")).join("goldens").join(format!("{stem}.png"))
+}
+
+/// RMSE and PSNR between two RGB8 images (values scaled to 0..1).
+pub fn compare(a: &image::RgbImage, b: &image::RgbImage) -> Result<(f64, f64)> {
+    if a.dimensions() != b.dimensions() {
+        bail!("size {:?} differs from the golden's {:?}", a.dimensions(), b.dimensions());
+    }
+    let n = (a.width() * a.height() * 3) as f64;
+    let sse: f64 = a.as_raw().iter().zip(b.as_raw()).map(|(x, y)| ((*x as f64 - *y as f64) / 255.0).powi(2)).sum();
+    let rmse = (sse / n).sqrt();
+    let psnr = if rmse == 0.0 { f64::INFINITY } else { 20.0 * (1.0 / rmse).log10() };
+    Ok((rmse, psnr))
+}
+
+pub fn replay(args: &ReplayArgs) -> Result<bool> {
+    let projects = if args.projects.is_empty() {
+        let mut found: Vec<PathBuf> = std::fs::read_dir("projects")
+            .context("no projects given and no projects/ folder here")?
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| p.extension().is_some_and(|e| e == "ron"))
+            .collect();
+        found.sort();
+        found
+    } else {
+        args.projects.clone()
+    };
+    let mut ok = true;
+    for path in &projects {
+        let (project, graph) = load(path, &args.eval.overrides)?;
+        let (frame, ..) =
+            render_project(&project, &graph, Arc::new(args.eval.engine()), None, None, (None, None), true)?;
+        let golden = golden_path(path);
+        let rendered = image::RgbImage::from_raw(
+            frame.width,
+            frame.height,
+            frame.ldr.iter().flat_map(|p| [p[0], p[1], p[2]]).collect(),
+        )
+        .ok_or_else(|| anyhow!("frame size mismatch"))?;
+        if args.update {
+            std::fs::create_dir_all(golden.parent().unwrap())?;
+            write_image(&frame, &golden)?;
+            println!("{}: golden written to {}", path.display(), golden.display());
+            continue;
+        }
+        let expected = image::open(&golden)
+            .with_context(|| {
+                format!("{}: no golden image at {} (run with --update to create it)", path.display(), golden.display())
+            })?
+            .into_rgb8();
+        let (rmse, psnr) = compare(&rendered, &expected).with_context(|| path.display().to_string())?;
+        let pass = rmse <= args.tolerance;
+        ok &= pass;
+        println!(
+            "{}: RMSE {rmse:.5}, PSNR {psnr:.1} dB (tolerance RMSE {}) {}",
+            path.display(),
+            args.tolerance,
+            if pass { "ok" } else { "REGRESSION" }
+        );
+        if !pass {
+            let failed = path.with_extension("replay-failed.png");
+            let _ = write_image(&frame, &failed);
+            println!("  rendered image kept at {}", failed.display());
+        }
+    }
+    Ok(ok)
+}
+
+pub fn info(args: &InfoArgs) -> Result<()> {
+    let (project, graph) = load(&args.project, &[])?;
+    println!("{}: `{}`, version {}", args.project.display(), project.name, project.version);
+    println!(
+        "render {}x{}, cameras: {}",
+        project.render.width,
+        project.render.height,
+        project.cameras.iter().map(|c| c.name.as_str()).collect::<Vec<_>>().join(", ")
+    );
+    println!("nodes:");
+    for node in &project.nodes {
+        let kind = lightloom_nodes::kinds::kind(&node.kind).expect("validated");
+        let status = match kind.availability {
+            Availability::Ready => String::new(),
+            Availability::Planned(when) => format!("  (technique not available yet: {when})"),
+        };
+        println!("  {:<12} {:<18} {} parameter(s) set{status}", node.id, node.kind, node.params.len());
+    }
+    println!("links:");
+    for link in &graph.links {
+        println!("  {}.{} -> {}.{}", link.from_node, link.from_port, link.to_node, link.to_port);
+    }
+    let linked: Vec<&str> = graph.links.iter().flat_map(|l| [l.from_node.as_str(), l.to_node.as_str()]).collect();
+    for node in &graph.nodes {
+        if !linked.contains(&node.id.as_str()) && graph.nodes.len() > 1 {
+            println!("warning: node `{}` is not connected to anything", node.id);
+        }
+    }
+    find_output(&graph, None).map_err(|e| anyhow!(e))?;
+    println!("valid");
+    Ok(())
+}

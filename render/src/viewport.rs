@@ -1,0 +1,584 @@
+//! The viewport renderer: environment background, lit meshes, tone mapping. Used by the
+//! editor's viewport and by `lightloom render` alike. GPU resources are re-uploaded only when
+//! the key of the stage they come from changes.
+
+use crate::capture::{CapturedFrame, read_texture};
+use crate::{GpuContext, RenderError};
+use glam::{Mat4, Vec3};
+use lightloom_nodes::engine::{Key, StageValue};
+use lightloom_nodes::kinds::output::FrameInputs;
+use lightloom_nodes::project::Camera;
+use wgpu::util::DeviceExt;
+
+const HDR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Float;
+const LDR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
+const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+/// Irradiance bands evaluated per pixel (`Â_l` is 0 for odd `l > 1` and `|Â_6| < 0.016 Â_0`).
+const MAX_SHADER_BANDS: usize = 5;
+
+/// A perspective camera.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CameraView {
+    pub position: Vec3,
+    pub target: Vec3,
+    pub fov_y_deg: f32,
+}
+
+impl CameraView {
+    pub fn from_project(camera: &Camera) -> Self {
+        Self {
+            position: glam::DVec3::from(camera.position).as_vec3(),
+            target: glam::DVec3::from(camera.target).as_vec3(),
+            fov_y_deg: camera.fov_y_deg as f32,
+        }
+    }
+
+    /// View-projection for an aspect ratio, with clip planes fitted to the scene bounds.
+    pub fn view_proj(&self, aspect: f32, bounds: ([f32; 3], [f32; 3])) -> Mat4 {
+        let (lo, hi) = (Vec3::from(bounds.0), Vec3::from(bounds.1));
+        let radius = if lo.x <= hi.x { (hi - lo).length() * 0.5 } else { 1.0 };
+        let centre = if lo.x <= hi.x { (hi + lo) * 0.5 } else { Vec3::ZERO };
+        let far = (self.position - centre).length() + radius * 2.0 + 1.0;
+        let near = (far / 5000.0).max(0.001);
+        // wgpu clip space: right-handed view, depth in [0, 1], NDC y up (the "directx" form).
+        let proj = glam::camera::rh::proj::directx::perspective(self.fov_y_deg.to_radians(), aspect, near, far);
+        proj * glam::camera::rh::view::look_at_mat4(self.position, self.target, Vec3::Y)
+    }
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct Globals {
+    view_proj: [[f32; 4]; 4],
+    inv_view_proj: [[f32; 4]; 4],
+    camera_pos: [f32; 4],
+    flags: [f32; 4],
+    albedo: [f32; 4],
+    irradiance: [[f32; 4]; MAX_SHADER_BANDS * MAX_SHADER_BANDS],
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct Vertex {
+    position: [f32; 3],
+    normal: [f32; 3],
+    color: [f32; 3],
+}
+
+struct MeshBuffers {
+    key: Key,
+    vertices: wgpu::Buffer,
+    indices: wgpu::Buffer,
+    index_count: u32,
+    bounds: ([f32; 3], [f32; 3]),
+}
+
+struct Targets {
+    width: u32,
+    height: u32,
+    msaa: Option<wgpu::TextureView>,
+    hdr: wgpu::Texture,
+    hdr_view: wgpu::TextureView,
+    depth: wgpu::TextureView,
+    ldr: wgpu::Texture,
+    ldr_view: wgpu::TextureView,
+    tone_bind_group: wgpu::BindGroup,
+}
+
+/// Draws frames into its own offscreen targets.
+pub struct ViewportRenderer {
+    layout: wgpu::BindGroupLayout,
+    tone_layout: wgpu::BindGroupLayout,
+    mesh_pipeline: wgpu::RenderPipeline,
+    background_pipeline: wgpu::RenderPipeline,
+    tone_pipeline: wgpu::RenderPipeline,
+    globals: wgpu::Buffer,
+    tone_params: wgpu::Buffer,
+    sampler: wgpu::Sampler,
+    environment: (wgpu::TextureView, Option<Key>),
+    bind_group: wgpu::BindGroup,
+    mesh: Option<MeshBuffers>,
+    targets: Option<Targets>,
+    sample_count: u32,
+}
+
+impl ViewportRenderer {
+    pub fn new(ctx: &GpuContext) -> Self {
+        let device = &ctx.device;
+        let sample_count =
+            if ctx.adapter.get_texture_format_features(HDR_FORMAT).flags.sample_count_supported(4) { 4 } else { 1 };
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("viewport"),
+            entries: &[
+                wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Uniform,
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 1,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Float { filterable: true },
+                        view_dimension: wgpu::TextureViewDimension::Cube,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 2,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
+                    count: None,
+                },
+            ],
+        });
+        let tone_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("tonemap"),
+            entries: &[
+                wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 1,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Uniform,
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                    count: None,
+                },
+            ],
+        });
+        let common = include_str!("../../shaders/common.wgsl");
+        let module = |label: &str, source: &str| {
+            device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some(label),
+                source: wgpu::ShaderSource::Wgsl(format!("{common}\n{source}").into()),
+            })
+        };
+        let mesh_module = module("mesh.wgsl", include_str!("../../shaders/mesh.wgsl"));
+        let background_module = module("background.wgsl", include_str!("../../shaders/background.wgsl"));
+        let tone_module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("tonemap.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(include_str!("../../shaders/tonemap.wgsl").into()),
+        });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("viewport"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let multisample = wgpu::MultisampleState { count: sample_count, ..Default::default() };
+        let depth = |write: bool, compare| {
+            Some(wgpu::DepthStencilState {
+                format: DEPTH_FORMAT,
+                depth_write_enabled: Some(write),
+                depth_compare: Some(compare),
+                stencil: Default::default(),
+                bias: Default::default(),
+            })
+        };
+        let vertex_attributes = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x3];
+        let mesh_pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("mesh"),
+            layout: Some(&pipeline_layout),
+            vertex: wgpu::VertexState {
+                module: &mesh_module,
+                entry_point: Some("vs_main"),
+                compilation_options: Default::default(),
+                buffers: &[Some(wgpu::VertexBufferLayout {
+                    array_stride: std::mem::size_of::<Vertex>() as u64,
+                    step_mode: wgpu::VertexStepMode::Vertex,
+                    attributes: &vertex_attributes,
+                })],
+            },
+            primitive: wgpu::PrimitiveState { cull_mode: None, ..Default::default() },
+            depth_stencil: depth(true, wgpu::CompareFunction::Less),
+            multisample,
+            fragment: Some(wgpu::FragmentState {
+                module: &mesh_module,
+                entry_point: Some("fs_main"),
+                compilation_options: Default::default(),
+                targets: &[Some(HDR_FORMAT.into())],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+        let background_pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("background"),
+            layout: Some(&pipeline_layout),
+            vertex: wgpu::VertexState {
+                module: &background_module,
+                entry_point: Some("vs_main"),
+                compilation_options: Default::default(),
+                buffers: &[],
+            },
+            primitive: Default::default(),
+            depth_stencil: depth(false, wgpu::CompareFunction::Always),
+            multisample,
+            fragment: Some(wgpu::FragmentState {
+                module: &background_module,
+                entry_point: Some("fs_main"),
+                compilation_options: Default::default(),
+                targets: &[Some(HDR_FORMAT.into())],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+        let tone_pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("tonemap"),
+            bind_group_layouts: &[Some(&tone_layout)],
+            immediate_size: 0,
+        });
+        let tone_pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("tonemap"),
+            layout: Some(&tone_pipeline_layout),
+            vertex: wgpu::VertexState {
+                module: &tone_module,
+                entry_point: Some("vs_main"),
+                compilation_options: Default::default(),
+                buffers: &[],
+            },
+            primitive: Default::default(),
+            depth_stencil: None,
+            multisample: Default::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &tone_module,
+                entry_point: Some("fs_main"),
+                compilation_options: Default::default(),
+                targets: &[Some(LDR_FORMAT.into())],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+        let globals = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("globals"),
+            size: std::mem::size_of::<Globals>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let tone_params = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("tone"),
+            size: 16,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
+            label: Some("environment"),
+            mag_filter: wgpu::FilterMode::Linear,
+            min_filter: wgpu::FilterMode::Linear,
+            ..Default::default()
+        });
+        let black = upload_cube(ctx, 1, &[[0.0; 3]; 6]);
+        let bind_group = make_bind_group(device, &layout, &globals, &black, &sampler);
+        Self {
+            layout,
+            tone_layout,
+            mesh_pipeline,
+            background_pipeline,
+            tone_pipeline,
+            globals,
+            tone_params,
+            sampler,
+            environment: (black, None),
+            bind_group,
+            mesh: None,
+            targets: None,
+            sample_count,
+        }
+    }
+
+    /// Uploads what changed and draws the frame into the offscreen targets.
+    pub fn render(
+        &mut self,
+        ctx: &GpuContext,
+        frame: &FrameInputs,
+        camera: &CameraView,
+        width: u32,
+        height: u32,
+    ) -> Result<(), RenderError> {
+        if width == 0 || height == 0 || width > 16384 || height > 16384 {
+            return Err(RenderError::Invalid(format!("render size {width}x{height} must be within 1..=16384")));
+        }
+        self.upload_meshes(ctx, frame)?;
+        self.upload_environment(ctx, frame)?;
+        self.ensure_targets(ctx, width, height);
+        let bounds = self.mesh.as_ref().map_or(([0.0; 3], [0.0; 3]), |m| m.bounds);
+        let view_proj = camera.view_proj(width as f32 / height as f32, bounds);
+        let mut globals = Globals {
+            view_proj: view_proj.to_cols_array_2d(),
+            inv_view_proj: view_proj.inverse().to_cols_array_2d(),
+            camera_pos: camera.position.extend(1.0).to_array(),
+            flags: [0.0, if frame.settings.background { 1.0 } else { 0.0 }, 0.0, 0.0],
+            albedo: [
+                frame.material.albedo[0] as f32,
+                frame.material.albedo[1] as f32,
+                frame.material.albedo[2] as f32,
+                1.0,
+            ],
+            irradiance: [[0.0; 4]; MAX_SHADER_BANDS * MAX_SHADER_BANDS],
+        };
+        if let Some(sh) = &frame.sh {
+            let StageValue::Sh(radiance) = sh.value.as_ref() else {
+                return Err(RenderError::Invalid("environment SH stage holds no SH".into()));
+            };
+            let irradiance = radiance.irradiance();
+            let bands = irradiance.bands.min(MAX_SHADER_BANDS);
+            globals.flags[0] = bands as f32;
+            for (dst, src) in globals.irradiance.iter_mut().zip(&irradiance.coeffs[..bands * bands]) {
+                *dst = [src[0] as f32, src[1] as f32, src[2] as f32, 0.0];
+            }
+        }
+        let tonemap = match frame.settings.tonemap.as_str() {
+            "aces" => 0.0,
+            "reinhard" => 1.0,
+            _ => 2.0,
+        };
+        ctx.queue.write_buffer(&self.globals, 0, bytemuck::bytes_of(&globals));
+        ctx.queue.write_buffer(
+            &self.tone_params,
+            0,
+            bytemuck::cast_slice(&[2f32.powf(frame.settings.exposure as f32), tonemap, 0.0, 0.0]),
+        );
+
+        let targets = self.targets.as_ref().unwrap();
+        let mut encoder =
+            ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("viewport") });
+        {
+            let (view, resolve) = match &targets.msaa {
+                Some(msaa) => (msaa, Some(&targets.hdr_view)),
+                None => (&targets.hdr_view, None),
+            };
+            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("scene"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view,
+                    depth_slice: None,
+                    resolve_target: resolve,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
+                        store: wgpu::StoreOp::Store,
+                    },
+                })],
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: &targets.depth,
+                    depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(1.0), store: wgpu::StoreOp::Discard }),
+                    stencil_ops: None,
+                }),
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            pass.set_bind_group(0, &self.bind_group, &[]);
+            pass.set_pipeline(&self.background_pipeline);
+            pass.draw(0..3, 0..1);
+            if let Some(mesh) = &self.mesh {
+                pass.set_pipeline(&self.mesh_pipeline);
+                pass.set_vertex_buffer(0, mesh.vertices.slice(..));
+                pass.set_index_buffer(mesh.indices.slice(..), wgpu::IndexFormat::Uint32);
+                pass.draw_indexed(0..mesh.index_count, 0, 0..1);
+            }
+        }
+        {
+            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("tonemap"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: &targets.ldr_view,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
+                        store: wgpu::StoreOp::Store,
+                    },
+                })],
+                depth_stencil_attachment: None,
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            pass.set_pipeline(&self.tone_pipeline);
+            pass.set_bind_group(0, &targets.tone_bind_group, &[]);
+            pass.draw(0..3, 0..1);
+        }
+        ctx.queue.submit(Some(encoder.finish()));
+        Ok(())
+    }
+
+    /// The tone-mapped target (for display in the editor).
+    pub fn ldr_view(&self) -> Option<&wgpu::TextureView> {
+        self.targets.as_ref().map(|t| &t.ldr_view)
+    }
+
+    /// Reads the last rendered frame back to the CPU.
+    pub fn capture(&self, ctx: &GpuContext) -> Result<CapturedFrame, RenderError> {
+        let targets = self.targets.as_ref().ok_or_else(|| RenderError::Invalid("nothing rendered yet".into()))?;
+        let hdr_bytes = read_texture(&ctx.device, &ctx.queue, &targets.hdr, 8)?;
+        let ldr_bytes = read_texture(&ctx.device, &ctx.queue, &targets.ldr, 4)?;
+        let halves: &[half::f16] = bytemuck::cast_slice(&hdr_bytes);
+        let hdr = halves.chunks(4).map(|p| [p[0].to_f32(), p[1].to_f32(), p[2].to_f32(), p[3].to_f32()]).collect();
+        let ldr = ldr_bytes.chunks(4).map(|p| [p[0], p[1], p[2], p[3]]).collect();
+        Ok(CapturedFrame { width: targets.width, height: targets.height, hdr, ldr })
+    }
+
+    /// Renders and reads back in one call (headless rendering).
+    pub fn render_offscreen(
+        &mut self,
+        ctx: &GpuContext,
+        frame: &FrameInputs,
+        camera: &CameraView,
+        width: u32,
+        height: u32,
+    ) -> Result<CapturedFrame, RenderError> {
+        self.render(ctx, frame, camera, width, height)?;
+        self.capture(ctx)
+    }
+
+    fn upload_meshes(&mut self, ctx: &GpuContext, frame: &FrameInputs) -> Result<(), RenderError> {
+        if self.mesh.as_ref().is_some_and(|m| m.key == frame.meshes.key) {
+            return Ok(());
+        }
+        let StageValue::Meshes(set) = frame.meshes.value.as_ref() else {
+            return Err(RenderError::Invalid("scene geometry stage holds no meshes".into()));
+        };
+        let mut vertices = Vec::new();
+        let mut indices = Vec::new();
+        for mesh in &set.meshes {
+            let base = vertices.len() as u32;
+            for i in 0..mesh.positions.len() {
+                vertices.push(Vertex { position: mesh.positions[i], normal: mesh.normals[i], color: mesh.base_color });
+            }
+            indices.extend(mesh.indices.iter().map(|i| i + base));
+        }
+        if indices.is_empty() {
+            self.mesh = None;
+            return Ok(());
+        }
+        let vertices = ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("vertices"),
+            contents: bytemuck::cast_slice(&vertices),
+            usage: wgpu::BufferUsages::VERTEX,
+        });
+        let index_count = indices.len() as u32;
+        let indices = ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("indices"),
+            contents: bytemuck::cast_slice(&indices),
+            usage: wgpu::BufferUsages::INDEX,
+        });
+        self.mesh = Some(MeshBuffers { key: frame.meshes.key, vertices, indices, index_count, bounds: set.bounds() });
+        Ok(())
+    }
+
+    fn upload_environment(&mut self, ctx: &GpuContext, frame: &FrameInputs) -> Result<(), RenderError> {
+        let key = frame.radiance.as_ref().map(|r| r.key);
+        if self.environment.1 == key {
+            return Ok(());
+        }
+        let view = match &frame.radiance {
+            Some(r) => {
+                let StageValue::CubeMap(cube) = r.value.as_ref() else {
+                    return Err(RenderError::Invalid("environment radiance stage holds no cube map".into()));
+                };
+                upload_cube(ctx, cube.size as u32, &cube.texels)
+            }
+            None => upload_cube(ctx, 1, &[[0.0; 3]; 6]),
+        };
+        self.bind_group = make_bind_group(&ctx.device, &self.layout, &self.globals, &view, &self.sampler);
+        self.environment = (view, key);
+        Ok(())
+    }
+
+    fn ensure_targets(&mut self, ctx: &GpuContext, width: u32, height: u32) {
+        if self.targets.as_ref().is_some_and(|t| t.width == width && t.height == height) {
+            return;
+        }
+        let device = &ctx.device;
+        let size = wgpu::Extent3d { width, height, depth_or_array_layers: 1 };
+        let texture = |label, format, usage, samples| {
+            device.create_texture(&wgpu::TextureDescriptor {
+                label: Some(label),
+                size,
+                mip_level_count: 1,
+                sample_count: samples,
+                dimension: wgpu::TextureDimension::D2,
+                format,
+                usage,
+                view_formats: &[],
+            })
+        };
+        use wgpu::TextureUsages as U;
+        let msaa = (self.sample_count > 1).then(|| {
+            texture("hdr-msaa", HDR_FORMAT, U::RENDER_ATTACHMENT, self.sample_count).create_view(&Default::default())
+        });
+        let hdr = texture("hdr", HDR_FORMAT, U::RENDER_ATTACHMENT | U::TEXTURE_BINDING | U::COPY_SRC, 1);
+        let hdr_view = hdr.create_view(&Default::default());
+        let depth =
+            texture("depth", DEPTH_FORMAT, U::RENDER_ATTACHMENT, self.sample_count).create_view(&Default::default());
+        let ldr = texture("ldr", LDR_FORMAT, U::RENDER_ATTACHMENT | U::TEXTURE_BINDING | U::COPY_SRC, 1);
+        let ldr_view = ldr.create_view(&Default::default());
+        let tone_bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("tonemap"),
+            layout: &self.tone_layout,
+            entries: &[
+                wgpu::BindGroupEntry { binding: 0, resource: wgpu::BindingResource::TextureView(&hdr_view) },
+                wgpu::BindGroupEntry { binding: 1, resource: self.tone_params.as_entire_binding() },
+            ],
+        });
+        self.targets = Some(Targets { width, height, msaa, hdr, hdr_view, depth, ldr, ldr_view, tone_bind_group });
+    }
+}
+
+fn make_bind_group(
+    device: &wgpu::Device,
+    layout: &wgpu::BindGroupLayout,
+    globals: &wgpu::Buffer,
+    environment: &wgpu::TextureView,
+    sampler: &wgpu::Sampler,
+) -> wgpu::BindGroup {
+    device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("viewport"),
+        layout,
+        entries: &[
+            wgpu::BindGroupEntry { binding: 0, resource: globals.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::TextureView(environment) },
+            wgpu::BindGroupEntry { binding: 2, resource: wgpu::BindingResource::Sampler(sampler) },
+        ],
+    })
+}
+
+/// Uploads six `size²` faces (Vulkan order) as a half-float cube texture.
+fn upload_cube(ctx: &GpuContext, size: u32, texels: &[[f32; 3]]) -> wgpu::TextureView {
+    let data: Vec<half::f16> =
+        texels.iter().flat_map(|t| [t[0], t[1], t[2], 1.0]).map(|v| half::f16::from_f32(v.min(65000.0))).collect();
+    let texture = ctx.device.create_texture_with_data(
+        &ctx.queue,
+        &wgpu::TextureDescriptor {
+            label: Some("environment"),
+            size: wgpu::Extent3d { width: size, height: size, depth_or_array_layers: 6 },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: HDR_FORMAT,
+            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+            view_formats: &[],
+        },
+        wgpu::util::TextureDataOrder::LayerMajor,
+        bytemuck::cast_slice(&data),
+    );
+    texture.create_view(&wgpu::TextureViewDescriptor {
+        dimension: Some(wgpu::TextureViewDimension::Cube),
+        ..Default::default()
+    })
+}

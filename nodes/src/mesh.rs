@@ -81,6 +81,37 @@ impl Mesh {
     }
 }
 
+/// Per-vertex unit tangents: from the UV parameterisation where it is usable (Lengyel's
+/// method, accumulated over adjacent triangles), else any vector orthogonal to the normal.
+pub fn vertex_tangents(mesh: &Mesh) -> Vec<[f32; 3]> {
+    let mut acc = vec![DVec3::ZERO; mesh.positions.len()];
+    if mesh.uvs.len() == mesh.positions.len() {
+        for t in mesh.indices.chunks_exact(3) {
+            let p = |i: u32| DVec3::from(mesh.positions[i as usize].map(f64::from));
+            let uv = |i: u32| mesh.uvs[i as usize].map(f64::from);
+            let (e1, e2) = (p(t[1]) - p(t[0]), p(t[2]) - p(t[0]));
+            let (a, b, c) = (uv(t[0]), uv(t[1]), uv(t[2]));
+            let (du1, dv1, du2, dv2) = (b[0] - a[0], b[1] - a[1], c[0] - a[0], c[1] - a[1]);
+            let det = du1 * dv2 - du2 * dv1;
+            if det.abs() < 1e-20 {
+                continue;
+            }
+            let tangent = (e1 * dv2 - e2 * dv1) / det;
+            for &i in t {
+                acc[i as usize] += tangent;
+            }
+        }
+    }
+    acc.iter()
+        .zip(&mesh.normals)
+        .map(|(t, n)| {
+            let n = DVec3::from(n.map(f64::from)).normalize_or(DVec3::Y);
+            let t = (*t - n * n.dot(*t)).try_normalize().unwrap_or_else(|| n.any_orthonormal_vector());
+            t.as_vec3().to_array()
+        })
+        .collect()
+}
+
 /// All meshes of a scene.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct MeshSet {

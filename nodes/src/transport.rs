@@ -1,0 +1,383 @@
+//! Visibility precompute at receiver points (PRT, Sun 2008 eqs. 2.26–2.28): binary visibility
+//! `V(x, ω)` and shadowed cosine transfer `T(x, ω) = V(x, ω) max(n·ω, 0)` projected to
+//! - SH (global frame),
+//! - cube-map Haar (global frame, Ng et al. 2003/2004),
+//! - icosahedral spherical Haar in the receiver's local frame (Ma et al. §3.1, eq. 7).
+//!
+//! Directions below a receiver's tangent plane (`n·ω ≤ 0`) are occluded by the receiver's own
+//! surface by definition (the usual PRT convention: it holds for closed objects and planes
+//! alike, halves the rays, and avoids rays grazing the receiver's own vertex, where
+//! Möller–Trumbore is not watertight). The others leave the surface with
+//! [`RayScene::leave_surface`].
+
+use crate::cubemap::{self, FACES};
+use crate::engine::{CancelToken, StageError};
+use crate::mesh::MeshSet;
+use crate::raycast::RayScene;
+use crate::sh::{self, ShBasis};
+use crate::wavelet::SparseVector;
+use crate::wavelet::cube_haar::CubeHaar;
+use crate::wavelet::spherical::SphericalHaar;
+use glam::{DMat3, DVec3};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+use std::f64::consts::PI;
+
+/// Receiver points: every mesh vertex, in mesh order, with a local frame.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Receivers {
+    pub positions: Vec<[f32; 3]>,
+    pub normals: Vec<[f32; 3]>,
+    /// Unit tangents orthogonal to the normal (from UVs where present).
+    pub tangents: Vec<[f32; 3]>,
+    /// First receiver of each mesh.
+    pub mesh_offsets: Vec<usize>,
+}
+
+impl Receivers {
+    pub fn from_meshes(meshes: &MeshSet) -> Self {
+        let mut r = Receivers::default();
+        for mesh in &meshes.meshes {
+            r.mesh_offsets.push(r.positions.len());
+            let tangents = crate::mesh::vertex_tangents(mesh);
+            r.positions.extend_from_slice(&mesh.positions);
+            r.normals.extend_from_slice(&mesh.normals);
+            r.tangents.extend(tangents);
+        }
+        r
+    }
+
+    pub fn len(&self) -> usize {
+        self.positions.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.positions.is_empty()
+    }
+
+    fn point(&self, i: usize) -> (DVec3, DVec3) {
+        (
+            DVec3::from(self.positions[i].map(f64::from)),
+            DVec3::from(self.normals[i].map(f64::from)).normalize_or(DVec3::Y),
+        )
+    }
+
+    /// Local frame `[t, b, n]` (columns) of receiver `i`.
+    pub fn frame(&self, i: usize) -> DMat3 {
+        let n = DVec3::from(self.normals[i].map(f64::from)).normalize_or(DVec3::Y);
+        let t = DVec3::from(self.tangents[i].map(f64::from));
+        let t = (t - n * n.dot(t)).try_normalize().unwrap_or_else(|| n.any_orthonormal_vector());
+        DMat3::from_cols(t, n.cross(t), n)
+    }
+}
+
+/// `n` directions on the sphere by the spherical Fibonacci lattice (equal-area, low
+/// discrepancy); each stands for `4π/n` steradians.
+pub fn fibonacci_directions(n: usize) -> Vec<DVec3> {
+    let golden = PI * (3.0 - 5f64.sqrt());
+    (0..n)
+        .map(|i| {
+            let z = 1.0 - (2.0 * i as f64 + 1.0) / n as f64;
+            let r = (1.0 - z * z).max(0.0).sqrt();
+            let phi = golden * i as f64;
+            DVec3::new(r * phi.cos(), r * phi.sin(), z)
+        })
+        .collect()
+}
+
+/// SH visibility and shadowed cosine transfer per receiver.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct ShTransport {
+    pub bands: usize,
+    pub rays: usize,
+    /// `receivers × bands²`: `V_lm = ∫ V Y_lm dω`.
+    pub visibility: Vec<f32>,
+    /// `receivers × bands²`: `T_lm = ∫ V max(n·ω, 0) Y_lm dω`; diffuse exit radiance is
+    /// `(albedo/π) Σ T_lm L_lm`.
+    pub transfer: Vec<f32>,
+}
+
+impl ShTransport {
+    pub fn receiver(&self, i: usize) -> (&[f32], &[f32]) {
+        let n = self.bands * self.bands;
+        (&self.visibility[i * n..(i + 1) * n], &self.transfer[i * n..(i + 1) * n])
+    }
+}
+
+/// Cube-map Haar visibility and transfer per receiver (largest area-weighted coefficients).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct HaarTransport {
+    pub size: usize,
+    pub keep: usize,
+    /// Coefficients of `V` sampled at texel centres.
+    pub visibility: Vec<SparseVector>,
+    /// Coefficients of `V·max(n·ω, 0)·ΔΩ_texel`, so that `Σ_texels L T = Σ_i L_i T_i`.
+    pub transfer: Vec<SparseVector>,
+}
+
+/// Visibility in each receiver's local frame on the icosahedral Haar basis.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct SphericalTransport {
+    pub depth: usize,
+    pub keep: usize,
+    pub visibility: Vec<SparseVector>,
+}
+
+/// Casts one ray per direction from receiver `i`; returns visibility (true = unoccluded).
+fn visibility_along(scene: &RayScene, p: DVec3, n: DVec3, directions: &[DVec3]) -> Vec<bool> {
+    let origin = scene.leave_surface(p, n);
+    directions.iter().map(|d| d.dot(n) > 0.0 && !scene.occluded(origin, d.as_vec3().into(), f32::INFINITY)).collect()
+}
+
+/// Runs `f` over receivers in parallel chunks, checking for cancellation between chunks.
+fn per_receiver<T: Send>(
+    count: usize,
+    cancel: &CancelToken,
+    progress: &(dyn Fn(f64) + Sync),
+    f: impl Fn(usize) -> T + Sync,
+) -> Result<Vec<T>, StageError> {
+    let chunk = 64;
+    let done = std::sync::atomic::AtomicUsize::new(0);
+    let chunks: Vec<Result<Vec<T>, StageError>> = (0..count.div_ceil(chunk))
+        .into_par_iter()
+        .map(|c| {
+            cancel.check()?;
+            let out = (c * chunk..((c + 1) * chunk).min(count)).map(&f).collect();
+            let finished = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+            progress(finished as f64 * chunk as f64 / count.max(1) as f64);
+            Ok(out)
+        })
+        .collect();
+    let mut all = Vec::with_capacity(count);
+    for c in chunks {
+        all.extend(c?);
+    }
+    Ok(all)
+}
+
+/// SH transport with `rays` Fibonacci directions per receiver (the same set for all, so the
+/// basis is evaluated once per direction).
+pub fn sh_transport(
+    scene: &RayScene,
+    receivers: &Receivers,
+    bands: usize,
+    rays: usize,
+    cancel: &CancelToken,
+    progress: &(dyn Fn(f64) + Sync),
+) -> Result<ShTransport, StageError> {
+    let directions = fibonacci_directions(rays);
+    let basis = ShBasis::new(bands);
+    let nc = sh::coeff_count(bands);
+    let table: Vec<f64> = directions.iter().flat_map(|d| basis.eval_vec(*d)).collect();
+    let weight = 4.0 * PI / rays as f64;
+    let per = per_receiver(receivers.len(), cancel, progress, |i| {
+        let (p, n) = receivers.point(i);
+        let visible = visibility_along(scene, p, n, &directions);
+        let mut v = vec![0.0f64; nc];
+        let mut t = vec![0.0f64; nc];
+        for (k, d) in directions.iter().enumerate() {
+            if !visible[k] {
+                continue;
+            }
+            let cos = d.dot(n).max(0.0);
+            let y = &table[k * nc..(k + 1) * nc];
+            for j in 0..nc {
+                v[j] += y[j];
+                t[j] += y[j] * cos;
+            }
+        }
+        (
+            v.iter().map(|x| (x * weight) as f32).collect::<Vec<_>>(),
+            t.iter().map(|x| (x * weight) as f32).collect::<Vec<_>>(),
+        )
+    })?;
+    let mut out = ShTransport {
+        bands,
+        rays,
+        visibility: Vec::with_capacity(per.len() * nc),
+        transfer: Vec::with_capacity(per.len() * nc),
+    };
+    for (v, t) in per {
+        out.visibility.extend(v);
+        out.transfer.extend(t);
+    }
+    Ok(out)
+}
+
+/// Visibility at the texel centres of a `size²` cube map (one ray per texel).
+pub fn cube_visibility(scene: &RayScene, p: DVec3, n: DVec3, size: usize) -> Vec<f64> {
+    let directions: Vec<DVec3> = (0..FACES * size * size)
+        .map(|i| {
+            let (face, x, y) = (i / (size * size), i % size, (i / size) % size);
+            cubemap::face_uv_to_dir(face, (x as f64 + 0.5) / size as f64, (y as f64 + 0.5) / size as f64)
+        })
+        .collect();
+    visibility_along(scene, p, n, &directions).into_iter().map(|v| if v { 1.0 } else { 0.0 }).collect()
+}
+
+/// Cube-map Haar transport keeping `keep` coefficients per receiver and function.
+pub fn haar_transport(
+    scene: &RayScene,
+    receivers: &Receivers,
+    size: usize,
+    keep: usize,
+    cancel: &CancelToken,
+    progress: &(dyn Fn(f64) + Sync),
+) -> Result<HaarTransport, StageError> {
+    let haar = CubeHaar::new(size);
+    let solid_angles: Vec<f64> =
+        (0..size * size).map(|i| cubemap::texel_solid_angle(size, i % size, i / size)).collect();
+    let directions: Vec<DVec3> = (0..FACES * size * size)
+        .map(|i| {
+            let (face, x, y) = (i / (size * size), i % size, (i / size) % size);
+            cubemap::face_uv_to_dir(face, (x as f64 + 0.5) / size as f64, (y as f64 + 0.5) / size as f64)
+        })
+        .collect();
+    let per = per_receiver(receivers.len(), cancel, progress, |i| {
+        let (p, n) = receivers.point(i);
+        let v = cube_visibility(scene, p, n, size);
+        let t: Vec<f64> = v
+            .iter()
+            .enumerate()
+            .map(|(k, v)| v * directions[k].dot(n).max(0.0) * solid_angles[k % (size * size)])
+            .collect();
+        (haar.approximate(&v, keep), haar.approximate(&t, keep))
+    })?;
+    let (visibility, transfer) = per.into_iter().unzip();
+    Ok(HaarTransport { size, keep, visibility, transfer })
+}
+
+/// Local-frame spherical Haar visibility (one ray per finest cell centre, in the receiver's
+/// frame `[t, b, n]`), keeping the `keep` largest coefficients.
+pub fn spherical_transport(
+    scene: &RayScene,
+    receivers: &Receivers,
+    depth: usize,
+    keep: usize,
+    cancel: &CancelToken,
+    progress: &(dyn Fn(f64) + Sync),
+) -> Result<SphericalTransport, StageError> {
+    let basis = SphericalHaar::new(depth);
+    let local: Vec<DVec3> = (0..basis.len())
+        .map(|c| {
+            let [a, b, d] = basis.triangle(depth, c);
+            (a + b + d).normalize()
+        })
+        .collect();
+    let visibility = per_receiver(receivers.len(), cancel, progress, |i| {
+        let (p, n) = receivers.point(i);
+        let frame = receivers.frame(i);
+        let world: Vec<DVec3> = local.iter().map(|d| frame * *d).collect();
+        let cells: Vec<f64> =
+            visibility_along(scene, p, n, &world).into_iter().map(|v| if v { 1.0 } else { 0.0 }).collect();
+        basis.approximate(&cells, keep)
+    })?;
+    Ok(SphericalTransport { depth, keep, visibility })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh;
+
+    fn plane_and_sphere(radius: f64, height: f64) -> MeshSet {
+        let blocker = mesh::sphere(radius, 96).transformed(glam::DMat4::from_translation(DVec3::new(0.0, height, 0.0)));
+        MeshSet { meshes: vec![mesh::plane(10.0, 4), blocker] }
+    }
+
+    fn single_receiver(p: DVec3, n: DVec3) -> Receivers {
+        Receivers {
+            positions: vec![p.as_vec3().to_array()],
+            normals: vec![n.as_vec3().to_array()],
+            tangents: vec![n.any_orthonormal_vector().as_vec3().to_array()],
+            mesh_offsets: vec![0],
+        }
+    }
+
+    #[test]
+    fn unoccluded_transfer_is_the_clamped_cosine_closed_form() {
+        let scene = RayScene::build(&MeshSet { meshes: vec![mesh::plane(10.0, 2)] });
+        let n = DVec3::Y;
+        let r = single_receiver(DVec3::ZERO, n);
+        let t = sh_transport(&scene, &r, 6, 8192, &CancelToken::default(), &|_| {}).unwrap();
+        let (v, transfer) = t.receiver(0);
+        let y = ShBasis::new(6).eval_vec(n);
+        for (i, got) in transfer.iter().enumerate() {
+            // T_lm = Â_l Y_lm(n) (clamped cosine ZH rotated to n).
+            let want = sh::clamped_cosine_factor(sh::band_of(i)) * y[i];
+            assert!((*got as f64 - want).abs() < 4e-3, "T[{i}] = {got}, closed form {want}");
+        }
+        // The plane hides the lower hemisphere: V_00 = 2π / sqrt(4π).
+        assert!((v[0] as f64 - 2.0 * PI / (4.0 * PI).sqrt()).abs() < 2e-3, "{}", v[0]);
+    }
+
+    #[test]
+    fn point_under_a_sphere_sees_the_analytic_solid_angle() {
+        // Visible solid angle above a plane with a sphere of radius r at height h overhead:
+        // 2π − 2π(1 − sqrt(1 − (r/h)²)) = 2π sqrt(1 − (r/h)²).
+        for (radius, height) in [(0.5, 1.0), (0.9, 1.0), (0.2, 2.0)] {
+            let scene = RayScene::build(&plane_and_sphere(radius, height));
+            let r = single_receiver(DVec3::ZERO, DVec3::Y);
+            let t = sh_transport(&scene, &r, 1, 16384, &CancelToken::default(), &|_| {}).unwrap();
+            let visible = t.receiver(0).0[0] as f64 * (4.0 * PI).sqrt();
+            let exact = 2.0 * PI * (1.0 - (radius / height).powi(2)).sqrt();
+            assert!((visible - exact).abs() < 0.01 * exact, "r {radius} h {height}: {visible} vs {exact}");
+        }
+    }
+
+    #[test]
+    fn haar_transport_equals_brute_force_projection_of_the_same_samples() {
+        let scene = RayScene::build(&plane_and_sphere(0.6, 1.2));
+        let receivers = single_receiver(DVec3::new(0.3, 0.0, 0.1), DVec3::Y);
+        let size = 8;
+        let keep = 40;
+        let t = haar_transport(&scene, &receivers, size, keep, &CancelToken::default(), &|_| {}).unwrap();
+        let samples = cube_visibility(&scene, DVec3::new(0.3, 0.0, 0.1), DVec3::Y, size);
+        let haar = CubeHaar::new(size);
+        let nonzero = haar.forward(&samples).iter().filter(|c| **c != 0.0).count();
+        assert_eq!(t.visibility[0].len(), keep.min(nonzero));
+        for &(index, value) in &t.visibility[0].entries {
+            // <V, ψ_index> over the same texel samples, with ψ from the inverse transform.
+            let mut unit = vec![0.0; haar.len()];
+            unit[index as usize] = 1.0;
+            let psi = haar.inverse(&unit);
+            let brute: f64 = samples.iter().zip(&psi).map(|(v, p)| v * p).sum();
+            assert!((brute - value).abs() < 1e-9, "coefficient {index}: {value} vs {brute}");
+        }
+        // Double product with a constant environment L = 1 gives the unoccluded-cosine
+        // integral: Σ_texels T = ∫ V max(n·ω,0) dω.
+        let full = SparseVector::from_dense(&haar.forward(&vec![1.0; haar.len()]));
+        let all = haar_transport(&scene, &receivers, size, haar.len(), &CancelToken::default(), &|_| {}).unwrap();
+        let e = full.dot(&all.transfer[0]);
+        let sh = sh_transport(&scene, &receivers, 1, 16384, &CancelToken::default(), &|_| {}).unwrap();
+        let reference = sh.receiver(0).1[0] as f64 * (4.0 * PI).sqrt();
+        assert!((e - reference).abs() < 0.05 * reference, "cube {e} vs Fibonacci {reference}");
+    }
+
+    #[test]
+    fn spherical_transport_sees_the_ground_in_the_local_frame() {
+        // On a floor, local directions with z < 0 (below the surface) are blocked and all
+        // others are free: the cell values equal that exactly.
+        let scene = RayScene::build(&MeshSet { meshes: vec![mesh::plane(10.0, 2)] });
+        let receivers = single_receiver(DVec3::ZERO, DVec3::Y);
+        let depth = 3;
+        let t = spherical_transport(&scene, &receivers, depth, usize::MAX, &CancelToken::default(), &|_| {}).unwrap();
+        let basis = SphericalHaar::new(depth);
+        let cells = basis.inverse(&t.visibility[0].to_dense(basis.len()));
+        for (c, v) in cells.iter().enumerate() {
+            let [a, b, d] = basis.triangle(depth, c);
+            let centre_z = (a + b + d).normalize().z;
+            let expected = if centre_z > 0.0 { 1.0 } else { 0.0 };
+            assert!((v - expected).abs() < 1e-9, "cell {c}: {v} (centre z {centre_z})");
+        }
+    }
+
+    #[test]
+    fn cancellation_stops_transport() {
+        let scene = RayScene::build(&plane_and_sphere(0.5, 1.0));
+        let receivers = Receivers::from_meshes(&plane_and_sphere(0.5, 1.0));
+        let cancel = CancelToken::default();
+        cancel.cancel();
+        assert_eq!(sh_transport(&scene, &receivers, 3, 64, &cancel, &|_| {}).unwrap_err(), StageError::Cancelled);
+    }
+}

@@ -12,6 +12,7 @@
 pub mod cubemap;
 pub mod engine;
 pub mod envmap_io;
+pub mod gltf_import;
 pub mod graph;
 pub mod kinds;
 pub mod mesh;

@@ -19,6 +19,13 @@ pub struct RayScene {
     epsilon: f32,
 }
 
+/// Identity: two scenes are equal only if they are the same object.
+impl PartialEq for RayScene {
+    fn eq(&self, other: &Self) -> bool {
+        std::ptr::eq(self, other)
+    }
+}
+
 impl std::fmt::Debug for RayScene {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(f, "RayScene({} triangles)", self.triangles.len())

@@ -36,8 +36,16 @@ pub enum StageValue {
     Lights(Vec<crate::kinds::lights::PointLight>),
     Spheres(Vec<([f64; 3], f64)>),
     Output(crate::kinds::output::OutputSettings),
+    Receivers(crate::transport::Receivers),
+    ShTransport(crate::transport::ShTransport),
+    HaarTransport(crate::transport::HaarTransport),
+    LocalTransport(crate::transport::SphericalTransport),
     /// Test stages: a number.
     Number(f64),
+    /// In memory only (never persisted): obvhs BVHs are rebuilt on load. Must stay the last
+    /// variant: serde numbers the remaining variants without it when deserialising.
+    #[serde(skip)]
+    RayScene(Arc<crate::raycast::RayScene>),
 }
 
 impl StageValue {
@@ -51,6 +59,11 @@ impl StageValue {
             StageValue::Meshes(m) => m.approx_bytes(),
             StageValue::Lights(l) => l.len() * 48,
             StageValue::Spheres(s) => s.len() * 32,
+            StageValue::Receivers(r) => r.len() * 36,
+            StageValue::ShTransport(t) => (t.visibility.len() + t.transfer.len()) * 4,
+            StageValue::HaarTransport(t) => t.visibility.iter().chain(&t.transfer).map(|v| v.len() * 16 + 24).sum(),
+            StageValue::LocalTransport(t) => t.visibility.iter().map(|v| v.len() * 16 + 24).sum(),
+            StageValue::RayScene(s) => s.triangle_count() * 48 * 2,
             _ => 64,
         }
     }
@@ -67,6 +80,11 @@ impl StageValue {
             StageValue::Lights(_) => "lights",
             StageValue::Spheres(_) => "spheres",
             StageValue::Output(_) => "output settings",
+            StageValue::Receivers(_) => "receivers",
+            StageValue::ShTransport(_) => "SH transport",
+            StageValue::HaarTransport(_) => "Haar transport",
+            StageValue::LocalTransport(_) => "local-frame transport",
+            StageValue::RayScene(_) => "ray-tracing scene",
             StageValue::Number(_) => "number",
         }
     }

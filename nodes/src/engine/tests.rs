@@ -23,6 +23,14 @@ fn set(names: &[&str]) -> BTreeSet<String> {
 
 const SKY_ALL: &[&str] =
     &["sky.source", "sky.radiance", "sky.sh_unrotated", "sky.rotated_radiance", "sky.sh", "sky.haar"];
+const SCENE_ALL: &[&str] = &[
+    "scene.geometry",
+    "scene.receivers",
+    "scene.ray_scene",
+    "scene.transport_sh",
+    "scene.transport_haar",
+    "scene.transport_local",
+];
 const SKY_AFTER_SOURCE: &[&str] = &["sky.radiance", "sky.sh_unrotated", "sky.rotated_radiance", "sky.sh", "sky.haar"];
 
 #[test]
@@ -41,8 +49,20 @@ fn each_parameter_recomputes_exactly_its_stages() {
         ("sky", "sun_azimuth", Float(-30.0), SKY_ALL),
         ("sky", "sun_intensity", Float(100.0), SKY_ALL),
         ("sky", "sun_size", Float(1.0), SKY_ALL),
-        ("scene", "tessellation", Int(24), &["scene.geometry"]),
-        ("scene", "objects", Objects(crate::kinds::scene::default_objects()[..2].to_vec()), &["scene.geometry"]),
+        ("scene", "tessellation", Int(24), SCENE_ALL),
+        ("scene", "objects", Objects(crate::kinds::scene::default_objects()[..2].to_vec()), SCENE_ALL),
+        (
+            "scene",
+            "transport",
+            Choice("sh".into()),
+            &["scene.transport_sh", "scene.transport_haar", "scene.transport_local"],
+        ),
+        ("scene", "transport_bands", Int(3), &["scene.transport_sh"]),
+        ("scene", "transport_rays", Int(64), &["scene.transport_sh"]),
+        ("scene", "haar_resolution", Choice("8".into()), &["scene.transport_haar"]),
+        ("scene", "haar_terms", Int(32), &["scene.transport_haar"]),
+        ("scene", "local_frame_depth", Int(2), &["scene.transport_local"]),
+        ("scene", "local_frame_terms", Int(80), &["scene.transport_local"]),
         ("material", "model", Choice("ggx".into()), &["material.material"]),
         ("material", "albedo", Color([0.5, 0.5, 0.5]), &["material.material"]),
         ("material", "specular", Color([0.2, 0.2, 0.2]), &["material.material"]),
@@ -59,7 +79,7 @@ fn each_parameter_recomputes_exactly_its_stages() {
     let mut graph = default_graph();
     let first = engine.evaluate(&graph, &CancelToken::default(), None);
     assert!(first.report.failed().is_empty(), "{:?}", first.report.failed());
-    assert_eq!(first.report.computed().len(), 9);
+    assert_eq!(first.report.computed().len(), 14);
     let again = engine.evaluate(&graph, &CancelToken::default(), None);
     assert!(ran(&again.report).is_empty(), "an unchanged graph recomputed {:?}", ran(&again.report));
     for (node, param, value, expected) in table {
@@ -500,5 +520,91 @@ fn planned_kinds_recompute_exactly_their_stages_too() {
         graph.set_param(node, param, value).unwrap();
         let eval = engine.evaluate(&graph, &CancelToken::default(), None);
         assert_eq!(ran(&eval.report), set(&expected), "changing {node}.{param}");
+    }
+}
+
+#[test]
+fn persisted_stage_values_round_trip_through_the_disk_format() {
+    use crate::transport::{HaarTransport, ShTransport, SphericalTransport};
+    use crate::wavelet::SparseVector;
+    let values = vec![
+        StageValue::Number(1.5),
+        StageValue::ShTransport(ShTransport { bands: 2, rays: 16, visibility: vec![1.0; 8], transfer: vec![0.5; 8] }),
+        StageValue::HaarTransport(HaarTransport {
+            size: 4,
+            keep: 2,
+            visibility: vec![SparseVector { entries: vec![(0, 1.0), (7, -0.5)] }],
+            transfer: vec![SparseVector::default()],
+        }),
+        StageValue::LocalTransport(SphericalTransport {
+            depth: 1,
+            keep: 3,
+            visibility: vec![SparseVector { entries: vec![(3, 2.0)] }],
+        }),
+        StageValue::Sh(crate::sh::ShRgb::zero(2)),
+    ];
+    let dir = temp_dir("roundtrip");
+    let disk = cache::DiskCache::new(&dir);
+    for (k, v) in values.iter().enumerate() {
+        disk.store(k as u128, v).unwrap();
+        match disk.load(k as u128) {
+            cache::DiskLookup::Hit(back) => assert_eq!(&back, v),
+            _ => panic!("{} did not round-trip", v.type_name()),
+        }
+    }
+}
+
+#[test]
+fn scene_transport_stages_cover_every_receiver_and_follow_transforms() {
+    use crate::kinds::scene::{SceneObject, Shape};
+    let engine = Engine::in_memory();
+    let mut graph = default_graph();
+    let objects = vec![
+        SceneObject::new("floor", Shape::Plane { size: 4.0 }),
+        SceneObject::new("ball", Shape::Sphere { radius: 0.5 }).at([0.0, 0.5, 0.0]),
+    ];
+    graph.set_param("scene", "objects", ParamValue::Objects(objects.clone())).unwrap();
+    graph.set_param("scene", "tessellation", ParamValue::Int(8)).unwrap();
+    graph.set_param("scene", "transport", ParamValue::Choice("sh_and_wavelets".into())).unwrap();
+    graph.set_param("scene", "transport_rays", ParamValue::Int(64)).unwrap();
+    graph.set_param("scene", "haar_resolution", ParamValue::Choice("4".into())).unwrap();
+    let eval = engine.evaluate(&graph, &CancelToken::default(), None);
+    assert!(eval.report.failed().is_empty(), "{:?}", eval.report.failed());
+    let StageValue::Receivers(r) = eval.value("scene", "receivers").unwrap().as_ref().clone() else { panic!() };
+    let StageValue::ShTransport(sh) = eval.value("scene", "transport_sh").unwrap().as_ref().clone() else { panic!() };
+    let StageValue::HaarTransport(haar) = eval.value("scene", "transport_haar").unwrap().as_ref().clone() else {
+        panic!()
+    };
+    let StageValue::LocalTransport(local) = eval.value("scene", "transport_local").unwrap().as_ref().clone() else {
+        panic!()
+    };
+    assert_eq!(sh.visibility.len(), r.len() * 36);
+    assert_eq!(haar.visibility.len(), r.len());
+    assert_eq!(local.visibility.len(), r.len());
+    // Floor receivers right under the ball are shadowed; far ones are not.
+    let floor = 0..r.mesh_offsets[1];
+    let v00 = |i: usize| sh.receiver(i).0[0];
+    let under = floor
+        .clone()
+        .min_by(|&a, &b| {
+            r.positions[a][0].hypot(r.positions[a][2]).total_cmp(&r.positions[b][0].hypot(r.positions[b][2]))
+        })
+        .unwrap();
+    let corner = floor
+        .clone()
+        .max_by(|&a, &b| {
+            r.positions[a][0].hypot(r.positions[a][2]).total_cmp(&r.positions[b][0].hypot(r.positions[b][2]))
+        })
+        .unwrap();
+    assert!(v00(under) < v00(corner) - 0.5, "under the ball {} vs corner {}", v00(under), v00(corner));
+    // Moving the ball moves its receivers by the same offset.
+    let mut moved = objects;
+    moved[1].translation = [1.0, 0.5, -0.5];
+    graph.set_param("scene", "objects", ParamValue::Objects(moved)).unwrap();
+    let eval2 = engine.evaluate(&graph, &CancelToken::default(), None);
+    let StageValue::Receivers(r2) = eval2.value("scene", "receivers").unwrap().as_ref().clone() else { panic!() };
+    for i in r.mesh_offsets[1]..r.len() {
+        let d = [0, 1, 2].map(|c| r2.positions[i][c] - r.positions[i][c]);
+        assert!((d[0] - 1.0).abs() < 1e-5 && d[1].abs() < 1e-5 && (d[2] + 0.5).abs() < 1e-5, "{d:?}");
     }
 }

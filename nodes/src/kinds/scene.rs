@@ -1,9 +1,12 @@
-//! Scene node: the objects lit by the graph. Built-in procedural shapes today; glTF files
-//! and transport precompute come with the scene issue.
+//! Scene node: the objects lit by the graph (built-in shapes and a glTF file), their receiver
+//! points, the ray-tracing BVH, and the visibility transport every PRT technique reads.
 
 use crate::engine::{StageContext, StageError, StageValue};
 use crate::graph::{Availability, NodeKindSpec, ParamKind, ParamSpec, ParamValue, PortSpec, PortType, StageSpec};
+use crate::kinds::environment::wrong;
 use crate::mesh::{self, MeshSet};
+use crate::raycast::RayScene;
+use crate::transport::{self, Receivers};
 use glam::{DMat4, DQuat, DVec3};
 use serde::{Deserialize, Serialize};
 
@@ -170,16 +173,119 @@ pub fn spec() -> NodeKindSpec {
                 kind: ParamKind::Int { min: 3, max: 1024, default: 48 },
                 doc: "Segments of curved shapes (flat shapes use a quarter).",
             },
+            ParamSpec {
+                name: "file",
+                label: "glTF file",
+                unit: "",
+                kind: ParamKind::Path { extensions: &["gltf", "glb"] },
+                doc: "A glTF 2.0 scene added to the objects (its own node transforms apply).",
+            },
+            ParamSpec {
+                name: "transport",
+                label: "Transport precompute",
+                unit: "",
+                kind: ParamKind::Choice { options: &["none", "sh", "sh_and_wavelets"], default: "none" },
+                doc: "Which visibility transports to precompute at the receivers.",
+            },
+            ParamSpec {
+                name: "transport_bands",
+                label: "Transport SH bands",
+                unit: "",
+                kind: ParamKind::Int { min: 1, max: 16, default: 6 },
+                doc: "Bands of the SH visibility and transfer.",
+            },
+            ParamSpec {
+                name: "transport_rays",
+                label: "Rays per receiver",
+                unit: "",
+                kind: ParamKind::Int { min: 16, max: 65536, default: 256 },
+                doc: "Spherical Fibonacci directions per receiver for the SH transport.",
+            },
+            ParamSpec {
+                name: "haar_resolution",
+                label: "Haar cube face size",
+                unit: "px",
+                kind: ParamKind::Choice { options: &["4", "8", "16", "32", "64"], default: "16" },
+                doc: "Visibility cube map per receiver (one ray per texel).",
+            },
+            ParamSpec {
+                name: "haar_terms",
+                label: "Haar terms",
+                unit: "",
+                kind: ParamKind::Int { min: 1, max: 24576, default: 128 },
+                doc: "Largest area-weighted Haar coefficients kept per receiver.",
+            },
+            ParamSpec {
+                name: "local_frame_depth",
+                label: "Local-frame depth",
+                unit: "",
+                kind: ParamKind::Int { min: 1, max: 5, default: 3 },
+                doc: "Icosahedral subdivision level of the local-frame visibility (20·4^depth cells).",
+            },
+            ParamSpec {
+                name: "local_frame_terms",
+                label: "Local-frame terms",
+                unit: "",
+                kind: ParamKind::Int { min: 1, max: 20480, default: 320 },
+                doc: "Spherical Haar coefficients kept per receiver (Ma et al. use 80 or 320).",
+            },
         ],
-        stages: vec![StageSpec {
-            name: "geometry",
-            version: 1,
-            params: &["objects", "tessellation"],
-            stages: &[],
-            inputs: &[],
-            persist: false,
-            compute: geometry,
-        }],
+        stages: vec![
+            StageSpec {
+                name: "geometry",
+                version: 1,
+                params: &["objects", "tessellation", "file"],
+                stages: &[],
+                inputs: &[],
+                persist: false,
+                compute: geometry,
+            },
+            StageSpec {
+                name: "receivers",
+                version: 1,
+                params: &[],
+                stages: &["geometry"],
+                inputs: &[],
+                persist: false,
+                compute: receivers,
+            },
+            StageSpec {
+                name: "ray_scene",
+                version: 1,
+                params: &[],
+                stages: &["geometry"],
+                inputs: &[],
+                persist: false,
+                compute: ray_scene,
+            },
+            StageSpec {
+                name: "transport_sh",
+                version: 1,
+                params: &["transport", "transport_bands", "transport_rays"],
+                stages: &["receivers", "ray_scene"],
+                inputs: &[],
+                persist: true,
+                compute: transport_sh,
+            },
+            StageSpec {
+                name: "transport_haar",
+                version: 1,
+                params: &["transport", "haar_resolution", "haar_terms"],
+                stages: &["receivers", "ray_scene"],
+                inputs: &[],
+                persist: true,
+                compute: transport_haar,
+            },
+            StageSpec {
+                name: "transport_local",
+                version: 1,
+                params: &["transport", "local_frame_depth", "local_frame_terms"],
+                stages: &["receivers", "ray_scene"],
+                inputs: &[],
+                persist: true,
+                compute: transport_local,
+            },
+        ],
         availability: Availability::Ready,
     }
 }
@@ -189,6 +295,63 @@ fn geometry(ctx: &StageContext) -> Result<StageValue, StageError> {
         return Err(StageError::Internal("objects".into()));
     };
     let tessellation = ctx.int("tessellation")? as usize;
-    let meshes = objects.iter().flat_map(|o| o.meshes(tessellation)).collect();
+    let mut meshes: Vec<_> = objects.iter().flat_map(|o| o.meshes(tessellation)).collect();
+    if let Some(path) = ctx.path("file")? {
+        let imported = crate::gltf_import::import(&path).map_err(StageError::Failed)?;
+        meshes.extend(imported.meshes);
+    }
     Ok(StageValue::Meshes(MeshSet { meshes }))
+}
+
+fn receivers(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let StageValue::Meshes(meshes) = ctx.stage("geometry")? else { return Err(wrong("geometry")) };
+    Ok(StageValue::Receivers(Receivers::from_meshes(meshes)))
+}
+
+fn ray_scene(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let StageValue::Meshes(meshes) = ctx.stage("geometry")? else { return Err(wrong("geometry")) };
+    Ok(StageValue::RayScene(std::sync::Arc::new(RayScene::build(meshes))))
+}
+
+/// The receivers and ray scene, or `None` when `transport` does not ask for `level`.
+fn transport_inputs<'a>(
+    ctx: &'a StageContext,
+    level: &[&str],
+) -> Result<Option<(&'a Receivers, &'a RayScene)>, StageError> {
+    if !level.contains(&ctx.choice("transport")?) {
+        return Ok(None);
+    }
+    let StageValue::Receivers(r) = ctx.stage("receivers")? else { return Err(wrong("receivers")) };
+    let StageValue::RayScene(s) = ctx.stage("ray_scene")? else { return Err(wrong("ray_scene")) };
+    Ok(Some((r, s)))
+}
+
+fn transport_sh(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let (bands, rays) = (ctx.int("transport_bands")? as usize, ctx.int("transport_rays")? as usize);
+    let Some((r, s)) = transport_inputs(ctx, &["sh", "sh_and_wavelets"])? else {
+        return Ok(StageValue::ShTransport(Default::default()));
+    };
+    Ok(StageValue::ShTransport(transport::sh_transport(s, r, bands, rays, ctx.cancel_token(), &|f| ctx.progress(f))?))
+}
+
+fn transport_haar(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let size: usize =
+        ctx.choice("haar_resolution")?.parse().map_err(|_| StageError::Internal("haar_resolution".into()))?;
+    let keep = ctx.int("haar_terms")? as usize;
+    let Some((r, s)) = transport_inputs(ctx, &["sh_and_wavelets"])? else {
+        return Ok(StageValue::HaarTransport(Default::default()));
+    };
+    Ok(StageValue::HaarTransport(transport::haar_transport(s, r, size, keep, ctx.cancel_token(), &|f| {
+        ctx.progress(f)
+    })?))
+}
+
+fn transport_local(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let (depth, keep) = (ctx.int("local_frame_depth")? as usize, ctx.int("local_frame_terms")? as usize);
+    let Some((r, s)) = transport_inputs(ctx, &["sh_and_wavelets"])? else {
+        return Ok(StageValue::LocalTransport(Default::default()));
+    };
+    Ok(StageValue::LocalTransport(transport::spherical_transport(s, r, depth, keep, ctx.cancel_token(), &|f| {
+        ctx.progress(f)
+    })?))
 }

@@ -182,7 +182,7 @@ fn read_primitive(
     if let Some(bad) = indices.iter().find(|i| **i as usize >= count) {
         return Err(err(format!("index {bad} is out of range ({count} vertices)")));
     }
-    if indices.len() % 3 != 0 {
+    if !indices.len().is_multiple_of(3) {
         return Err(err(format!("{} indices do not form whole triangles", indices.len())));
     }
     // Repair: drop triangles touching non-finite vertices.

@@ -527,7 +527,7 @@ fn planned_kinds_recompute_exactly_their_stages_too() {
 fn persisted_stage_values_round_trip_through_the_disk_format() {
     use crate::transport::{HaarTransport, ShTransport, SphericalTransport};
     use crate::wavelet::SparseVector;
-    let values = vec![
+    let values = [
         StageValue::Number(1.5),
         StageValue::ShTransport(ShTransport { bands: 2, rays: 16, visibility: vec![1.0; 8], transfer: vec![0.5; 8] }),
         StageValue::HaarTransport(HaarTransport {

@@ -210,7 +210,7 @@ fn read_primitive(
     }
     let base = primitive.material().pbr_metallic_roughness().base_color_factor();
     let base_color = [base[0], base[1], base[2]].map(|c| if c.is_finite() { c.clamp(0.0, 1.0) } else { 0.8 });
-    Ok(Mesh { name: String::new(), positions, normals, uvs, indices, base_color })
+    Ok(Mesh { name: String::new(), positions, normals, uvs, indices, base_color, visibility_texture: false })
 }
 
 /// Area-weighted vertex normals.

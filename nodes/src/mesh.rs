@@ -15,6 +15,9 @@ pub struct Mesh {
     pub indices: Vec<u32>,
     /// Linear RGB base colour (multiplies the material albedo).
     pub base_color: [f32; 3],
+    /// Receives a per-texel visibility texture over its UVs (needs non-overlapping UVs).
+    #[serde(default)]
+    pub visibility_texture: bool,
 }
 
 impl Mesh {
@@ -179,7 +182,8 @@ pub fn cuboid(size: [f64; 3], segments: usize, inward: bool) -> Mesh {
     let mut m = Mesh::default();
     let h = DVec3::from(size) / 2.0;
     let s = segments.max(1);
-    for (axis, sign) in [(0, 1.0), (0, -1.0), (1, 1.0), (1, -1.0), (2, 1.0), (2, -1.0)] {
+    for (face, (axis, sign)) in [(0, 1.0), (0, -1.0), (1, 1.0), (1, -1.0), (2, 1.0), (2, -1.0)].into_iter().enumerate()
+    {
         let normal = {
             let mut n = DVec3::ZERO;
             n[axis] = sign;
@@ -194,11 +198,16 @@ pub fn cuboid(size: [f64; 3], segments: usize, inward: bool) -> Mesh {
         let t2 = normal.cross(t1);
         let (n_out, flip) = if inward { (-normal, true) } else { (normal, false) };
         let first = m.indices.len();
+        let first_vertex = m.uvs.len();
         m.grid(s, s, |u, v| {
             let local =
                 normal * h[axis] + t1 * (u - 0.5) * 2.0 * h[(axis + 1) % 3] + t2 * (v - 0.5) * 2.0 * h[(axis + 2) % 3];
             (local, n_out)
         });
+        // UV atlas of 3 × 2 cells, one per face, so the UVs never overlap.
+        for uv in &mut m.uvs[first_vertex..] {
+            *uv = [((face % 3) as f32 + uv[0]) / 3.0, ((face / 3) as f32 + uv[1]) / 2.0];
+        }
         // grid winds (u, v) counter-clockwise about u × v = t1 × t2 = -normal, so flip for outward.
         if !flip {
             for t in m.indices[first..].chunks_mut(3) {

@@ -71,6 +71,69 @@ impl Receivers {
     }
 }
 
+/// Receivers at the texel centres of per-mesh visibility textures over the meshes' UVs
+/// (Ma et al. §3.4): a coarse mesh gets per-texel shadows without tessellation.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct TexelReceivers {
+    pub size: usize,
+    pub receivers: Receivers,
+    /// Per receiver: `(mesh index, x, y)` of its texel (row 0 at v = 0).
+    pub texels: Vec<(u32, u16, u16)>,
+}
+
+impl TexelReceivers {
+    /// Rasterises the UV triangles of every mesh with `visibility_texture` set; each covered
+    /// texel centre becomes a receiver with the interpolated position, normal and tangent.
+    /// Where UVs overlap, the first triangle wins.
+    pub fn rasterize(meshes: &MeshSet, size: usize) -> Self {
+        let mut out = TexelReceivers { size, ..Default::default() };
+        for (m, mesh) in meshes.meshes.iter().enumerate() {
+            if !mesh.visibility_texture || mesh.uvs.len() != mesh.positions.len() {
+                continue;
+            }
+            out.receivers.mesh_offsets.push(out.receivers.len());
+            let tangents = crate::mesh::vertex_tangents(mesh);
+            let mut covered = vec![false; size * size];
+            for t in mesh.indices.chunks_exact(3) {
+                let t: [u32; 3] = [t[0], t[1], t[2]];
+                let uv = t.map(|i| mesh.uvs[i as usize].map(|c| c as f64 * size as f64));
+                let det = (uv[1][0] - uv[0][0]) * (uv[2][1] - uv[0][1]) - (uv[2][0] - uv[0][0]) * (uv[1][1] - uv[0][1]);
+                if det.abs() < 1e-12 {
+                    continue;
+                }
+                let lo = |c: usize| (uv.iter().map(|p| p[c]).fold(f64::MAX, f64::min).floor().max(0.0)) as usize;
+                let hi = |c: usize| (uv.iter().map(|p| p[c]).fold(f64::MIN, f64::max).ceil().min(size as f64)) as usize;
+                for y in lo(1)..hi(1) {
+                    for x in lo(0)..hi(0) {
+                        if covered[y * size + x] {
+                            continue;
+                        }
+                        let (px, py) = (x as f64 + 0.5, y as f64 + 0.5);
+                        let b1 =
+                            ((px - uv[0][0]) * (uv[2][1] - uv[0][1]) - (uv[2][0] - uv[0][0]) * (py - uv[0][1])) / det;
+                        let b2 =
+                            ((uv[1][0] - uv[0][0]) * (py - uv[0][1]) - (px - uv[0][0]) * (uv[1][1] - uv[0][1])) / det;
+                        let b0 = 1.0 - b1 - b2;
+                        if b0 < -1e-9 || b1 < -1e-9 || b2 < -1e-9 {
+                            continue;
+                        }
+                        covered[y * size + x] = true;
+                        let lerp = |v: &[[f32; 3]]| {
+                            let at = |k: usize| DVec3::from(v[t[k] as usize].map(f64::from));
+                            at(0) * b0 + at(1) * b1 + at(2) * b2
+                        };
+                        out.receivers.positions.push(lerp(&mesh.positions).as_vec3().to_array());
+                        out.receivers.normals.push(lerp(&mesh.normals).normalize_or(DVec3::Y).as_vec3().to_array());
+                        out.receivers.tangents.push(lerp(&tangents).normalize_or(DVec3::X).as_vec3().to_array());
+                        out.texels.push((m as u32, x as u16, y as u16));
+                    }
+                }
+            }
+        }
+        out
+    }
+}
+
 /// `n` directions on the sphere by the spherical Fibonacci lattice (equal-area, low
 /// discrepancy); each stands for `4π/n` steradians.
 pub fn fibonacci_directions(n: usize) -> Vec<DVec3> {
@@ -370,6 +433,43 @@ mod tests {
             let expected = if centre_z > 0.0 { 1.0 } else { 0.0 };
             assert!((v - expected).abs() < 1e-9, "cell {c}: {v} (centre z {centre_z})");
         }
+    }
+
+    #[test]
+    fn visibility_texture_shadows_a_single_quad() {
+        // A floor made of two triangles under a sphere: the texel receivers resolve the
+        // shadow that its four vertices cannot, and agree with a receiver placed directly at
+        // the same point.
+        let mut floor = mesh::plane(4.0, 1);
+        floor.visibility_texture = true;
+        let meshes = MeshSet {
+            meshes: vec![
+                floor,
+                mesh::sphere(0.5, 48).transformed(glam::DMat4::from_translation(DVec3::new(0.0, 1.0, 0.0))),
+            ],
+        };
+        let scene = RayScene::build(&meshes);
+        let texels = TexelReceivers::rasterize(&meshes, 32);
+        assert_eq!(texels.receivers.len(), 32 * 32, "the quad covers its whole UV square");
+        let t = sh_transport(&scene, &texels.receivers, 1, 4096, &CancelToken::default(), &|_| {}).unwrap();
+        let (centre, _) = (0..texels.receivers.len())
+            .map(|i| (i, DVec3::from(texels.receivers.positions[i].map(f64::from)).length()))
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .unwrap();
+        let direct = sh_transport(
+            &scene,
+            &single_receiver(DVec3::from(texels.receivers.positions[centre].map(f64::from)), DVec3::Y),
+            1,
+            4096,
+            &CancelToken::default(),
+            &|_| {},
+        )
+        .unwrap();
+        assert!((t.receiver(centre).0[0] - direct.receiver(0).0[0]).abs() < 1e-6);
+        // Shadowed under the sphere, unshadowed at the corners.
+        let corner = t.receiver(0).0[0] as f64 * (4.0 * PI).sqrt();
+        let under = t.receiver(centre).0[0] as f64 * (4.0 * PI).sqrt();
+        assert!(corner > 2.0 * PI * 0.97 && under < 2.0 * PI * 0.9, "corner {corner}, under {under}");
     }
 
     #[test]

@@ -40,6 +40,7 @@ pub enum StageValue {
     ShTransport(crate::transport::ShTransport),
     HaarTransport(crate::transport::HaarTransport),
     LocalTransport(crate::transport::SphericalTransport),
+    TexelReceivers(crate::transport::TexelReceivers),
     /// Test stages: a number.
     Number(f64),
     /// In memory only (never persisted): obvhs BVHs are rebuilt on load. Must stay the last
@@ -64,6 +65,7 @@ impl StageValue {
             StageValue::HaarTransport(t) => t.visibility.iter().chain(&t.transfer).map(|v| v.len() * 16 + 24).sum(),
             StageValue::LocalTransport(t) => t.visibility.iter().map(|v| v.len() * 16 + 24).sum(),
             StageValue::RayScene(s) => s.triangle_count() * 48 * 2,
+            StageValue::TexelReceivers(t) => t.receivers.len() * 44,
             _ => 64,
         }
     }
@@ -85,6 +87,7 @@ impl StageValue {
             StageValue::HaarTransport(_) => "Haar transport",
             StageValue::LocalTransport(_) => "local-frame transport",
             StageValue::RayScene(_) => "ray-tracing scene",
+            StageValue::TexelReceivers(_) => "texel receivers",
             StageValue::Number(_) => "number",
         }
     }

@@ -27,9 +27,11 @@ const SCENE_ALL: &[&str] = &[
     "scene.geometry",
     "scene.receivers",
     "scene.ray_scene",
+    "scene.texel_receivers",
     "scene.transport_sh",
     "scene.transport_haar",
     "scene.transport_local",
+    "scene.transport_texels",
 ];
 const SKY_AFTER_SOURCE: &[&str] = &["sky.radiance", "sky.sh_unrotated", "sky.rotated_radiance", "sky.sh", "sky.haar"];
 
@@ -55,14 +57,15 @@ fn each_parameter_recomputes_exactly_its_stages() {
             "scene",
             "transport",
             Choice("sh".into()),
-            &["scene.transport_sh", "scene.transport_haar", "scene.transport_local"],
+            &["scene.transport_sh", "scene.transport_haar", "scene.transport_local", "scene.transport_texels"],
         ),
+        ("scene", "visibility_texture_size", Choice("16".into()), &["scene.texel_receivers", "scene.transport_texels"]),
         ("scene", "transport_bands", Int(3), &["scene.transport_sh"]),
         ("scene", "transport_rays", Int(64), &["scene.transport_sh"]),
         ("scene", "haar_resolution", Choice("8".into()), &["scene.transport_haar"]),
         ("scene", "haar_terms", Int(32), &["scene.transport_haar"]),
-        ("scene", "local_frame_depth", Int(2), &["scene.transport_local"]),
-        ("scene", "local_frame_terms", Int(80), &["scene.transport_local"]),
+        ("scene", "local_frame_depth", Int(2), &["scene.transport_local", "scene.transport_texels"]),
+        ("scene", "local_frame_terms", Int(80), &["scene.transport_local", "scene.transport_texels"]),
         ("material", "model", Choice("ggx".into()), &["material.material"]),
         ("material", "albedo", Color([0.5, 0.5, 0.5]), &["material.material"]),
         ("material", "specular", Color([0.2, 0.2, 0.2]), &["material.material"]),
@@ -79,7 +82,7 @@ fn each_parameter_recomputes_exactly_its_stages() {
     let mut graph = default_graph();
     let first = engine.evaluate(&graph, &CancelToken::default(), None);
     assert!(first.report.failed().is_empty(), "{:?}", first.report.failed());
-    assert_eq!(first.report.computed().len(), 14);
+    assert_eq!(first.report.computed().len(), 16);
     let again = engine.evaluate(&graph, &CancelToken::default(), None);
     assert!(ran(&again.report).is_empty(), "an unchanged graph recomputed {:?}", ran(&again.report));
     for (node, param, value, expected) in table {

@@ -48,6 +48,10 @@ pub struct SceneObject {
     pub scale: [f64; 3],
     #[serde(default = "grey")]
     pub color: [f64; 3],
+    /// Precompute a per-texel visibility texture over the object's UVs (Ma et al. §3.4), so a
+    /// coarse mesh such as a floor quad still receives sharp shadows.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub visibility_texture: bool,
 }
 
 fn unit_scale() -> [f64; 3] {
@@ -60,7 +64,15 @@ fn grey() -> [f64; 3] {
 
 impl SceneObject {
     pub fn new(name: &str, shape: Shape) -> Self {
-        Self { name: name.into(), shape, translation: [0.0; 3], rotation_deg: [0.0; 3], scale: [1.0; 3], color: grey() }
+        Self {
+            name: name.into(),
+            shape,
+            translation: [0.0; 3],
+            rotation_deg: [0.0; 3],
+            scale: [1.0; 3],
+            color: grey(),
+            visibility_texture: false,
+        }
     }
 
     pub fn at(mut self, translation: [f64; 3]) -> Self {
@@ -123,6 +135,7 @@ impl SceneObject {
         raw.into_iter()
             .map(|m| {
                 let mut m = m.transformed(self.transform());
+                m.visibility_texture = self.visibility_texture;
                 let tint = self.color.map(|c| c as f32);
                 if single {
                     m.base_color = tint;
@@ -179,6 +192,13 @@ pub fn spec() -> NodeKindSpec {
                 unit: "",
                 kind: ParamKind::Path { extensions: &["gltf", "glb"] },
                 doc: "A glTF 2.0 scene added to the objects (its own node transforms apply).",
+            },
+            ParamSpec {
+                name: "visibility_texture_size",
+                label: "Visibility texture size",
+                unit: "px",
+                kind: ParamKind::Choice { options: &["16", "32", "64", "128", "256"], default: "64" },
+                doc: "Texels per side of the visibility textures of objects that ask for one.",
             },
             ParamSpec {
                 name: "transport",
@@ -259,6 +279,15 @@ pub fn spec() -> NodeKindSpec {
                 compute: ray_scene,
             },
             StageSpec {
+                name: "texel_receivers",
+                version: 1,
+                params: &["visibility_texture_size"],
+                stages: &["geometry"],
+                inputs: &[],
+                persist: false,
+                compute: texel_receivers,
+            },
+            StageSpec {
                 name: "transport_sh",
                 version: 1,
                 params: &["transport", "transport_bands", "transport_rays"],
@@ -285,9 +314,42 @@ pub fn spec() -> NodeKindSpec {
                 persist: true,
                 compute: transport_local,
             },
+            StageSpec {
+                name: "transport_texels",
+                version: 1,
+                params: &["transport", "local_frame_depth", "local_frame_terms"],
+                stages: &["texel_receivers", "ray_scene"],
+                inputs: &[],
+                persist: true,
+                compute: transport_texels,
+            },
         ],
         availability: Availability::Ready,
     }
+}
+
+fn texel_receivers(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let StageValue::Meshes(meshes) = ctx.stage("geometry")? else { return Err(wrong("geometry")) };
+    let size: usize =
+        ctx.choice("visibility_texture_size")?.parse().map_err(|_| StageError::Internal("size".into()))?;
+    Ok(StageValue::TexelReceivers(transport::TexelReceivers::rasterize(meshes, size)))
+}
+
+fn transport_texels(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let (depth, keep) = (ctx.int("local_frame_depth")? as usize, ctx.int("local_frame_terms")? as usize);
+    if ctx.choice("transport")? != "sh_and_wavelets" {
+        return Ok(StageValue::LocalTransport(Default::default()));
+    }
+    let StageValue::TexelReceivers(t) = ctx.stage("texel_receivers")? else { return Err(wrong("texel_receivers")) };
+    let StageValue::RayScene(s) = ctx.stage("ray_scene")? else { return Err(wrong("ray_scene")) };
+    Ok(StageValue::LocalTransport(transport::spherical_transport(
+        s,
+        &t.receivers,
+        depth,
+        keep,
+        ctx.cancel_token(),
+        &|f| ctx.progress(f),
+    )?))
 }
 
 fn geometry(ctx: &StageContext) -> Result<StageValue, StageError> {

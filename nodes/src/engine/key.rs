@@ -69,3 +69,18 @@ impl KeyBuilder {
 pub fn key_hex(key: Key) -> String {
     format!("{key:032x}")
 }
+
+/// Serde helpers writing keys as 32 hex digits.
+pub mod hex {
+    use super::Key;
+    use serde::{Deserialize, Deserializer, Serializer};
+
+    pub fn serialize<S: Serializer>(key: &Key, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(&super::key_hex(*key))
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Key, D::Error> {
+        let text = String::deserialize(d)?;
+        Key::from_str_radix(&text, 16).map_err(serde::de::Error::custom)
+    }
+}

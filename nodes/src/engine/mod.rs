@@ -16,6 +16,7 @@ use crate::graph::{ParamValue, StageSpec};
 use cache::{DiskCache, DiskLookup, MemoryCache};
 use rustc_hash::FxHashMap as HashMap;
 use serde::{Deserialize, Serialize};
+use std::borrow::Cow;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -253,9 +254,11 @@ pub enum StageStatus {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct StageReport {
     pub node: String,
-    pub kind: String,
-    pub stage: String,
-    pub key: String,
+    pub kind: Cow<'static, str>,
+    pub stage: Cow<'static, str>,
+    /// The stage key (hex in JSON).
+    #[serde(with = "key::hex")]
+    pub key: Key,
     pub status: StageStatus,
     /// Why it ran: "first evaluation", "parameter `x` changed", "input `p.s` changed", ...
     pub reasons: Vec<String>,
@@ -278,7 +281,7 @@ impl Report {
         self.stages
             .iter()
             .filter(|s| s.status == StageStatus::Computed)
-            .map(|s| (s.node.clone(), s.stage.clone()))
+            .map(|s| (s.node.clone(), s.stage.to_string()))
             .collect()
     }
 
@@ -300,13 +303,16 @@ pub struct StageResult {
 /// The outcome of evaluating a graph.
 #[derive(Clone, Debug)]
 pub struct Evaluation {
-    pub results: HashMap<(String, String), StageResult>,
+    /// Every stage's result, in report order.
+    pub results: Vec<StageResult>,
+    /// `stage_slot(node, stage)` → index into `results`.
+    index: HashMap<u64, usize>,
     pub report: Report,
 }
 
 impl Evaluation {
     pub fn get(&self, node: &str, stage: &str) -> Option<&StageResult> {
-        self.results.get(&(node.to_string(), stage.to_string()))
+        self.index.get(&stage_slot(node, stage)).map(|&i| &self.results[i])
     }
 
     pub fn value(&self, node: &str, stage: &str) -> Result<Arc<StageValue>, StageError> {
@@ -439,25 +445,26 @@ impl Engine {
         }
         let mut last = self.last.lock().unwrap();
         let mut report = Report { stages: Vec::with_capacity(instances.len()), ..Default::default() };
-        let mut out = HashMap::with_capacity_and_hasher(instances.len(), Default::default());
+        let mut out = Vec::with_capacity(instances.len());
+        let mut index = HashMap::with_capacity_and_hasher(instances.len(), Default::default());
         for (inst, result) in instances.iter().zip(results) {
             let (value, status, ms, reasons) = result.expect("every instance ran");
             let slot = stage_slot(&inst.node.id, inst.spec.name);
             if value.is_ok() && last.get(&slot).is_none_or(|r| r.key != inst.key) {
                 last.insert(slot, StageRecord { key: inst.key, components: inst.components.clone() });
             }
-            let id = (inst.node.id.clone(), inst.spec.name.to_string());
             report.stages.push(StageReport {
                 node: inst.node.id.clone(),
-                kind: inst.node.kind.name.to_string(),
-                stage: inst.spec.name.to_string(),
-                key: key::key_hex(inst.key),
+                kind: Cow::Borrowed(inst.node.kind.name),
+                stage: Cow::Borrowed(inst.spec.name),
+                key: inst.key,
                 status,
                 reasons,
                 ms,
                 error: value.as_ref().err().map(|e| e.to_string()),
             });
-            out.insert(id, StageResult { key: inst.key, value });
+            index.insert(slot, out.len());
+            out.push(StageResult { key: inst.key, value });
         }
         report.total_ms = start.elapsed().as_secs_f64() * 1e3;
         report.memory_cache_bytes = self.memory.lock().unwrap().used_bytes();
@@ -465,7 +472,7 @@ impl Engine {
         if let Some(tx) = events {
             let _ = tx.send(EvalEvent::Finished);
         }
-        Evaluation { results: out, report }
+        Evaluation { results: out, index, report }
     }
 
     /// Builds stage instances in topological order and computes their keys.

@@ -256,7 +256,7 @@ fn disk_cache_serves_fresh_engines_and_recomputes_corrupt_entries() {
     assert_eq!(*second.value("e", "value").unwrap(), StageValue::Number(42.0));
     assert_eq!(EXPENSIVE_RUNS.load(Ordering::SeqCst) - before, 1);
     // Corrupt the entry: flip a payload byte; then truncate it.
-    let path = Engine::new(config()).disk_cache().unwrap().path_for(first.results.values().next().unwrap().key);
+    let path = Engine::new(config()).disk_cache().unwrap().path_for(first.results[0].key);
     for corrupt in [
         |b: &mut Vec<u8>| {
             let last = b.len() - 1;

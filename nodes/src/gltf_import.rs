@@ -236,6 +236,24 @@ mod tests {
         dir
     }
 
+    /// Every .gltf/.glb file under the assets folder.
+    fn corpus() -> Vec<std::path::PathBuf> {
+        let mut files = Vec::new();
+        let mut stack = vec![assets()];
+        while let Some(dir) = stack.pop() {
+            for entry in std::fs::read_dir(dir).unwrap() {
+                let p = entry.unwrap().path();
+                if p.is_dir() {
+                    stack.push(p);
+                } else if p.extension().is_some_and(|e| e == "gltf" || e == "glb") {
+                    files.push(p);
+                }
+            }
+        }
+        files.sort();
+        files
+    }
+
     #[test]
     fn real_models_load() {
         let engine = import(&assets().join("2CylinderEngine-glTF-Binary/2CylinderEngine.glb")).unwrap();
@@ -249,18 +267,7 @@ mod tests {
 
     #[test]
     fn every_broken_file_gives_an_error_or_a_documented_repair() {
-        let mut files = Vec::new();
-        let mut stack = vec![assets()];
-        while let Some(dir) = stack.pop() {
-            for entry in std::fs::read_dir(dir).unwrap() {
-                let p = entry.unwrap().path();
-                if p.is_dir() {
-                    stack.push(p);
-                } else if p.extension().is_some_and(|e| e == "gltf" || e == "glb") {
-                    files.push(p);
-                }
-            }
-        }
+        let files = corpus();
         assert!(files.len() > 20);
         for file in &files {
             // Must return (never panic or hang); errors name the file.
@@ -299,24 +306,16 @@ mod tests {
     #[test]
     #[ignore]
     fn print_corpus_outcomes() {
-        let mut stack = vec![assets()];
-        while let Some(dir) = stack.pop() {
-            for entry in std::fs::read_dir(dir).unwrap() {
-                let p = entry.unwrap().path();
-                if p.is_dir() {
-                    stack.push(p);
-                } else if p.extension().is_some_and(|e| e == "gltf" || e == "glb") {
-                    match import(&p) {
-                        Ok(s) => println!(
-                            "OK   {} meshes, {} warnings {:?}: {}",
-                            s.meshes.len(),
-                            s.warnings.len(),
-                            s.warnings.first(),
-                            p.display()
-                        ),
-                        Err(e) => println!("ERR  {e}"),
-                    }
-                }
+        for p in corpus() {
+            match import(&p) {
+                Ok(s) => println!(
+                    "OK   {} meshes, {} warnings {:?}: {}",
+                    s.meshes.len(),
+                    s.warnings.len(),
+                    s.warnings.first(),
+                    p.display()
+                ),
+                Err(e) => println!("ERR  {e}"),
             }
         }
     }

@@ -267,15 +267,23 @@ pub fn sh_transport(
     Ok(out)
 }
 
-/// Visibility at the texel centres of a `size²` cube map (one ray per texel).
-pub fn cube_visibility(scene: &RayScene, p: DVec3, n: DVec3, size: usize) -> Vec<f64> {
-    let directions: Vec<DVec3> = (0..FACES * size * size)
+/// Directions through the texel centres of a `size²` cube map, in texel order.
+fn cube_texel_directions(size: usize) -> Vec<DVec3> {
+    (0..FACES * size * size)
         .map(|i| {
             let (face, x, y) = (i / (size * size), i % size, (i / size) % size);
             cubemap::face_uv_to_dir(face, (x as f64 + 0.5) / size as f64, (y as f64 + 0.5) / size as f64)
         })
-        .collect();
-    visibility_along(scene, p, n, &directions).into_iter().map(|v| if v { 1.0 } else { 0.0 }).collect()
+        .collect()
+}
+
+fn as_unit(visible: Vec<bool>) -> Vec<f64> {
+    visible.into_iter().map(|v| if v { 1.0 } else { 0.0 }).collect()
+}
+
+/// Visibility at the texel centres of a `size²` cube map (one ray per texel).
+pub fn cube_visibility(scene: &RayScene, p: DVec3, n: DVec3, size: usize) -> Vec<f64> {
+    as_unit(visibility_along(scene, p, n, &cube_texel_directions(size)))
 }
 
 /// Cube-map Haar transport keeping `keep` coefficients per receiver and function.
@@ -290,15 +298,10 @@ pub fn haar_transport(
     let haar = CubeHaar::new(size);
     let solid_angles: Vec<f64> =
         (0..size * size).map(|i| cubemap::texel_solid_angle(size, i % size, i / size)).collect();
-    let directions: Vec<DVec3> = (0..FACES * size * size)
-        .map(|i| {
-            let (face, x, y) = (i / (size * size), i % size, (i / size) % size);
-            cubemap::face_uv_to_dir(face, (x as f64 + 0.5) / size as f64, (y as f64 + 0.5) / size as f64)
-        })
-        .collect();
+    let directions = cube_texel_directions(size);
     let per = per_receiver(receivers.len(), cancel, progress, |i| {
         let (p, n) = receivers.point(i);
-        let v = cube_visibility(scene, p, n, size);
+        let v = as_unit(visibility_along(scene, p, n, &directions));
         let t: Vec<f64> = v
             .iter()
             .enumerate()

@@ -192,78 +192,46 @@ impl ViewportRenderer {
             })
         };
         let vertex_attributes = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x3];
-        let mesh_pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("mesh"),
-            layout: Some(&pipeline_layout),
-            vertex: wgpu::VertexState {
-                module: &mesh_module,
-                entry_point: Some("vs_main"),
-                compilation_options: Default::default(),
-                buffers: &[Some(wgpu::VertexBufferLayout {
-                    array_stride: std::mem::size_of::<Vertex>() as u64,
-                    step_mode: wgpu::VertexStepMode::Vertex,
-                    attributes: &vertex_attributes,
-                })],
-            },
-            primitive: wgpu::PrimitiveState { cull_mode: None, ..Default::default() },
+        let vertex_layout = [Some(wgpu::VertexBufferLayout {
+            array_stride: std::mem::size_of::<Vertex>() as u64,
+            step_mode: wgpu::VertexStepMode::Vertex,
+            attributes: &vertex_attributes,
+        })];
+        let mesh_pipeline = PipelineSpec {
+            label: "mesh",
+            layout: &pipeline_layout,
+            module: &mesh_module,
+            buffers: &vertex_layout,
             depth_stencil: depth(true, wgpu::CompareFunction::Less),
             multisample,
-            fragment: Some(wgpu::FragmentState {
-                module: &mesh_module,
-                entry_point: Some("fs_main"),
-                compilation_options: Default::default(),
-                targets: &[Some(HDR_FORMAT.into())],
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
-        let background_pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("background"),
-            layout: Some(&pipeline_layout),
-            vertex: wgpu::VertexState {
-                module: &background_module,
-                entry_point: Some("vs_main"),
-                compilation_options: Default::default(),
-                buffers: &[],
-            },
-            primitive: Default::default(),
+            target: HDR_FORMAT,
+        }
+        .build(device);
+        let background_pipeline = PipelineSpec {
+            label: "background",
+            layout: &pipeline_layout,
+            module: &background_module,
+            buffers: &[],
             depth_stencil: depth(false, wgpu::CompareFunction::Always),
             multisample,
-            fragment: Some(wgpu::FragmentState {
-                module: &background_module,
-                entry_point: Some("fs_main"),
-                compilation_options: Default::default(),
-                targets: &[Some(HDR_FORMAT.into())],
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
+            target: HDR_FORMAT,
+        }
+        .build(device);
         let tone_pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("tonemap"),
             bind_group_layouts: &[Some(&tone_layout)],
             immediate_size: 0,
         });
-        let tone_pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("tonemap"),
-            layout: Some(&tone_pipeline_layout),
-            vertex: wgpu::VertexState {
-                module: &tone_module,
-                entry_point: Some("vs_main"),
-                compilation_options: Default::default(),
-                buffers: &[],
-            },
-            primitive: Default::default(),
+        let tone_pipeline = PipelineSpec {
+            label: "tonemap",
+            layout: &tone_pipeline_layout,
+            module: &tone_module,
+            buffers: &[],
             depth_stencil: None,
             multisample: Default::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &tone_module,
-                entry_point: Some("fs_main"),
-                compilation_options: Default::default(),
-                targets: &[Some(LDR_FORMAT.into())],
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
+            target: LDR_FORMAT,
+        }
+        .build(device);
         let globals = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("globals"),
             size: std::mem::size_of::<Globals>() as u64,
@@ -537,6 +505,43 @@ impl ViewportRenderer {
             ],
         });
         self.targets = Some(Targets { width, height, msaa, hdr, hdr_view, depth, ldr, ldr_view, tone_bind_group });
+    }
+}
+
+/// A render pipeline with `vs_main`/`fs_main` entry points and one colour target.
+struct PipelineSpec<'a> {
+    label: &'a str,
+    layout: &'a wgpu::PipelineLayout,
+    module: &'a wgpu::ShaderModule,
+    buffers: &'a [Option<wgpu::VertexBufferLayout<'a>>],
+    depth_stencil: Option<wgpu::DepthStencilState>,
+    multisample: wgpu::MultisampleState,
+    target: wgpu::TextureFormat,
+}
+
+impl PipelineSpec<'_> {
+    fn build(self, device: &wgpu::Device) -> wgpu::RenderPipeline {
+        device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some(self.label),
+            layout: Some(self.layout),
+            vertex: wgpu::VertexState {
+                module: self.module,
+                entry_point: Some("vs_main"),
+                compilation_options: Default::default(),
+                buffers: self.buffers,
+            },
+            primitive: Default::default(),
+            depth_stencil: self.depth_stencil,
+            multisample: self.multisample,
+            fragment: Some(wgpu::FragmentState {
+                module: self.module,
+                entry_point: Some("fs_main"),
+                compilation_options: Default::default(),
+                targets: &[Some(self.target.into())],
+            }),
+            multiview_mask: None,
+            cache: None,
+        })
     }
 }
 

@@ -167,6 +167,20 @@ impl ShTransport {
     }
 }
 
+/// Self-shadowing SH transport of one rigid object, in the object's own space (Sloan et al.'s
+/// per-object PRT). Moving or rotating the object leaves it valid: a renderer rotates the
+/// lighting into object space (`ShRotation` with `world_from_object`'s rotation). The
+/// approximation: shadows *between* objects are not in it (use `scope: scene` for those, or
+/// blocker spheres for dynamic occluders).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ObjectTransport {
+    pub name: String,
+    /// Column-major object-to-world matrix.
+    pub world_from_object: [f64; 16],
+    /// Receivers in object space, in the order of the object's world-space mesh vertices.
+    pub sh: std::sync::Arc<ShTransport>,
+}
+
 /// Cube-map Haar visibility and transfer per receiver (largest area-weighted coefficients).
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct HaarTransport {

@@ -42,6 +42,7 @@ pub enum StageValue {
     HaarTransport(crate::transport::HaarTransport),
     LocalTransport(crate::transport::SphericalTransport),
     TexelReceivers(crate::transport::TexelReceivers),
+    ObjectTransport(Vec<crate::transport::ObjectTransport>),
     /// Test stages: a number.
     Number(f64),
     /// In memory only (never persisted): obvhs BVHs are rebuilt on load. Must stay the last
@@ -67,6 +68,7 @@ impl StageValue {
             StageValue::LocalTransport(t) => t.visibility.iter().map(|v| v.len() * 16 + 24).sum(),
             StageValue::RayScene(s) => s.triangle_count() * 48 * 2,
             StageValue::TexelReceivers(t) => t.receivers.len() * 44,
+            StageValue::ObjectTransport(o) => o.len() * 160,
             _ => 64,
         }
     }
@@ -89,6 +91,7 @@ impl StageValue {
             StageValue::LocalTransport(_) => "local-frame transport",
             StageValue::RayScene(_) => "ray-tracing scene",
             StageValue::TexelReceivers(_) => "texel receivers",
+            StageValue::ObjectTransport(_) => "per-object transport",
             StageValue::Number(_) => "number",
         }
     }
@@ -145,9 +148,47 @@ pub struct StageContext<'a> {
     project_dir: &'a Path,
     cancel: &'a CancelToken,
     events: Option<&'a Sender<EvalEvent>>,
+    engine: &'a Engine,
+    persist: bool,
+    memo_hits: std::sync::atomic::AtomicUsize,
+    memo_misses: std::sync::atomic::AtomicUsize,
 }
 
 impl StageContext<'_> {
+    /// Caches a part of this stage's work under `key`, a hash of everything that part depends
+    /// on (so a stage over many items recomputes only the items that changed). Memoised parts
+    /// share the engine's memory cache, and its disk cache when the stage persists.
+    pub fn memo(
+        &self,
+        key: Key,
+        compute: impl FnOnce() -> Result<StageValue, StageError>,
+    ) -> Result<Arc<StageValue>, StageError> {
+        use std::sync::atomic::Ordering::Relaxed;
+        if let Some(v) = self.engine.memory.lock().unwrap().get(key) {
+            self.memo_hits.fetch_add(1, Relaxed);
+            return Ok(v);
+        }
+        if self.persist
+            && let Some(disk) = &self.engine.disk
+            && let DiskLookup::Hit(v) = disk.load(key)
+        {
+            let v = Arc::new(v);
+            self.engine.memory.lock().unwrap().insert(key, v.clone());
+            self.memo_hits.fetch_add(1, Relaxed);
+            return Ok(v);
+        }
+        let v = Arc::new(compute()?);
+        self.cancel.check()?;
+        self.memo_misses.fetch_add(1, Relaxed);
+        if self.persist
+            && let Some(disk) = &self.engine.disk
+        {
+            let _ = disk.store(key, &v);
+        }
+        self.engine.memory.lock().unwrap().insert(key, v.clone());
+        Ok(v)
+    }
+
     fn param(&self, name: &str) -> Result<&ParamValue, StageError> {
         self.params.get(name).copied().ok_or_else(|| {
             StageError::Internal(format!("stage `{}` read parameter `{name}` it did not declare", self.stage))
@@ -613,6 +654,10 @@ impl Engine {
             project_dir: &graph.project_dir,
             cancel,
             events,
+            engine: self,
+            persist: inst.spec.persist,
+            memo_hits: Default::default(),
+            memo_misses: Default::default(),
         };
         for (d, label) in &inst.deps {
             let value = results[*d].as_ref().unwrap().0.as_ref().unwrap().clone();
@@ -626,6 +671,10 @@ impl Engine {
             }
         }
         let outcome = (inst.spec.compute)(&ctx);
+        let (hits, misses) = (ctx.memo_hits.into_inner(), ctx.memo_misses.into_inner());
+        if hits + misses > 0 {
+            reasons.push(format!("{misses} part(s) computed, {hits} reused"));
+        }
         // A result computed while the evaluation was cancelled is still correct for its key,
         // but we drop it to keep cancellation prompt and simple to reason about.
         match outcome {

@@ -28,6 +28,7 @@ const SCENE_ALL: &[&str] = &[
     "scene.receivers",
     "scene.ray_scene",
     "scene.texel_receivers",
+    "scene.transport_objects",
     "scene.transport_sh",
     "scene.transport_haar",
     "scene.transport_local",
@@ -57,11 +58,17 @@ fn each_parameter_recomputes_exactly_its_stages() {
             "scene",
             "transport",
             Choice("sh".into()),
-            &["scene.transport_sh", "scene.transport_haar", "scene.transport_local", "scene.transport_texels"],
+            &[
+                "scene.transport_sh",
+                "scene.transport_objects",
+                "scene.transport_haar",
+                "scene.transport_local",
+                "scene.transport_texels",
+            ],
         ),
         ("scene", "visibility_texture_size", Choice("16".into()), &["scene.texel_receivers", "scene.transport_texels"]),
-        ("scene", "transport_bands", Int(3), &["scene.transport_sh"]),
-        ("scene", "transport_rays", Int(64), &["scene.transport_sh"]),
+        ("scene", "transport_bands", Int(3), &["scene.transport_sh", "scene.transport_objects"]),
+        ("scene", "transport_rays", Int(64), &["scene.transport_sh", "scene.transport_objects"]),
         ("scene", "haar_resolution", Choice("8".into()), &["scene.transport_haar"]),
         ("scene", "haar_terms", Int(32), &["scene.transport_haar"]),
         ("scene", "local_frame_depth", Int(2), &["scene.transport_local", "scene.transport_texels"]),
@@ -82,7 +89,7 @@ fn each_parameter_recomputes_exactly_its_stages() {
     let mut graph = default_graph();
     let first = engine.evaluate(&graph, &CancelToken::default(), None);
     assert!(first.report.failed().is_empty(), "{:?}", first.report.failed());
-    assert_eq!(first.report.computed().len(), 16);
+    assert_eq!(first.report.computed().len(), 17);
     let again = engine.evaluate(&graph, &CancelToken::default(), None);
     assert!(ran(&again.report).is_empty(), "an unchanged graph recomputed {:?}", ran(&again.report));
     for (node, param, value, expected) in table {
@@ -610,4 +617,51 @@ fn scene_transport_stages_cover_every_receiver_and_follow_transforms() {
         let d = [0, 1, 2].map(|c| r2.positions[i][c] - r.positions[i][c]);
         assert!((d[0] - 1.0).abs() < 1e-5 && d[1].abs() < 1e-5 && (d[2] + 0.5).abs() < 1e-5, "{d:?}");
     }
+}
+
+#[test]
+fn moving_a_rigid_object_reuses_every_per_object_transport() {
+    use crate::kinds::scene::{SceneObject, Shape};
+    let engine = Engine::in_memory();
+    let mut graph = default_graph();
+    let mut objects = vec![
+        SceneObject::new("torus", Shape::Torus { major: 0.6, minor: 0.25 }),
+        SceneObject::new("ball", Shape::Sphere { radius: 0.5 }).at([2.0, 0.5, 0.0]),
+    ];
+    graph.set_param("scene", "objects", ParamValue::Objects(objects.clone())).unwrap();
+    graph.set_param("scene", "tessellation", ParamValue::Int(12)).unwrap();
+    graph.set_param("scene", "transport", ParamValue::Choice("sh".into())).unwrap();
+    graph.set_param("scene", "transport_rays", ParamValue::Int(128)).unwrap();
+    let stage = |eval: &Evaluation| eval.report.stages.iter().find(|s| s.stage == "transport_objects").unwrap().clone();
+    let first = engine.evaluate(&graph, &CancelToken::default(), None);
+    assert!(stage(&first).reasons.iter().any(|r| r == "2 part(s) computed, 0 reused"), "{:?}", stage(&first).reasons);
+    let StageValue::ObjectTransport(before) = first.value("scene", "transport_objects").unwrap().as_ref().clone()
+    else {
+        panic!()
+    };
+    // The torus self-shadows (its inner ring sees less sky than its outer rim); the ball does not.
+    let v00 = |t: &crate::transport::ObjectTransport, i: usize| t.sh.receiver(i).0[0];
+    let torus_min = (0..before[0].sh.visibility.len() / 36).map(|i| v00(&before[0], i)).fold(f32::MAX, f32::min);
+    assert!(torus_min < 0.8 * (4.0 * std::f32::consts::PI).sqrt() / 2.0, "{torus_min}");
+    // Move and rotate the ball: the stage reruns, but reuses both objects' transport.
+    objects[1].translation = [-1.0, 0.5, 1.0];
+    objects[1].rotation_deg = [0.0, 45.0, 0.0];
+    graph.set_param("scene", "objects", ParamValue::Objects(objects.clone())).unwrap();
+    let moved = engine.evaluate(&graph, &CancelToken::default(), None);
+    assert_eq!(stage(&moved).status, StageStatus::Computed);
+    assert!(stage(&moved).reasons.iter().any(|r| r == "0 part(s) computed, 2 reused"), "{:?}", stage(&moved).reasons);
+    let StageValue::ObjectTransport(after) = moved.value("scene", "transport_objects").unwrap().as_ref().clone() else {
+        panic!()
+    };
+    assert_eq!(after[1].sh, before[1].sh);
+    assert_ne!(after[1].world_from_object, before[1].world_from_object);
+    // Changing the ball's shape recomputes only the ball.
+    objects[1].shape = Shape::Sphere { radius: 0.7 };
+    graph.set_param("scene", "objects", ParamValue::Objects(objects)).unwrap();
+    let reshaped = engine.evaluate(&graph, &CancelToken::default(), None);
+    assert!(
+        stage(&reshaped).reasons.iter().any(|r| r == "1 part(s) computed, 1 reused"),
+        "{:?}",
+        stage(&reshaped).reasons
+    );
 }

@@ -124,6 +124,15 @@ impl SceneObject {
 
     /// World-space meshes of the object.
     pub fn meshes(&self, tessellation: usize) -> Vec<mesh::Mesh> {
+        self.meshes_with(tessellation, self.transform())
+    }
+
+    /// Object-space meshes (no transform): what per-object transport is computed on.
+    pub fn object_meshes(&self, tessellation: usize) -> Vec<mesh::Mesh> {
+        self.meshes_with(tessellation, DMat4::IDENTITY)
+    }
+
+    fn meshes_with(&self, tessellation: usize, transform: DMat4) -> Vec<mesh::Mesh> {
         let raw = match &self.shape {
             Shape::Plane { size } => vec![mesh::plane(*size, (tessellation / 4).max(1))],
             Shape::Sphere { radius } => vec![mesh::sphere(*radius, tessellation)],
@@ -134,7 +143,7 @@ impl SceneObject {
         let single = raw.len() == 1;
         raw.into_iter()
             .map(|m| {
-                let mut m = m.transformed(self.transform());
+                let mut m = m.transformed(transform);
                 m.visibility_texture = self.visibility_texture;
                 let tint = self.color.map(|c| c as f32);
                 if single {
@@ -297,6 +306,15 @@ pub fn spec() -> NodeKindSpec {
                 compute: transport_sh,
             },
             StageSpec {
+                name: "transport_objects",
+                version: 1,
+                params: &["transport", "objects", "tessellation", "transport_bands", "transport_rays"],
+                stages: &[],
+                inputs: &[],
+                persist: true,
+                compute: transport_objects,
+            },
+            StageSpec {
                 name: "transport_haar",
                 version: 1,
                 params: &["transport", "haar_resolution", "haar_terms"],
@@ -394,6 +412,46 @@ fn transport_sh(ctx: &StageContext) -> Result<StageValue, StageError> {
         return Ok(StageValue::ShTransport(Default::default()));
     };
     Ok(StageValue::ShTransport(transport::sh_transport(s, r, bands, rays, ctx.cancel_token(), &|f| ctx.progress(f))?))
+}
+
+/// Per-object self-shadowing SH transport, each object memoised on its object-space shape,
+/// so moving, rotating or recolouring one object recomputes nothing (see `ObjectTransport`).
+fn transport_objects(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let ParamValue::Objects(objects) = ctx.value("objects")? else {
+        return Err(StageError::Internal("objects".into()));
+    };
+    let (tessellation, bands, rays) =
+        (ctx.int("tessellation")? as usize, ctx.int("transport_bands")? as usize, ctx.int("transport_rays")? as usize);
+    if !["sh", "sh_and_wavelets"].contains(&ctx.choice("transport")?) {
+        return Ok(StageValue::ObjectTransport(Vec::new()));
+    }
+    let mut out = Vec::with_capacity(objects.len());
+    for object in objects {
+        let mut bytes = postcard::to_stdvec(&object.shape).map_err(|e| StageError::Internal(e.to_string()))?;
+        bytes.extend_from_slice(format!("self-sh v1 {tessellation} {bands} {rays}").as_bytes());
+        let key = xxhash_rust::xxh3::xxh3_128(&bytes);
+        let sh = ctx.memo(key, || {
+            let meshes = MeshSet { meshes: object.object_meshes(tessellation) };
+            let scene = RayScene::build(&meshes);
+            let receivers = Receivers::from_meshes(&meshes);
+            Ok(StageValue::ShTransport(transport::sh_transport(
+                &scene,
+                &receivers,
+                bands,
+                rays,
+                ctx.cancel_token(),
+                &|_| {},
+            )?))
+        })?;
+        let StageValue::ShTransport(sh) = sh.as_ref() else { return Err(wrong("memoised transport")) };
+        out.push(transport::ObjectTransport {
+            name: object.name.clone(),
+            world_from_object: object.transform().to_cols_array(),
+            sh: std::sync::Arc::new(sh.clone()),
+        });
+        ctx.progress(out.len() as f64 / objects.len() as f64);
+    }
+    Ok(StageValue::ObjectTransport(out))
 }
 
 fn transport_haar(ctx: &StageContext) -> Result<StageValue, StageError> {

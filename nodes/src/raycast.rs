@@ -6,13 +6,15 @@ use crate::mesh::MeshSet;
 use glam::{DVec3, Vec3A};
 use obvhs::cwbvh::CwBvh;
 use obvhs::ray::{Ray, RayHit};
+use obvhs::rt_triangle::RtTriangle;
 use obvhs::triangle::Triangle;
 
 /// Triangles and their BVH. Not serialisable (obvhs has no serde): rebuilt on load.
 pub struct RayScene {
     bvh: CwBvh,
-    /// Triangles in BVH order (no index indirection while traversing).
-    triangles: Vec<Triangle>,
+    /// Triangles in BVH order (no index indirection while traversing), with precomputed
+    /// edges and normal for intersection.
+    triangles: Vec<RtTriangle>,
     /// Original triangle index of each BVH-ordered triangle.
     original: Vec<u32>,
     /// Offset used to leave a surface: scales with the scene's size.
@@ -62,14 +64,15 @@ impl RayScene {
             if triangles.is_empty() { 1.0 } else { (hi - lo).max_element().max(lo.abs().max(hi.abs()).max_element()) };
         let epsilon = (extent * 2e-5).max(1e-6);
         if triangles.is_empty() {
-            return Self { bvh: CwBvh::default(), triangles, original, epsilon };
+            return Self { bvh: CwBvh::default(), triangles: Vec::new(), original, epsilon };
         }
         let bvh = obvhs::cwbvh::builder::build_cwbvh_from_tris(
             &triangles,
             obvhs::BvhBuildParams::medium_build(),
             &mut std::time::Duration::default(),
         );
-        let ordered: Vec<Triangle> = bvh.primitive_indices.iter().map(|&i| triangles[i as usize]).collect();
+        let ordered: Vec<RtTriangle> =
+            bvh.primitive_indices.iter().map(|&i| RtTriangle::from(&triangles[i as usize])).collect();
         let original = bvh.primitive_indices.iter().map(|&i| original[i as usize]).collect();
         Self { bvh, triangles: ordered, original, epsilon }
     }

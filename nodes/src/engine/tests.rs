@@ -665,3 +665,33 @@ fn moving_a_rigid_object_reuses_every_per_object_transport() {
         stage(&reshaped).reasons
     );
 }
+
+#[test]
+fn a_gltf_file_is_one_object_with_its_own_transport() {
+    let file = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../shared/assets/gltf/assimp-glTF2/BoxTextured-glTF/BoxTextured.gltf");
+    assert!(file.is_file(), "shared glTF assets expected at {}", file.display());
+    let engine = Engine::in_memory();
+    let mut graph = default_graph();
+    graph.set_param("scene", "objects", ParamValue::Objects(Vec::new())).unwrap();
+    graph.set_param("scene", "file", ParamValue::Path(file.display().to_string())).unwrap();
+    graph.set_param("scene", "transport", ParamValue::Choice("sh".into())).unwrap();
+    graph.set_param("scene", "transport_rays", ParamValue::Int(1024)).unwrap();
+    let eval = engine.evaluate(&graph, &CancelToken::default(), None);
+    assert!(eval.report.failed().is_empty(), "{:?}", eval.report.failed());
+    let StageValue::Meshes(meshes) = eval.value("scene", "geometry").unwrap().as_ref().clone() else { panic!() };
+    let StageValue::ObjectTransport(objects) = eval.value("scene", "transport_objects").unwrap().as_ref().clone()
+    else {
+        panic!()
+    };
+    assert_eq!(objects.len(), 1);
+    assert_eq!(objects[0].name, "BoxTextured.gltf");
+    let vertices: usize = meshes.meshes.iter().map(|m| m.positions.len()).sum();
+    assert_eq!(objects[0].sh.visibility.len(), vertices * 36);
+    // A convex box does not shadow itself: every receiver sees its whole upper hemisphere
+    // (up to the Fibonacci quadrature: one ray stands for 4π/1024 sr).
+    for i in 0..vertices {
+        let v00 = objects[0].sh.receiver(i).0[0] as f64 * (4.0 * std::f64::consts::PI).sqrt();
+        assert!((v00 - 2.0 * std::f64::consts::PI).abs() < 0.05, "receiver {i}: {v00}");
+    }
+}

@@ -308,7 +308,7 @@ pub fn spec() -> NodeKindSpec {
             StageSpec {
                 name: "transport_objects",
                 version: 1,
-                params: &["transport", "objects", "tessellation", "transport_bands", "transport_rays"],
+                params: &["transport", "objects", "tessellation", "file", "transport_bands", "transport_rays"],
                 stages: &[],
                 inputs: &[],
                 persist: true,
@@ -450,6 +450,30 @@ fn transport_objects(ctx: &StageContext) -> Result<StageValue, StageError> {
             sh: std::sync::Arc::new(sh.clone()),
         });
         ctx.progress(out.len() as f64 / objects.len() as f64);
+    }
+    // A glTF file is one static object (its node transforms are baked into its meshes).
+    if let Some(path) = ctx.path("file")? {
+        let mut bytes =
+            std::fs::read(&path).map_err(|e| StageError::Failed(format!("cannot read {}: {e}", path.display())))?;
+        bytes.extend_from_slice(format!("gltf self-sh v1 {bands} {rays}").as_bytes());
+        let sh = ctx.memo(xxhash_rust::xxh3::xxh3_128(&bytes), || {
+            let meshes = MeshSet { meshes: crate::gltf_import::import(&path).map_err(StageError::Failed)?.meshes };
+            let scene = RayScene::build(&meshes);
+            Ok(StageValue::ShTransport(transport::sh_transport(
+                &scene,
+                &Receivers::from_meshes(&meshes),
+                bands,
+                rays,
+                ctx.cancel_token(),
+                &|_| {},
+            )?))
+        })?;
+        let StageValue::ShTransport(sh) = sh.as_ref() else { return Err(wrong("memoised transport")) };
+        out.push(transport::ObjectTransport {
+            name: path.file_name().map(|n| n.to_string_lossy().to_string()).unwrap_or_default(),
+            world_from_object: DMat4::IDENTITY.to_cols_array(),
+            sh: std::sync::Arc::new(sh.clone()),
+        });
     }
     Ok(StageValue::ObjectTransport(out))
 }

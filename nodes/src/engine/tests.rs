@@ -140,11 +140,16 @@ fn rotated_sh_matches_projecting_the_rotated_cube_map() {
 
 // ---- test kinds ------------------------------------------------------------------------
 
-static EXPENSIVE_RUNS: AtomicUsize = AtomicUsize::new(0);
+/// Only the disk-cache test uses the `Counted` kind, so its count is not raced by other tests.
+static COUNTED_RUNS: AtomicUsize = AtomicUsize::new(0);
+
+fn counted(ctx: &StageContext) -> Result<StageValue, StageError> {
+    COUNTED_RUNS.fetch_add(1, Ordering::SeqCst);
+    Ok(StageValue::Number(ctx.float("x")? * 2.0))
+}
 static CONCURRENT: AtomicUsize = AtomicUsize::new(0);
 
 fn expensive(ctx: &StageContext) -> Result<StageValue, StageError> {
-    EXPENSIVE_RUNS.fetch_add(1, Ordering::SeqCst);
     Ok(StageValue::Number(ctx.float("x")? * 2.0))
 }
 
@@ -213,6 +218,7 @@ fn test_registry() -> &'static [NodeKindSpec] {
     REGISTRY.get_or_init(|| {
         let mut kinds = vec![
             test_kind("Expensive", expensive, true),
+            test_kind("Counted", counted, true),
             test_kind("Slow", slow, false),
             test_kind("Meet", meet, false),
             test_kind("Fails", fails, false),
@@ -253,15 +259,15 @@ fn temp_dir(name: &str) -> PathBuf {
 fn disk_cache_serves_fresh_engines_and_recomputes_corrupt_entries() {
     let dir = temp_dir("disk");
     let config = || EngineConfig { memory_budget_bytes: 1 << 20, disk_cache: Some(dir.clone()) };
-    let mut graph = test_graph(&[("e", "Expensive")], &[]);
+    let mut graph = test_graph(&[("e", "Counted")], &[]);
     graph.set_param("e", "x", ParamValue::Float(21.0)).unwrap();
-    let before = EXPENSIVE_RUNS.load(Ordering::SeqCst);
+    let before = COUNTED_RUNS.load(Ordering::SeqCst);
     let first = Engine::new(config()).evaluate(&graph, &CancelToken::default(), None);
     assert_eq!(first.report.stages[0].status, StageStatus::Computed);
     let second = Engine::new(config()).evaluate(&graph, &CancelToken::default(), None);
     assert_eq!(second.report.stages[0].status, StageStatus::DiskHit);
     assert_eq!(*second.value("e", "value").unwrap(), StageValue::Number(42.0));
-    assert_eq!(EXPENSIVE_RUNS.load(Ordering::SeqCst) - before, 1);
+    assert_eq!(COUNTED_RUNS.load(Ordering::SeqCst) - before, 1);
     // Corrupt the entry: flip a payload byte; then truncate it.
     let path = Engine::new(config()).disk_cache().unwrap().path_for(first.results[0].key);
     for corrupt in [

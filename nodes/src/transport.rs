@@ -170,8 +170,8 @@ impl ShTransport {
 /// Self-shadowing SH transport of one rigid object, in the object's own space (Sloan et al.'s
 /// per-object PRT). Moving or rotating the object leaves it valid: a renderer rotates the
 /// lighting into object space (`ShRotation` with `world_from_object`'s rotation). The
-/// approximation: shadows *between* objects are not in it (the scene-wide `transport_sh` stage has them; or
-/// blocker spheres for dynamic occluders).
+/// approximation: shadows *between* objects are not in it (the scene-wide `transport_sh`
+/// stage has them, and blocker spheres can add dynamic occluders).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ObjectTransport {
     pub name: String,

@@ -355,19 +355,12 @@ fn texel_receivers(ctx: &StageContext) -> Result<StageValue, StageError> {
 
 fn transport_texels(ctx: &StageContext) -> Result<StageValue, StageError> {
     let (depth, keep) = (ctx.int("local_frame_depth")? as usize, ctx.int("local_frame_terms")? as usize);
-    if ctx.choice("transport")? != "sh_and_wavelets" {
+    let Some((r, s)) = transport_inputs(ctx, &["sh_and_wavelets"], "texel_receivers")? else {
         return Ok(StageValue::LocalTransport(Default::default()));
-    }
-    let StageValue::TexelReceivers(t) = ctx.stage("texel_receivers")? else { return Err(wrong("texel_receivers")) };
-    let StageValue::RayScene(s) = ctx.stage("ray_scene")? else { return Err(wrong("ray_scene")) };
-    Ok(StageValue::LocalTransport(transport::spherical_transport(
-        s,
-        &t.receivers,
-        depth,
-        keep,
-        ctx.cancel_token(),
-        &|f| ctx.progress(f),
-    )?))
+    };
+    Ok(StageValue::LocalTransport(transport::spherical_transport(s, r, depth, keep, ctx.cancel_token(), &|f| {
+        ctx.progress(f)
+    })?))
 }
 
 fn geometry(ctx: &StageContext) -> Result<StageValue, StageError> {
@@ -397,18 +390,23 @@ fn ray_scene(ctx: &StageContext) -> Result<StageValue, StageError> {
 fn transport_inputs<'a>(
     ctx: &'a StageContext,
     level: &[&str],
+    receivers: &str,
 ) -> Result<Option<(&'a Receivers, &'a RayScene)>, StageError> {
     if !level.contains(&ctx.choice("transport")?) {
         return Ok(None);
     }
-    let StageValue::Receivers(r) = ctx.stage("receivers")? else { return Err(wrong("receivers")) };
+    let r = match ctx.stage(receivers)? {
+        StageValue::Receivers(r) => r,
+        StageValue::TexelReceivers(t) => &t.receivers,
+        _ => return Err(wrong(receivers)),
+    };
     let StageValue::RayScene(s) = ctx.stage("ray_scene")? else { return Err(wrong("ray_scene")) };
     Ok(Some((r, s)))
 }
 
 fn transport_sh(ctx: &StageContext) -> Result<StageValue, StageError> {
     let (bands, rays) = (ctx.int("transport_bands")? as usize, ctx.int("transport_rays")? as usize);
-    let Some((r, s)) = transport_inputs(ctx, &["sh", "sh_and_wavelets"])? else {
+    let Some((r, s)) = transport_inputs(ctx, &["sh", "sh_and_wavelets"], "receivers")? else {
         return Ok(StageValue::ShTransport(Default::default()));
     };
     Ok(StageValue::ShTransport(transport::sh_transport(s, r, bands, rays, ctx.cancel_token(), &|f| ctx.progress(f))?))
@@ -429,26 +427,9 @@ fn transport_objects(ctx: &StageContext) -> Result<StageValue, StageError> {
     for object in objects {
         let mut bytes = postcard::to_stdvec(&object.shape).map_err(|e| StageError::Internal(e.to_string()))?;
         bytes.extend_from_slice(format!("self-sh v1 {tessellation} {bands} {rays}").as_bytes());
-        let key = xxhash_rust::xxh3::xxh3_128(&bytes);
-        let sh = ctx.memo(key, || {
-            let meshes = MeshSet { meshes: object.object_meshes(tessellation) };
-            let scene = RayScene::build(&meshes);
-            let receivers = Receivers::from_meshes(&meshes);
-            Ok(StageValue::ShTransport(transport::sh_transport(
-                &scene,
-                &receivers,
-                bands,
-                rays,
-                ctx.cancel_token(),
-                &|_| {},
-            )?))
-        })?;
-        let StageValue::ShTransport(sh) = sh.as_ref() else { return Err(wrong("memoised transport")) };
-        out.push(transport::ObjectTransport {
-            name: object.name.clone(),
-            world_from_object: object.transform().to_cols_array(),
-            sh: std::sync::Arc::new(sh.clone()),
-        });
+        out.push(self_transport(ctx, &bytes, &object.name, object.transform(), (bands, rays), || {
+            Ok(object.object_meshes(tessellation))
+        })?);
         ctx.progress(out.len() as f64 / objects.len() as f64);
     }
     // A glTF file is one static object (its node transforms are baked into its meshes).
@@ -456,33 +437,50 @@ fn transport_objects(ctx: &StageContext) -> Result<StageValue, StageError> {
         let mut bytes =
             std::fs::read(&path).map_err(|e| StageError::Failed(format!("cannot read {}: {e}", path.display())))?;
         bytes.extend_from_slice(format!("gltf self-sh v1 {bands} {rays}").as_bytes());
-        let sh = ctx.memo(xxhash_rust::xxh3::xxh3_128(&bytes), || {
-            let meshes = MeshSet { meshes: crate::gltf_import::import(&path).map_err(StageError::Failed)?.meshes };
-            let scene = RayScene::build(&meshes);
-            Ok(StageValue::ShTransport(transport::sh_transport(
-                &scene,
-                &Receivers::from_meshes(&meshes),
-                bands,
-                rays,
-                ctx.cancel_token(),
-                &|_| {},
-            )?))
-        })?;
-        let StageValue::ShTransport(sh) = sh.as_ref() else { return Err(wrong("memoised transport")) };
-        out.push(transport::ObjectTransport {
-            name: path.file_name().map(|n| n.to_string_lossy().to_string()).unwrap_or_default(),
-            world_from_object: DMat4::IDENTITY.to_cols_array(),
-            sh: std::sync::Arc::new(sh.clone()),
-        });
+        let name = path.file_name().map(|n| n.to_string_lossy().to_string()).unwrap_or_default();
+        out.push(self_transport(ctx, &bytes, &name, DMat4::IDENTITY, (bands, rays), || {
+            Ok(crate::gltf_import::import(&path).map_err(StageError::Failed)?.meshes)
+        })?);
     }
     Ok(StageValue::ObjectTransport(out))
+}
+
+/// One object's self-shadowing SH transport, memoised under the hash of `key_bytes`
+/// (everything its object-space geometry and sampling depend on).
+fn self_transport(
+    ctx: &StageContext,
+    key_bytes: &[u8],
+    name: &str,
+    world_from_object: DMat4,
+    (bands, rays): (usize, usize),
+    object_meshes: impl FnOnce() -> Result<Vec<crate::mesh::Mesh>, StageError>,
+) -> Result<transport::ObjectTransport, StageError> {
+    let sh = ctx.memo(xxhash_rust::xxh3::xxh3_128(key_bytes), || {
+        let meshes = MeshSet { meshes: object_meshes()? };
+        let scene = RayScene::build(&meshes);
+        let receivers = Receivers::from_meshes(&meshes);
+        Ok(StageValue::ShTransport(transport::sh_transport(
+            &scene,
+            &receivers,
+            bands,
+            rays,
+            ctx.cancel_token(),
+            &|_| {},
+        )?))
+    })?;
+    let StageValue::ShTransport(sh) = sh.as_ref() else { return Err(wrong("memoised transport")) };
+    Ok(transport::ObjectTransport {
+        name: name.to_string(),
+        world_from_object: world_from_object.to_cols_array(),
+        sh: std::sync::Arc::new(sh.clone()),
+    })
 }
 
 fn transport_haar(ctx: &StageContext) -> Result<StageValue, StageError> {
     let size: usize =
         ctx.choice("haar_resolution")?.parse().map_err(|_| StageError::Internal("haar_resolution".into()))?;
     let keep = ctx.int("haar_terms")? as usize;
-    let Some((r, s)) = transport_inputs(ctx, &["sh_and_wavelets"])? else {
+    let Some((r, s)) = transport_inputs(ctx, &["sh_and_wavelets"], "receivers")? else {
         return Ok(StageValue::HaarTransport(Default::default()));
     };
     Ok(StageValue::HaarTransport(transport::haar_transport(s, r, size, keep, ctx.cancel_token(), &|f| {
@@ -492,7 +490,7 @@ fn transport_haar(ctx: &StageContext) -> Result<StageValue, StageError> {
 
 fn transport_local(ctx: &StageContext) -> Result<StageValue, StageError> {
     let (depth, keep) = (ctx.int("local_frame_depth")? as usize, ctx.int("local_frame_terms")? as usize);
-    let Some((r, s)) = transport_inputs(ctx, &["sh_and_wavelets"])? else {
+    let Some((r, s)) = transport_inputs(ctx, &["sh_and_wavelets"], "receivers")? else {
         return Ok(StageValue::LocalTransport(Default::default()));
     };
     Ok(StageValue::LocalTransport(transport::spherical_transport(s, r, depth, keep, ctx.cancel_token(), &|f| {

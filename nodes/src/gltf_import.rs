@@ -167,6 +167,13 @@ fn read_primitive(
         }
         None => false,
     };
+    let tangents_ok = match primitive.get(&Semantic::Tangents) {
+        Some(a) => {
+            check_accessor(&a, buffers, "TANGENT", &[DataType::F32], Dimensions::Vec4).map_err(err)?;
+            a.count() == positions_accessor.count()
+        }
+        None => false,
+    };
     if let Some(a) = primitive.indices() {
         check_accessor(&a, buffers, "index", &[DataType::U8, DataType::U16, DataType::U32], Dimensions::Scalar)
             .map_err(err)?;
@@ -208,9 +215,19 @@ fn read_primitive(
         }
         normals = smooth_normals(&positions, &indices);
     }
+    // Authored tangents are kept when usable; otherwise `vertex_tangents` derives them from UVs.
+    let mut tangents: Vec<[f32; 3]> = if tangents_ok {
+        reader.read_tangents().map(|t| t.map(|t| [t[0], t[1], t[2]]).collect()).unwrap_or_default()
+    } else {
+        Vec::new()
+    };
+    if tangents.iter().any(|t| !t.iter().all(|v| v.is_finite()) || DVec3::from(t.map(f64::from)).length() < 1e-6) {
+        warnings.push(format!("{label}: zero or non-finite tangents were ignored and derived from the UVs"));
+        tangents.clear();
+    }
     let base = primitive.material().pbr_metallic_roughness().base_color_factor();
     let base_color = [base[0], base[1], base[2]].map(|c| if c.is_finite() { c.clamp(0.0, 1.0) } else { 0.8 });
-    Ok(Mesh { name: String::new(), positions, normals, uvs, indices, base_color, visibility_texture: false })
+    Ok(Mesh { name: String::new(), positions, normals, uvs, tangents, indices, base_color, visibility_texture: false })
 }
 
 /// Area-weighted vertex normals.

@@ -12,6 +12,9 @@ pub struct Mesh {
     pub positions: Vec<[f32; 3]>,
     pub normals: Vec<[f32; 3]>,
     pub uvs: Vec<[f32; 2]>,
+    /// Authored unit tangents (glTF `TANGENT`), or empty: [`vertex_tangents`] derives them.
+    #[serde(default)]
+    pub tangents: Vec<[f32; 3]>,
     pub indices: Vec<u32>,
     /// Linear RGB base colour (multiplies the material albedo).
     pub base_color: [f32; 3],
@@ -33,6 +36,10 @@ impl Mesh {
         }
         for n in &mut self.normals {
             *n = (normal_matrix * DVec3::from(n.map(f64::from))).normalize_or_zero().as_vec3().to_array();
+        }
+        let linear = DMat3::from_mat4(transform);
+        for t in &mut self.tangents {
+            *t = (linear * DVec3::from(t.map(f64::from))).normalize_or_zero().as_vec3().to_array();
         }
         // A mirroring transform flips the winding.
         if transform.determinant() < 0.0 {
@@ -84,11 +91,16 @@ impl Mesh {
     }
 }
 
-/// Per-vertex unit tangents: from the UV parameterisation where it is usable (Lengyel's
-/// method, accumulated over adjacent triangles), else any vector orthogonal to the normal.
+/// Per-vertex unit tangents orthogonal to the normals: the authored ones where the mesh has
+/// them, else from the UV parameterisation where it is usable (Lengyel's method, accumulated
+/// over adjacent triangles), else any vector orthogonal to the normal.
 pub fn vertex_tangents(mesh: &Mesh) -> Vec<[f32; 3]> {
     let mut acc = vec![DVec3::ZERO; mesh.positions.len()];
-    if mesh.uvs.len() == mesh.positions.len() {
+    if mesh.tangents.len() == mesh.positions.len() {
+        for (a, t) in acc.iter_mut().zip(&mesh.tangents) {
+            *a = DVec3::from(t.map(f64::from));
+        }
+    } else if mesh.uvs.len() == mesh.positions.len() {
         for t in mesh.indices.chunks_exact(3) {
             let p = |i: u32| DVec3::from(mesh.positions[i as usize].map(f64::from));
             let uv = |i: u32| mesh.uvs[i as usize].map(f64::from);
@@ -318,5 +330,24 @@ mod tests {
         let (lo, hi) = m.bounds();
         assert!(lo[0] > 2.9 && hi[0] < 7.1);
         assert!(m.normals.iter().all(|n| (DVec3::from(n.map(f64::from)).length() - 1.0).abs() < 1e-5));
+    }
+
+    #[test]
+    fn authored_tangents_follow_the_transform_and_stay_orthogonal() {
+        let mut m = plane(2.0, 2);
+        // Authored tangents along +Z (the UV-derived ones would follow +X).
+        m.tangents = vec![[0.0, 0.0, 1.0]; m.positions.len()];
+        let rotation = DMat4::from_rotation_y(0.5) * DMat4::from_scale(DVec3::new(2.0, 1.0, 1.0));
+        let moved = m.clone().transformed(rotation);
+        let expected = (DMat3::from_mat4(rotation) * DVec3::Z).normalize();
+        for (t, n) in vertex_tangents(&moved).iter().zip(&moved.normals) {
+            let (t, n) = (DVec3::from(t.map(f64::from)), DVec3::from(n.map(f64::from)));
+            assert!((t - expected).length() < 1e-6, "{t} vs {expected}");
+            assert!(t.dot(n).abs() < 1e-6);
+        }
+        // Without authored tangents they come from the UVs: u runs along +X on the plane.
+        for t in vertex_tangents(&plane(2.0, 2)) {
+            assert!((DVec3::from(t.map(f64::from)) - DVec3::X).length() < 1e-6, "{t:?}");
+        }
     }
 }

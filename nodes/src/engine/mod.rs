@@ -564,6 +564,9 @@ impl Engine {
         {
             let path = graph.project_dir.join(p);
             bytes.extend_from_slice(&self.file_hash(&path).to_le_bytes());
+            for sidecar in gltf_sidecars(&path) {
+                bytes.extend_from_slice(&self.file_hash(&sidecar).to_le_bytes());
+            }
         }
     }
 
@@ -787,6 +790,26 @@ impl Scheduler {
     pub fn current(&self) -> Option<&EvalJob> {
         self.current.as_ref()
     }
+}
+
+
+/// External files a `.gltf` refers to (buffers and images by relative URI), so editing a `.bin`
+/// next to the `.gltf` changes the keys of the stages that read it. Empty for other files.
+fn gltf_sidecars(path: &Path) -> Vec<PathBuf> {
+    if !path.extension().is_some_and(|e| e.eq_ignore_ascii_case("gltf")) {
+        return Vec::new();
+    }
+    let Ok(text) = std::fs::read(path) else { return Vec::new() };
+    let Ok(json) = serde_json::from_slice::<serde_json::Value>(&text) else { return Vec::new() };
+    let dir = path.parent().unwrap_or(Path::new("."));
+    ["buffers", "images"]
+        .iter()
+        .filter_map(|k| json.get(k)?.as_array())
+        .flatten()
+        .filter_map(|entry| entry.get("uri")?.as_str())
+        .filter(|uri| !uri.starts_with("data:"))
+        .map(|uri| dir.join(uri.replace("%20", " ")))
+        .collect()
 }
 
 #[cfg(test)]

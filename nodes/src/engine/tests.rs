@@ -701,3 +701,32 @@ fn a_gltf_file_is_one_object_with_its_own_transport() {
         assert!((v00 - 2.0 * std::f64::consts::PI).abs() < 0.05, "receiver {i}: {v00}");
     }
 }
+
+#[test]
+fn editing_a_gltf_buffer_file_changes_the_geometry_key() {
+    let source = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/assets/gltf/assimp-glTF2/BoxTextured-glTF");
+    let dir = temp_dir("gltf-sidecar");
+    for name in ["BoxTextured.gltf", "BoxTextured0.bin"] {
+        std::fs::copy(source.join(name), dir.join(name)).unwrap();
+    }
+    let engine = Engine::in_memory();
+    let mut graph = default_graph();
+    graph.set_param("scene", "objects", ParamValue::Objects(Vec::new())).unwrap();
+    graph.set_param("scene", "file", ParamValue::Path(dir.join("BoxTextured.gltf").display().to_string())).unwrap();
+    let geometry_key = |engine: &Engine, graph: &Graph| {
+        let eval = engine.evaluate(graph, &CancelToken::default(), None);
+        let report = eval.report.stages.iter().find(|s| s.node == "scene" && s.stage == "geometry").unwrap();
+        (report.key, report.status)
+    };
+    let (first, _) = geometry_key(&engine, &graph);
+    // Scale the first position by rewriting the buffer (same length, new content and mtime).
+    let bin = dir.join("BoxTextured0.bin");
+    let mut bytes = std::fs::read(&bin).unwrap();
+    bytes.iter_mut().take(64).for_each(|b| *b ^= 0x01);
+    std::thread::sleep(std::time::Duration::from_millis(20));
+    std::fs::write(&bin, &bytes).unwrap();
+    let (second, status) = geometry_key(&engine, &graph);
+    assert_ne!(first, second, "the .bin next to the .gltf is part of the key");
+    assert_eq!(status, StageStatus::Computed);
+    let _ = std::fs::remove_dir_all(&dir);
+}

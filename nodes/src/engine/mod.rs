@@ -792,7 +792,6 @@ impl Scheduler {
     }
 }
 
-
 /// External files a `.gltf` refers to (buffers and images by relative URI), so editing a `.bin`
 /// next to the `.gltf` changes the keys of the stages that read it. Empty for other files.
 fn gltf_sidecars(path: &Path) -> Vec<PathBuf> {

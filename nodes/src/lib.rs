@@ -20,6 +20,7 @@ pub mod mesh;
 pub mod project;
 pub mod quadrature;
 pub mod raycast;
+pub mod reference;
 pub mod sampling;
 pub mod sat;
 pub mod sh;

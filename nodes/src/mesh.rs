@@ -6,7 +6,7 @@ use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
 
 /// An indexed triangle mesh in world space (counter-clockwise front faces).
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Mesh {
     pub name: String,
     pub positions: Vec<[f32; 3]>,
@@ -21,6 +21,22 @@ pub struct Mesh {
     /// Receives a per-texel visibility texture over its UVs (needs non-overlapping UVs).
     #[serde(default)]
     pub visibility_texture: bool,
+}
+
+/// Empty, white.
+impl Default for Mesh {
+    fn default() -> Self {
+        Self {
+            name: String::new(),
+            positions: Vec::new(),
+            normals: Vec::new(),
+            uvs: Vec::new(),
+            tangents: Vec::new(),
+            indices: Vec::new(),
+            base_color: [1.0; 3],
+            visibility_texture: false,
+        }
+    }
 }
 
 impl Mesh {

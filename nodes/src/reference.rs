@@ -1,0 +1,460 @@
+//! Monte Carlo reference renderer: ground truth for the relighting modes. Direct lighting from
+//! the environment with binary visibility and the same BRDFs (`Ma et al.` eq. 1,
+//! `B(x, ω_o) = ∫ L V ρ (ω_i·n) dω_i`), on the same BVH, for the same camera.
+//!
+//! Estimator: per pixel, jittered camera rays; at each hit one environment-importance sample
+//! and one BRDF sample, combined by multiple importance sampling (balance heuristic), each with
+//! a shadow ray. The environment is the cube map's texel-constant radiance (what the SH and
+//! wavelet projections see); environment samples pick a texel by `luminance × solid angle` and
+//! a point uniformly in its face rectangle, with the exact solid-angle density.
+
+use crate::brdf::Brdf;
+use crate::cubemap::{self, CubeMap, FACES};
+use crate::engine::{CancelToken, StageError};
+use crate::mesh::MeshSet;
+use crate::raycast::RayScene;
+use glam::{DMat3, DVec3, Vec3A};
+use rand::{Rng, SeedableRng, rngs::SmallRng};
+use rayon::prelude::*;
+
+/// A pinhole camera (`+Y` up), as `project::Camera` and the viewport use it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PinholeCamera {
+    pub position: DVec3,
+    pub target: DVec3,
+    pub fov_y_deg: f64,
+}
+
+impl PinholeCamera {
+    /// Direction through image point `(x, y)` in pixels (`y` down), matching the viewport's
+    /// right-handed perspective.
+    pub fn ray(&self, x: f64, y: f64, width: usize, height: usize) -> DVec3 {
+        let forward = (self.target - self.position).normalize();
+        let right = forward.cross(DVec3::Y).try_normalize().unwrap_or(DVec3::X);
+        let up = right.cross(forward);
+        let tan = (self.fov_y_deg.to_radians() / 2.0).tan();
+        let aspect = width as f64 / height as f64;
+        let ndc_x = 2.0 * x / width as f64 - 1.0;
+        let ndc_y = 1.0 - 2.0 * y / height as f64;
+        (forward + right * (ndc_x * tan * aspect) + up * (ndc_y * tan)).normalize()
+    }
+}
+
+/// Importance sampling of a cube map by `luminance × solid angle`.
+pub struct EnvironmentSampler<'a> {
+    cube: &'a CubeMap,
+    cdf: Vec<f64>,
+    /// Per texel: probability.
+    probability: Vec<f64>,
+}
+
+fn luminance(c: [f64; 3]) -> f64 {
+    0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]
+}
+
+impl<'a> EnvironmentSampler<'a> {
+    pub fn new(cube: &'a CubeMap) -> Self {
+        let n = cube.size;
+        let solid = cube.face_solid_angles();
+        let weights: Vec<f64> = (0..FACES * n * n)
+            .map(|i| luminance(cube.texels[i].map(f64::from)).max(0.0) * solid[i % (n * n)])
+            .collect();
+        let total: f64 = weights.iter().sum();
+        // A black environment: sample uniformly by solid angle (all estimates are zero anyway).
+        let weights: Vec<f64> = if total > 0.0 {
+            weights.iter().map(|w| w / total).collect()
+        } else {
+            let s: f64 = solid.iter().sum::<f64>() * FACES as f64;
+            (0..FACES * n * n).map(|i| solid[i % (n * n)] / s).collect()
+        };
+        let mut acc = 0.0;
+        let cdf = weights
+            .iter()
+            .map(|w| {
+                acc += w;
+                acc
+            })
+            .collect();
+        Self { cube, cdf, probability: weights }
+    }
+
+    /// Texel index of a direction (nearest texel).
+    fn texel_of(&self, dir: DVec3) -> (usize, f64, f64) {
+        let n = self.cube.size;
+        let (face, u, v) = cubemap::dir_to_face_uv(dir);
+        let x = ((u * n as f64) as usize).min(n - 1);
+        let y = ((v * n as f64) as usize).min(n - 1);
+        ((face * n + y) * n + x, 2.0 * u - 1.0, 2.0 * v - 1.0)
+    }
+
+    /// Texel-constant radiance in a direction.
+    pub fn radiance(&self, dir: DVec3) -> DVec3 {
+        DVec3::from(self.cube.texels[self.texel_of(dir).0].map(f64::from))
+    }
+
+    /// Solid-angle density of [`EnvironmentSampler::sample`].
+    pub fn pdf(&self, dir: DVec3) -> f64 {
+        let (i, a, b) = self.texel_of(dir);
+        let texel_area = (2.0 / self.cube.size as f64).powi(2);
+        self.probability[i] / texel_area * (1.0 + a * a + b * b).powf(1.5)
+    }
+
+    pub fn sample(&self, u: [f64; 3]) -> DVec3 {
+        let i =
+            self.cdf.partition_point(|c| *c < u[0] * self.cdf.last().copied().unwrap_or(1.0)).min(self.cdf.len() - 1);
+        let n = self.cube.size;
+        let (face, y, x) = (i / (n * n), (i / n) % n, i % n);
+        cubemap::face_uv_to_dir(face, (x as f64 + u[1]) / n as f64, (y as f64 + u[2]) / n as f64)
+    }
+}
+
+/// Geometry, material and lighting of a reference render.
+pub struct ReferenceScene<'a> {
+    pub scene: &'a RayScene,
+    pub meshes: &'a MeshSet,
+    pub brdf: Brdf,
+    /// The environment as the relighting modes see it (after rotation, exposure and tint).
+    pub environment: &'a CubeMap,
+    /// Draw the environment where camera rays miss.
+    pub background: bool,
+}
+
+/// A linear HDR image, rows top to bottom.
+#[derive(Clone, Debug, PartialEq)]
+pub struct HdrImage {
+    pub width: usize,
+    pub height: usize,
+    pub pixels: Vec<[f32; 3]>,
+}
+
+/// Per-triangle lookup from the ray scene's triangle index to its mesh.
+struct TriangleTable {
+    /// First global triangle index of each mesh.
+    starts: Vec<u32>,
+    tangents: Vec<Vec<[f32; 3]>>,
+}
+
+impl TriangleTable {
+    fn new(meshes: &MeshSet) -> Self {
+        let mut starts = Vec::new();
+        let mut next = 0u32;
+        for m in &meshes.meshes {
+            starts.push(next);
+            next += m.triangle_count() as u32;
+        }
+        Self { starts, tangents: meshes.meshes.iter().map(crate::mesh::vertex_tangents).collect() }
+    }
+
+    fn locate(&self, triangle: u32) -> (usize, usize) {
+        let mesh = self.starts.partition_point(|s| *s <= triangle) - 1;
+        (mesh, (triangle - self.starts[mesh]) as usize)
+    }
+}
+
+/// The surface seen along a camera ray: position, shading frame (columns `t, b, n`),
+/// geometric normal and base colour.
+struct Hit {
+    position: DVec3,
+    frame: DMat3,
+    geometric: DVec3,
+    base_color: DVec3,
+}
+
+fn shade_point(rs: &ReferenceScene, table: &TriangleTable, origin: DVec3, dir: DVec3) -> Option<Hit> {
+    let (t, triangle) = rs.scene.closest(origin.as_vec3().into(), dir.as_vec3().into())?;
+    let (mi, ti) = table.locate(triangle);
+    let mesh = &rs.meshes.meshes[mi];
+    let idx = [0, 1, 2].map(|k| mesh.indices[ti * 3 + k] as usize);
+    let p = idx.map(|i| DVec3::from(mesh.positions[i].map(f64::from)));
+    let position = origin + dir * t as f64;
+    // Barycentrics of the hit point.
+    let (e1, e2, ep) = (p[1] - p[0], p[2] - p[0], position - p[0]);
+    let (d11, d12, d22, dp1, dp2) = (e1.dot(e1), e1.dot(e2), e2.dot(e2), ep.dot(e1), ep.dot(e2));
+    let det = (d11 * d22 - d12 * d12).max(1e-300);
+    let (b1, b2) = ((d22 * dp1 - d12 * dp2) / det, (d11 * dp2 - d12 * dp1) / det);
+    let w = [1.0 - b1 - b2, b1, b2];
+    let lerp = |v: &[[f32; 3]]| idx.iter().zip(w).map(|(i, w)| DVec3::from(v[*i].map(f64::from)) * w).sum::<DVec3>();
+    let mut geometric = e1.cross(e2).normalize_or(DVec3::Y);
+    let mut n = lerp(&mesh.normals).normalize_or(geometric);
+    // Seen from behind: shade the back side, as the viewport does.
+    if geometric.dot(dir) > 0.0 {
+        geometric = -geometric;
+        n = -n;
+    }
+    let t_raw = lerp(&table.tangents[mi]);
+    let tangent = (t_raw - n * n.dot(t_raw)).try_normalize().unwrap_or_else(|| n.any_orthonormal_vector());
+    let frame = DMat3::from_cols(tangent, n.cross(tangent), n);
+    Some(Hit { position, frame, geometric, base_color: DVec3::from(mesh.base_color.map(f64::from)) })
+}
+
+/// One MIS estimate of direct environment lighting leaving `hit` towards `wo_world`.
+fn direct_lighting(
+    rs: &ReferenceScene,
+    env: &EnvironmentSampler,
+    hit: &Hit,
+    wo_world: DVec3,
+    rng: &mut SmallRng,
+) -> DVec3 {
+    let to_local = hit.frame.transpose();
+    let wo = to_local * wo_world;
+    let mut brdf = rs.brdf;
+    brdf.diffuse *= hit.base_color;
+    let origin = rs.scene.leave_surface(hit.position, hit.geometric);
+    let visible = |wi_world: DVec3| !rs.scene.occluded(origin, Vec3A::from(wi_world.as_vec3()), f32::INFINITY);
+    let mut total = DVec3::ZERO;
+    // Environment sample.
+    let wi_world = env.sample([rng.random(), rng.random(), rng.random()]);
+    let wi = to_local * wi_world;
+    if wi.z > 0.0 && wi_world.dot(hit.geometric) > 0.0 {
+        let f = brdf.eval(wi, wo);
+        if f != DVec3::ZERO {
+            let (pe, pb) = (env.pdf(wi_world), brdf.pdf(wo, wi));
+            if pe > 0.0 && visible(wi_world) {
+                total += f * env.radiance(wi_world) * wi.z / (pe + pb);
+            }
+        }
+    }
+    // BRDF sample.
+    let wi = brdf.sample(wo, [rng.random(), rng.random(), rng.random()]);
+    let wi_world = hit.frame * wi;
+    if wi.z > 0.0 && wi_world.dot(hit.geometric) > 0.0 {
+        let f = brdf.eval(wi, wo);
+        if f != DVec3::ZERO {
+            let (pe, pb) = (env.pdf(wi_world), brdf.pdf(wo, wi));
+            if pb > 0.0 && visible(wi_world) {
+                total += f * env.radiance(wi_world) * wi.z / (pe + pb);
+            }
+        }
+    }
+    total
+}
+
+/// Renders `samples` jittered paths per pixel, in parallel rows, checking `cancel` per row.
+pub fn render(
+    rs: &ReferenceScene,
+    camera: &PinholeCamera,
+    (width, height): (usize, usize),
+    samples: usize,
+    seed: u64,
+    cancel: &CancelToken,
+    progress: &(dyn Fn(f64) + Sync),
+) -> Result<HdrImage, StageError> {
+    if width == 0 || height == 0 || width * height > 16384 * 16384 || samples == 0 {
+        return Err(StageError::Failed(format!("reference size {width}x{height} with {samples} samples is invalid")));
+    }
+    let env = EnvironmentSampler::new(rs.environment);
+    let table = TriangleTable::new(rs.meshes);
+    let done = std::sync::atomic::AtomicUsize::new(0);
+    let rows: Vec<Result<Vec<[f32; 3]>, StageError>> = (0..height)
+        .into_par_iter()
+        .map(|y| {
+            cancel.check()?;
+            let mut rng = SmallRng::seed_from_u64(seed ^ (y as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15));
+            let row = (0..width)
+                .map(|x| {
+                    let mut sum = DVec3::ZERO;
+                    for s in 0..samples {
+                        // Stratified jitter over a √n × √n grid (n rounded to a square).
+                        let side = (samples as f64).sqrt().ceil() as usize;
+                        let (sx, sy) = (s % side, (s / side) % side);
+                        let jx = (sx as f64 + rng.random::<f64>()) / side as f64;
+                        let jy = (sy as f64 + rng.random::<f64>()) / side as f64;
+                        let dir = camera.ray(x as f64 + jx, y as f64 + jy, width, height);
+                        sum += match shade_point(rs, &table, camera.position, dir) {
+                            Some(hit) => direct_lighting(rs, &env, &hit, -dir, &mut rng),
+                            None if rs.background => DVec3::from(rs.environment.sample(dir)),
+                            None => DVec3::ZERO,
+                        };
+                    }
+                    (sum / samples as f64).as_vec3().to_array()
+                })
+                .collect();
+            let finished = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+            progress(finished as f64 / height as f64);
+            Ok(row)
+        })
+        .collect();
+    let mut pixels = Vec::with_capacity(width * height);
+    for row in rows {
+        pixels.extend(row?);
+    }
+    Ok(HdrImage { width, height, pixels })
+}
+
+/// How far an approximation is from the reference.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct ImageError {
+    /// Root mean square difference of linear radiance over pixels and channels.
+    pub rmse: f64,
+    /// `rmse` divided by the reference's mean radiance.
+    pub relative_rmse: f64,
+    /// PSNR in dB of linear radiance, with the reference's 99th-percentile value as the peak.
+    pub psnr_db: f64,
+}
+
+/// Compares linear images of the same size.
+pub fn compare(approximation: &[[f32; 3]], reference: &[[f32; 3]]) -> Result<ImageError, String> {
+    if approximation.len() != reference.len() || reference.is_empty() {
+        return Err(format!("image sizes differ: {} vs {} pixels", approximation.len(), reference.len()));
+    }
+    let mut sq = 0.0;
+    let mut mean = 0.0;
+    for (a, r) in approximation.iter().zip(reference) {
+        for c in 0..3 {
+            let (a, r) = (a[c] as f64, r[c] as f64);
+            sq += (a - r) * (a - r);
+            mean += r;
+        }
+    }
+    let count = (reference.len() * 3) as f64;
+    let rmse = (sq / count).sqrt();
+    mean /= count;
+    let mut values: Vec<f32> = reference.iter().flat_map(|p| *p).collect();
+    values.sort_by(f32::total_cmp);
+    let peak = values[(values.len() - 1) * 99 / 100].max(1e-12) as f64;
+    Ok(ImageError {
+        rmse,
+        relative_rmse: if mean > 0.0 { rmse / mean } else { rmse },
+        psnr_db: 20.0 * (peak / rmse.max(1e-300)).log10(),
+    })
+}
+
+/// A heat map of per-pixel error: `|a - r|` (mean over channels) divided by `scale`, through a
+/// perceptually ordered colour ramp (black → purple → orange → yellow → white, like "inferno").
+pub fn error_heat_map(approximation: &[[f32; 3]], reference: &[[f32; 3]], scale: f64) -> Vec<[f32; 3]> {
+    const RAMP: [[f64; 3]; 5] =
+        [[0.0, 0.0, 0.015], [0.34, 0.06, 0.43], [0.87, 0.32, 0.23], [0.99, 0.77, 0.18], [0.99, 1.0, 0.92]];
+    approximation
+        .iter()
+        .zip(reference)
+        .map(|(a, r)| {
+            let e = (0..3).map(|c| (a[c] - r[c]).abs() as f64).sum::<f64>() / 3.0;
+            let t = (e / scale.max(1e-30)).clamp(0.0, 1.0) * (RAMP.len() - 1) as f64;
+            let (i, f) = ((t.floor() as usize).min(RAMP.len() - 2), t - t.floor().min((RAMP.len() - 2) as f64));
+            // The ramp is in display (sRGB) values; return linear so the tone mapper's sRGB
+            // encoding (with linear tone mapping) shows the ramp as designed.
+            [0, 1, 2].map(|c| srgb_to_linear(RAMP[i][c] * (1.0 - f) + RAMP[i + 1][c] * f) as f32)
+        })
+        .collect()
+}
+
+fn srgb_to_linear(c: f64) -> f64 {
+    if c <= 0.04045 { c / 12.92 } else { ((c + 0.055) / 1.055).powf(2.4) }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::kinds::brdf::Material;
+    use crate::mesh;
+
+    fn cube_from(f: impl Fn(DVec3) -> [f64; 3] + Sync) -> CubeMap {
+        CubeMap::from_fn(16, 2, f)
+    }
+
+    #[test]
+    fn environment_sampler_pdf_integrates_to_one_and_matches_its_samples() {
+        let cube = cube_from(|d| [1.0 + 20.0 * d.y.max(0.0).powi(8), 1.0, 0.5]);
+        let env = EnvironmentSampler::new(&cube);
+        let q = crate::quadrature::SphereQuadrature::new(600, 1200);
+        let total = q.integrate(|d| env.pdf(d));
+        assert!((total - 1.0).abs() < 5e-3, "∫pdf = {total}");
+        // E[L/pdf] = ∫ L dω (texel-constant radiance) for the sampler's own directions.
+        let exact: f64 = cube.samples().map(|(_, w, l)| w * l[0]).sum();
+        let mut rng = crate::sampling::test_rng(5);
+        let n = 100_000;
+        let estimate = (0..n)
+            .map(|_| {
+                let d = env.sample([rng.random(), rng.random(), rng.random()]);
+                env.radiance(d).x / env.pdf(d)
+            })
+            .sum::<f64>()
+            / n as f64;
+        assert!((estimate / exact - 1.0).abs() < 5e-3, "{estimate} vs {exact}");
+    }
+
+    #[test]
+    fn white_furnace_sphere_reflects_the_environment() {
+        // A white Lambert sphere under a constant environment, no occluders: every visible
+        // pixel is exactly L (the estimator has zero variance only if pdfs and weights are right
+        // up to noise, so allow 2%).
+        let meshes = MeshSet { meshes: vec![mesh::sphere(1.0, 48)] };
+        let scene = RayScene::build(&meshes);
+        let environment = cube_from(|_| [0.7, 0.7, 0.7]);
+        let material = Material { albedo: [1.0; 3], ..Default::default() };
+        let rs = ReferenceScene {
+            scene: &scene,
+            meshes: &meshes,
+            brdf: Brdf::from_material(&material),
+            environment: &environment,
+            background: false,
+        };
+        let camera = PinholeCamera { position: DVec3::new(0.0, 0.0, 4.0), target: DVec3::ZERO, fov_y_deg: 40.0 };
+        let image = render(&rs, &camera, (32, 32), 64, 1, &CancelToken::default(), &|_| {}).unwrap();
+        // Pixels well inside the silhouette (it is 11.4 px in radius).
+        let inside: Vec<f32> = (0..32 * 32)
+            .filter(|i| ((i % 32) as f64 - 15.5).hypot((i / 32) as f64 - 15.5) < 9.0)
+            .map(|i| image.pixels[i][0])
+            .collect();
+        let mean = inside.iter().sum::<f32>() / inside.len() as f32;
+        assert!((mean - 0.7).abs() < 0.007, "mean {mean} over {} pixels", inside.len());
+        assert!(inside.iter().all(|v| (v - 0.7).abs() < 0.1), "{inside:?}");
+        assert_eq!(image.pixels[0], [0.0; 3], "background off");
+    }
+
+    #[test]
+    fn glossy_sphere_under_a_constant_sky_reflects_its_directional_albedo() {
+        // Under a constant L with no occluders, B(ω_o) = L ∫ f(ω_i, ω_o) cos θ_i dω_i. At the
+        // sphere's centre pixel ω_o = n; the directional albedo comes from quadrature.
+        let meshes = MeshSet { meshes: vec![mesh::sphere(1.0, 96)] };
+        let scene = RayScene::build(&meshes);
+        let environment = cube_from(|_| [1.0; 3]);
+        let material = Material {
+            model: "ggx".into(),
+            albedo: [0.2; 3],
+            roughness: 0.3,
+            f0: 0.5,
+            specular: [1.0; 3],
+            ..Default::default()
+        };
+        let brdf = Brdf::from_material(&material);
+        let albedo = crate::quadrature::SphereQuadrature::new(1500, 600)
+            .integrate(|wi| brdf.eval(wi, DVec3::Z).x * wi.z.max(0.0));
+        let rs = ReferenceScene { scene: &scene, meshes: &meshes, brdf, environment: &environment, background: false };
+        let camera = PinholeCamera { position: DVec3::new(0.0, 0.0, 4.0), target: DVec3::ZERO, fov_y_deg: 1.0 };
+        let image = render(&rs, &camera, (2, 2), 4096, 3, &CancelToken::default(), &|_| {}).unwrap();
+        let value = image.pixels.iter().map(|p| p[0] as f64).sum::<f64>() / 4.0;
+        assert!((value / albedo - 1.0).abs() < 0.01, "{value} vs {albedo}");
+    }
+
+    #[test]
+    fn point_under_a_blocker_matches_the_analytic_shadowed_irradiance() {
+        // A white Lambert floor under a constant sky of radiance L with a sphere of radius r
+        // at height h above the point seen by the camera: B = L (1 - sin²α) with sin α = r/h
+        // (the sphere removes the cap's cosine-weighted share, sin²α of π).
+        let (r, h) = (0.5, 2.0);
+        let meshes = MeshSet {
+            meshes: vec![
+                mesh::plane(40.0, 1),
+                mesh::sphere(r, 96).transformed(glam::DMat4::from_translation(DVec3::new(0.0, h, 0.0))),
+            ],
+        };
+        let scene = RayScene::build(&meshes);
+        let environment = cube_from(|_| [1.0; 3]);
+        let material = Material { albedo: [1.0; 3], ..Default::default() };
+        let rs = ReferenceScene {
+            scene: &scene,
+            meshes: &meshes,
+            brdf: Brdf::from_material(&material),
+            environment: &environment,
+            background: false,
+        };
+        // A narrow view of the floor point under the sphere, seen from the side.
+        let camera =
+            PinholeCamera { position: DVec3::new(3.0, 0.8, 0.0), target: DVec3::new(0.0, 0.0, 0.0), fov_y_deg: 2.0 };
+        let image = render(&rs, &camera, (4, 4), 4096, 2, &CancelToken::default(), &|_| {}).unwrap();
+        let value = image.pixels.iter().map(|p| p[0] as f64).sum::<f64>() / 16.0;
+        let expected = 1.0 - (r / h).powi(2);
+        assert!((value - expected).abs() < 0.01, "{value} vs {expected}");
+    }
+}

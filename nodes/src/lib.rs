@@ -18,6 +18,7 @@ pub mod graph;
 pub mod kinds;
 pub mod mesh;
 pub mod project;
+pub mod prt;
 pub mod quadrature;
 pub mod raycast;
 pub mod reference;

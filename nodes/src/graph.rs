@@ -226,7 +226,7 @@ impl PortType {
         match self {
             PortType::Environment => &["radiance", "rotated_radiance", "sh", "haar"],
             PortType::Material => &["material"],
-            PortType::Scene => &["geometry"],
+            PortType::Scene => &["geometry", "transport_sh"],
             PortType::Medium => &["medium"],
             PortType::Lights => &["lights"],
             PortType::Blockers => &["spheres"],

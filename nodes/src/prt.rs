@@ -141,9 +141,11 @@ mod tests {
         let light_fn = |d: DVec3| [1.0 + d.y, 0.5 + 0.3 * d.x * d.z, 2.0 * d.z.max(0.0)];
         let light = sh::project_samples(
             bands,
-            SphereQuadrature::new(200, 400).directions.iter().zip(SphereQuadrature::new(200, 400).weights).map(
-                |(d, w)| (*d, w, light_fn(*d)),
-            ),
+            SphereQuadrature::new(200, 400)
+                .directions
+                .iter()
+                .zip(SphereQuadrature::new(200, 400).weights)
+                .map(|(d, w)| (*d, w, light_fn(*d))),
         );
         let transport = transport_of(bands);
         let incident = incident_radiance(&light, &transport, &CancelToken::default()).unwrap();

@@ -43,6 +43,7 @@ pub enum StageValue {
     LocalTransport(crate::transport::SphericalTransport),
     TexelReceivers(crate::transport::TexelReceivers),
     ObjectTransport(Vec<crate::transport::ObjectTransport>),
+    IncidentSh(crate::prt::IncidentSh),
     /// Test stages: a number.
     Number(f64),
     /// In memory only (never persisted): obvhs BVHs are rebuilt on load. Must stay the last
@@ -65,6 +66,7 @@ impl StageValue {
             StageValue::Receivers(r) => r.len() * 36,
             StageValue::ShTransport(t) => (t.visibility.len() + t.transfer.len()) * 4,
             StageValue::HaarTransport(t) => t.visibility.iter().chain(&t.transfer).map(|v| v.len() * 16 + 24).sum(),
+            StageValue::IncidentSh(r) => r.coeffs.len() * 4,
             StageValue::LocalTransport(t) => t.visibility.iter().map(|v| v.len() * 16 + 24).sum(),
             StageValue::RayScene(s) => s.triangle_count() * 48 * 2,
             StageValue::TexelReceivers(t) => t.receivers.len() * 44,
@@ -92,6 +94,7 @@ impl StageValue {
             StageValue::RayScene(_) => "ray-tracing scene",
             StageValue::TexelReceivers(_) => "texel receivers",
             StageValue::ObjectTransport(_) => "per-object transport",
+            StageValue::IncidentSh(_) => "incident radiance SH",
             StageValue::Number(_) => "number",
         }
     }

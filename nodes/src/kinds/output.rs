@@ -15,7 +15,7 @@ pub struct OutputSettings {
 }
 
 /// Relighting modes the renderer implements today.
-pub const MODES: &[&str] = &["sh_irradiance"];
+pub const MODES: &[&str] = &["sh_irradiance", "sh_prt"];
 pub const TONEMAPS: &[&str] = &["aces", "reinhard", "linear"];
 
 pub fn spec() -> NodeKindSpec {
@@ -40,7 +40,9 @@ pub fn spec() -> NodeKindSpec {
                 label: "Relighting mode",
                 unit: "",
                 kind: ParamKind::Choice { options: MODES, default: "sh_irradiance" },
-                doc: "sh_irradiance: unshadowed diffuse lighting from the environment's SH (Sun 2008 eq. 2.20).",
+                doc: "sh_irradiance: unshadowed diffuse lighting from the environment's SH, per pixel (Sun 2008 \
+                      eq. 2.20). sh_prt: shadowed diffuse transfer plus glossy lobes on the shadowed incident \
+                      radiance, per vertex (needs Scene transport `sh`).",
             },
             ParamSpec {
                 name: "exposure",
@@ -64,15 +66,26 @@ pub fn spec() -> NodeKindSpec {
                 doc: "Draw the environment behind the scene.",
             },
         ],
-        stages: vec![StageSpec {
-            name: "settings",
-            version: 1,
-            params: &["mode", "exposure", "tonemap", "background"],
-            stages: &[],
-            inputs: &[],
-            persist: false,
-            compute: settings,
-        }],
+        stages: vec![
+            StageSpec {
+                name: "settings",
+                version: 1,
+                params: &["mode", "exposure", "tonemap", "background"],
+                stages: &[],
+                inputs: &[],
+                persist: false,
+                compute: settings,
+            },
+            StageSpec {
+                name: "incident_sh",
+                version: 1,
+                params: &["mode"],
+                stages: &[],
+                inputs: &[("scene", "transport_sh"), ("environment", "sh")],
+                persist: false,
+                compute: incident_sh,
+            },
+        ],
         availability: Availability::Ready,
     }
 }
@@ -84,6 +97,26 @@ fn settings(ctx: &StageContext) -> Result<StageValue, StageError> {
         tonemap: ctx.choice("tonemap")?.to_string(),
         background: ctx.boolean("background")?,
     }))
+}
+
+/// Shadowed incident radiance `R = L·V` per receiver for the `sh_prt` mode (empty otherwise).
+/// Depends on lighting and transport only: BRDF and camera edits reuse it.
+fn incident_sh(ctx: &StageContext) -> Result<StageValue, StageError> {
+    if ctx.choice("mode")? != "sh_prt" {
+        return Ok(StageValue::IncidentSh(Default::default()));
+    }
+    let Some(StageValue::ShTransport(transport)) = ctx.input("scene", "transport_sh") else {
+        return Err(StageError::Internal("scene transport input".into()));
+    };
+    if transport.visibility.is_empty() {
+        return Err(StageError::Failed(
+            "mode `sh_prt` needs shadowed transport: set the Scene's `transport` to `sh` or `sh_and_wavelets`".into(),
+        ));
+    }
+    let Some(StageValue::Sh(light)) = ctx.input("environment", "sh") else {
+        return Ok(StageValue::IncidentSh(Default::default()));
+    };
+    Ok(StageValue::IncidentSh(crate::prt::incident_radiance(light, transport, ctx.cancel_token())?))
 }
 
 /// A stage value with its key (renderers re-upload only when the key changes).
@@ -99,6 +132,9 @@ pub struct FrameInputs {
     pub meshes: Keyed,
     pub sh: Option<Keyed>,
     pub radiance: Option<Keyed>,
+    /// `sh_prt` only: the scene's SH transport and the incident radiance per receiver.
+    pub transport: Option<Keyed>,
+    pub incident: Option<Keyed>,
     pub material: crate::kinds::brdf::Material,
     pub settings: OutputSettings,
     /// Connected inputs the renderer does not draw yet, to tell the user.
@@ -149,10 +185,15 @@ impl FrameInputs {
             StageValue::Output(s) => s.clone(),
             _ => return Err("settings stage produced an unexpected value".into()),
         };
+        let (transport, incident) = if settings.mode == "sh_prt" {
+            (Some(keyed(&scene, "transport_sh")?), Some(keyed(output, "incident_sh")?))
+        } else {
+            (None, None)
+        };
         let ignored_inputs = ["medium", "lights", "blockers", "square_lights"]
             .into_iter()
             .filter_map(|p| upstream(p).map(|n| format!("`{p}` (from `{n}`) is not drawn yet")))
             .collect();
-        Ok(Self { meshes, sh, radiance, material, settings, ignored_inputs })
+        Ok(Self { meshes, sh, radiance, transport, incident, material, settings, ignored_inputs })
     }
 }

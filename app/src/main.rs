@@ -58,7 +58,7 @@ fn main() {
 fn default_job() -> Result<()> {
     let project = lightloom_nodes::project::default_project();
     let graph = project.graph(std::path::Path::new("default.ron")).map_err(|e| anyhow::anyhow!("{e:?}"))?;
-    let (frame, eval_ms, render_ms) = project_commands::render_project(
+    let project_commands::Rendered { frame, eval_ms, render_ms, .. } = project_commands::render_project(
         &project,
         &graph,
         Arc::new(Engine::in_memory()),

@@ -3,10 +3,12 @@
 use anyhow::{Context, Result, anyhow, bail};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
+use lightloom_nodes::engine::CancelToken;
 use lightloom_nodes::engine::{Engine, EngineConfig, EvalEvent, Evaluation, Graph, StageStatus};
 use lightloom_nodes::graph::Availability;
 use lightloom_nodes::kinds::output::{FrameInputs, find_output};
 use lightloom_nodes::project::Project;
+use lightloom_nodes::reference::{self, ImageError, PinholeCamera};
 use lightloom_render::{CameraView, CapturedFrame, GpuContext, ViewportRenderer};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -146,7 +148,17 @@ fn upstream_of(graph: &Graph, node: &str) -> Vec<String> {
     out
 }
 
-/// Evaluates and renders a loaded project.
+/// A rendered view and what it cost.
+pub struct Rendered {
+    pub frame: CapturedFrame,
+    pub eval_ms: f64,
+    pub render_ms: f64,
+    /// For the `reference` and `error` views: the approximation's error and the reference time.
+    pub error: Option<(ImageError, f64)>,
+}
+
+/// Evaluates and renders a loaded project (the Output node's `view`: the approximation, the
+/// Monte Carlo reference, or the error heat map).
 pub fn render_project(
     project: &Project,
     graph: &Graph,
@@ -155,7 +167,7 @@ pub fn render_project(
     output_node: Option<&str>,
     size: (Option<u32>, Option<u32>),
     quiet: bool,
-) -> Result<(CapturedFrame, f64, f64)> {
+) -> Result<Rendered> {
     let output_name = output_node.or(Some(project.render.output.as_str()).filter(|s| !s.is_empty()));
     let output = find_output(graph, output_name).map_err(|e| anyhow!(e))?;
     let camera = project.camera(camera).map_err(|e| anyhow!(e))?;
@@ -174,7 +186,47 @@ pub fn render_project(
     let gpu = GpuContext::headless()?;
     let mut renderer = ViewportRenderer::new(&gpu);
     let captured = renderer.render_offscreen(&gpu, &frame, &CameraView::from_project(&camera), width, height)?;
-    Ok((captured, eval_ms, start.elapsed().as_secs_f64() * 1e3))
+    let render_ms = start.elapsed().as_secs_f64() * 1e3;
+    if frame.settings.view == "approximation" {
+        return Ok(Rendered { frame: captured, eval_ms, render_ms, error: None });
+    }
+    let start = Instant::now();
+    let pinhole =
+        PinholeCamera { position: camera.position.into(), target: camera.target.into(), fov_y_deg: camera.fov_y_deg };
+    let bar = if quiet { ProgressBar::hidden() } else { ProgressBar::new(1000) };
+    bar.set_style(
+        ProgressStyle::with_template("{spinner} reference ({msg}) [{bar:30}] {percent}%")
+            .unwrap()
+            .progress_chars("=> "),
+    );
+    bar.set_message(format!("{} spp", frame.settings.reference_samples));
+    let reference = frame
+        .render_reference(&pinhole, (width as usize, height as usize), 1, &CancelToken::default(), &|f| {
+            bar.set_position((f * 1000.0) as u64)
+        })
+        .map_err(|e| anyhow!(e))?;
+    bar.finish_and_clear();
+    let reference_ms = start.elapsed().as_secs_f64() * 1e3;
+    let approximation: Vec<[f32; 3]> = captured.hdr.iter().map(|p| [p[0], p[1], p[2]]).collect();
+    let error = reference::compare(&approximation, &reference.pixels).map_err(|e| anyhow!(e))?;
+    let settings = &frame.settings;
+    if settings.view == "reference" {
+        renderer.present(&gpu, &reference.pixels, (width, height), settings.exposure, &settings.tonemap)?;
+    } else {
+        let scale = error_map_scale(&reference.pixels);
+        let map = reference::error_heat_map(&approximation, &reference.pixels, scale);
+        renderer.present(&gpu, &map, (width, height), 0.0, "linear")?;
+        if !quiet {
+            eprintln!("error map: black = 0, white = |error| >= {scale:.4} (half the reference's mean radiance)");
+        }
+    }
+    Ok(Rendered { frame: renderer.capture(&gpu)?, eval_ms, render_ms, error: Some((error, reference_ms)) })
+}
+
+/// Full scale of the error heat map: half the reference's mean radiance.
+fn error_map_scale(reference: &[[f32; 3]]) -> f64 {
+    let mean = reference.iter().map(|p| (p[0] + p[1] + p[2]) as f64 / 3.0).sum::<f64>() / reference.len().max(1) as f64;
+    (mean * 0.5).max(1e-6)
 }
 
 pub fn write_image(frame: &CapturedFrame, path: &Path) -> Result<()> {
@@ -191,7 +243,7 @@ pub fn render(args: &RenderArgs) -> Result<()> {
     }
     let (project, graph) = load(&args.project, &args.eval.overrides)?;
     let engine = Arc::new(args.eval.engine());
-    let (frame, eval_ms, render_ms) = render_project(
+    let Rendered { frame, eval_ms, render_ms, error } = render_project(
         &project,
         &graph,
         engine,
@@ -208,6 +260,14 @@ pub fn render(args: &RenderArgs) -> Result<()> {
             args.output.display(),
             frame.width,
             frame.height
+        );
+    }
+    if let Some((e, ms)) = error {
+        println!(
+            "approximation vs reference: RMSE {:.5} (relative {:.2}%), PSNR {:.1} dB; reference {ms:.0} ms",
+            e.rmse,
+            e.relative_rmse * 100.0,
+            e.psnr_db
         );
     }
     Ok(())
@@ -282,7 +342,7 @@ pub fn replay(args: &ReplayArgs) -> Result<bool> {
     let mut ok = true;
     for path in &projects {
         let (project, graph) = load(path, &args.eval.overrides)?;
-        let (frame, ..) =
+        let Rendered { frame, .. } =
             render_project(&project, &graph, Arc::new(args.eval.engine()), None, None, (None, None), true)?;
         let golden = golden_path(path);
         let rendered = image::RgbImage::from_raw(

@@ -108,6 +108,23 @@ pub fn glossy_exit(incident: &[f32], factors: &[f64], normal: DVec3, mirror: DVe
     sum * normal.dot(mirror.normalize()).max(0.0)
 }
 
+/// The glossy part of a material as the SH mode shades it: per-band convolution factors of
+/// its equivalent Phong lobe ([`crate::brdf::Brdf::equivalent_phong_exponent`]) and the lobe's
+/// RGB weight (`specular colour × f0`). `None` for Lambert.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GlossyLobe {
+    pub exponent: f64,
+    pub factors: Vec<f64>,
+    pub weight: DVec3,
+}
+
+pub fn glossy_lobe(material: &crate::kinds::brdf::Material, bands: usize) -> Option<GlossyLobe> {
+    let brdf = crate::brdf::Brdf::from_material(material);
+    let exponent = brdf.equivalent_phong_exponent()?;
+    let factors = lobe_factors(&crate::brdf::Brdf::phong_zonal(exponent, bands));
+    Some(GlossyLobe { exponent, factors, weight: brdf.specular * brdf.f0 })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

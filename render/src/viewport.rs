@@ -15,6 +15,24 @@ const LDR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
 const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 /// Irradiance bands evaluated per pixel (`Â_l` is 0 for odd `l > 1` and `|Â_6| < 0.016 Â_0`).
 const MAX_SHADER_BANDS: usize = 5;
+/// Transport bands the `sh_prt` shader evaluates (higher bands of the transport are dropped).
+pub const MAX_PRT_BANDS: usize = 8;
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct PrtParams {
+    counts: [u32; 4],
+    albedo: [f32; 4],
+    specular: [f32; 4],
+    lobe: [[f32; 4]; 2],
+    light: [[f32; 4]; MAX_PRT_BANDS * MAX_PRT_BANDS],
+}
+
+/// Per-vertex PRT data on the GPU, keyed by the stages it came from.
+struct PrtBuffers {
+    keys: (Key, Key),
+    bind_group: wgpu::BindGroup,
+}
 
 /// A perspective camera.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -90,6 +108,10 @@ pub struct ViewportRenderer {
     layout: wgpu::BindGroupLayout,
     tone_layout: wgpu::BindGroupLayout,
     mesh_pipeline: wgpu::RenderPipeline,
+    prt_layout: wgpu::BindGroupLayout,
+    prt_pipeline: wgpu::RenderPipeline,
+    prt_params: wgpu::Buffer,
+    prt: Option<PrtBuffers>,
     background_pipeline: wgpu::RenderPipeline,
     tone_pipeline: wgpu::RenderPipeline,
     globals: wgpu::Buffer,
@@ -138,6 +160,33 @@ impl ViewportRenderer {
                 },
             ],
         });
+        let storage = |binding| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::VERTEX,
+            ty: wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Storage { read_only: true },
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        };
+        let prt_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("prt"),
+            entries: &[
+                wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: wgpu::ShaderStages::VERTEX,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Uniform,
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                    count: None,
+                },
+                storage(1),
+                storage(2),
+            ],
+        });
         let tone_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("tonemap"),
             entries: &[
@@ -171,6 +220,7 @@ impl ViewportRenderer {
             })
         };
         let mesh_module = module("mesh.wgsl", include_str!("../../shaders/mesh.wgsl"));
+        let prt_module = module("mesh_prt.wgsl", include_str!("../../shaders/mesh_prt.wgsl"));
         let background_module = module("background.wgsl", include_str!("../../shaders/background.wgsl"));
         let tone_module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("tonemap.wgsl"),
@@ -207,6 +257,27 @@ impl ViewportRenderer {
             target: HDR_FORMAT,
         }
         .build(device);
+        let prt_pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("mesh-prt"),
+            bind_group_layouts: &[Some(&layout), Some(&prt_layout)],
+            immediate_size: 0,
+        });
+        let prt_pipeline = PipelineSpec {
+            label: "mesh-prt",
+            layout: &prt_pipeline_layout,
+            module: &prt_module,
+            buffers: &vertex_layout,
+            depth_stencil: depth(true, wgpu::CompareFunction::Less),
+            multisample,
+            target: HDR_FORMAT,
+        }
+        .build(device);
+        let prt_params = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("prt-params"),
+            size: std::mem::size_of::<PrtParams>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
         let background_pipeline = PipelineSpec {
             label: "background",
             layout: &pipeline_layout,
@@ -256,6 +327,10 @@ impl ViewportRenderer {
             layout,
             tone_layout,
             mesh_pipeline,
+            prt_layout,
+            prt_pipeline,
+            prt_params,
+            prt: None,
             background_pipeline,
             tone_pipeline,
             globals,
@@ -310,18 +385,8 @@ impl ViewportRenderer {
                 *dst = [src[0] as f32, src[1] as f32, src[2] as f32, 0.0];
             }
         }
-        let tonemap = match frame.settings.tonemap.as_str() {
-            "aces" => 0.0,
-            "reinhard" => 1.0,
-            _ => 2.0,
-        };
+        let use_prt = self.upload_prt(ctx, frame)?;
         ctx.queue.write_buffer(&self.globals, 0, bytemuck::bytes_of(&globals));
-        ctx.queue.write_buffer(
-            &self.tone_params,
-            0,
-            bytemuck::cast_slice(&[2f32.powf(frame.settings.exposure as f32), tonemap, 0.0, 0.0]),
-        );
-
         let targets = self.targets.as_ref().unwrap();
         let mut encoder =
             ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("viewport") });
@@ -354,12 +419,72 @@ impl ViewportRenderer {
             pass.set_pipeline(&self.background_pipeline);
             pass.draw(0..3, 0..1);
             if let Some(mesh) = &self.mesh {
-                pass.set_pipeline(&self.mesh_pipeline);
+                match (&self.prt, use_prt) {
+                    (Some(prt), true) => {
+                        pass.set_pipeline(&self.prt_pipeline);
+                        pass.set_bind_group(1, &prt.bind_group, &[]);
+                    }
+                    _ => pass.set_pipeline(&self.mesh_pipeline),
+                }
                 pass.set_vertex_buffer(0, mesh.vertices.slice(..));
                 pass.set_index_buffer(mesh.indices.slice(..), wgpu::IndexFormat::Uint32);
                 pass.draw_indexed(0..mesh.index_count, 0, 0..1);
             }
         }
+        ctx.queue.submit(Some(encoder.finish()));
+        self.tone_map(ctx, frame.settings.exposure, &frame.settings.tonemap);
+        Ok(())
+    }
+
+    /// Shows a linear image made on the CPU (the reference, an error map) through the same
+    /// exposure and tone mapping as rendered frames.
+    pub fn present(
+        &mut self,
+        ctx: &GpuContext,
+        pixels: &[[f32; 3]],
+        (width, height): (u32, u32),
+        exposure: f64,
+        tonemap: &str,
+    ) -> Result<(), RenderError> {
+        if pixels.len() != width as usize * height as usize || width == 0 || height == 0 {
+            return Err(RenderError::Invalid(format!("{} pixels do not make a {width}x{height} image", pixels.len())));
+        }
+        self.ensure_targets(ctx, width, height);
+        let data: Vec<half::f16> = pixels
+            .iter()
+            .flat_map(|p| [p[0], p[1], p[2], 1.0])
+            .map(|v| half::f16::from_f32(v.clamp(0.0, 65000.0)))
+            .collect();
+        let targets = self.targets.as_ref().unwrap();
+        ctx.queue.write_texture(
+            wgpu::TexelCopyTextureInfo {
+                texture: &targets.hdr,
+                mip_level: 0,
+                origin: wgpu::Origin3d::ZERO,
+                aspect: wgpu::TextureAspect::All,
+            },
+            bytemuck::cast_slice(&data),
+            wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(width * 8), rows_per_image: Some(height) },
+            wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
+        );
+        self.tone_map(ctx, exposure, tonemap);
+        Ok(())
+    }
+
+    /// Tone-maps the HDR target into the LDR target.
+    fn tone_map(&self, ctx: &GpuContext, exposure: f64, tonemap: &str) {
+        let Some(targets) = self.targets.as_ref() else { return };
+        let tonemap = match tonemap {
+            "aces" => 0.0,
+            "reinhard" => 1.0,
+            _ => 2.0,
+        };
+        ctx.queue.write_buffer(
+            &self.tone_params,
+            0,
+            bytemuck::cast_slice(&[2f32.powf(exposure as f32), tonemap, 0.0, 0.0]),
+        );
+        let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("tonemap") });
         {
             let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some("tonemap"),
@@ -382,7 +507,6 @@ impl ViewportRenderer {
             pass.draw(0..3, 0..1);
         }
         ctx.queue.submit(Some(encoder.finish()));
-        Ok(())
     }
 
     /// The tone-mapped target (for display in the editor).
@@ -449,6 +573,83 @@ impl ViewportRenderer {
         Ok(())
     }
 
+    /// For the `sh_prt` mode: uploads transfer and incident radiance when their stage keys
+    /// change, and the lighting/material uniforms every frame. Returns whether to draw with it.
+    fn upload_prt(&mut self, ctx: &GpuContext, frame: &FrameInputs) -> Result<bool, RenderError> {
+        let (Some(transport), Some(incident)) = (&frame.transport, &frame.incident) else {
+            return Ok(false);
+        };
+        let StageValue::ShTransport(t) = transport.value.as_ref() else {
+            return Err(RenderError::Invalid("scene transport stage holds no SH transport".into()));
+        };
+        let StageValue::IncidentSh(r) = incident.value.as_ref() else {
+            return Err(RenderError::Invalid("incident radiance stage holds no SH".into()));
+        };
+        let vertices: usize = match frame.meshes.value.as_ref() {
+            StageValue::Meshes(m) => m.meshes.iter().map(|m| m.positions.len()).sum(),
+            _ => 0,
+        };
+        let n = t.bands * t.bands;
+        if t.transfer.len() != vertices * n || (!r.coeffs.is_empty() && r.coeffs.len() != vertices * n * 3) {
+            return Err(RenderError::Invalid(format!(
+                "transport has {} receivers for {vertices} vertices",
+                t.transfer.len() / n.max(1)
+            )));
+        }
+        if self.prt.as_ref().is_none_or(|p| p.keys != (transport.key, incident.key)) {
+            let buffer = |label, data: &[f32]| {
+                // Storage bindings must not be empty.
+                let data = if data.is_empty() { &[0.0f32][..] } else { data };
+                ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some(label),
+                    contents: bytemuck::cast_slice(data),
+                    usage: wgpu::BufferUsages::STORAGE,
+                })
+            };
+            let (transfer, incident_buffer) = (buffer("prt-transfer", &t.transfer), buffer("prt-incident", &r.coeffs));
+            let bind_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("prt"),
+                layout: &self.prt_layout,
+                entries: &[
+                    wgpu::BindGroupEntry { binding: 0, resource: self.prt_params.as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 1, resource: transfer.as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 2, resource: incident_buffer.as_entire_binding() },
+                ],
+            });
+            self.prt = Some(PrtBuffers { keys: (transport.key, incident.key), bind_group });
+        }
+        let bands = t.bands.min(MAX_PRT_BANDS);
+        let lobe = lightloom_nodes::prt::glossy_lobe(&frame.material, bands).filter(|_| !r.coeffs.is_empty());
+        let mut params = PrtParams {
+            counts: [bands as u32, n as u32, (n * 3) as u32, lobe.is_some() as u32],
+            albedo: [
+                frame.material.albedo[0] as f32,
+                frame.material.albedo[1] as f32,
+                frame.material.albedo[2] as f32,
+                1.0,
+            ],
+            specular: [0.0; 4],
+            lobe: [[0.0; 4]; 2],
+            light: [[0.0; 4]; MAX_PRT_BANDS * MAX_PRT_BANDS],
+        };
+        if let Some(lobe) = lobe {
+            params.specular = [lobe.weight.x as f32, lobe.weight.y as f32, lobe.weight.z as f32, 0.0];
+            for (l, f) in lobe.factors.iter().enumerate().take(MAX_PRT_BANDS) {
+                params.lobe[l / 4][l % 4] = *f as f32;
+            }
+        }
+        if let Some(sh) = &frame.sh {
+            let StageValue::Sh(light) = sh.value.as_ref() else {
+                return Err(RenderError::Invalid("environment SH stage holds no SH".into()));
+            };
+            for (dst, src) in params.light.iter_mut().zip(&light.coeffs).take(bands * bands) {
+                *dst = [src[0] as f32, src[1] as f32, src[2] as f32, 0.0];
+            }
+        }
+        ctx.queue.write_buffer(&self.prt_params, 0, bytemuck::bytes_of(&params));
+        Ok(true)
+    }
+
     fn upload_environment(&mut self, ctx: &GpuContext, frame: &FrameInputs) -> Result<(), RenderError> {
         let key = frame.radiance.as_ref().map(|r| r.key);
         if self.environment.1 == key {
@@ -490,7 +691,7 @@ impl ViewportRenderer {
         let msaa = (self.sample_count > 1).then(|| {
             texture("hdr-msaa", HDR_FORMAT, U::RENDER_ATTACHMENT, self.sample_count).create_view(&Default::default())
         });
-        let hdr = texture("hdr", HDR_FORMAT, U::RENDER_ATTACHMENT | U::TEXTURE_BINDING | U::COPY_SRC, 1);
+        let hdr = texture("hdr", HDR_FORMAT, U::RENDER_ATTACHMENT | U::TEXTURE_BINDING | U::COPY_SRC | U::COPY_DST, 1);
         let hdr_view = hdr.create_view(&Default::default());
         let depth =
             texture("depth", DEPTH_FORMAT, U::RENDER_ATTACHMENT, self.sample_count).create_view(&Default::default());

@@ -111,6 +111,8 @@ fn each_parameter_recomputes_exactly_its_stages() {
         ("output", "exposure", Float(-1.0), vec!["output.settings"]),
         ("output", "tonemap", Choice("reinhard".into()), vec!["output.settings"]),
         ("output", "background", Bool(false), vec!["output.settings"]),
+        ("output", "view", Choice("error".into()), vec!["output.settings"]),
+        ("output", "reference_samples", Int(16), vec!["output.settings"]),
         ("output", "mode", Choice("sh_prt".into()), vec!["output.settings", "output.incident_sh"]),
         ("material", "roughness", Float(0.7), vec!["material.material"]),
     ];

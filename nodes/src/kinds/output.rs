@@ -12,11 +12,16 @@ pub struct OutputSettings {
     pub exposure: f64,
     pub tonemap: String,
     pub background: bool,
+    /// What the viewport shows: the approximation, the Monte Carlo reference, or the error map.
+    pub view: String,
+    /// Reference samples per pixel.
+    pub reference_samples: usize,
 }
 
 /// Relighting modes the renderer implements today.
 pub const MODES: &[&str] = &["sh_irradiance", "sh_prt"];
 pub const TONEMAPS: &[&str] = &["aces", "reinhard", "linear"];
+pub const VIEWS: &[&str] = &["approximation", "reference", "error"];
 
 pub fn spec() -> NodeKindSpec {
     let input = |name, ty, required| PortSpec { name, ty, required };
@@ -65,12 +70,27 @@ pub fn spec() -> NodeKindSpec {
                 kind: ParamKind::Bool { default: true },
                 doc: "Draw the environment behind the scene.",
             },
+            ParamSpec {
+                name: "view",
+                label: "View",
+                unit: "",
+                kind: ParamKind::Choice { options: VIEWS, default: "approximation" },
+                doc: "approximation: the relighting mode; reference: Monte Carlo ground truth (same scene, BRDF, \
+                      environment and camera); error: heat map of |approximation - reference| with its RMSE.",
+            },
+            ParamSpec {
+                name: "reference_samples",
+                label: "Reference samples",
+                unit: "spp",
+                kind: ParamKind::Int { min: 1, max: 65536, default: 64 },
+                doc: "Samples per pixel of the reference (each: one environment and one BRDF sample, MIS).",
+            },
         ],
         stages: vec![
             StageSpec {
                 name: "settings",
                 version: 1,
-                params: &["mode", "exposure", "tonemap", "background"],
+                params: &["mode", "exposure", "tonemap", "background", "view", "reference_samples"],
                 stages: &[],
                 inputs: &[],
                 persist: false,
@@ -96,6 +116,8 @@ fn settings(ctx: &StageContext) -> Result<StageValue, StageError> {
         exposure: ctx.float("exposure")?,
         tonemap: ctx.choice("tonemap")?.to_string(),
         background: ctx.boolean("background")?,
+        view: ctx.choice("view")?.to_string(),
+        reference_samples: ctx.int("reference_samples")? as usize,
     }))
 }
 
@@ -130,6 +152,8 @@ pub struct Keyed {
 #[derive(Clone, Debug)]
 pub struct FrameInputs {
     pub meshes: Keyed,
+    /// The scene's BVH (for the reference renderer).
+    pub ray_scene: Keyed,
     pub sh: Option<Keyed>,
     pub radiance: Option<Keyed>,
     /// `sh_prt` only: the scene's SH transport and the incident radiance per receiver.
@@ -159,6 +183,38 @@ pub fn find_output<'g>(graph: &'g Graph, name: Option<&str>) -> Result<&'g crate
 }
 
 impl FrameInputs {
+    /// The Monte Carlo reference of this frame (see [`crate::reference`]).
+    pub fn render_reference(
+        &self,
+        camera: &crate::reference::PinholeCamera,
+        size: (usize, usize),
+        seed: u64,
+        cancel: &crate::engine::CancelToken,
+        progress: &(dyn Fn(f64) + Sync),
+    ) -> Result<crate::reference::HdrImage, String> {
+        let StageValue::RayScene(scene) = self.ray_scene.value.as_ref() else {
+            return Err("scene ray_scene stage holds no BVH".into());
+        };
+        let StageValue::Meshes(meshes) = self.meshes.value.as_ref() else {
+            return Err("scene geometry stage holds no meshes".into());
+        };
+        let black = crate::cubemap::CubeMap::new(1, vec![[0.0; 3]; 6]);
+        let environment = match self.radiance.as_ref().map(|r| r.value.as_ref()) {
+            Some(StageValue::CubeMap(cube)) => cube,
+            Some(_) => return Err("environment radiance stage holds no cube map".into()),
+            None => &black,
+        };
+        let rs = crate::reference::ReferenceScene {
+            scene,
+            meshes,
+            brdf: crate::brdf::Brdf::from_material(&self.material),
+            environment,
+            background: self.settings.background,
+        };
+        crate::reference::render(&rs, camera, size, self.settings.reference_samples, seed, cancel, progress)
+            .map_err(|e| e.to_string())
+    }
+
     pub fn gather(evaluation: &Evaluation, graph: &Graph, output: &str) -> Result<Self, String> {
         let keyed = |node: &str, stage: &str| -> Result<Keyed, String> {
             let r = evaluation.get(node, stage).ok_or_else(|| format!("stage {node}.{stage} was not evaluated"))?;
@@ -170,6 +226,7 @@ impl FrameInputs {
         let upstream = |port: &str| graph.upstream(output, port).map(|n| n.id.clone());
         let scene = upstream("scene").ok_or("the Output node's scene input is not connected")?;
         let meshes = keyed(&scene, "geometry")?;
+        let ray_scene = keyed(&scene, "ray_scene")?;
         let (sh, radiance) = match upstream("environment") {
             Some(env) => (Some(keyed(&env, "sh")?), Some(keyed(&env, "rotated_radiance")?)),
             None => (None, None),
@@ -194,6 +251,6 @@ impl FrameInputs {
             .into_iter()
             .filter_map(|p| upstream(p).map(|n| format!("`{p}` (from `{n}`) is not drawn yet")))
             .collect();
-        Ok(Self { meshes, sh, radiance, transport, incident, material, settings, ignored_inputs })
+        Ok(Self { meshes, ray_scene, sh, radiance, transport, incident, material, settings, ignored_inputs })
     }
 }

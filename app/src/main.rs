@@ -1,5 +1,6 @@
 //! `lightloom`: the node-based lighting design editor and its headless command line.
 
+mod accuracy_command;
 mod project_commands;
 mod sh_command;
 
@@ -29,6 +30,8 @@ enum Command {
     Replay(project_commands::ReplayArgs),
     /// Validate a project and summarise it.
     Info(project_commands::InfoArgs),
+    /// Render the Monte Carlo reference once and report each relighting mode's error against it.
+    Accuracy(accuracy_command::AccuracyArgs),
     /// Print the SH coefficients (RGB) of an environment map and its irradiance along ±X, ±Y, ±Z.
     Sh(sh_command::ShArgs),
 }
@@ -41,6 +44,7 @@ fn main() {
         Some(Command::Eval(args)) => project_commands::eval(&args).map(|_| true),
         Some(Command::Replay(args)) => project_commands::replay(&args),
         Some(Command::Info(args)) => project_commands::info(&args).map(|_| true),
+        Some(Command::Accuracy(args)) => accuracy_command::run(&args).map(|_| true),
         Some(Command::Sh(args)) => sh_command::run(&args).map(|_| true),
         None => default_job().map(|_| true),
     };

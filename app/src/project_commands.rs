@@ -32,7 +32,7 @@ pub struct EvalOptions {
 }
 
 impl EvalOptions {
-    fn engine(&self) -> Engine {
+    pub(crate) fn engine(&self) -> Engine {
         let disk_cache = if self.no_disk_cache {
             None
         } else {
@@ -92,7 +92,7 @@ pub struct InfoArgs {
     pub project: PathBuf,
 }
 
-fn load(path: &Path, overrides: &[String]) -> Result<(Project, Graph)> {
+pub(crate) fn load(path: &Path, overrides: &[String]) -> Result<(Project, Graph)> {
     let (project, graph) = Project::load_with_overrides(path, overrides)?;
     let missing = project.missing_assets(&graph);
     if let Some((node, param, file)) = missing.first() {
@@ -102,7 +102,7 @@ fn load(path: &Path, overrides: &[String]) -> Result<(Project, Graph)> {
 }
 
 /// Evaluates on a background thread, driving a progress bar from its events.
-fn evaluate(engine: Arc<Engine>, graph: &Graph, quiet: bool) -> Evaluation {
+pub(crate) fn evaluate(engine: Arc<Engine>, graph: &Graph, quiet: bool) -> Evaluation {
     let job = engine.spawn(graph.clone());
     let bar = if quiet { ProgressBar::hidden() } else { ProgressBar::new(0) };
     bar.set_style(
@@ -123,7 +123,7 @@ fn evaluate(engine: Arc<Engine>, graph: &Graph, quiet: bool) -> Evaluation {
     job.wait()
 }
 
-fn fail_on_errors(evaluation: &Evaluation, needed: &[String]) -> Result<()> {
+pub(crate) fn fail_on_errors(evaluation: &Evaluation, needed: &[String]) -> Result<()> {
     for s in evaluation.report.failed() {
         if needed.contains(&s.node) {
             bail!("{}.{}: {}", s.node, s.stage, s.error.as_deref().unwrap_or("failed"));
@@ -133,7 +133,7 @@ fn fail_on_errors(evaluation: &Evaluation, needed: &[String]) -> Result<()> {
 }
 
 /// Nodes the output depends on (transitively).
-fn upstream_of(graph: &Graph, node: &str) -> Vec<String> {
+pub(crate) fn upstream_of(graph: &Graph, node: &str) -> Vec<String> {
     let mut out = vec![node.to_string()];
     let mut i = 0;
     while i < out.len() {
@@ -208,16 +208,20 @@ pub fn render_project(
     bar.finish_and_clear();
     let reference_ms = start.elapsed().as_secs_f64() * 1e3;
     let approximation: Vec<[f32; 3]> = captured.hdr.iter().map(|p| [p[0], p[1], p[2]]).collect();
-    let error = reference::compare(&approximation, &reference.pixels).map_err(|e| anyhow!(e))?;
+    let mask = reference.surface_mask();
+    let error = reference::compare(&approximation, &reference.pixels, Some(&mask)).map_err(|e| anyhow!(e))?;
     let settings = &frame.settings;
     if settings.view == "reference" {
         renderer.present(&gpu, &reference.pixels, (width, height), settings.exposure, &settings.tonemap)?;
     } else {
         let scale = error_map_scale(&reference.pixels);
-        let map = reference::error_heat_map(&approximation, &reference.pixels, scale);
+        let map = reference::error_heat_map(&approximation, &reference.pixels, Some(&mask), scale);
         renderer.present(&gpu, &map, (width, height), 0.0, "linear")?;
         if !quiet {
-            eprintln!("error map: black = 0, white = |error| >= {scale:.4} (half the reference's mean radiance)");
+            eprintln!(
+                "error map: black = 0, white = |error| >= {scale:.4} (half the reference's mean radiance); \
+                 grey = not compared (background, silhouettes)"
+            );
         }
     }
     Ok(Rendered { frame: renderer.capture(&gpu)?, eval_ms, render_ms, error: Some((error, reference_ms)) })
@@ -264,7 +268,7 @@ pub fn render(args: &RenderArgs) -> Result<()> {
     }
     if let Some((e, ms)) = error {
         println!(
-            "approximation vs reference: RMSE {:.5} (relative {:.2}%), PSNR {:.1} dB; reference {ms:.0} ms",
+            "approximation vs reference over surface pixels: RMSE {:.5} (relative {:.2}%), PSNR {:.1} dB; reference {ms:.0} ms",
             e.rmse,
             e.relative_rmse * 100.0,
             e.psnr_db

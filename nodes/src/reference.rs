@@ -119,12 +119,22 @@ pub struct ReferenceScene<'a> {
     pub background: bool,
 }
 
-/// A linear HDR image, rows top to bottom.
+/// A linear HDR image, rows top to bottom, with the fraction of each pixel's samples that
+/// hit geometry.
 #[derive(Clone, Debug, PartialEq)]
 pub struct HdrImage {
     pub width: usize,
     pub height: usize,
     pub pixels: Vec<[f32; 3]>,
+    pub coverage: Vec<f32>,
+}
+
+impl HdrImage {
+    /// Pixels wholly covered by geometry: where lighting is compared (silhouettes and the
+    /// background measure anti-aliasing and texture filtering, not lighting).
+    pub fn surface_mask(&self) -> Vec<bool> {
+        self.coverage.iter().map(|c| *c >= 1.0).collect()
+    }
 }
 
 /// Per-triangle lookup from the ray scene's triangle index to its mesh.
@@ -245,7 +255,7 @@ pub fn render(
     let env = EnvironmentSampler::new(rs.environment);
     let table = TriangleTable::new(rs.meshes);
     let done = std::sync::atomic::AtomicUsize::new(0);
-    let rows: Vec<Result<Vec<[f32; 3]>, StageError>> = (0..height)
+    let rows: Vec<Result<Vec<([f32; 3], f32)>, StageError>> = (0..height)
         .into_par_iter()
         .map(|y| {
             cancel.check()?;
@@ -253,6 +263,7 @@ pub fn render(
             let row = (0..width)
                 .map(|x| {
                     let mut sum = DVec3::ZERO;
+                    let mut hits = 0;
                     for s in 0..samples {
                         // Stratified jitter over a √n × √n grid (n rounded to a square).
                         let side = (samples as f64).sqrt().ceil() as usize;
@@ -261,12 +272,15 @@ pub fn render(
                         let jy = (sy as f64 + rng.random::<f64>()) / side as f64;
                         let dir = camera.ray(x as f64 + jx, y as f64 + jy, width, height);
                         sum += match shade_point(rs, &table, camera.position, dir) {
-                            Some(hit) => direct_lighting(rs, &env, &hit, -dir, &mut rng),
+                            Some(hit) => {
+                                hits += 1;
+                                direct_lighting(rs, &env, &hit, -dir, &mut rng)
+                            }
                             None if rs.background => DVec3::from(rs.environment.sample(dir)),
                             None => DVec3::ZERO,
                         };
                     }
-                    (sum / samples as f64).as_vec3().to_array()
+                    ((sum / samples as f64).as_vec3().to_array(), hits as f32 / samples as f32)
                 })
                 .collect();
             let finished = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
@@ -275,10 +289,14 @@ pub fn render(
         })
         .collect();
     let mut pixels = Vec::with_capacity(width * height);
+    let mut coverage = Vec::with_capacity(width * height);
     for row in rows {
-        pixels.extend(row?);
+        for (p, c) in row? {
+            pixels.push(p);
+            coverage.push(c);
+        }
     }
-    Ok(HdrImage { width, height, pixels })
+    Ok(HdrImage { width, height, pixels, coverage })
 }
 
 /// How far an approximation is from the reference.
@@ -292,14 +310,22 @@ pub struct ImageError {
     pub psnr_db: f64,
 }
 
-/// Compares linear images of the same size.
-pub fn compare(approximation: &[[f32; 3]], reference: &[[f32; 3]]) -> Result<ImageError, String> {
-    if approximation.len() != reference.len() || reference.is_empty() {
+/// Compares linear images of the same size over the pixels where `mask` is true (all when
+/// `None`).
+pub fn compare(approximation: &[[f32; 3]], reference: &[[f32; 3]], mask: Option<&[bool]>) -> Result<ImageError, String> {
+    if approximation.len() != reference.len() || reference.is_empty() || mask.is_some_and(|m| m.len() != reference.len())
+    {
         return Err(format!("image sizes differ: {} vs {} pixels", approximation.len(), reference.len()));
     }
+    let selected: Vec<usize> = (0..reference.len()).filter(|i| mask.is_none_or(|m| m[*i])).collect();
+    if selected.is_empty() {
+        return Err("no pixel to compare: nothing covers the view".into());
+    }
+    let reference: Vec<[f32; 3]> = selected.iter().map(|i| reference[*i]).collect();
+    let approximation: Vec<[f32; 3]> = selected.iter().map(|i| approximation[*i]).collect();
     let mut sq = 0.0;
     let mut mean = 0.0;
-    for (a, r) in approximation.iter().zip(reference) {
+    for (a, r) in approximation.iter().zip(&reference) {
         for c in 0..3 {
             let (a, r) = (a[c] as f64, r[c] as f64);
             sq += (a - r) * (a - r);
@@ -321,13 +347,23 @@ pub fn compare(approximation: &[[f32; 3]], reference: &[[f32; 3]]) -> Result<Ima
 
 /// A heat map of per-pixel error: `|a - r|` (mean over channels) divided by `scale`, through a
 /// perceptually ordered colour ramp (black → purple → orange → yellow → white, like "inferno").
-pub fn error_heat_map(approximation: &[[f32; 3]], reference: &[[f32; 3]], scale: f64) -> Vec<[f32; 3]> {
+/// Pixels outside `mask` are drawn dark grey.
+pub fn error_heat_map(
+    approximation: &[[f32; 3]],
+    reference: &[[f32; 3]],
+    mask: Option<&[bool]>,
+    scale: f64,
+) -> Vec<[f32; 3]> {
     const RAMP: [[f64; 3]; 5] =
         [[0.0, 0.0, 0.015], [0.34, 0.06, 0.43], [0.87, 0.32, 0.23], [0.99, 0.77, 0.18], [0.99, 1.0, 0.92]];
     approximation
         .iter()
         .zip(reference)
-        .map(|(a, r)| {
+        .enumerate()
+        .map(|(i, (a, r))| {
+            if mask.is_some_and(|m| !m[i]) {
+                return [0.02; 3];
+            }
             let e = (0..3).map(|c| (a[c] - r[c]).abs() as f64).sum::<f64>() / 3.0;
             let t = (e / scale.max(1e-30)).clamp(0.0, 1.0) * (RAMP.len() - 1) as f64;
             let (i, f) = ((t.floor() as usize).min(RAMP.len() - 2), t - t.floor().min((RAMP.len() - 2) as f64));

@@ -45,6 +45,8 @@ impl GraphError {
     }
 }
 
+impl std::error::Error for GraphError {}
+
 impl fmt::Display for GraphError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         if let Some(node) = &self.node {

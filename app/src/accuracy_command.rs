@@ -1,0 +1,160 @@
+//! `lightloom accuracy`: renders the Monte Carlo reference of a project once, then the
+//! approximation at several coefficient counts, and prints each one's error against it — the
+//! numbers behind "honest about its error". Errors are over pixels wholly covered by geometry.
+
+use crate::project_commands::{evaluate, fail_on_errors, load, upstream_of};
+use anyhow::{Result, anyhow};
+use clap::Args;
+use lightloom_nodes::engine::{CancelToken, Graph};
+use lightloom_nodes::graph::ParamValue;
+use lightloom_nodes::kinds::output::{FrameInputs, find_output};
+use lightloom_nodes::reference::{self, ImageError, PinholeCamera};
+use lightloom_render::{CameraView, GpuContext, ViewportRenderer};
+use serde::Serialize;
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::Instant;
+
+#[derive(Args, Debug)]
+pub struct AccuracyArgs {
+    pub project: PathBuf,
+    /// SH band counts for the `sh_prt` rows (lighting and transport use the same count).
+    #[arg(long, value_delimiter = ',', default_value = "2,3,4,6,8")]
+    pub bands: Vec<usize>,
+    /// Reference samples per pixel.
+    #[arg(long, default_value_t = 256)]
+    pub samples: usize,
+    #[arg(long, default_value_t = 320)]
+    pub width: u32,
+    #[arg(long, default_value_t = 180)]
+    pub height: u32,
+    #[arg(long)]
+    pub camera: Option<String>,
+    /// Print JSON instead of a table.
+    #[arg(long)]
+    pub json: bool,
+    #[command(flatten)]
+    pub eval: crate::project_commands::EvalOptions,
+}
+
+/// One approximation's error against the reference.
+#[derive(Debug, Serialize)]
+pub struct Row {
+    pub mode: String,
+    pub coefficients: usize,
+    #[serde(flatten)]
+    pub error: ImageError,
+    pub render_ms: f64,
+}
+
+#[derive(Debug, Serialize)]
+pub struct Report {
+    pub project: String,
+    pub width: u32,
+    pub height: u32,
+    pub reference_samples: usize,
+    pub reference_ms: f64,
+    /// The reference's own noise: RMSE between two independent references, divided by √2.
+    pub reference_noise: ImageError,
+    pub rows: Vec<Row>,
+}
+
+pub fn run(args: &AccuracyArgs) -> Result<()> {
+    let (project, graph) = load(&args.project, &args.eval.overrides)?;
+    let output = find_output(&graph, Some(project.render.output.as_str()).filter(|s| !s.is_empty()))
+        .map_err(|e| anyhow!(e))?
+        .id
+        .clone();
+    let camera = project.camera(args.camera.as_deref()).map_err(|e| anyhow!(e))?;
+    let engine = Arc::new(args.eval.engine());
+    let size = (args.width, args.height);
+    let gpu = GpuContext::headless()?;
+    let mut renderer = ViewportRenderer::new(&gpu);
+    let view = CameraView::from_project(&camera);
+    let pinhole =
+        PinholeCamera { position: camera.position.into(), target: camera.target.into(), fov_y_deg: camera.fov_y_deg };
+
+    let frame_of = |graph: &Graph| -> Result<FrameInputs> {
+        let evaluation = evaluate(engine.clone(), graph, true);
+        fail_on_errors(&evaluation, &upstream_of(graph, &output))?;
+        FrameInputs::gather(&evaluation, graph, &output).map_err(|e| anyhow!(e))
+    };
+    let mut base = graph.clone();
+    base.set_param(&output, "reference_samples", ParamValue::Int(args.samples as i64))?;
+    let base_frame = frame_of(&base)?;
+    let start = Instant::now();
+    let reference_with = |seed| {
+        base_frame
+            .render_reference(&pinhole, (size.0 as usize, size.1 as usize), seed, &CancelToken::default(), &|_| {})
+            .map_err(|e| anyhow!(e))
+    };
+    let reference = reference_with(1)?;
+    let reference_ms = start.elapsed().as_secs_f64() * 1e3;
+    let second = reference_with(2)?;
+    let mask = reference.surface_mask();
+    let mut noise = reference::compare(&second.pixels, &reference.pixels, Some(&mask)).map_err(|e| anyhow!(e))?;
+    noise.rmse /= 2f64.sqrt();
+    noise.relative_rmse /= 2f64.sqrt();
+    noise.psnr_db += 20.0 * 2f64.sqrt().log10();
+
+    let mut measure = |graph: &Graph, mode: &str, coefficients: usize| -> Result<Row> {
+        let frame = frame_of(graph)?;
+        let start = Instant::now();
+        let captured = renderer.render_offscreen(&gpu, &frame, &view, size.0, size.1)?;
+        let render_ms = start.elapsed().as_secs_f64() * 1e3;
+        let pixels: Vec<[f32; 3]> = captured.hdr.iter().map(|p| [p[0], p[1], p[2]]).collect();
+        let error = reference::compare(&pixels, &reference.pixels, Some(&mask)).map_err(|e| anyhow!(e))?;
+        Ok(Row { mode: mode.into(), coefficients, error, render_ms })
+    };
+    let scene = graph.upstream(&output, "scene").map(|n| n.id.clone()).ok_or_else(|| anyhow!("no scene"))?;
+    let environment = graph.upstream(&output, "environment").map(|n| n.id.clone());
+    let mut rows = Vec::new();
+    let mut irradiance = base.clone();
+    irradiance.set_param(&output, "mode", ParamValue::Choice("sh_irradiance".into()))?;
+    rows.push(measure(&irradiance, "sh_irradiance (unshadowed)", 25)?);
+    for &bands in &args.bands {
+        let mut g = base.clone();
+        g.set_param(&output, "mode", ParamValue::Choice("sh_prt".into()))?;
+        g.set_param(&scene, "transport", ParamValue::Choice("sh".into()))?;
+        g.set_param(&scene, "transport_bands", ParamValue::Int(bands as i64))?;
+        if let Some(env) = &environment {
+            g.set_param(env, "sh_bands", ParamValue::Int(bands as i64))?;
+        }
+        rows.push(measure(&g, "sh_prt", bands * bands)?);
+    }
+    let report = Report {
+        project: args.project.display().to_string(),
+        width: size.0,
+        height: size.1,
+        reference_samples: args.samples,
+        reference_ms,
+        reference_noise: noise,
+        rows,
+    };
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        println!(
+            "{}: {}x{}, reference {} spp in {:.0} ms (its own noise: RMSE {:.5}, relative {:.2}%)",
+            report.project,
+            size.0,
+            size.1,
+            args.samples,
+            reference_ms,
+            noise.rmse,
+            noise.relative_rmse * 100.0
+        );
+        println!("{:<28} {:>6} {:>10} {:>9} {:>9}", "mode", "coeffs", "RMSE", "rel. %", "PSNR dB");
+        for r in &report.rows {
+            println!(
+                "{:<28} {:>6} {:>10.5} {:>9.2} {:>9.1}",
+                r.mode,
+                r.coefficients,
+                r.error.rmse,
+                r.error.relative_rmse * 100.0,
+                r.error.psnr_db
+            );
+        }
+    }
+    Ok(())
+}

@@ -334,3 +334,84 @@ fn the_default_project_file_is_the_builtin_default() {
     let project = lightloom_nodes::project::Project::from_ron(&text, &path).unwrap();
     assert_eq!(project, lightloom_nodes::project::default_project());
 }
+
+#[test]
+fn rotating_environment_scene_and_camera_together_leaves_the_image_unchanged() {
+    // Yaw everything by 90° (the cube map rotates by a face permutation): the shadowed PRT
+    // image must not change beyond sampling (transport rays are fixed in world space).
+    let dir = tempdir("rotation");
+    write_hdr(&dir.join("sky.hdr"), 256, 128, |x, y| {
+        let (u, v) = (x as f32 / 256.0, y as f32 / 128.0);
+        let blob = if (u - 0.3).abs() < 0.05 && (v - 0.3).abs() < 0.06 { 40.0 } else { 0.0 };
+        [0.3 + blob + u, 0.4 + blob * 0.8, 0.6 + (1.0 - v)]
+    });
+    let project = |yaw: f64, ball: [f64; 3], camera: [f64; 3]| {
+        format!(
+            r#"(
+            version: 2,
+            cameras: [(name: "c", position: ({}, {}, {}), target: (0.0, 0.3, 0.0), fov_y_deg: 40.0)],
+            render: (width: 96, height: 64),
+            nodes: [
+                (id: "env", kind: "EnvironmentMap", params: {{
+                    "source": Choice("file"), "file": Path("sky.hdr"), "rotation": Vec3(({yaw}, 0.0, 0.0)),
+                }}),
+                (id: "scene", kind: "Scene", params: {{
+                    "objects": Objects([
+                        (name: "floor", shape: Plane(size: 4.0), rotation_deg: (0.0, {yaw}, 0.0), color: (0.8, 0.8, 0.8)),
+                        (name: "ball", shape: Sphere(radius: 0.5), translation: ({}, {}, {}), color: (0.9, 0.6, 0.4)),
+                    ]),
+                    "tessellation": Int(40),
+                    "transport": Choice("sh"),
+                    "transport_rays": Int(1024),
+                }}),
+                (id: "m", kind: "BrdfEditor", params: {{"model": Choice("phong"), "exponent": Float(6.0), "f0": Float(0.3)}}),
+                (id: "out", kind: "Output", params: {{"mode": Choice("sh_prt"), "background": Bool(false)}}),
+            ],
+            links: [
+                (from: ("env", "environment"), to: ("out", "environment")),
+                (from: ("scene", "scene"), to: ("out", "scene")),
+                (from: ("m", "material"), to: ("out", "material")),
+            ],
+        )"#,
+            camera[0], camera[1], camera[2], ball[0], ball[1], ball[2]
+        )
+    };
+    let render = |name: &str, text: String| {
+        let path = dir.join(format!("{name}.ron"));
+        std::fs::write(&path, text).unwrap();
+        let exr = dir.join(format!("{name}.exr"));
+        let out = lightloom()
+            .args(["render", path.to_str().unwrap(), "-o", exr.to_str().unwrap(), "--no-disk-cache", "-q"])
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        image::open(&exr).unwrap().into_rgb32f()
+    };
+    let a = render("a", project(0.0, [0.8, 0.5, 0.3], [0.0, 2.0, 4.0]));
+    // Ry(90°): (x, y, z) -> (z, y, -x).
+    let b = render("b", project(90.0, [0.3, 0.5, -0.8], [4.0, 2.0, 0.0]));
+    let (mut sq, mut sum) = (0.0f64, 0.0f64);
+    for (p, q) in a.pixels().zip(b.pixels()) {
+        for c in 0..3 {
+            sq += ((p[c] - q[c]) as f64).powi(2);
+            sum += p[c] as f64;
+        }
+    }
+    let n = (a.width() * a.height() * 3) as f64;
+    let relative = (sq / n).sqrt() / (sum / n);
+    assert!(sum > 0.0);
+    assert!(relative < 0.03, "rotating everything together changed the image by {relative:.4} relative RMSE");
+}
+
+#[test]
+fn eval_reports_that_a_brdf_edit_recomputes_only_the_material() {
+    let project = workspace().join("tests/projects/glossy.ron");
+    let out = lightloom()
+        .args(["eval", project.to_str().unwrap(), "--set", "gloss.exponent=30", "--report", "json", "--no-disk-cache"])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let recomputed: Vec<&str> = report["recomputed"].as_array().unwrap().iter().map(|v| v.as_str().unwrap()).collect();
+    assert_eq!(recomputed, ["gloss.material"]);
+}

@@ -225,8 +225,8 @@ impl PortType {
     pub fn provided_stages(self) -> &'static [&'static str] {
         match self {
             PortType::Environment => &["radiance", "rotated_radiance", "sh", "haar"],
-            PortType::Material => &["material"],
-            PortType::Scene => &["geometry", "transport_sh"],
+            PortType::Material => &["material", "local_table"],
+            PortType::Scene => &["geometry", "receivers", "transport_sh", "transport_local"],
             PortType::Medium => &["medium"],
             PortType::Lights => &["lights"],
             PortType::Blockers => &["spheres"],

@@ -27,4 +27,5 @@ pub mod sat;
 pub mod sh;
 pub mod sky;
 pub mod transport;
+pub mod triple_product;
 pub mod wavelet;

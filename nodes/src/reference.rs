@@ -312,8 +312,14 @@ pub struct ImageError {
 
 /// Compares linear images of the same size over the pixels where `mask` is true (all when
 /// `None`).
-pub fn compare(approximation: &[[f32; 3]], reference: &[[f32; 3]], mask: Option<&[bool]>) -> Result<ImageError, String> {
-    if approximation.len() != reference.len() || reference.is_empty() || mask.is_some_and(|m| m.len() != reference.len())
+pub fn compare(
+    approximation: &[[f32; 3]],
+    reference: &[[f32; 3]],
+    mask: Option<&[bool]>,
+) -> Result<ImageError, String> {
+    if approximation.len() != reference.len()
+        || reference.is_empty()
+        || mask.is_some_and(|m| m.len() != reference.len())
     {
         return Err(format!("image sizes differ: {} vs {} pixels", approximation.len(), reference.len()));
     }

@@ -44,6 +44,8 @@ pub enum StageValue {
     TexelReceivers(crate::transport::TexelReceivers),
     ObjectTransport(Vec<crate::transport::ObjectTransport>),
     IncidentSh(crate::prt::IncidentSh),
+    BrdfTable(crate::triple_product::BrdfTable),
+    LocalProducts(crate::triple_product::LocalProducts),
     /// Test stages: a number.
     Number(f64),
     /// In memory only (never persisted): obvhs BVHs are rebuilt on load. Must stay the last
@@ -67,6 +69,8 @@ impl StageValue {
             StageValue::ShTransport(t) => (t.visibility.len() + t.transfer.len()) * 4,
             StageValue::HaarTransport(t) => t.visibility.iter().chain(&t.transfer).map(|v| v.len() * 16 + 24).sum(),
             StageValue::IncidentSh(r) => r.coeffs.len() * 4,
+            StageValue::BrdfTable(t) => (t.diffuse.len() + t.specular.len()) * 4,
+            StageValue::LocalProducts(p) => p.values.len() * 4,
             StageValue::LocalTransport(t) => t.visibility.iter().map(|v| v.len() * 16 + 24).sum(),
             StageValue::RayScene(s) => s.triangle_count() * 48 * 2,
             StageValue::TexelReceivers(t) => t.receivers.len() * 44,
@@ -95,6 +99,8 @@ impl StageValue {
             StageValue::TexelReceivers(_) => "texel receivers",
             StageValue::ObjectTransport(_) => "per-object transport",
             StageValue::IncidentSh(_) => "incident radiance SH",
+            StageValue::BrdfTable(_) => "local-frame BRDF table",
+            StageValue::LocalProducts(_) => "local-frame lighting × visibility",
             StageValue::Number(_) => "number",
         }
     }

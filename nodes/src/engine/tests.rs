@@ -42,29 +42,29 @@ fn with_incident(stages: &[&'static str]) -> Vec<&'static str> {
     [stages, &["output.incident_sh"]].concat()
 }
 
+/// Edits of the rotated lighting or the receivers also recompute the wavelet mode's products.
+fn with_lighting(stages: &[&'static str]) -> Vec<&'static str> {
+    [stages, &["output.incident_sh", "output.local_products"]].concat()
+}
+
 #[test]
 fn each_parameter_recomputes_exactly_its_stages() {
     use ParamValue::*;
     // (node, parameter, new value, stages expected to run) — written from the design, not
     // derived from the stage declarations.
     let table: Vec<(&str, &str, ParamValue, Vec<&str>)> = vec![
-        (
-            "sky",
-            "rotation",
-            Vec3([30.0, 0.0, 0.0]),
-            vec!["sky.rotated_radiance", "sky.sh", "sky.haar", "output.incident_sh"],
-        ),
-        ("sky", "exposure", Float(1.0), with_incident(SKY_AFTER_SOURCE)),
-        ("sky", "tint", Color([1.0, 0.9, 0.8]), with_incident(SKY_AFTER_SOURCE)),
-        ("sky", "resolution", Choice("32".into()), with_incident(SKY_AFTER_SOURCE)),
+        ("sky", "rotation", Vec3([30.0, 0.0, 0.0]), with_lighting(&["sky.rotated_radiance", "sky.sh", "sky.haar"])),
+        ("sky", "exposure", Float(1.0), with_lighting(SKY_AFTER_SOURCE)),
+        ("sky", "tint", Color([1.0, 0.9, 0.8]), with_lighting(SKY_AFTER_SOURCE)),
+        ("sky", "resolution", Choice("32".into()), with_lighting(SKY_AFTER_SOURCE)),
         ("sky", "sh_bands", Int(3), vec!["sky.sh_unrotated", "sky.sh", "output.incident_sh"]),
         ("sky", "wavelet_terms", Int(64), vec!["sky.haar"]),
-        ("sky", "sun_elevation", Float(20.0), with_incident(SKY_ALL)),
-        ("sky", "sun_azimuth", Float(-30.0), with_incident(SKY_ALL)),
-        ("sky", "sun_intensity", Float(100.0), with_incident(SKY_ALL)),
-        ("sky", "sun_size", Float(1.0), with_incident(SKY_ALL)),
-        ("scene", "tessellation", Int(24), with_incident(SCENE_ALL)),
-        ("scene", "objects", Objects(crate::kinds::scene::default_objects()[..2].to_vec()), with_incident(SCENE_ALL)),
+        ("sky", "sun_elevation", Float(20.0), with_lighting(SKY_ALL)),
+        ("sky", "sun_azimuth", Float(-30.0), with_lighting(SKY_ALL)),
+        ("sky", "sun_intensity", Float(100.0), with_lighting(SKY_ALL)),
+        ("sky", "sun_size", Float(1.0), with_lighting(SKY_ALL)),
+        ("scene", "tessellation", Int(24), with_lighting(SCENE_ALL)),
+        ("scene", "objects", Objects(crate::kinds::scene::default_objects()[..2].to_vec()), with_lighting(SCENE_ALL)),
         (
             "scene",
             "transport",
@@ -76,6 +76,7 @@ fn each_parameter_recomputes_exactly_its_stages() {
                 "scene.transport_local",
                 "scene.transport_texels",
                 "output.incident_sh",
+                "output.local_products",
             ],
         ),
         (
@@ -98,29 +99,45 @@ fn each_parameter_recomputes_exactly_its_stages() {
         ),
         ("scene", "haar_resolution", Choice("8".into()), vec!["scene.transport_haar"]),
         ("scene", "haar_terms", Int(32), vec!["scene.transport_haar"]),
-        ("scene", "local_frame_depth", Int(2), vec!["scene.transport_local", "scene.transport_texels"]),
-        ("scene", "local_frame_terms", Int(80), vec!["scene.transport_local", "scene.transport_texels"]),
-        ("material", "model", Choice("ggx".into()), vec!["material.material"]),
-        ("material", "albedo", Color([0.5, 0.5, 0.5]), vec!["material.material"]),
-        ("material", "specular", Color([0.2, 0.2, 0.2]), vec!["material.material"]),
-        ("material", "roughness", Float(0.2), vec!["material.material"]),
-        ("material", "exponent", Float(10.0), vec!["material.material"]),
-        ("material", "anisotropy", Float(0.5), vec!["material.material"]),
-        ("material", "f0", Float(0.5), vec!["material.material"]),
+        (
+            "scene",
+            "local_frame_depth",
+            Int(2),
+            vec!["scene.transport_local", "scene.transport_texels", "output.local_products"],
+        ),
+        (
+            "scene",
+            "local_frame_terms",
+            Int(80),
+            vec!["scene.transport_local", "scene.transport_texels", "output.local_products"],
+        ),
+        ("material", "model", Choice("ggx".into()), vec!["material.material", "material.local_table"]),
+        ("material", "albedo", Color([0.5, 0.5, 0.5]), vec!["material.material", "material.local_table"]),
+        ("material", "specular", Color([0.2, 0.2, 0.2]), vec!["material.material", "material.local_table"]),
+        ("material", "roughness", Float(0.2), vec!["material.material", "material.local_table"]),
+        ("material", "exponent", Float(10.0), vec!["material.material", "material.local_table"]),
+        ("material", "anisotropy", Float(0.5), vec!["material.material", "material.local_table"]),
+        ("material", "f0", Float(0.5), vec!["material.material", "material.local_table"]),
         ("output", "mode", Choice("sh_irradiance".into()), vec![]),
         ("output", "exposure", Float(-1.0), vec!["output.settings"]),
         ("output", "tonemap", Choice("reinhard".into()), vec!["output.settings"]),
         ("output", "background", Bool(false), vec!["output.settings"]),
         ("output", "view", Choice("error".into()), vec!["output.settings"]),
         ("output", "reference_samples", Int(16), vec!["output.settings"]),
-        ("output", "mode", Choice("sh_prt".into()), vec!["output.settings", "output.incident_sh"]),
-        ("material", "roughness", Float(0.7), vec!["material.material"]),
+        (
+            "output",
+            "mode",
+            Choice("sh_prt".into()),
+            vec!["output.settings", "output.incident_sh", "output.local_products"],
+        ),
+        ("output", "wavelet_terms", Choice("80".into()), vec!["output.local_products"]),
+        ("material", "roughness", Float(0.7), vec!["material.material", "material.local_table"]),
     ];
     let engine = Engine::in_memory();
     let mut graph = default_graph();
     let first = engine.evaluate(&graph, &CancelToken::default(), None);
     assert!(first.report.failed().is_empty(), "{:?}", first.report.failed());
-    assert_eq!(first.report.computed().len(), 18);
+    assert_eq!(first.report.computed().len(), 20);
     let again = engine.evaluate(&graph, &CancelToken::default(), None);
     assert!(ran(&again.report).is_empty(), "an unchanged graph recomputed {:?}", ran(&again.report));
     for (node, param, value, expected) in table {
@@ -556,7 +573,12 @@ fn planned_kinds_recompute_exactly_their_stages_too() {
         ("area", "size", Float(2.0), vec!["area.lights"]),
         ("area", "intensity", Float(3.0), vec!["area.lights"]),
         ("area", "position", Vec3([0.0, 3.0, 0.0]), vec!["area.lights"]),
-        ("sky", "exposure", Float(2.0), [SKY_AFTER_SOURCE, &["rsl.square_lights", "output.incident_sh"]].concat()),
+        (
+            "sky",
+            "exposure",
+            Float(2.0),
+            [SKY_AFTER_SOURCE, &["rsl.square_lights", "output.incident_sh", "output.local_products"]].concat(),
+        ),
     ];
     let engine = Engine::in_memory();
     let first = engine.evaluate(&graph, &CancelToken::default(), None);

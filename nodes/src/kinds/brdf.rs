@@ -1,6 +1,6 @@
-//! BRDF editor node. Today it provides the material parameters that the viewport's diffuse SH
-//! mode reads (albedo); the tabulated local-frame BRDF and its SH and spherical-Haar
-//! projections (Ma et al. §3.2) arrive with the relighting issue.
+//! BRDF editor node: the material's parameters (read by the SH modes, which derive the
+//! zonal lobe on the fly) and the material tabulated in the local frame for the triple
+//! product mode (Ma et al. §3.2; `triple_product::tabulate_brdf`).
 
 use crate::engine::{StageContext, StageError, StageValue};
 use crate::graph::{Availability, NodeKindSpec, ParamKind, ParamSpec, PortSpec, PortType, StageSpec};
@@ -83,17 +83,39 @@ pub fn spec() -> NodeKindSpec {
                 "Specular reflectance at normal incidence: Schlick's Fresnel for GGX, the lobe's weight for Phong, Blinn-Phong and Ward.",
             ),
         ],
-        stages: vec![StageSpec {
-            name: "material",
-            version: 1,
-            params: &["model", "albedo", "specular", "roughness", "exponent", "anisotropy", "f0"],
-            stages: &[],
-            inputs: &[],
-            persist: false,
-            compute: material,
-        }],
+        stages: vec![
+            StageSpec {
+                name: "material",
+                version: 1,
+                params: &["model", "albedo", "specular", "roughness", "exponent", "anisotropy", "f0"],
+                stages: &[],
+                inputs: &[],
+                persist: false,
+                compute: material,
+            },
+            StageSpec {
+                name: "local_table",
+                version: 1,
+                params: &[],
+                stages: &["material"],
+                inputs: &[],
+                persist: false,
+                compute: local_table,
+            },
+        ],
         availability: Availability::Ready,
     }
+}
+
+/// The material tabulated in the local frame on 320 icosahedral cells (Ma et al. §3.2; the
+/// renderer merges cells for 80).
+fn local_table(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let StageValue::Material(m) = ctx.stage("material")? else {
+        return Err(StageError::Internal("material stage".into()));
+    };
+    let grid = crate::triple_product::CellGrid::for_coefficients(320).map_err(StageError::Internal)?;
+    let brdf = crate::brdf::Brdf::from_material(m);
+    Ok(StageValue::BrdfTable(crate::triple_product::tabulate_brdf(&brdf, &grid, ctx.cancel_token())?))
 }
 
 fn material(ctx: &StageContext) -> Result<StageValue, StageError> {

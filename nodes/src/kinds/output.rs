@@ -19,7 +19,8 @@ pub struct OutputSettings {
 }
 
 /// Relighting modes the renderer implements today.
-pub const MODES: &[&str] = &["sh_irradiance", "sh_prt"];
+pub const MODES: &[&str] = &["sh_irradiance", "sh_prt", "wavelet_vertex"];
+pub const WAVELET_TERMS: &[&str] = &["80", "320"];
 pub const TONEMAPS: &[&str] = &["aces", "reinhard", "linear"];
 pub const VIEWS: &[&str] = &["approximation", "reference", "error"];
 
@@ -47,7 +48,16 @@ pub fn spec() -> NodeKindSpec {
                 kind: ParamKind::Choice { options: MODES, default: "sh_irradiance" },
                 doc: "sh_irradiance: unshadowed diffuse lighting from the environment's SH, per pixel (Sun 2008 \
                       eq. 2.20). sh_prt: shadowed diffuse transfer plus glossy lobes on the shadowed incident \
-                      radiance, per vertex (needs Scene transport `sh`).",
+                      radiance, per vertex (needs Scene transport `sh`). wavelet_vertex: all-frequency triple \
+                      product in each vertex's local frame (Ma et al. eq. 7), 80 or 320 top-only coefficients \
+                      (needs Scene transport `sh_and_wavelets`).",
+            },
+            ParamSpec {
+                name: "wavelet_terms",
+                label: "Wavelet coefficients",
+                unit: "",
+                kind: ParamKind::Choice { options: WAVELET_TERMS, default: "320" },
+                doc: "Top-only spherical Haar coefficients per function in the wavelet mode (Ma et al.'s 80 or 320).",
             },
             ParamSpec {
                 name: "exposure",
@@ -105,6 +115,15 @@ pub fn spec() -> NodeKindSpec {
                 persist: false,
                 compute: incident_sh,
             },
+            StageSpec {
+                name: "local_products",
+                version: 1,
+                params: &["mode", "wavelet_terms"],
+                stages: &[],
+                inputs: &[("scene", "receivers"), ("scene", "transport_local"), ("environment", "rotated_radiance")],
+                persist: false,
+                compute: local_products,
+            },
         ],
         availability: Availability::Ready,
     }
@@ -141,6 +160,38 @@ fn incident_sh(ctx: &StageContext) -> Result<StageValue, StageError> {
     Ok(StageValue::IncidentSh(crate::prt::incident_radiance(light, transport, ctx.cancel_token())?))
 }
 
+/// Per-vertex `P_c = ΔΩ_c L^x_c V^x_c` for the `wavelet_vertex` mode (empty otherwise).
+/// Depends on lighting and transport only: BRDF and camera edits reuse it.
+fn local_products(ctx: &StageContext) -> Result<StageValue, StageError> {
+    if ctx.choice("mode")? != "wavelet_vertex" {
+        return Ok(StageValue::LocalProducts(Default::default()));
+    }
+    let terms: usize =
+        ctx.choice("wavelet_terms")?.parse().map_err(|_| StageError::Internal("wavelet_terms".into()))?;
+    let (Some(StageValue::Receivers(receivers)), Some(StageValue::LocalTransport(transport))) =
+        (ctx.input("scene", "receivers"), ctx.input("scene", "transport_local"))
+    else {
+        return Err(StageError::Internal("scene inputs".into()));
+    };
+    if transport.visibility.is_empty() && !receivers.is_empty() {
+        return Err(StageError::Failed(
+            "mode `wavelet_vertex` needs local-frame visibility: set the Scene's `transport` to `sh_and_wavelets`"
+                .into(),
+        ));
+    }
+    let Some(StageValue::CubeMap(environment)) = ctx.input("environment", "rotated_radiance") else {
+        return Ok(StageValue::LocalProducts(Default::default()));
+    };
+    let grid = crate::triple_product::CellGrid::for_coefficients(terms).map_err(StageError::Failed)?;
+    Ok(StageValue::LocalProducts(crate::triple_product::local_products(
+        &grid,
+        environment,
+        receivers,
+        transport,
+        ctx.cancel_token(),
+    )?))
+}
+
 /// A stage value with its key (renderers re-upload only when the key changes).
 #[derive(Clone, Debug)]
 pub struct Keyed {
@@ -159,6 +210,9 @@ pub struct FrameInputs {
     /// `sh_prt` only: the scene's SH transport and the incident radiance per receiver.
     pub transport: Option<Keyed>,
     pub incident: Option<Keyed>,
+    /// `wavelet_vertex` only: per-vertex lighting × visibility and the material's table.
+    pub local_products: Option<Keyed>,
+    pub brdf_table: Option<Keyed>,
     pub material: crate::kinds::brdf::Material,
     pub settings: OutputSettings,
     /// Connected inputs the renderer does not draw yet, to tell the user.
@@ -247,10 +301,28 @@ impl FrameInputs {
         } else {
             (None, None)
         };
+        let (local_products, brdf_table) = if settings.mode == "wavelet_vertex" {
+            let material = upstream("material").ok_or("the wavelet mode needs a material (BRDF editor) input")?;
+            (Some(keyed(output, "local_products")?), Some(keyed(&material, "local_table")?))
+        } else {
+            (None, None)
+        };
         let ignored_inputs = ["medium", "lights", "blockers", "square_lights"]
             .into_iter()
             .filter_map(|p| upstream(p).map(|n| format!("`{p}` (from `{n}`) is not drawn yet")))
             .collect();
-        Ok(Self { meshes, ray_scene, sh, radiance, transport, incident, material, settings, ignored_inputs })
+        Ok(Self {
+            meshes,
+            ray_scene,
+            sh,
+            radiance,
+            transport,
+            incident,
+            local_products,
+            brdf_table,
+            material,
+            settings,
+            ignored_inputs,
+        })
     }
 }

@@ -1,0 +1,386 @@
+//! All-frequency relighting by triple products in each receiver's local frame (Ma et al.,
+//! "triple product relighting in a spherical local frame", eq. 7):
+//! `B(x, ω_o) = ∫ L^x(ω) V^x(ω) ρ̃^{ω_o}(ω) dω` with `L^x(ω) = L(M_x ω)` the lighting in the
+//! frame `M_x = [t, b, n]`, `V^x` the visibility and `ρ̃ = ρ·cos θ` the BRDF.
+//!
+//! Top-only truncation to `n = 20·4^k` icosahedral Haar coefficients (Ma's 80 and 320) is a box
+//! filter onto the level-`k` cells (see `wavelet::spherical`), so the triple product of the
+//! truncated functions is the cell sum `Σ_c ΔΩ_c L_c V_c ρ̃_c` with cell averages — exact for
+//! cell-constant functions, with the true solid angles `ΔΩ_c` folded in (the notes' fix for the
+//! paper's parametric measure). The sum splits into a per-receiver product
+//! `P_c = ΔΩ_c L_c V_c` (lighting × visibility, rebuilt when either changes) and per-material
+//! tables: `D_c`, the cell average of `cos θ/π` (diffuse), and `S_c(ω_o)`, the cell average of
+//! the specular lobe times `cos θ` on a grid of outgoing directions. A frame is then
+//! `B = albedo Σ P_c D_c + specular Σ P_c S_c(ω_o)`, evaluated in WGSL per vertex.
+
+use crate::brdf::Brdf;
+use crate::cubemap::CubeMap;
+use crate::engine::{CancelToken, StageError};
+use crate::transport::{Receivers, SphericalTransport};
+use crate::wavelet::SparseVector;
+use crate::wavelet::spherical::SphericalHaar;
+use glam::{DMat3, DVec3};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+use std::f64::consts::PI;
+
+/// Sub-cell levels below a cell used to average functions over it (16 samples per cell).
+const SUBLEVELS: usize = 2;
+
+/// The level-`k` cells of the local-frame sphere with sub-samples for cell averages.
+#[derive(Clone, Debug)]
+pub struct CellGrid {
+    pub level: usize,
+    pub solid_angles: Vec<f64>,
+    /// Per cell: sub-cell centroid directions (local frame) and their solid angles.
+    pub samples: Vec<Vec<(DVec3, f64)>>,
+}
+
+impl CellGrid {
+    /// The grid of `coefficients = 20·4^level` cells (20, 80, 320, 1280).
+    pub fn for_coefficients(coefficients: usize) -> Result<Self, String> {
+        let level = match coefficients {
+            20 => 0,
+            80 => 1,
+            320 => 2,
+            1280 => 3,
+            n => return Err(format!("{n} coefficients is not 20·4^k for k ≤ 3 (use 20, 80, 320 or 1280)")),
+        };
+        let fine = SphericalHaar::new(level + SUBLEVELS);
+        let areas = fine.cell_solid_angles();
+        let per = 1 << (2 * SUBLEVELS);
+        let cells = 20 << (2 * level);
+        let samples: Vec<Vec<(DVec3, f64)>> = (0..cells)
+            .map(|c| {
+                (c * per..(c + 1) * per)
+                    .map(|f| {
+                        let [a, b, d] = fine.triangle(level + SUBLEVELS, f);
+                        ((a + b + d).normalize(), areas[f])
+                    })
+                    .collect()
+            })
+            .collect();
+        let solid_angles = samples.iter().map(|s| s.iter().map(|(_, w)| w).sum()).collect();
+        Ok(Self { level, solid_angles, samples })
+    }
+
+    pub fn len(&self) -> usize {
+        self.solid_angles.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.solid_angles.is_empty()
+    }
+
+    /// Solid-angle-weighted average of `f` over each cell.
+    pub fn average(&self, f: impl Fn(DVec3) -> f64) -> Vec<f64> {
+        self.samples
+            .iter()
+            .zip(&self.solid_angles)
+            .map(|(s, area)| s.iter().map(|(d, w)| f(*d) * w).sum::<f64>() / area)
+            .collect()
+    }
+}
+
+/// Level-`level` cell values of a visibility vector truncated top-only (coefficients below
+/// `20·4^level`), i.e. the box filter of `V` onto those cells.
+pub fn visibility_cells(visibility: &SparseVector, level: usize) -> Vec<f64> {
+    let count = 20 << (2 * level);
+    let mut dense = vec![0.0; count];
+    for &(k, v) in &visibility.entries {
+        if (k as usize) < count {
+            dense[k as usize] = v;
+        }
+    }
+    SphericalHaar::new(level).inverse(&dense)
+}
+
+/// Per receiver `P_c = ΔΩ_c L^x_c V^x_c` (RGB interleaved, `(receiver·cells + c)·3 + channel`).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct LocalProducts {
+    pub cells: usize,
+    pub values: Vec<f32>,
+}
+
+/// Builds `P` for every receiver: lighting averaged over each cell rotated into the receiver's
+/// frame (16 bilinear cube-map lookups per cell), times the receiver's top-only visibility.
+pub fn local_products(
+    grid: &CellGrid,
+    environment: &CubeMap,
+    receivers: &Receivers,
+    transport: &SphericalTransport,
+    cancel: &CancelToken,
+) -> Result<LocalProducts, StageError> {
+    if transport.visibility.len() != receivers.len() {
+        return Err(StageError::Failed(format!(
+            "local-frame transport has {} receivers, the scene {}",
+            transport.visibility.len(),
+            receivers.len()
+        )));
+    }
+    if transport.depth < grid.level {
+        return Err(StageError::Failed(format!(
+            "local-frame visibility depth {} is coarser than {} cells need (depth {})",
+            transport.depth,
+            grid.len(),
+            grid.level
+        )));
+    }
+    let chunks: Vec<Result<Vec<f32>, StageError>> = (0..receivers.len().div_ceil(64))
+        .into_par_iter()
+        .map(|chunk| {
+            cancel.check()?;
+            let mut out = Vec::with_capacity(64 * grid.len() * 3);
+            for i in chunk * 64..((chunk + 1) * 64).min(receivers.len()) {
+                let frame = receivers.frame(i);
+                let v = visibility_cells(&transport.visibility[i], grid.level);
+                for (c, samples) in grid.samples.iter().enumerate() {
+                    let mut l = DVec3::ZERO;
+                    for (d, w) in samples {
+                        l += DVec3::from(environment.sample(frame * *d)) * *w;
+                    }
+                    // l is already ΔΩ_c × average radiance.
+                    let p = l * v[c].clamp(0.0, 1.0);
+                    out.extend([p.x as f32, p.y as f32, p.z as f32]);
+                }
+            }
+            Ok(out)
+        })
+        .collect();
+    let mut values = Vec::with_capacity(receivers.len() * grid.len() * 3);
+    for c in chunks {
+        values.extend(c?);
+    }
+    Ok(LocalProducts { cells: grid.len(), values })
+}
+
+/// Outgoing-direction grid of the BRDF table: `θ_o` in `THETA_STEPS` steps over `[0, π/2]`
+/// (sample points at both ends), `φ_o` in `PHI_STEPS` steps over `[0, 2π)` (periodic).
+pub const THETA_STEPS: usize = 16;
+pub const PHI_STEPS: usize = 32;
+
+/// Direction of grid node `(i, j)` in the local frame.
+pub fn outgoing_direction(i: usize, j: usize) -> DVec3 {
+    let theta = (i as f64 / (THETA_STEPS - 1) as f64) * (PI / 2.0 - 1e-3);
+    let phi = j as f64 / PHI_STEPS as f64 * 2.0 * PI;
+    DVec3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos())
+}
+
+/// A material tabulated in the local frame for the triple product.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct BrdfTable {
+    pub cells: usize,
+    /// `D_c`: cell average of `max(cos θ, 0)/π`.
+    pub diffuse: Vec<f32>,
+    /// `S_c(ω_o)`: cell average of `lobe(ω, ω_o)·max(cos θ, 0)`, `(i·PHI_STEPS + j)·cells + c`.
+    pub specular: Vec<f32>,
+    pub albedo: [f32; 3],
+    pub specular_color: [f32; 3],
+    /// Fraction of the lobe's directional albedo at normal incidence the cell table keeps
+    /// (1 when the cells resolve it; a sharp lobe on coarse cells still integrates right, but
+    /// its shape is blurred to the cell size).
+    pub lobe_albedo: f64,
+}
+
+impl BrdfTable {
+    /// The table on the coarser top-only grid of `cells` (merging children by solid angle:
+    /// a parent's average is the area-weighted mean of its children's).
+    pub fn coarsened(&self, cells: usize) -> Result<BrdfTable, String> {
+        if cells == self.cells {
+            return Ok(self.clone());
+        }
+        if cells * 4 != self.cells {
+            return Err(format!("cannot merge a {}-cell table into {cells} cells", self.cells));
+        }
+        let fine = CellGrid::for_coefficients(self.cells)?;
+        let merge = |values: &[f32]| -> Vec<f32> {
+            values
+                .chunks(self.cells)
+                .flat_map(|row| {
+                    (0..cells).map(|c| {
+                        let kids = 4 * c..4 * c + 4;
+                        let area: f64 = fine.solid_angles[kids.clone()].iter().sum();
+                        (kids.map(|k| row[k] as f64 * fine.solid_angles[k]).sum::<f64>() / area) as f32
+                    })
+                })
+                .collect()
+        };
+        Ok(BrdfTable { cells, diffuse: merge(&self.diffuse), specular: merge(&self.specular), ..self.clone() })
+    }
+}
+
+pub fn tabulate_brdf(brdf: &Brdf, grid: &CellGrid, cancel: &CancelToken) -> Result<BrdfTable, StageError> {
+    let diffuse = grid.average(|d| d.z.max(0.0) / PI).into_iter().map(|v| v as f32).collect();
+    let specular = if brdf.specular == DVec3::ZERO {
+        Vec::new()
+    } else {
+        let rows: Vec<Result<Vec<f32>, StageError>> = (0..THETA_STEPS * PHI_STEPS)
+            .into_par_iter()
+            .map(|k| {
+                cancel.check()?;
+                let wo = outgoing_direction(k / PHI_STEPS, k % PHI_STEPS);
+                Ok(grid.average(|wi| brdf.lobe_value(wi, wo) * wi.z.max(0.0)).into_iter().map(|v| v as f32).collect())
+            })
+            .collect();
+        let mut out = Vec::with_capacity(THETA_STEPS * PHI_STEPS * grid.len());
+        for r in rows {
+            out.extend(r?);
+        }
+        out
+    };
+    let lobe_albedo = if specular.is_empty() {
+        1.0
+    } else {
+        specular[..grid.len()].iter().zip(&grid.solid_angles).map(|(s, a)| *s as f64 * a).sum()
+    };
+    Ok(BrdfTable {
+        cells: grid.len(),
+        diffuse,
+        specular,
+        albedo: brdf.diffuse.as_vec3().to_array(),
+        specular_color: brdf.specular.as_vec3().to_array(),
+        lobe_albedo,
+    })
+}
+
+/// `S(ω_o)` bilinearly interpolated on the grid (CPU twin of the shader).
+pub fn specular_row(table: &BrdfTable, wo: DVec3) -> Vec<f64> {
+    let (i, j, fi, fj) = grid_position(wo);
+    let row = |i: usize, j: usize| &table.specular[(i * PHI_STEPS + j % PHI_STEPS) * table.cells..][..table.cells];
+    let (a, b, c, d) = (row(i, j), row(i, j + 1), row(i + 1, j), row(i + 1, j + 1));
+    (0..table.cells)
+        .map(|k| {
+            let top = a[k] as f64 * (1.0 - fj) + b[k] as f64 * fj;
+            let bottom = c[k] as f64 * (1.0 - fj) + d[k] as f64 * fj;
+            top * (1.0 - fi) + bottom * fi
+        })
+        .collect()
+}
+
+/// Grid cell `(i, j)` below `ω_o` and the fractions towards `(i+1, j+1)`.
+pub fn grid_position(wo: DVec3) -> (usize, usize, f64, f64) {
+    let theta = wo.z.clamp(0.0, 1.0).acos().min(PI / 2.0 - 1e-3);
+    let t = theta / (PI / 2.0 - 1e-3) * (THETA_STEPS - 1) as f64;
+    let i = (t.floor() as usize).min(THETA_STEPS - 2);
+    let phi = wo.y.atan2(wo.x).rem_euclid(2.0 * PI);
+    let p = phi / (2.0 * PI) * PHI_STEPS as f64;
+    let j = (p.floor() as usize).min(PHI_STEPS - 1);
+    (i, j, t - i as f64, p - j as f64)
+}
+
+/// Exit radiance of receiver `i` towards world direction `to_eye` (CPU twin of the shader).
+pub fn shade(products: &LocalProducts, table: &BrdfTable, i: usize, frame: DMat3, to_eye: DVec3) -> DVec3 {
+    let p = &products.values[i * products.cells * 3..(i + 1) * products.cells * 3];
+    let cell = |c: usize| DVec3::new(p[c * 3] as f64, p[c * 3 + 1] as f64, p[c * 3 + 2] as f64);
+    let mut diffuse = DVec3::ZERO;
+    for c in 0..products.cells {
+        diffuse += cell(c) * table.diffuse[c] as f64;
+    }
+    let mut out = diffuse * DVec3::from(table.albedo.map(f64::from));
+    let wo = frame.transpose() * to_eye;
+    if !table.specular.is_empty() && wo.z > 0.0 {
+        let s = specular_row(table, wo);
+        let mut spec = DVec3::ZERO;
+        for (c, s) in s.iter().enumerate() {
+            spec += cell(c) * *s;
+        }
+        out += spec * DVec3::from(table.specular_color.map(f64::from));
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::kinds::brdf::Material;
+    use crate::quadrature::SphereQuadrature;
+
+    #[test]
+    fn cell_grid_covers_the_sphere() {
+        for n in [20, 80, 320] {
+            let grid = CellGrid::for_coefficients(n).unwrap();
+            assert_eq!(grid.len(), n);
+            let total: f64 = grid.solid_angles.iter().sum();
+            assert!((total - 4.0 * PI).abs() < 1e-9, "{n}: {total}");
+        }
+        assert!(CellGrid::for_coefficients(100).is_err());
+    }
+
+    #[test]
+    fn top_only_visibility_is_the_box_filter_of_the_finest_cells() {
+        let fine = SphericalHaar::new(3);
+        let cells: Vec<f64> = (0..fine.len()).map(|c| ((c * 7919) % 13) as f64 / 12.0).collect();
+        let all = SparseVector::from_dense(&fine.forward(&cells));
+        let coarse = visibility_cells(&all, 2);
+        for (c, v) in coarse.iter().enumerate() {
+            let mean = cells[4 * c..4 * c + 4].iter().sum::<f64>() / 4.0;
+            assert!((v - mean).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn cell_sum_matches_the_triple_integral_for_smooth_functions() {
+        // B = ∫ L V ρ̃ dω for smooth L, V, ρ̃ converges as cells shrink: compare the cell sum
+        // with quadrature, and check the error falls from 80 to 320 cells.
+        let l = |d: DVec3| 1.0 + 0.8 * d.x + 0.5 * d.z * d.z;
+        let v = |d: DVec3| if d.z > 0.0 { 0.5 + 0.5 * (3.0 * d.y).sin().abs() } else { 0.0 };
+        let brdf = Brdf::from_material(&Material {
+            model: "phong".into(),
+            exponent: 4.0,
+            f0: 1.0,
+            albedo: [0.0; 3],
+            ..Default::default()
+        });
+        let wo = DVec3::new(0.3, 0.1, 0.95).normalize();
+        let rho = |d: DVec3| brdf.lobe_value(d, wo) * d.z.max(0.0);
+        let exact = SphereQuadrature::new(800, 1600).integrate(|d| l(d) * v(d) * rho(d));
+        let errors: Vec<f64> = [80, 320]
+            .iter()
+            .map(|&n| {
+                let grid = CellGrid::for_coefficients(n).unwrap();
+                let (lc, vc, rc) = (grid.average(l), grid.average(v), grid.average(rho));
+                let sum: f64 = (0..n).map(|c| grid.solid_angles[c] * lc[c] * vc[c] * rc[c]).sum();
+                (sum - exact).abs() / exact
+            })
+            .collect();
+        assert!(errors[1] < errors[0], "{errors:?}");
+        assert!(errors[1] < 0.03, "{errors:?}");
+    }
+
+    #[test]
+    fn a_coarsened_table_equals_tabulating_on_the_coarse_grid() {
+        // Merging keeps each row's integral Σ ΔΩ_c S_c exactly, and agrees with tabulating at
+        // 80 cells directly up to the sub-cell quadrature (16 samples per cell there, 64 here).
+        let brdf =
+            Brdf::from_material(&Material { model: "phong".into(), exponent: 3.0, f0: 1.0, ..Default::default() });
+        let cancel = CancelToken::default();
+        let fine = tabulate_brdf(&brdf, &CellGrid::for_coefficients(320).unwrap(), &cancel).unwrap();
+        let coarse = tabulate_brdf(&brdf, &CellGrid::for_coefficients(80).unwrap(), &cancel).unwrap();
+        let merged = fine.coarsened(80).unwrap();
+        let (g80, g320) = (CellGrid::for_coefficients(80).unwrap(), CellGrid::for_coefficients(320).unwrap());
+        let integral =
+            |row: &[f32], g: &CellGrid| row.iter().zip(&g.solid_angles).map(|(v, a)| *v as f64 * a).sum::<f64>();
+        for (m, f) in merged.specular.chunks(80).zip(fine.specular.chunks(320)) {
+            assert!((integral(m, &g80) - integral(f, &g320)).abs() < 1e-5 * integral(f, &g320).max(1e-3));
+        }
+        for (a, b) in merged.specular.iter().zip(&coarse.specular).chain(merged.diffuse.iter().zip(&coarse.diffuse)) {
+            assert!((a - b).abs() < 0.08 * b.abs().max(0.05), "{a} vs {b}");
+        }
+        assert!(fine.coarsened(100).is_err());
+    }
+
+    #[test]
+    fn lambert_under_constant_light_without_occluders_is_the_furnace() {
+        // Constant L, no occluders, white Lambert: B = L, because Σ ΔΩ_c D_c = ∫ cos⁺/π = 1
+        // whatever the cells (up to the 16-point sub-cell quadrature of the cosine).
+        let grid = CellGrid::for_coefficients(80).unwrap();
+        let table = tabulate_brdf(
+            &Brdf::from_material(&Material { albedo: [1.0; 3], ..Default::default() }),
+            &grid,
+            &CancelToken::default(),
+        )
+        .unwrap();
+        let b: f64 = (0..grid.len()).map(|c| grid.solid_angles[c] * 2.0 * table.diffuse[c] as f64).sum();
+        assert!((b - 2.0).abs() < 2.0 * 2e-3, "{b}");
+    }
+}

@@ -21,6 +21,9 @@ pub struct AccuracyArgs {
     /// SH band counts for the `sh_prt` rows (lighting and transport use the same count).
     #[arg(long, value_delimiter = ',', default_value = "2,3,4,6,8")]
     pub bands: Vec<usize>,
+    /// Top-only coefficient counts for the `wavelet_vertex` rows.
+    #[arg(long, value_delimiter = ',', default_value = "80,320")]
+    pub wavelets: Vec<usize>,
     /// Reference samples per pixel.
     #[arg(long, default_value_t = 256)]
     pub samples: usize,
@@ -121,6 +124,13 @@ pub fn run(args: &AccuracyArgs) -> Result<()> {
             g.set_param(env, "sh_bands", ParamValue::Int(bands as i64))?;
         }
         rows.push(measure(&g, "sh_prt", bands * bands)?);
+    }
+    for &terms in &args.wavelets {
+        let mut g = base.clone();
+        g.set_param(&output, "mode", ParamValue::Choice("wavelet_vertex".into()))?;
+        g.set_param(&output, "wavelet_terms", ParamValue::Choice(terms.to_string()))?;
+        g.set_param(&scene, "transport", ParamValue::Choice("sh_and_wavelets".into()))?;
+        rows.push(measure(&g, "wavelet_vertex", terms)?);
     }
     let report = Report {
         project: args.project.display().to_string(),

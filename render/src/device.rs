@@ -54,9 +54,17 @@ impl GpuContext {
 
     /// A device on a given adapter (the editor picks one compatible with its window).
     pub fn from_adapter(instance: wgpu::Instance, adapter: wgpu::Adapter) -> Result<Self, RenderError> {
+        // Per-vertex coefficient buffers (PRT, triple products) can be large: take what the
+        // adapter offers for storage buffers.
+        let supported = adapter.limits();
+        let required_limits = wgpu::Limits {
+            max_storage_buffer_binding_size: supported.max_storage_buffer_binding_size,
+            max_buffer_size: supported.max_buffer_size,
+            ..wgpu::Limits::downlevel_defaults().using_resolution(supported)
+        };
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("lightloom"),
-            required_limits: wgpu::Limits::downlevel_defaults().using_resolution(adapter.limits()),
+            required_limits,
             ..Default::default()
         }))
         .map_err(|e| RenderError::Device(e.to_string()))?;

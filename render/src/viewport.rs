@@ -28,6 +28,22 @@ struct PrtParams {
     light: [[f32; 4]; MAX_PRT_BANDS * MAX_PRT_BANDS],
 }
 
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct WaveletParams {
+    counts: [u32; 4],
+    albedo: [f32; 4],
+    specular: [f32; 4],
+}
+
+/// Per-vertex triple-product data and the material's tables on the GPU.
+struct WaveletBuffers {
+    keys: (Key, Key),
+    bind_group: wgpu::BindGroup,
+    has_specular: bool,
+    cells: u32,
+}
+
 /// Per-vertex PRT data on the GPU, keyed by the stages it came from.
 struct PrtBuffers {
     keys: (Key, Key),
@@ -81,6 +97,8 @@ struct Vertex {
     position: [f32; 3],
     normal: [f32; 3],
     color: [f32; 3],
+    /// The local frame's tangent (as the transport stages use it).
+    tangent: [f32; 3],
 }
 
 struct MeshBuffers {
@@ -112,6 +130,10 @@ pub struct ViewportRenderer {
     prt_pipeline: wgpu::RenderPipeline,
     prt_params: wgpu::Buffer,
     prt: Option<PrtBuffers>,
+    wavelet_layout: wgpu::BindGroupLayout,
+    wavelet_pipeline: wgpu::RenderPipeline,
+    wavelet_params: wgpu::Buffer,
+    wavelet: Option<WaveletBuffers>,
     background_pipeline: wgpu::RenderPipeline,
     tone_pipeline: wgpu::RenderPipeline,
     globals: wgpu::Buffer,
@@ -187,6 +209,24 @@ impl ViewportRenderer {
                 storage(2),
             ],
         });
+        let wavelet_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("wavelet"),
+            entries: &[
+                wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: wgpu::ShaderStages::VERTEX,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Uniform,
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                    count: None,
+                },
+                storage(1),
+                storage(2),
+                storage(3),
+            ],
+        });
         let tone_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("tonemap"),
             entries: &[
@@ -221,6 +261,7 @@ impl ViewportRenderer {
         };
         let mesh_module = module("mesh.wgsl", include_str!("../../shaders/mesh.wgsl"));
         let prt_module = module("mesh_prt.wgsl", include_str!("../../shaders/mesh_prt.wgsl"));
+        let wavelet_module = module("mesh_wavelet.wgsl", include_str!("../../shaders/mesh_wavelet.wgsl"));
         let background_module = module("background.wgsl", include_str!("../../shaders/background.wgsl"));
         let tone_module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("tonemap.wgsl"),
@@ -241,7 +282,8 @@ impl ViewportRenderer {
                 bias: Default::default(),
             })
         };
-        let vertex_attributes = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x3];
+        let vertex_attributes =
+            wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x3, 3 => Float32x3];
         let vertex_layout = [Some(wgpu::VertexBufferLayout {
             array_stride: std::mem::size_of::<Vertex>() as u64,
             step_mode: wgpu::VertexStepMode::Vertex,
@@ -275,6 +317,27 @@ impl ViewportRenderer {
         let prt_params = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("prt-params"),
             size: std::mem::size_of::<PrtParams>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let wavelet_pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("mesh-wavelet"),
+            bind_group_layouts: &[Some(&layout), Some(&wavelet_layout)],
+            immediate_size: 0,
+        });
+        let wavelet_pipeline = PipelineSpec {
+            label: "mesh-wavelet",
+            layout: &wavelet_pipeline_layout,
+            module: &wavelet_module,
+            buffers: &vertex_layout,
+            depth_stencil: depth(true, wgpu::CompareFunction::Less),
+            multisample,
+            target: HDR_FORMAT,
+        }
+        .build(device);
+        let wavelet_params = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("wavelet-params"),
+            size: std::mem::size_of::<WaveletParams>() as u64,
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
@@ -331,6 +394,10 @@ impl ViewportRenderer {
             prt_pipeline,
             prt_params,
             prt: None,
+            wavelet_layout,
+            wavelet_pipeline,
+            wavelet_params,
+            wavelet: None,
             background_pipeline,
             tone_pipeline,
             globals,
@@ -386,6 +453,7 @@ impl ViewportRenderer {
             }
         }
         let use_prt = self.upload_prt(ctx, frame)?;
+        let use_wavelet = self.upload_wavelet(ctx, frame)?;
         ctx.queue.write_buffer(&self.globals, 0, bytemuck::bytes_of(&globals));
         let targets = self.targets.as_ref().unwrap();
         let mut encoder =
@@ -419,8 +487,12 @@ impl ViewportRenderer {
             pass.set_pipeline(&self.background_pipeline);
             pass.draw(0..3, 0..1);
             if let Some(mesh) = &self.mesh {
-                match (&self.prt, use_prt) {
-                    (Some(prt), true) => {
+                match (&self.prt, use_prt, &self.wavelet, use_wavelet) {
+                    (_, _, Some(wavelet), true) => {
+                        pass.set_pipeline(&self.wavelet_pipeline);
+                        pass.set_bind_group(1, &wavelet.bind_group, &[]);
+                    }
+                    (Some(prt), true, _, _) => {
                         pass.set_pipeline(&self.prt_pipeline);
                         pass.set_bind_group(1, &prt.bind_group, &[]);
                     }
@@ -549,8 +621,14 @@ impl ViewportRenderer {
         let mut indices = Vec::new();
         for mesh in &set.meshes {
             let base = vertices.len() as u32;
+            let tangents = lightloom_nodes::mesh::vertex_tangents(mesh);
             for i in 0..mesh.positions.len() {
-                vertices.push(Vertex { position: mesh.positions[i], normal: mesh.normals[i], color: mesh.base_color });
+                vertices.push(Vertex {
+                    position: mesh.positions[i],
+                    normal: mesh.normals[i],
+                    color: mesh.base_color,
+                    tangent: tangents[i],
+                });
             }
             indices.extend(mesh.indices.iter().map(|i| i + base));
         }
@@ -647,6 +725,89 @@ impl ViewportRenderer {
             }
         }
         ctx.queue.write_buffer(&self.prt_params, 0, bytemuck::bytes_of(&params));
+        Ok(true)
+    }
+
+    /// For the `wavelet_vertex` mode: uploads the per-vertex products and the material's tables
+    /// when their stage keys change. Returns whether to draw with them.
+    fn upload_wavelet(&mut self, ctx: &GpuContext, frame: &FrameInputs) -> Result<bool, RenderError> {
+        let (Some(products), Some(table)) = (&frame.local_products, &frame.brdf_table) else {
+            return Ok(false);
+        };
+        let StageValue::LocalProducts(p) = products.value.as_ref() else {
+            return Err(RenderError::Invalid("local_products stage holds no products".into()));
+        };
+        let StageValue::BrdfTable(t) = table.value.as_ref() else {
+            return Err(RenderError::Invalid("local_table stage holds no BRDF table".into()));
+        };
+        if p.cells == 0 {
+            return Ok(false);
+        }
+        let vertices: usize = match frame.meshes.value.as_ref() {
+            StageValue::Meshes(m) => m.meshes.iter().map(|m| m.positions.len()).sum(),
+            _ => 0,
+        };
+        if p.values.len() != vertices * p.cells * 3 {
+            return Err(RenderError::Invalid(format!(
+                "triple-product data covers {} receivers for {vertices} vertices",
+                p.values.len() / (p.cells * 3)
+            )));
+        }
+        let bytes = p.values.len() as u64 * 4;
+        let limit = ctx.device.limits().max_storage_buffer_binding_size as u64;
+        if bytes > limit {
+            return Err(RenderError::Invalid(format!(
+                "the wavelet mode needs {} MiB per-vertex data ({vertices} vertices × {} cells) but this GPU binds at \
+                 most {} MiB: use 80 coefficients or fewer vertices",
+                bytes >> 20,
+                p.cells,
+                limit >> 20
+            )));
+        }
+        if self.wavelet.as_ref().is_none_or(|w| w.keys != (products.key, table.key) || w.cells != p.cells as u32) {
+            let coarse = t.coarsened(p.cells).map_err(RenderError::Invalid)?;
+            let buffer = |label, data: &[f32]| {
+                let data = if data.is_empty() { &[0.0f32][..] } else { data };
+                ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some(label),
+                    contents: bytemuck::cast_slice(data),
+                    usage: wgpu::BufferUsages::STORAGE,
+                })
+            };
+            let (values, diffuse, specular) = (
+                buffer("wavelet-products", &p.values),
+                buffer("wavelet-diffuse", &coarse.diffuse),
+                buffer("wavelet-specular", &coarse.specular),
+            );
+            let bind_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("wavelet"),
+                layout: &self.wavelet_layout,
+                entries: &[
+                    wgpu::BindGroupEntry { binding: 0, resource: self.wavelet_params.as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 1, resource: values.as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 2, resource: diffuse.as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 3, resource: specular.as_entire_binding() },
+                ],
+            });
+            self.wavelet = Some(WaveletBuffers {
+                keys: (products.key, table.key),
+                bind_group,
+                has_specular: !coarse.specular.is_empty(),
+                cells: p.cells as u32,
+            });
+        }
+        let w = self.wavelet.as_ref().unwrap();
+        let params = WaveletParams {
+            counts: [
+                w.cells,
+                w.has_specular as u32,
+                lightloom_nodes::triple_product::THETA_STEPS as u32,
+                lightloom_nodes::triple_product::PHI_STEPS as u32,
+            ],
+            albedo: [t.albedo[0], t.albedo[1], t.albedo[2], 1.0],
+            specular: [t.specular_color[0], t.specular_color[1], t.specular_color[2], 0.0],
+        };
+        ctx.queue.write_buffer(&self.wavelet_params, 0, bytemuck::bytes_of(&params));
         Ok(true)
     }
 

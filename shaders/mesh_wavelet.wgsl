@@ -1,0 +1,88 @@
+// Mesh pass for the `wavelet_vertex` mode (nodes/src/triple_product.rs, Ma et al. eq. 7 in
+// top-only cell form), per vertex:
+//   B = albedo * sum_c P_c D_c + specular * sum_c P_c S_c(w_o)
+// P_c = dOmega_c L_c V_c is the vertex's lighting x visibility on the local-frame cells, D the
+// diffuse cosine table, S the specular lobe table on a (theta_o, phi_o) grid, interpolated
+// bilinearly at the view direction expressed in the vertex frame [t, n x t, n].
+
+const PI: f32 = 3.14159265358979;
+
+struct WaveletParams {
+    // x: cells, y: 1 when the material has a specular lobe, z: theta steps, w: phi steps
+    counts: vec4<u32>,
+    albedo: vec4<f32>,
+    specular: vec4<f32>,
+};
+
+@group(1) @binding(0) var<uniform> wp: WaveletParams;
+@group(1) @binding(1) var<storage, read> products: array<f32>;
+@group(1) @binding(2) var<storage, read> diffuse_table: array<f32>;
+@group(1) @binding(3) var<storage, read> specular_table: array<f32>;
+
+struct VertexIn {
+    @location(0) position: vec3<f32>,
+    @location(1) normal: vec3<f32>,
+    @location(2) color: vec3<f32>,
+    @location(3) tangent: vec3<f32>,
+};
+
+struct VertexOut {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) color: vec3<f32>,
+};
+
+@vertex
+fn vs_main(v: VertexIn, @builtin(vertex_index) index: u32) -> VertexOut {
+    var out: VertexOut;
+    out.clip = globals.view_proj * vec4<f32>(v.position, 1.0);
+    let cells = wp.counts.x;
+    let base = index * cells * 3u;
+    var diffuse = vec3<f32>(0.0);
+    for (var c = 0u; c < cells; c = c + 1u) {
+        let p = vec3<f32>(products[base + 3u * c], products[base + 3u * c + 1u], products[base + 3u * c + 2u]);
+        diffuse = diffuse + p * diffuse_table[c];
+    }
+    var color = wp.albedo.rgb * v.color * diffuse;
+    let n = normalize(v.normal);
+    let t = normalize(v.tangent - n * dot(n, v.tangent));
+    let b = cross(n, t);
+    let view = normalize(globals.camera_pos.xyz - v.position);
+    let wo = vec3<f32>(dot(view, t), dot(view, b), dot(view, n));
+    if (wp.counts.y == 1u && wo.z > 0.0) {
+        let theta_steps = wp.counts.z;
+        let phi_steps = wp.counts.w;
+        let theta_max = PI / 2.0 - 1e-3;
+        let theta = min(acos(clamp(wo.z, 0.0, 1.0)), theta_max);
+        let ft = theta / theta_max * f32(theta_steps - 1u);
+        let i = min(u32(floor(ft)), theta_steps - 2u);
+        var phi = atan2(wo.y, wo.x);
+        if (phi < 0.0) {
+            phi = phi + 2.0 * PI;
+        }
+        let fp = phi / (2.0 * PI) * f32(phi_steps);
+        let j = min(u32(floor(fp)), phi_steps - 1u);
+        let fi = ft - f32(i);
+        let fj = fp - f32(j);
+        let j1 = (j + 1u) % phi_steps;
+        let r00 = (i * phi_steps + j) * cells;
+        let r01 = (i * phi_steps + j1) * cells;
+        let r10 = ((i + 1u) * phi_steps + j) * cells;
+        let r11 = ((i + 1u) * phi_steps + j1) * cells;
+        var glossy = vec3<f32>(0.0);
+        for (var c = 0u; c < cells; c = c + 1u) {
+            let top = mix(specular_table[r00 + c], specular_table[r01 + c], fj);
+            let bottom = mix(specular_table[r10 + c], specular_table[r11 + c], fj);
+            let s = mix(top, bottom, fi);
+            let p = vec3<f32>(products[base + 3u * c], products[base + 3u * c + 1u], products[base + 3u * c + 2u]);
+            glossy = glossy + p * s;
+        }
+        color = color + wp.specular.rgb * glossy;
+    }
+    out.color = color;
+    return out;
+}
+
+@fragment
+fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
+    return vec4<f32>(in.color, 1.0);
+}

@@ -293,6 +293,35 @@ impl CubeMap {
         })
     }
 
+    /// Box-filters down to faces of `size` (a divisor of this size), each new texel the
+    /// solid-angle-weighted mean of the texels it covers, so every region keeps its energy
+    /// (a prefilter: later point lookups see the area average, not a lucky or missed sun).
+    pub fn box_downsampled(&self, size: usize) -> Self {
+        if size >= self.size || size == 0 || !self.size.is_multiple_of(size) {
+            return self.clone();
+        }
+        let factor = self.size / size;
+        let solid = self.face_solid_angles();
+        let texels = (0..FACES * size * size)
+            .map(|i| {
+                let (face, x, y) = (i / (size * size), i % size, (i / size) % size);
+                let (mut acc, mut weight) = ([0.0f64; 3], 0.0);
+                for sy in y * factor..(y + 1) * factor {
+                    for sx in x * factor..(x + 1) * factor {
+                        let w = solid[sy * self.size + sx];
+                        let t = self.texel(face, sx, sy);
+                        for c in 0..3 {
+                            acc[c] += w * t[c] as f64;
+                        }
+                        weight += w;
+                    }
+                }
+                acc.map(|a| (a / weight) as f32)
+            })
+            .collect();
+        Self { size, texels }
+    }
+
     /// Resamples to an equirectangular image (supersampled box filter).
     pub fn to_equirect(&self, width: usize, height: usize) -> Equirect {
         let ratio = (PI / height as f64) / (2.0 / self.size as f64);
@@ -322,6 +351,28 @@ mod tests {
         assert_eq!(dir_to_face_uv(DVec3::new(0.0, -1.0, 0.5)), (3, 0.5, 0.25));
         // On -Z, u grows towards -X.
         assert_eq!(dir_to_face_uv(DVec3::new(-0.5, 0.0, -1.0)), (5, 0.75, 0.5));
+    }
+
+    #[test]
+    fn box_downsampling_keeps_the_energy_of_every_region() {
+        let cube = CubeMap::from_fn(32, 1, |d| {
+            [if d.dot(DVec3::new(0.3, 0.9, 0.1).normalize()) > 0.999 { 1e4 } else { 1.0 }, d.x.abs(), 0.5]
+        });
+        let small = cube.box_downsampled(8);
+        let energy = |c: &CubeMap| {
+            c.samples().fold([0.0; 3], |acc, (_, w, l)| [acc[0] + w * l[0], acc[1] + w * l[1], acc[2] + w * l[2]])
+        };
+        let (a, b) = (energy(&cube), energy(&small));
+        for c in 0..3 {
+            assert!((a[c] - b[c]).abs() < 1e-6 * a[c], "channel {c}: {} vs {}", a[c], b[c]);
+        }
+        // Each coarse texel holds the energy of its 4×4 block.
+        let solid = cube.face_solid_angles();
+        let block: f64 = (0..4)
+            .flat_map(|y| (0..4).map(move |x| (x, y)))
+            .map(|(x, y)| solid[y * 32 + x] * cube.texel(2, x, y)[1] as f64)
+            .sum();
+        assert!((small.texel(2, 0, 0)[1] as f64 * small.face_solid_angles()[0] - block).abs() < 1e-6);
     }
 
     #[test]

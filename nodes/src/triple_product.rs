@@ -103,7 +103,10 @@ pub struct LocalProducts {
 }
 
 /// Builds `P` for every receiver: lighting averaged over each cell rotated into the receiver's
-/// frame (16 bilinear cube-map lookups per cell), times the receiver's top-only visibility.
+/// frame, times the receiver's top-only visibility. The cell average takes 16 bilinear lookups
+/// (sub-cell centroids) into the environment box-filtered to about the sub-cell size, so a
+/// small bright source (a sun) contributes its energy to the cells it lies in instead of being
+/// hit or missed by point samples.
 pub fn local_products(
     grid: &CellGrid,
     environment: &CubeMap,
@@ -126,6 +129,7 @@ pub fn local_products(
             grid.level
         )));
     }
+    let environment = &prefiltered(environment, grid);
     let chunks: Vec<Result<Vec<f32>, StageError>> = (0..receivers.len().div_ceil(64))
         .into_par_iter()
         .map(|chunk| {
@@ -152,6 +156,18 @@ pub fn local_products(
         values.extend(c?);
     }
     Ok(LocalProducts { cells: grid.len(), values })
+}
+
+/// The environment box-filtered so its texels are about as large as the grid's sub-cells
+/// (`4π/6N²` ≈ the sub-cell solid angle), on a power-of-two divisor of its size.
+fn prefiltered(environment: &CubeMap, grid: &CellGrid) -> CubeMap {
+    let sub_cell = 4.0 * PI / (grid.len() * (1 << (2 * SUBLEVELS))) as f64;
+    let wanted = (4.0 * PI / (6.0 * sub_cell)).sqrt();
+    let mut size = environment.size;
+    while size % 2 == 0 && (size / 2) as f64 >= wanted {
+        size /= 2;
+    }
+    environment.box_downsampled(size)
 }
 
 /// Outgoing-direction grid of the BRDF table: `θ_o` in `THETA_STEPS` steps over `[0, π/2]`

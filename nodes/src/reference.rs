@@ -255,7 +255,8 @@ pub fn render(
     let env = EnvironmentSampler::new(rs.environment);
     let table = TriangleTable::new(rs.meshes);
     let done = std::sync::atomic::AtomicUsize::new(0);
-    let rows: Vec<Result<Vec<([f32; 3], f32)>, StageError>> = (0..height)
+    type Row = Vec<([f32; 3], f32)>;
+    let rows: Vec<Result<Row, StageError>> = (0..height)
         .into_par_iter()
         .map(|y| {
             cancel.check()?;

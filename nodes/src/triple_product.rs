@@ -164,7 +164,7 @@ fn prefiltered(environment: &CubeMap, grid: &CellGrid) -> CubeMap {
     let sub_cell = 4.0 * PI / (grid.len() * (1 << (2 * SUBLEVELS))) as f64;
     let wanted = (4.0 * PI / (6.0 * sub_cell)).sqrt();
     let mut size = environment.size;
-    while size % 2 == 0 && (size / 2) as f64 >= wanted {
+    while size.is_multiple_of(2) && (size / 2) as f64 >= wanted {
         size /= 2;
     }
     environment.box_downsampled(size)

@@ -754,7 +754,7 @@ impl ViewportRenderer {
             )));
         }
         let bytes = p.values.len() as u64 * 4;
-        let limit = ctx.device.limits().max_storage_buffer_binding_size as u64;
+        let limit = ctx.device.limits().max_storage_buffer_binding_size;
         if bytes > limit {
             return Err(RenderError::Invalid(format!(
                 "the wavelet mode needs {} MiB per-vertex data ({vertices} vertices × {} cells) but this GPU binds at \

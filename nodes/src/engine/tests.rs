@@ -36,12 +36,6 @@ const SCENE_ALL: &[&str] = &[
 ];
 const SKY_AFTER_SOURCE: &[&str] = &["sky.radiance", "sky.sh_unrotated", "sky.rotated_radiance", "sky.sh", "sky.haar"];
 
-/// Lighting and transport edits also recompute the output's incident radiance (empty unless
-/// the mode is `sh_prt`, but its key follows its inputs).
-fn with_incident(stages: &[&'static str]) -> Vec<&'static str> {
-    [stages, &["output.incident_sh"]].concat()
-}
-
 /// Edits of the rotated lighting or the receivers also recompute the wavelet mode's products.
 fn with_lighting(stages: &[&'static str]) -> Vec<&'static str> {
     [stages, &["output.incident_sh", "output.local_products"]].concat()

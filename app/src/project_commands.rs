@@ -177,6 +177,9 @@ pub fn render_project(
     fail_on_errors(&evaluation, &upstream_of(graph, &output.id))?;
     let frame = FrameInputs::gather(&evaluation, graph, &output.id).map_err(|e| anyhow!(e))?;
     if !quiet {
+        for note in &evaluation.report.notes {
+            eprintln!("warning: {note}");
+        }
         for note in &frame.ignored_inputs {
             eprintln!("note: output `{}`: {note}", output.id);
         }

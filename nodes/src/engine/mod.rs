@@ -161,9 +161,16 @@ pub struct StageContext<'a> {
     persist: bool,
     memo_hits: std::sync::atomic::AtomicUsize,
     memo_misses: std::sync::atomic::AtomicUsize,
+    warnings: Mutex<Vec<String>>,
 }
 
 impl StageContext<'_> {
+    /// Tells the user about something repaired or adjusted (NaN pixels zeroed, an image
+    /// downsampled): shown in the stage's report for as long as its result is used.
+    pub fn warn(&self, message: impl Into<String>) {
+        self.warnings.lock().unwrap().push(message.into());
+    }
+
     /// Caches a part of this stage's work under `key`, a hash of everything that part depends
     /// on (so a stage over many items recomputes only the items that changed). Memoised parts
     /// share the engine's memory cache, and its disk cache when the stage persists.
@@ -314,6 +321,9 @@ pub struct StageReport {
     pub reasons: Vec<String>,
     pub ms: f64,
     pub error: Option<String>,
+    /// Repairs and adjustments the stage made (also listed in the report's notes).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub warnings: Vec<String>,
 }
 
 /// What an evaluation did.
@@ -402,6 +412,8 @@ pub struct Engine {
     /// Keys whose computation failed (deterministic failures are not retried).
     failures: Mutex<HashMap<Key, StageError>>,
     file_hashes: Mutex<HashMap<PathBuf, (std::time::SystemTime, u64, u64)>>,
+    /// Warnings of computed stages by key, repeated whenever the result is reused.
+    stage_warnings: Mutex<HashMap<Key, Vec<String>>>,
 }
 
 /// A stage instance scheduled in one evaluation.
@@ -440,6 +452,7 @@ impl Engine {
             last: Mutex::new(HashMap::default()),
             failures: Mutex::new(HashMap::default()),
             file_hashes: Mutex::new(HashMap::default()),
+            stage_warnings: Mutex::new(HashMap::default()),
         }
     }
 
@@ -503,7 +516,14 @@ impl Engine {
             if value.is_ok() && last.get(&slot).is_none_or(|r| r.key != inst.key) {
                 last.insert(slot, StageRecord { key: inst.key, components: inst.components.clone() });
             }
+            let warnings = if value.is_ok() {
+                self.stage_warnings.lock().unwrap().get(&inst.key).cloned().unwrap_or_default()
+            } else {
+                Vec::new()
+            };
+            notes.extend(warnings.iter().map(|w| format!("{}.{}: {w}", inst.node.id, inst.spec.name)));
             report.stages.push(StageReport {
+                warnings,
                 node: inst.node.id.clone(),
                 kind: Cow::Borrowed(inst.node.kind.name),
                 stage: Cow::Borrowed(inst.spec.name),
@@ -670,6 +690,7 @@ impl Engine {
             persist: inst.spec.persist,
             memo_hits: Default::default(),
             memo_misses: Default::default(),
+            warnings: Default::default(),
         };
         for (d, label) in &inst.deps {
             let value = results[*d].as_ref().unwrap().0.as_ref().unwrap().clone();
@@ -683,6 +704,10 @@ impl Engine {
             }
         }
         let outcome = (inst.spec.compute)(&ctx);
+        let warnings = ctx.warnings.into_inner().unwrap();
+        if outcome.is_ok() && !warnings.is_empty() {
+            self.stage_warnings.lock().unwrap().insert(inst.key, warnings);
+        }
         let (hits, misses) = (ctx.memo_hits.into_inner(), ctx.memo_misses.into_inner());
         if hits + misses > 0 {
             reasons.push(format!("{misses} part(s) computed, {hits} reused"));

@@ -778,3 +778,35 @@ fn editing_a_gltf_buffer_file_changes_the_geometry_key() {
     assert_eq!(status, StageStatus::Computed);
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn repairs_are_reported_as_stage_warnings_even_on_cache_hits() {
+    // An EXR with NaN and negative pixels: the environment loads, and its source stage says
+    // what was repaired, on the first evaluation and on every reuse.
+    let dir = temp_dir("nan-exr");
+    let file = dir.join("bad.exr");
+    exr::prelude::write_rgb_file(&file, 32, 16, |x, y| {
+        if x == 3 && y < 4 {
+            (f32::NAN, 1.0, 1.0)
+        } else if x == 5 && y == 2 {
+            (-2.0, 0.5, 0.5)
+        } else {
+            (1.0, 1.0, 1.0)
+        }
+    })
+    .unwrap();
+    let engine = Engine::in_memory();
+    let mut graph = default_graph();
+    graph.set_param("sky", "source", ParamValue::Choice("file".into())).unwrap();
+    graph.set_param("sky", "file", ParamValue::Path(file.display().to_string())).unwrap();
+    for round in 0..2 {
+        let eval = engine.evaluate(&graph, &CancelToken::default(), None);
+        assert!(eval.report.failed().is_empty(), "{:?}", eval.report.failed());
+        let source = eval.report.stages.iter().find(|s| s.node == "sky" && s.stage == "source").unwrap();
+        assert_eq!(source.status, if round == 0 { StageStatus::Computed } else { StageStatus::MemoryHit });
+        assert_eq!(source.warnings.len(), 1, "{:?}", source.warnings);
+        assert!(source.warnings[0].contains("5 pixel(s) had NaN"), "{}", source.warnings[0]);
+        assert!(eval.report.notes.iter().any(|n| n.starts_with("sky.source: ")), "{:?}", eval.report.notes);
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -3,7 +3,7 @@
 //! re-resamples the cube map and rotates the SH (per-band matrices); it never re-projects the
 //! unrotated SH.
 
-use crate::cubemap::CubeMap;
+use crate::cubemap::{CubeMap, Equirect};
 use crate::engine::{StageContext, StageError, StageValue};
 use crate::graph::{Availability, NodeKindSpec, ParamKind, ParamSpec, PortSpec, PortType, StageSpec};
 use crate::sh::{self, ShRotation};
@@ -175,6 +175,24 @@ pub fn spec() -> NodeKindSpec {
     }
 }
 
+/// Equirect images wider than this are box-filtered down on load (with a warning).
+pub const MAX_EQUIRECT_WIDTH: usize = 4096;
+
+/// Box-filters an image wider than `max_width` down by a power of two (nothing downstream
+/// resolves more than a 512² cube face, ≈ 2048 equirect pixels across), with a note saying so.
+pub fn fit_width(image: Equirect, max_width: usize) -> (Equirect, Option<String>) {
+    if image.width <= max_width {
+        return (image, None);
+    }
+    let factor = image.width.div_ceil(max_width).next_power_of_two();
+    let small = image.downsample(factor);
+    let note = format!(
+        "{}x{} is larger than needed; downsampled (box filter) to {}x{}",
+        image.width, image.height, small.width, small.height
+    );
+    (small, Some(note))
+}
+
 /// `R = Ry(yaw) Rx(pitch) Rz(roll)` from degrees.
 pub fn rotation_matrix(yaw_pitch_roll_deg: [f64; 3]) -> DMat3 {
     let [y, p, r] = yaw_pitch_roll_deg.map(f64::to_radians);
@@ -187,7 +205,14 @@ fn source(ctx: &StageContext) -> Result<StageValue, StageError> {
             let path =
                 ctx.path("file")?.ok_or_else(|| StageError::Failed("source is `file` but no file is set".into()))?;
             let loaded = crate::envmap_io::load_equirect(&path).map_err(|e| StageError::Failed(e.to_string()))?;
-            Ok(StageValue::Image(loaded.image))
+            for w in &loaded.warnings {
+                ctx.warn(w.clone());
+            }
+            let (image, note) = fit_width(loaded.image, MAX_EQUIRECT_WIDTH);
+            if let Some(note) = note {
+                ctx.warn(note);
+            }
+            Ok(StageValue::Image(image))
         }
         _ => {
             let (elevation, azimuth) =
@@ -254,4 +279,21 @@ fn haar(ctx: &StageContext) -> Result<StageValue, StageError> {
 
 pub(crate) fn wrong(stage: &str) -> StageError {
     StageError::Internal(format!("stage `{stage}` produced an unexpected value type"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn oversized_images_are_downsampled_keeping_their_energy() {
+        let image = Equirect::from_fn(64, 32, 1, |d| [1.0 + d.y.max(0.0) * 5.0, 0.5, d.x.abs()]);
+        let (same, note) = fit_width(image.clone(), 64);
+        assert!(note.is_none() && same == image);
+        let (small, note) = fit_width(image.clone(), 20);
+        assert_eq!((small.width, small.height), (16, 8));
+        assert!(note.unwrap().contains("64x32") && small.width == 16);
+        let energy = |e: &Equirect| e.samples().map(|(_, w, l)| w * l[0]).sum::<f64>();
+        assert!((energy(&small) - energy(&image)).abs() < 1e-6 * energy(&image));
+    }
 }

@@ -1,6 +1,7 @@
 //! `lightloom`: the node-based lighting design editor and its headless command line.
 
 mod accuracy_command;
+mod bench_command;
 mod project_commands;
 mod sh_command;
 
@@ -32,6 +33,8 @@ enum Command {
     Info(project_commands::InfoArgs),
     /// Render the Monte Carlo reference once and report each relighting mode's error against it.
     Accuracy(accuracy_command::AccuracyArgs),
+    /// Print relighting figures: edit-to-frame latency, frame times, 100k-vertex relight cost.
+    Bench(bench_command::BenchArgs),
     /// Print the SH coefficients (RGB) of an environment map and its irradiance along ±X, ±Y, ±Z.
     Sh(sh_command::ShArgs),
 }
@@ -45,6 +48,7 @@ fn main() {
         Some(Command::Replay(args)) => project_commands::replay(&args),
         Some(Command::Info(args)) => project_commands::info(&args).map(|_| true),
         Some(Command::Accuracy(args)) => accuracy_command::run(&args).map(|_| true),
+        Some(Command::Bench(args)) => bench_command::run(&args).map(|_| true),
         Some(Command::Sh(args)) => sh_command::run(&args).map(|_| true),
         None => default_job().map(|_| true),
     };

@@ -71,6 +71,14 @@ impl GpuContext {
         Ok(Self { instance, adapter, device, queue })
     }
 
+    /// Blocks until the GPU has finished all submitted work (for timing).
+    pub fn wait(&self) -> Result<(), RenderError> {
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map(|_| ())
+            .map_err(|e| RenderError::Device(e.to_string()))
+    }
+
     /// "name (backend, device type)".
     pub fn describe(&self) -> String {
         let info = self.adapter.get_info();

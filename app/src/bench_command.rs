@@ -1,0 +1,205 @@
+//! `lightloom bench`: prints the relighting figures (the numbers behind the speed claims).
+//! Benchmarks print; tests never time anything.
+//!
+//! * Edit-to-new-frame latency for a BRDF edit on the default project, per relighting mode
+//!   (evaluate the changed stages, upload, draw, wait for the GPU).
+//! * Frame time of the default project at 1280×720 per mode (nothing re-uploaded).
+//! * A 100k-vertex sphere: the CPU cost of a lighting change (SH incident radiance at 6 and 8
+//!   bands, local-frame products at 80 and 320 cells) and the GPU frame time in each mode. Its
+//!   transport is synthetic (random coefficients of the right shape): costs do not depend on
+//!   the values, and real transport for 100k vertices takes minutes (see `--bench transport`).
+
+use crate::project_commands::{evaluate, fail_on_errors, upstream_of};
+use anyhow::{Result, anyhow};
+use clap::Args;
+use lightloom_nodes::engine::{CancelToken, Engine, Graph, StageValue};
+use lightloom_nodes::graph::ParamValue;
+use lightloom_nodes::kinds::output::{FrameInputs, Keyed};
+use lightloom_nodes::transport::{Receivers, ShTransport, SphericalTransport};
+use lightloom_nodes::wavelet::SparseVector;
+use lightloom_render::{CameraView, GpuContext, ViewportRenderer};
+use rand::{Rng, SeedableRng};
+use std::sync::Arc;
+use std::time::Instant;
+
+#[derive(Args, Debug)]
+pub struct BenchArgs {
+    /// Vertices of the synthetic relighting mesh.
+    #[arg(long, default_value_t = 100_000)]
+    pub vertices: usize,
+    /// Frames timed per figure (the median is printed).
+    #[arg(long, default_value_t = 5)]
+    pub frames: usize,
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+/// Draws and waits until the GPU has finished the frame.
+fn timed_frame(
+    gpu: &GpuContext,
+    renderer: &mut ViewportRenderer,
+    frame: &FrameInputs,
+    view: &CameraView,
+    size: (u32, u32),
+) -> Result<f64> {
+    let start = Instant::now();
+    renderer.render(gpu, frame, view, size.0, size.1)?;
+    gpu.wait()?;
+    Ok(start.elapsed().as_secs_f64() * 1e3)
+}
+
+pub fn run(args: &BenchArgs) -> Result<()> {
+    let gpu = GpuContext::headless()?;
+    println!("device: {}", gpu.describe());
+    default_project_figures(args, &gpu)?;
+    synthetic_figures(args, &gpu)
+}
+
+fn default_project_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
+    let project = lightloom_nodes::project::default_project();
+    let camera = project.camera(None).map_err(|e| anyhow!(e))?;
+    let view = CameraView::from_project(&camera);
+    let base = project.graph(std::path::Path::new("default.ron")).map_err(|e| anyhow!("{e:?}"))?;
+    println!("\ndefault project, glossy Phong material (BRDF edit = exponent change)");
+    println!("{:<18} {:>18} {:>20}", "mode", "edit→frame ms", "frame 1280x720 ms");
+    for (mode, transport) in [("sh_irradiance", "none"), ("sh_prt", "sh"), ("wavelet_vertex", "sh_and_wavelets")] {
+        let mut graph = base.clone();
+        graph.set_param("output", "mode", ParamValue::Choice(mode.into()))?;
+        graph.set_param("scene", "transport", ParamValue::Choice(transport.into()))?;
+        graph.set_param("material", "model", ParamValue::Choice("phong".into()))?;
+        graph.set_param("material", "f0", ParamValue::Float(0.3))?;
+        let engine = Arc::new(Engine::in_memory());
+        let mut renderer = ViewportRenderer::new(gpu);
+        let frame_of = |graph: &Graph| -> Result<FrameInputs> {
+            let evaluation = evaluate(engine.clone(), graph, true);
+            fail_on_errors(&evaluation, &upstream_of(graph, "output"))?;
+            FrameInputs::gather(&evaluation, graph, "output").map_err(|e| anyhow!(e))
+        };
+        let frame = frame_of(&graph)?;
+        timed_frame(gpu, &mut renderer, &frame, &view, (1280, 720))?;
+        let mut latencies = Vec::new();
+        for i in 0..args.frames {
+            graph.set_param("material", "exponent", ParamValue::Float(10.0 + 7.0 * i as f64))?;
+            let start = Instant::now();
+            let frame = frame_of(&graph)?;
+            timed_frame(gpu, &mut renderer, &frame, &view, (1280, 720))?;
+            latencies.push(start.elapsed().as_secs_f64() * 1e3);
+        }
+        let frame = frame_of(&graph)?;
+        let frames: Vec<f64> = (0..args.frames)
+            .map(|_| timed_frame(gpu, &mut renderer, &frame, &view, (1280, 720)))
+            .collect::<Result<_>>()?;
+        println!("{mode:<18} {:>18.1} {:>20.1}", median(latencies), median(frames));
+    }
+    Ok(())
+}
+
+fn synthetic_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
+    let segments = ((args.vertices as f64 / 2.0).sqrt()).round().max(4.0) as usize;
+    let mesh = lightloom_nodes::mesh::sphere(1.0, segments);
+    let meshes = lightloom_nodes::mesh::MeshSet { meshes: vec![mesh] };
+    let n = meshes.meshes[0].positions.len();
+    let receivers = Receivers::from_meshes(&meshes);
+    println!("\nsynthetic sphere: {n} vertices, 1280x720");
+    println!("{:<24} {:>22} {:>14}", "mode", "lighting change ms", "frame ms");
+    let mut rng = rand::rngs::SmallRng::seed_from_u64(7);
+    let camera = lightloom_nodes::project::Camera {
+        name: "bench".into(),
+        position: [0.0, 0.5, 3.0],
+        target: [0.0; 3],
+        fov_y_deg: 45.0,
+    };
+    let view = CameraView::from_project(&camera);
+    let environment = lightloom_nodes::cubemap::CubeMap::from_fn(64, 1, |d| [1.0 + d.y, 0.8, 0.5 + d.x.abs()]);
+    let light = lightloom_nodes::sh::project_samples(8, environment.samples());
+    let keyed = |key: u128, value: StageValue| Keyed { key, value: Arc::new(value) };
+    let base_settings = lightloom_nodes::kinds::output::OutputSettings {
+        mode: String::new(),
+        exposure: 0.0,
+        tonemap: "aces".into(),
+        background: true,
+        view: "approximation".into(),
+        reference_samples: 1,
+    };
+    let material =
+        lightloom_nodes::kinds::brdf::Material { model: "phong".into(), exponent: 20.0, f0: 0.3, ..Default::default() };
+    let frame_with = |mode: &str| FrameInputs {
+        meshes: keyed(1, StageValue::Meshes(meshes.clone())),
+        ray_scene: keyed(2, StageValue::Number(0.0)),
+        sh: Some(keyed(3, StageValue::Sh(light.clone()))),
+        radiance: Some(keyed(4, StageValue::CubeMap(environment.clone()))),
+        transport: None,
+        incident: None,
+        local_products: None,
+        brdf_table: None,
+        material: material.clone(),
+        settings: lightloom_nodes::kinds::output::OutputSettings { mode: mode.into(), ..base_settings.clone() },
+        ignored_inputs: Vec::new(),
+    };
+    let mut renderer = ViewportRenderer::new(gpu);
+    let frame_times = |renderer: &mut ViewportRenderer, frame: &FrameInputs| -> Result<f64> {
+        timed_frame(gpu, renderer, frame, &view, (1280, 720))?;
+        let times: Vec<f64> =
+            (0..args.frames).map(|_| timed_frame(gpu, renderer, frame, &view, (1280, 720))).collect::<Result<_>>()?;
+        Ok(median(times))
+    };
+    let frame = frame_with("sh_irradiance");
+    println!("{:<24} {:>22} {:>14.1}", "sh_irradiance", "-", frame_times(&mut renderer, &frame)?);
+    for bands in [6usize, 8] {
+        let count = n * bands * bands;
+        let random = |rng: &mut rand::rngs::SmallRng| (0..count).map(|_| rng.random::<f32>() * 0.1).collect::<Vec<_>>();
+        let transport = ShTransport { bands, rays: 0, visibility: random(&mut rng), transfer: random(&mut rng) };
+        let start = Instant::now();
+        let incident = lightloom_nodes::prt::incident_radiance(&light, &transport, &CancelToken::default())
+            .map_err(|e| anyhow!("{e}"))?;
+        let change_ms = start.elapsed().as_secs_f64() * 1e3;
+        let mut frame = frame_with("sh_prt");
+        frame.transport = Some(keyed(10 + bands as u128, StageValue::ShTransport(transport)));
+        frame.incident = Some(keyed(20 + bands as u128, StageValue::IncidentSh(incident)));
+        let ms = frame_times(&mut renderer, &frame)?;
+        println!("{:<24} {:>22.1} {:>14.1}", format!("sh_prt {bands} bands"), change_ms, ms);
+    }
+    let table = {
+        let grid = lightloom_nodes::triple_product::CellGrid::for_coefficients(320).map_err(|e| anyhow!(e))?;
+        let brdf = lightloom_nodes::brdf::Brdf::from_material(&material);
+        let start = Instant::now();
+        let table = lightloom_nodes::triple_product::tabulate_brdf(&brdf, &grid, &CancelToken::default())
+            .map_err(|e| anyhow!("{e}"))?;
+        println!("(BRDF table, 320 cells × 512 outgoing directions: {:.1} ms)", start.elapsed().as_secs_f64() * 1e3);
+        table
+    };
+    for terms in [80usize, 320] {
+        let depth = if terms == 80 { 2 } else { 3 };
+        let cells = 20usize << (2 * depth);
+        let basis = lightloom_nodes::wavelet::spherical::SphericalHaar::new(depth);
+        let visibility = (0..n)
+            .map(|_| {
+                let dense: Vec<f64> = (0..cells).map(|_| if rng.random::<f64>() < 0.7 { 1.0 } else { 0.0 }).collect();
+                SparseVector::largest(&basis.forward(&dense), terms, |_| 1.0)
+            })
+            .collect();
+        let transport = SphericalTransport { depth, keep: terms, visibility };
+        let grid = lightloom_nodes::triple_product::CellGrid::for_coefficients(terms).map_err(|e| anyhow!(e))?;
+        let start = Instant::now();
+        let products = lightloom_nodes::triple_product::local_products(
+            &grid,
+            &environment,
+            &receivers,
+            &transport,
+            &CancelToken::default(),
+        )
+        .map_err(|e| anyhow!("{e}"))?;
+        let change_ms = start.elapsed().as_secs_f64() * 1e3;
+        let mut frame = frame_with("wavelet_vertex");
+        frame.local_products = Some(keyed(30 + terms as u128, StageValue::LocalProducts(products)));
+        frame.brdf_table = Some(keyed(40, StageValue::BrdfTable(table.clone())));
+        match frame_times(&mut renderer, &frame) {
+            Ok(ms) => println!("{:<24} {:>22.1} {:>14.1}", format!("wavelet_vertex {terms}"), change_ms, ms),
+            Err(e) => println!("{:<24} {:>22.1}   not drawn: {e}", format!("wavelet_vertex {terms}"), change_ms),
+        }
+    }
+    Ok(())
+}

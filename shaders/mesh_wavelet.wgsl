@@ -1,9 +1,11 @@
-// Mesh pass for the `wavelet_vertex` mode (nodes/src/triple_product.rs, Ma et al. eq. 7 in
-// top-only cell form), per vertex:
+// Mesh pass for the `wavelet_vertex` and `wavelet_pixel` modes (nodes/src/triple_product.rs,
+// Ma et al. eq. 7 in top-only cell form), per vertex:
 //   B = albedo * sum_c P_c D_c + specular * sum_c P_c S_c(w_o)
 // P_c = dOmega_c L_c V_c is the vertex's lighting x visibility on the local-frame cells, D the
 // diffuse cosine table, S the specular lobe table on a (theta_o, phi_o) grid, interpolated
 // bilinearly at the view direction expressed in the vertex frame [t, n x t, n].
+// In `wavelet_pixel`, meshes with a visibility texture take the diffuse sum per pixel from the
+// per-texel transfer E = sum_c P_c D_c (bilinear), keeping the per-vertex specular.
 
 const PI: f32 = 3.14159265358979;
 
@@ -12,23 +14,33 @@ struct WaveletParams {
     counts: vec4<u32>,
     albedo: vec4<f32>,
     specular: vec4<f32>,
+    // x: 1 when a per-texel diffuse texture is bound
+    texels: vec4<u32>,
 };
 
 @group(1) @binding(0) var<uniform> wp: WaveletParams;
 @group(1) @binding(1) var<storage, read> products: array<f32>;
 @group(1) @binding(2) var<storage, read> diffuse_table: array<f32>;
 @group(1) @binding(3) var<storage, read> specular_table: array<f32>;
+@group(1) @binding(4) var texel_diffuse: texture_2d_array<f32>;
+@group(1) @binding(5) var texel_sampler: sampler;
 
 struct VertexIn {
     @location(0) position: vec3<f32>,
     @location(1) normal: vec3<f32>,
     @location(2) color: vec3<f32>,
     @location(3) tangent: vec3<f32>,
+    @location(4) uv: vec2<f32>,
+    @location(5) layer: f32,
 };
 
 struct VertexOut {
     @builtin(position) clip: vec4<f32>,
-    @location(0) color: vec3<f32>,
+    @location(0) diffuse: vec3<f32>,
+    @location(1) specular: vec3<f32>,
+    @location(2) albedo: vec3<f32>,
+    @location(3) uv: vec2<f32>,
+    @location(4) @interpolate(flat) layer: i32,
 };
 
 @vertex
@@ -42,7 +54,11 @@ fn vs_main(v: VertexIn, @builtin(vertex_index) index: u32) -> VertexOut {
         let p = vec3<f32>(products[base + 3u * c], products[base + 3u * c + 1u], products[base + 3u * c + 2u]);
         diffuse = diffuse + p * diffuse_table[c];
     }
-    var color = wp.albedo.rgb * v.color * diffuse;
+    out.albedo = wp.albedo.rgb * v.color;
+    out.diffuse = out.albedo * diffuse;
+    out.specular = vec3<f32>(0.0);
+    out.uv = v.uv;
+    out.layer = i32(round(v.layer));
     let n = normalize(v.normal);
     let t = normalize(v.tangent - n * dot(n, v.tangent));
     let b = cross(n, t);
@@ -76,13 +92,16 @@ fn vs_main(v: VertexIn, @builtin(vertex_index) index: u32) -> VertexOut {
             let p = vec3<f32>(products[base + 3u * c], products[base + 3u * c + 1u], products[base + 3u * c + 2u]);
             glossy = glossy + p * s;
         }
-        color = color + wp.specular.rgb * glossy;
+        out.specular = wp.specular.rgb * glossy;
     }
-    out.color = color;
     return out;
 }
 
 @fragment
 fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
-    return vec4<f32>(in.color, 1.0);
+    var diffuse = in.diffuse;
+    if (wp.texels.x == 1u && in.layer >= 0) {
+        diffuse = in.albedo * textureSample(texel_diffuse, texel_sampler, in.uv, in.layer).rgb;
+    }
+    return vec4<f32>(diffuse + in.specular, 1.0);
 }

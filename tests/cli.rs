@@ -267,13 +267,16 @@ fn relighting_error_against_the_reference_falls_with_coefficients() {
     let rel = |i: usize| rows[i]["relative_rmse"].as_f64().unwrap();
     let noise = report["reference_noise"]["relative_rmse"].as_f64().unwrap();
     eprintln!(
-        "unshadowed {:.3}, prt 2/4/6 bands {:.3} {:.3} {:.3}, wavelets 80/320 {:.3} {:.3}, noise {noise:.3}",
+        "unshadowed {:.3}, prt 2/4/6 bands {:.3} {:.3} {:.3}, wavelets 80/320 {:.3} {:.3}, per pixel {:.3} {:.3}, \
+         noise {noise:.3}",
         rel(0),
         rel(1),
         rel(2),
         rel(3),
         rel(4),
-        rel(5)
+        rel(5),
+        rel(6),
+        rel(7)
     );
     assert!(noise < 0.1, "reference noise {noise}");
     assert!(rel(3) < 0.6 * rel(0), "shadowed transfer must beat unshadowed irradiance");
@@ -286,6 +289,8 @@ fn relighting_error_against_the_reference_falls_with_coefficients() {
     assert!(rel(5) < rel(4), "320 wavelet coefficients must beat 80");
     assert!(rel(5) < 0.8 * rel(3), "320 wavelet coefficients must beat 6-band SH");
     assert!(rel(5) < 0.12, "wavelets at 320: {}", rel(5));
+    // Per pixel (the floor's visibility texture) is at least as good as per vertex.
+    assert!(rel(7) < rel(5) * 1.05 + 0.005, "wavelet_pixel {} vs wavelet_vertex {}", rel(7), rel(5));
 }
 
 #[test]
@@ -306,9 +311,19 @@ fn eval_reports_that_rotating_the_environment_recomputes_no_projection() {
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     let recomputed: Vec<&str> = report["recomputed"].as_array().unwrap().iter().map(|v| v.as_str().unwrap()).collect();
-    // The output's incident radiance follows the lighting (and is empty outside `sh_prt`);
-    // no transport stage runs.
-    assert_eq!(recomputed, ["sky.rotated_radiance", "sky.sh", "sky.haar", "output.incident_sh"]);
+    // The output's lighting products follow the lighting (each is empty outside its mode); no
+    // transport stage runs.
+    assert_eq!(
+        recomputed,
+        [
+            "sky.rotated_radiance",
+            "sky.sh",
+            "sky.haar",
+            "output.incident_sh",
+            "output.local_products",
+            "output.texel_irradiance"
+        ]
+    );
     let sh = report["after_overrides"]["stages"]
         .as_array()
         .unwrap()
@@ -429,5 +444,6 @@ fn eval_reports_that_a_brdf_edit_recomputes_only_the_material() {
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     let recomputed: Vec<&str> = report["recomputed"].as_array().unwrap().iter().map(|v| v.as_str().unwrap()).collect();
-    assert_eq!(recomputed, ["gloss.material"]);
+    // The material and its local-frame table; no lighting, transport or product stage.
+    assert_eq!(recomputed, ["gloss.material", "gloss.local_table"]);
 }

@@ -125,12 +125,14 @@ pub fn run(args: &AccuracyArgs) -> Result<()> {
         }
         rows.push(measure(&g, "sh_prt", bands * bands)?);
     }
-    for &terms in &args.wavelets {
-        let mut g = base.clone();
-        g.set_param(&output, "mode", ParamValue::Choice("wavelet_vertex".into()))?;
-        g.set_param(&output, "wavelet_terms", ParamValue::Choice(terms.to_string()))?;
-        g.set_param(&scene, "transport", ParamValue::Choice("sh_and_wavelets".into()))?;
-        rows.push(measure(&g, "wavelet_vertex", terms)?);
+    for mode in ["wavelet_vertex", "wavelet_pixel"] {
+        for &terms in &args.wavelets {
+            let mut g = base.clone();
+            g.set_param(&output, "mode", ParamValue::Choice(mode.into()))?;
+            g.set_param(&output, "wavelet_terms", ParamValue::Choice(terms.to_string()))?;
+            g.set_param(&scene, "transport", ParamValue::Choice("sh_and_wavelets".into()))?;
+            rows.push(measure(&g, mode, terms)?);
+        }
     }
     let report = Report {
         project: args.project.display().to_string(),

@@ -135,6 +135,7 @@ fn synthetic_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
         incident: None,
         local_products: None,
         brdf_table: None,
+        texel_irradiance: None,
         material: material.clone(),
         settings: lightloom_nodes::kinds::output::OutputSettings { mode: mode.into(), ..base_settings.clone() },
         ignored_inputs: Vec::new(),

@@ -226,7 +226,9 @@ impl PortType {
         match self {
             PortType::Environment => &["radiance", "rotated_radiance", "sh", "haar"],
             PortType::Material => &["material", "local_table"],
-            PortType::Scene => &["geometry", "receivers", "transport_sh", "transport_local"],
+            PortType::Scene => {
+                &["geometry", "receivers", "texel_receivers", "transport_sh", "transport_local", "transport_texels"]
+            }
             PortType::Medium => &["medium"],
             PortType::Lights => &["lights"],
             PortType::Blockers => &["spheres"],

@@ -170,6 +170,90 @@ fn prefiltered(environment: &CubeMap, grid: &CellGrid) -> CubeMap {
     environment.box_downsampled(size)
 }
 
+/// Per-texel diffuse transfer of the visibility textures: `E = Σ_c P_c D_c` (RGB), where
+/// `D_c` is the cell average of `cos⁺/π`; a pixel's diffuse exit radiance is `albedo · E`.
+/// `D` is the same for every material, so `E` depends only on lighting and visibility: it is
+/// Ma et al.'s per-pixel triple product for the diffuse term, baked per texel (§3.4).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct TexelIrradiance {
+    pub size: usize,
+    /// `layers × size²` texels, layer-major, rows at increasing `v`.
+    pub texels: Vec<[f32; 3]>,
+    /// Per mesh of the scene: its layer, or -1 without a visibility texture.
+    pub mesh_layers: Vec<i32>,
+}
+
+/// Builds [`TexelIrradiance`] from texel receivers and their local-frame visibility. Texels
+/// no triangle covers take their nearest covered neighbour's value, so bilinear filtering at
+/// UV seams does not darken.
+pub fn texel_irradiance(
+    grid: &CellGrid,
+    environment: &CubeMap,
+    texels: &crate::transport::TexelReceivers,
+    transport: &SphericalTransport,
+    mesh_count: usize,
+    cancel: &CancelToken,
+) -> Result<TexelIrradiance, StageError> {
+    let products = local_products(grid, environment, &texels.receivers, transport, cancel)?;
+    let diffuse = grid.average(|d| d.z.max(0.0) / PI);
+    let mut mesh_layers = vec![-1i32; mesh_count];
+    let mut layers = 0usize;
+    for &(mesh, ..) in &texels.texels {
+        if mesh_layers[mesh as usize] < 0 {
+            mesh_layers[mesh as usize] = layers as i32;
+            layers += 1;
+        }
+    }
+    let size = texels.size;
+    let mut out = vec![[0.0f32; 3]; layers * size * size];
+    let mut covered = vec![false; out.len()];
+    for (i, &(mesh, x, y)) in texels.texels.iter().enumerate() {
+        let p = &products.values[i * grid.len() * 3..(i + 1) * grid.len() * 3];
+        let mut e = [0.0f64; 3];
+        for (c, d) in diffuse.iter().enumerate() {
+            for k in 0..3 {
+                e[k] += p[c * 3 + k] as f64 * d;
+            }
+        }
+        let at = (mesh_layers[mesh as usize] as usize * size + y as usize) * size + x as usize;
+        out[at] = e.map(|v| v as f32);
+        covered[at] = true;
+    }
+    dilate(&mut out, &mut covered, size);
+    Ok(TexelIrradiance { size, texels: out, mesh_layers })
+}
+
+/// Fills uncovered texels from covered 8-neighbours, a few rings out.
+fn dilate(texels: &mut [[f32; 3]], covered: &mut [bool], size: usize) {
+    for _ in 0..4 {
+        let snapshot: Vec<bool> = covered.to_vec();
+        for i in 0..texels.len() {
+            if snapshot[i] {
+                continue;
+            }
+            let (layer, y, x) = (i / (size * size), (i / size) % size, i % size);
+            let (mut sum, mut n) = ([0.0f32; 3], 0);
+            for (dx, dy) in [(-1i64, 0i64), (1, 0), (0, -1), (0, 1), (-1, -1), (1, 1), (-1, 1), (1, -1)] {
+                let (nx, ny) = (x as i64 + dx, y as i64 + dy);
+                if nx < 0 || ny < 0 || nx >= size as i64 || ny >= size as i64 {
+                    continue;
+                }
+                let j = (layer * size + ny as usize) * size + nx as usize;
+                if snapshot[j] {
+                    for k in 0..3 {
+                        sum[k] += texels[j][k];
+                    }
+                    n += 1;
+                }
+            }
+            if n > 0 {
+                texels[i] = sum.map(|s| s / n as f32);
+                covered[i] = true;
+            }
+        }
+    }
+}
+
 /// Outgoing-direction grid of the BRDF table: `θ_o` in `THETA_STEPS` steps over `[0, π/2]`
 /// (sample points at both ends), `φ_o` in `PHI_STEPS` steps over `[0, 2π)` (periodic).
 pub const THETA_STEPS: usize = 16;

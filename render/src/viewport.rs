@@ -34,11 +34,13 @@ struct WaveletParams {
     counts: [u32; 4],
     albedo: [f32; 4],
     specular: [f32; 4],
+    texels: [u32; 4],
 }
 
 /// Per-vertex triple-product data and the material's tables on the GPU.
 struct WaveletBuffers {
-    keys: (Key, Key),
+    keys: (Key, Key, Option<Key>),
+    has_texels: bool,
     bind_group: wgpu::BindGroup,
     has_specular: bool,
     cells: u32,
@@ -99,6 +101,9 @@ struct Vertex {
     color: [f32; 3],
     /// The local frame's tangent (as the transport stages use it).
     tangent: [f32; 3],
+    uv: [f32; 2],
+    /// Layer of the mesh's per-texel diffuse texture (`wavelet_pixel`), or -1.
+    layer: f32,
 }
 
 struct MeshBuffers {
@@ -214,7 +219,7 @@ impl ViewportRenderer {
             entries: &[
                 wgpu::BindGroupLayoutEntry {
                     binding: 0,
-                    visibility: wgpu::ShaderStages::VERTEX,
+                    visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
                     ty: wgpu::BindingType::Buffer {
                         ty: wgpu::BufferBindingType::Uniform,
                         has_dynamic_offset: false,
@@ -225,6 +230,22 @@ impl ViewportRenderer {
                 storage(1),
                 storage(2),
                 storage(3),
+                wgpu::BindGroupLayoutEntry {
+                    binding: 4,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Float { filterable: true },
+                        view_dimension: wgpu::TextureViewDimension::D2Array,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 5,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
+                    count: None,
+                },
             ],
         });
         let tone_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
@@ -282,8 +303,9 @@ impl ViewportRenderer {
                 bias: Default::default(),
             })
         };
-        let vertex_attributes =
-            wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x3, 3 => Float32x3];
+        let vertex_attributes = wgpu::vertex_attr_array![
+            0 => Float32x3, 1 => Float32x3, 2 => Float32x3, 3 => Float32x3, 4 => Float32x2, 5 => Float32
+        ];
         let vertex_layout = [Some(wgpu::VertexBufferLayout {
             array_stride: std::mem::size_of::<Vertex>() as u64,
             step_mode: wgpu::VertexStepMode::Vertex,
@@ -611,7 +633,9 @@ impl ViewportRenderer {
     }
 
     fn upload_meshes(&mut self, ctx: &GpuContext, frame: &FrameInputs) -> Result<(), RenderError> {
-        if self.mesh.as_ref().is_some_and(|m| m.key == frame.meshes.key) {
+        // Vertices carry their mesh's texel layer, so the texel stage is part of the key.
+        let key = frame.meshes.key ^ frame.texel_irradiance.as_ref().map_or(0, |t| t.key.rotate_left(1));
+        if self.mesh.as_ref().is_some_and(|m| m.key == key) {
             return Ok(());
         }
         let StageValue::Meshes(set) = frame.meshes.value.as_ref() else {
@@ -619,15 +643,22 @@ impl ViewportRenderer {
         };
         let mut vertices = Vec::new();
         let mut indices = Vec::new();
-        for mesh in &set.meshes {
+        let layers = match frame.texel_irradiance.as_ref().map(|t| t.value.as_ref()) {
+            Some(StageValue::TexelIrradiance(t)) => t.mesh_layers.clone(),
+            _ => Vec::new(),
+        };
+        for (m, mesh) in set.meshes.iter().enumerate() {
             let base = vertices.len() as u32;
             let tangents = lightloom_nodes::mesh::vertex_tangents(mesh);
+            let layer = layers.get(m).copied().unwrap_or(-1) as f32;
             for i in 0..mesh.positions.len() {
                 vertices.push(Vertex {
                     position: mesh.positions[i],
                     normal: mesh.normals[i],
                     color: mesh.base_color,
                     tangent: tangents[i],
+                    uv: mesh.uvs.get(i).copied().unwrap_or([0.0; 2]),
+                    layer,
                 });
             }
             indices.extend(mesh.indices.iter().map(|i| i + base));
@@ -647,7 +678,7 @@ impl ViewportRenderer {
             contents: bytemuck::cast_slice(&indices),
             usage: wgpu::BufferUsages::INDEX,
         });
-        self.mesh = Some(MeshBuffers { key: frame.meshes.key, vertices, indices, index_count, bounds: set.bounds() });
+        self.mesh = Some(MeshBuffers { key, vertices, indices, index_count, bounds: set.bounds() });
         Ok(())
     }
 
@@ -764,7 +795,16 @@ impl ViewportRenderer {
                 limit >> 20
             )));
         }
-        if self.wavelet.as_ref().is_none_or(|w| w.keys != (products.key, table.key) || w.cells != p.cells as u32) {
+        let texel_key = frame.texel_irradiance.as_ref().map(|t| t.key);
+        let texels = match frame.texel_irradiance.as_ref().map(|t| t.value.as_ref()) {
+            Some(StageValue::TexelIrradiance(t)) if !t.texels.is_empty() => Some(t),
+            _ => None,
+        };
+        if self
+            .wavelet
+            .as_ref()
+            .is_none_or(|w| w.keys != (products.key, table.key, texel_key) || w.cells != p.cells as u32)
+        {
             let coarse = t.coarsened(p.cells).map_err(RenderError::Invalid)?;
             let buffer = |label, data: &[f32]| {
                 let data = if data.is_empty() { &[0.0f32][..] } else { data };
@@ -779,6 +819,10 @@ impl ViewportRenderer {
                 buffer("wavelet-diffuse", &coarse.diffuse),
                 buffer("wavelet-specular", &coarse.specular),
             );
+            let texel_view = match texels {
+                Some(t) => upload_layers(ctx, t.size as u32, &t.texels),
+                None => upload_layers(ctx, 1, &[[0.0; 3]]),
+            };
             let bind_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: Some("wavelet"),
                 layout: &self.wavelet_layout,
@@ -787,10 +831,13 @@ impl ViewportRenderer {
                     wgpu::BindGroupEntry { binding: 1, resource: values.as_entire_binding() },
                     wgpu::BindGroupEntry { binding: 2, resource: diffuse.as_entire_binding() },
                     wgpu::BindGroupEntry { binding: 3, resource: specular.as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 4, resource: wgpu::BindingResource::TextureView(&texel_view) },
+                    wgpu::BindGroupEntry { binding: 5, resource: wgpu::BindingResource::Sampler(&self.sampler) },
                 ],
             });
             self.wavelet = Some(WaveletBuffers {
-                keys: (products.key, table.key),
+                keys: (products.key, table.key, texel_key),
+                has_texels: texels.is_some(),
                 bind_group,
                 has_specular: !coarse.specular.is_empty(),
                 cells: p.cells as u32,
@@ -806,6 +853,7 @@ impl ViewportRenderer {
             ],
             albedo: [t.albedo[0], t.albedo[1], t.albedo[2], 1.0],
             specular: [t.specular_color[0], t.specular_color[1], t.specular_color[2], 0.0],
+            texels: [w.has_texels as u32, 0, 0, 0],
         };
         ctx.queue.write_buffer(&self.wavelet_params, 0, bytemuck::bytes_of(&params));
         Ok(true)
@@ -922,6 +970,35 @@ fn make_bind_group(
             wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::TextureView(environment) },
             wgpu::BindGroupEntry { binding: 2, resource: wgpu::BindingResource::Sampler(sampler) },
         ],
+    })
+}
+
+/// Uploads `size²` layers (layer-major) as a filterable half-float 2D array texture.
+fn upload_layers(ctx: &GpuContext, size: u32, texels: &[[f32; 3]]) -> wgpu::TextureView {
+    let layers = (texels.len() / (size * size) as usize).max(1) as u32;
+    let data: Vec<half::f16> = texels
+        .iter()
+        .flat_map(|t| [t[0], t[1], t[2], 1.0])
+        .map(|v| half::f16::from_f32(v.clamp(0.0, 65000.0)))
+        .collect();
+    let texture = ctx.device.create_texture_with_data(
+        &ctx.queue,
+        &wgpu::TextureDescriptor {
+            label: Some("texel-diffuse"),
+            size: wgpu::Extent3d { width: size, height: size, depth_or_array_layers: layers },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: HDR_FORMAT,
+            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+            view_formats: &[],
+        },
+        wgpu::util::TextureDataOrder::LayerMajor,
+        bytemuck::cast_slice(&data),
+    );
+    texture.create_view(&wgpu::TextureViewDescriptor {
+        dimension: Some(wgpu::TextureViewDimension::D2Array),
+        ..Default::default()
     })
 }
 

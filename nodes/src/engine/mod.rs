@@ -46,6 +46,7 @@ pub enum StageValue {
     IncidentSh(crate::prt::IncidentSh),
     BrdfTable(crate::triple_product::BrdfTable),
     LocalProducts(crate::triple_product::LocalProducts),
+    TexelIrradiance(crate::triple_product::TexelIrradiance),
     /// Test stages: a number.
     Number(f64),
     /// In memory only (never persisted): obvhs BVHs are rebuilt on load. Must stay the last
@@ -71,6 +72,7 @@ impl StageValue {
             StageValue::IncidentSh(r) => r.coeffs.len() * 4,
             StageValue::BrdfTable(t) => (t.diffuse.len() + t.specular.len()) * 4,
             StageValue::LocalProducts(p) => p.values.len() * 4,
+            StageValue::TexelIrradiance(t) => t.texels.len() * 12,
             StageValue::LocalTransport(t) => t.visibility.iter().map(|v| v.len() * 16 + 24).sum(),
             StageValue::RayScene(s) => s.triangle_count() * 48 * 2,
             StageValue::TexelReceivers(t) => t.receivers.len() * 44,
@@ -101,6 +103,7 @@ impl StageValue {
             StageValue::IncidentSh(_) => "incident radiance SH",
             StageValue::BrdfTable(_) => "local-frame BRDF table",
             StageValue::LocalProducts(_) => "local-frame lighting × visibility",
+            StageValue::TexelIrradiance(_) => "per-texel diffuse transfer",
             StageValue::Number(_) => "number",
         }
     }

@@ -38,7 +38,7 @@ const SKY_AFTER_SOURCE: &[&str] = &["sky.radiance", "sky.sh_unrotated", "sky.rot
 
 /// Edits of the rotated lighting or the receivers also recompute the wavelet mode's products.
 fn with_lighting(stages: &[&'static str]) -> Vec<&'static str> {
-    [stages, &["output.incident_sh", "output.local_products"]].concat()
+    [stages, &["output.incident_sh", "output.local_products", "output.texel_irradiance"]].concat()
 }
 
 #[test]
@@ -71,13 +71,14 @@ fn each_parameter_recomputes_exactly_its_stages() {
                 "scene.transport_texels",
                 "output.incident_sh",
                 "output.local_products",
+                "output.texel_irradiance",
             ],
         ),
         (
             "scene",
             "visibility_texture_size",
             Choice("16".into()),
-            vec!["scene.texel_receivers", "scene.transport_texels"],
+            vec!["scene.texel_receivers", "scene.transport_texels", "output.texel_irradiance"],
         ),
         (
             "scene",
@@ -97,13 +98,13 @@ fn each_parameter_recomputes_exactly_its_stages() {
             "scene",
             "local_frame_depth",
             Int(2),
-            vec!["scene.transport_local", "scene.transport_texels", "output.local_products"],
+            vec!["scene.transport_local", "scene.transport_texels", "output.local_products", "output.texel_irradiance"],
         ),
         (
             "scene",
             "local_frame_terms",
             Int(80),
-            vec!["scene.transport_local", "scene.transport_texels", "output.local_products"],
+            vec!["scene.transport_local", "scene.transport_texels", "output.local_products", "output.texel_irradiance"],
         ),
         ("material", "model", Choice("ggx".into()), vec!["material.material", "material.local_table"]),
         ("material", "albedo", Color([0.5, 0.5, 0.5]), vec!["material.material", "material.local_table"]),
@@ -122,16 +123,16 @@ fn each_parameter_recomputes_exactly_its_stages() {
             "output",
             "mode",
             Choice("sh_prt".into()),
-            vec!["output.settings", "output.incident_sh", "output.local_products"],
+            vec!["output.settings", "output.incident_sh", "output.local_products", "output.texel_irradiance"],
         ),
-        ("output", "wavelet_terms", Choice("80".into()), vec!["output.local_products"]),
+        ("output", "wavelet_terms", Choice("80".into()), vec!["output.local_products", "output.texel_irradiance"]),
         ("material", "roughness", Float(0.7), vec!["material.material", "material.local_table"]),
     ];
     let engine = Engine::in_memory();
     let mut graph = default_graph();
     let first = engine.evaluate(&graph, &CancelToken::default(), None);
     assert!(first.report.failed().is_empty(), "{:?}", first.report.failed());
-    assert_eq!(first.report.computed().len(), 20);
+    assert_eq!(first.report.computed().len(), 21);
     let again = engine.evaluate(&graph, &CancelToken::default(), None);
     assert!(ran(&again.report).is_empty(), "an unchanged graph recomputed {:?}", ran(&again.report));
     for (node, param, value, expected) in table {
@@ -571,7 +572,11 @@ fn planned_kinds_recompute_exactly_their_stages_too() {
             "sky",
             "exposure",
             Float(2.0),
-            [SKY_AFTER_SOURCE, &["rsl.square_lights", "output.incident_sh", "output.local_products"]].concat(),
+            [
+                SKY_AFTER_SOURCE,
+                &["rsl.square_lights", "output.incident_sh", "output.local_products", "output.texel_irradiance"],
+            ]
+            .concat(),
         ),
     ];
     let engine = Engine::in_memory();

@@ -19,7 +19,7 @@ pub struct OutputSettings {
 }
 
 /// Relighting modes the renderer implements today.
-pub const MODES: &[&str] = &["sh_irradiance", "sh_prt", "wavelet_vertex"];
+pub const MODES: &[&str] = &["sh_irradiance", "sh_prt", "wavelet_vertex", "wavelet_pixel"];
 pub const WAVELET_TERMS: &[&str] = &["80", "320"];
 pub const TONEMAPS: &[&str] = &["aces", "reinhard", "linear"];
 pub const VIEWS: &[&str] = &["approximation", "reference", "error"];
@@ -50,7 +50,8 @@ pub fn spec() -> NodeKindSpec {
                       eq. 2.20). sh_prt: shadowed diffuse transfer plus glossy lobes on the shadowed incident \
                       radiance, per vertex (needs Scene transport `sh`). wavelet_vertex: all-frequency triple \
                       product in each vertex's local frame (Ma et al. eq. 7), 80 or 320 top-only coefficients \
-                      (needs Scene transport `sh_and_wavelets`).",
+                      (needs Scene transport `sh_and_wavelets`). wavelet_pixel: the same, with the diffuse term per pixel \
+                      from the visibility textures of objects that have one (sharp shadows on coarse meshes).",
             },
             ParamSpec {
                 name: "wavelet_terms",
@@ -124,6 +125,20 @@ pub fn spec() -> NodeKindSpec {
                 persist: false,
                 compute: local_products,
             },
+            StageSpec {
+                name: "texel_irradiance",
+                version: 1,
+                params: &["mode", "wavelet_terms"],
+                stages: &[],
+                inputs: &[
+                    ("scene", "geometry"),
+                    ("scene", "texel_receivers"),
+                    ("scene", "transport_texels"),
+                    ("environment", "rotated_radiance"),
+                ],
+                persist: false,
+                compute: texel_irradiance,
+            },
         ],
         availability: Availability::Ready,
     }
@@ -163,7 +178,7 @@ fn incident_sh(ctx: &StageContext) -> Result<StageValue, StageError> {
 /// Per-vertex `P_c = ΔΩ_c L^x_c V^x_c` for the `wavelet_vertex` mode (empty otherwise).
 /// Depends on lighting and transport only: BRDF and camera edits reuse it.
 fn local_products(ctx: &StageContext) -> Result<StageValue, StageError> {
-    if ctx.choice("mode")? != "wavelet_vertex" {
+    if !ctx.choice("mode")?.starts_with("wavelet") {
         return Ok(StageValue::LocalProducts(Default::default()));
     }
     let terms: usize =
@@ -192,6 +207,35 @@ fn local_products(ctx: &StageContext) -> Result<StageValue, StageError> {
     )?))
 }
 
+/// Per-texel diffuse transfer for the `wavelet_pixel` mode (empty otherwise).
+fn texel_irradiance(ctx: &StageContext) -> Result<StageValue, StageError> {
+    if ctx.choice("mode")? != "wavelet_pixel" {
+        return Ok(StageValue::TexelIrradiance(Default::default()));
+    }
+    let terms: usize =
+        ctx.choice("wavelet_terms")?.parse().map_err(|_| StageError::Internal("wavelet_terms".into()))?;
+    let (
+        Some(StageValue::Meshes(meshes)),
+        Some(StageValue::TexelReceivers(texels)),
+        Some(StageValue::LocalTransport(t)),
+    ) = (ctx.input("scene", "geometry"), ctx.input("scene", "texel_receivers"), ctx.input("scene", "transport_texels"))
+    else {
+        return Err(StageError::Internal("scene inputs".into()));
+    };
+    let Some(StageValue::CubeMap(environment)) = ctx.input("environment", "rotated_radiance") else {
+        return Ok(StageValue::TexelIrradiance(Default::default()));
+    };
+    let grid = crate::triple_product::CellGrid::for_coefficients(terms).map_err(StageError::Failed)?;
+    Ok(StageValue::TexelIrradiance(crate::triple_product::texel_irradiance(
+        &grid,
+        environment,
+        texels,
+        t,
+        meshes.meshes.len(),
+        ctx.cancel_token(),
+    )?))
+}
+
 /// A stage value with its key (renderers re-upload only when the key changes).
 #[derive(Clone, Debug)]
 pub struct Keyed {
@@ -213,6 +257,8 @@ pub struct FrameInputs {
     /// `wavelet_vertex` only: per-vertex lighting × visibility and the material's table.
     pub local_products: Option<Keyed>,
     pub brdf_table: Option<Keyed>,
+    /// `wavelet_pixel` only: per-texel diffuse transfer of the visibility textures.
+    pub texel_irradiance: Option<Keyed>,
     pub material: crate::kinds::brdf::Material,
     pub settings: OutputSettings,
     /// Connected inputs the renderer does not draw yet, to tell the user.
@@ -301,12 +347,14 @@ impl FrameInputs {
         } else {
             (None, None)
         };
-        let (local_products, brdf_table) = if settings.mode == "wavelet_vertex" {
+        let (local_products, brdf_table) = if settings.mode.starts_with("wavelet") {
             let material = upstream("material").ok_or("the wavelet mode needs a material (BRDF editor) input")?;
             (Some(keyed(output, "local_products")?), Some(keyed(&material, "local_table")?))
         } else {
             (None, None)
         };
+        let texel_irradiance =
+            if settings.mode == "wavelet_pixel" { Some(keyed(output, "texel_irradiance")?) } else { None };
         let ignored_inputs = ["medium", "lights", "blockers", "square_lights"]
             .into_iter()
             .filter_map(|p| upstream(p).map(|n| format!("`{p}` (from `{n}`) is not drawn yet")))
@@ -320,6 +368,7 @@ impl FrameInputs {
             incident,
             local_products,
             brdf_table,
+            texel_irradiance,
             material,
             settings,
             ignored_inputs,

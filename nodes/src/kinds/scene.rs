@@ -162,7 +162,7 @@ impl SceneObject {
 /// The default project's scene: a sphere and a torus on a floor.
 pub fn default_objects() -> Vec<SceneObject> {
     vec![
-        SceneObject::new("floor", Shape::Plane { size: 8.0 }),
+        SceneObject { visibility_texture: true, ..SceneObject::new("floor", Shape::Plane { size: 8.0 }) },
         SceneObject::new("sphere", Shape::Sphere { radius: 0.75 }).at([-0.9, 0.75, 0.0]).with_color([0.9, 0.35, 0.3]),
         SceneObject {
             rotation_deg: [60.0, 20.0, 0.0],

@@ -6,8 +6,8 @@ struct Globals {
     camera_pos: vec4<f32>,
     // x: SH bands used (0 = no environment), y: draw background (0/1), z: unused, w: unused
     flags: vec4<f32>,
-    // Material albedo (rgb).
-    albedo: vec4<f32>,
+    // Diffuse albedo (rgb) of each material, indexed by the vertex's material.
+    albedo: array<vec4<f32>, 8>,
     // Irradiance SH coefficients E_lm (rgb), index l*(l+1)+m, at most 5 bands.
     irradiance: array<vec4<f32>, 25>,
 };

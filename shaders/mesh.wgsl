@@ -6,12 +6,14 @@ struct VertexIn {
     @location(0) position: vec3<f32>,
     @location(1) normal: vec3<f32>,
     @location(2) color: vec3<f32>,
+    @location(6) material: u32,
 };
 
 struct VertexOut {
     @builtin(position) clip: vec4<f32>,
     @location(0) normal: vec3<f32>,
     @location(1) color: vec3<f32>,
+    @location(2) @interpolate(flat) material: u32,
 };
 
 @vertex
@@ -20,6 +22,7 @@ fn vs_main(v: VertexIn) -> VertexOut {
     out.clip = globals.view_proj * vec4<f32>(v.position, 1.0);
     out.normal = v.normal;
     out.color = v.color;
+    out.material = v.material;
     return out;
 }
 
@@ -84,6 +87,6 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) ve
     if (bands > 0) {
         irradiance = max(sh_irradiance(n, bands), vec3<f32>(0.0));
     }
-    let radiance = globals.albedo.rgb * in.color * irradiance / PI;
+    let radiance = globals.albedo[in.material].rgb * in.color * irradiance / PI;
     return vec4<f32>(radiance, 1.0);
 }

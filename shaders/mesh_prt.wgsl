@@ -9,13 +9,13 @@ const MAX_COEFFS: i32 = 64;
 
 struct PrtParams {
     // x: bands used (<= 8), y: transfer floats per vertex, z: incident floats per vertex,
-    // w: 1 when the material has a glossy lobe
+    // w: 1 when the incident radiance R is bound
     counts: vec4<u32>,
-    albedo: vec4<f32>,
-    // Glossy lobe weight (rgb).
-    specular: vec4<f32>,
-    // Per-band lobe factors f_l, four per vector.
-    lobe: array<vec4<f32>, 2>,
+    // Per material: diffuse albedo; glossy lobe weight (rgb, w = 1 when glossy); per-band
+    // lobe factors f_l, four per vector (material m: lobe[2m], lobe[2m + 1]).
+    albedo: array<vec4<f32>, 8>,
+    specular: array<vec4<f32>, 8>,
+    lobe: array<vec4<f32>, 16>,
     // Lighting L_k (rgb), index l*(l+1)+m.
     light: array<vec4<f32>, 64>,
 };
@@ -28,6 +28,7 @@ struct VertexIn {
     @location(0) position: vec3<f32>,
     @location(1) normal: vec3<f32>,
     @location(2) color: vec3<f32>,
+    @location(6) material: u32,
 };
 
 struct VertexOut {
@@ -88,8 +89,9 @@ fn vs_main(v: VertexIn, @builtin(vertex_index) index: u32) -> VertexOut {
     for (var k = 0u; k < coeffs; k = k + 1u) {
         diffuse = diffuse + prt.light[k].rgb * transfer[tb + k];
     }
-    var color = prt.albedo.rgb * v.color * max(diffuse, vec3<f32>(0.0)) / PI;
-    if (prt.counts.w == 1u) {
+    let m = v.material;
+    var color = prt.albedo[m].rgb * v.color * max(diffuse, vec3<f32>(0.0)) / PI;
+    if (prt.counts.w == 1u && prt.specular[m].w > 0.0) {
         let n = normalize(v.normal);
         let view = normalize(globals.camera_pos.xyz - v.position);
         let r = reflect(-view, n);
@@ -97,13 +99,13 @@ fn vs_main(v: VertexIn, @builtin(vertex_index) index: u32) -> VertexOut {
         let ib = index * prt.counts.z;
         var glossy = vec3<f32>(0.0);
         for (var l = 0; l < bands; l = l + 1) {
-            let f = prt.lobe[l / 4][l % 4];
+            let f = prt.lobe[2u * m + u32(l / 4)][l % 4];
             for (var k = l * l; k < (l + 1) * (l + 1); k = k + 1) {
                 let o = ib + u32(k) * 3u;
                 glossy = glossy + f * y[k] * vec3<f32>(incident[o], incident[o + 1u], incident[o + 2u]);
             }
         }
-        color = color + prt.specular.rgb * max(glossy, vec3<f32>(0.0)) * max(dot(n, r), 0.0);
+        color = color + prt.specular[m].rgb * max(glossy, vec3<f32>(0.0)) * max(dot(n, r), 0.0);
     }
     out.color = color;
     return out;

@@ -10,10 +10,11 @@
 const PI: f32 = 3.14159265358979;
 
 struct WaveletParams {
-    // x: cells, y: 1 when the material has a specular lobe, z: theta steps, w: phi steps
+    // x: cells, y: floats per material's specular table, z: theta steps, w: phi steps
     counts: vec4<u32>,
-    albedo: vec4<f32>,
-    specular: vec4<f32>,
+    // Per material: diffuse albedo; specular colour (w = 1 when it has a specular lobe).
+    albedo: array<vec4<f32>, 8>,
+    specular: array<vec4<f32>, 8>,
     // x: 1 when a per-texel diffuse texture is bound
     texels: vec4<u32>,
 };
@@ -32,6 +33,7 @@ struct VertexIn {
     @location(3) tangent: vec3<f32>,
     @location(4) uv: vec2<f32>,
     @location(5) layer: f32,
+    @location(6) material: u32,
 };
 
 struct VertexOut {
@@ -54,7 +56,8 @@ fn vs_main(v: VertexIn, @builtin(vertex_index) index: u32) -> VertexOut {
         let p = vec3<f32>(products[base + 3u * c], products[base + 3u * c + 1u], products[base + 3u * c + 2u]);
         diffuse = diffuse + p * diffuse_table[c];
     }
-    out.albedo = wp.albedo.rgb * v.color;
+    let m = v.material;
+    out.albedo = wp.albedo[m].rgb * v.color;
     out.diffuse = out.albedo * diffuse;
     out.specular = vec3<f32>(0.0);
     out.uv = v.uv;
@@ -64,7 +67,7 @@ fn vs_main(v: VertexIn, @builtin(vertex_index) index: u32) -> VertexOut {
     let b = cross(n, t);
     let view = normalize(globals.camera_pos.xyz - v.position);
     let wo = vec3<f32>(dot(view, t), dot(view, b), dot(view, n));
-    if (wp.counts.y == 1u && wo.z > 0.0) {
+    if (wp.specular[m].w > 0.0 && wo.z > 0.0) {
         let theta_steps = wp.counts.z;
         let phi_steps = wp.counts.w;
         let theta_max = PI / 2.0 - 1e-3;
@@ -80,10 +83,11 @@ fn vs_main(v: VertexIn, @builtin(vertex_index) index: u32) -> VertexOut {
         let fi = ft - f32(i);
         let fj = fp - f32(j);
         let j1 = (j + 1u) % phi_steps;
-        let r00 = (i * phi_steps + j) * cells;
-        let r01 = (i * phi_steps + j1) * cells;
-        let r10 = ((i + 1u) * phi_steps + j) * cells;
-        let r11 = ((i + 1u) * phi_steps + j1) * cells;
+        let table = m * wp.counts.y;
+        let r00 = table + (i * phi_steps + j) * cells;
+        let r01 = table + (i * phi_steps + j1) * cells;
+        let r10 = table + ((i + 1u) * phi_steps + j) * cells;
+        let r11 = table + ((i + 1u) * phi_steps + j1) * cells;
         var glossy = vec3<f32>(0.0);
         for (var c = 0u; c < cells; c = c + 1u) {
             let top = mix(specular_table[r00 + c], specular_table[r01 + c], fj);
@@ -92,7 +96,7 @@ fn vs_main(v: VertexIn, @builtin(vertex_index) index: u32) -> VertexOut {
             let p = vec3<f32>(products[base + 3u * c], products[base + 3u * c + 1u], products[base + 3u * c + 2u]);
             glossy = glossy + p * s;
         }
-        out.specular = wp.specular.rgb * glossy;
+        out.specular = wp.specular[m].rgb * glossy;
     }
     return out;
 }

@@ -447,3 +447,60 @@ fn eval_reports_that_a_brdf_edit_recomputes_only_the_material() {
     // The material and its local-frame table; no lighting, transport or product stage.
     assert_eq!(recomputed, ["gloss.material", "gloss.local_table"]);
 }
+
+#[test]
+fn each_object_is_shaded_by_its_own_material_in_every_mode() {
+    // Two BRDF editors linked to the Output; the ball names `red`, the floor names nothing (so
+    // takes the first linked, `green`). Under a constant sky every mode, and the reference,
+    // must show a red ball on a green floor.
+    let dir = tempdir("materials");
+    write_hdr(&dir.join("white.hdr"), 64, 32, |_, _| [1.0, 1.0, 1.0]);
+    let project = r#"(
+        version: 2,
+        cameras: [(name: "c", position: (0.0, 1.0, 3.0), target: (0.0, 0.3, 0.0), fov_y_deg: 40.0)],
+        render: (width: 64, height: 48),
+        nodes: [
+            (id: "env", kind: "EnvironmentMap", params: {"source": Choice("file"), "file": Path("white.hdr")}),
+            (id: "scene", kind: "Scene", params: {
+                "objects": Objects([
+                    (name: "floor", shape: Plane(size: 6.0), color: (1.0, 1.0, 1.0)),
+                    (name: "ball", shape: Sphere(radius: 0.4), translation: (0.0, 0.4, 0.0), color: (1.0, 1.0, 1.0), material: "red"),
+                ]),
+                "transport": Choice("sh_and_wavelets"),
+                "local_frame_depth": Int(2),
+            }),
+            (id: "green", kind: "BrdfEditor", params: {"albedo": Color((0.1, 0.8, 0.1))}),
+            (id: "red", kind: "BrdfEditor", params: {"albedo": Color((0.8, 0.1, 0.1))}),
+            (id: "out", kind: "Output", params: {"background": Bool(false), "reference_samples": Int(16)}),
+        ],
+        links: [
+            (from: ("env", "environment"), to: ("out", "environment")),
+            (from: ("scene", "scene"), to: ("out", "scene")),
+            (from: ("green", "material"), to: ("out", "material")),
+            (from: ("red", "material"), to: ("out", "material")),
+        ],
+    )"#;
+    let path = dir.join("materials.ron");
+    std::fs::write(&path, project).unwrap();
+    let views = [
+        ("sh_irradiance", "approximation"),
+        ("sh_prt", "approximation"),
+        ("wavelet_vertex", "approximation"),
+        ("sh_irradiance", "reference"),
+    ];
+    for (mode, view) in views {
+        let exr = dir.join(format!("{mode}-{view}.exr"));
+        let out = lightloom()
+            .args(["render", path.to_str().unwrap(), "-o", exr.to_str().unwrap(), "--no-disk-cache", "-q"])
+            .args(["--set", &format!("out.mode={mode}"), "--set", &format!("out.view={view}")])
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{mode}/{view}: {}", String::from_utf8_lossy(&out.stderr));
+        let image = image::open(&exr).unwrap().into_rgb32f();
+        // The ball fills the centre; the floor fills the bottom rows.
+        let ball = image.get_pixel(32, 20);
+        let floor = image.get_pixel(32, 46);
+        assert!(ball[0] > 3.0 * ball[1], "{mode}/{view}: ball {ball:?} is not red");
+        assert!(floor[1] > 3.0 * floor[0], "{mode}/{view}: floor {floor:?} is not green");
+    }
+}

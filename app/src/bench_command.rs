@@ -134,9 +134,13 @@ fn synthetic_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
         transport: None,
         incident: None,
         local_products: None,
-        brdf_table: None,
         texel_irradiance: None,
-        material: material.clone(),
+        materials: vec![lightloom_nodes::kinds::output::FrameMaterial {
+            node: "bench".into(),
+            material: material.clone(),
+            table: None,
+        }],
+        mesh_materials: vec![0],
         settings: lightloom_nodes::kinds::output::OutputSettings { mode: mode.into(), ..base_settings.clone() },
         ignored_inputs: Vec::new(),
     };
@@ -196,7 +200,7 @@ fn synthetic_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
         let change_ms = start.elapsed().as_secs_f64() * 1e3;
         let mut frame = frame_with("wavelet_vertex");
         frame.local_products = Some(keyed(30 + terms as u128, StageValue::LocalProducts(products)));
-        frame.brdf_table = Some(keyed(40, StageValue::BrdfTable(table.clone())));
+        frame.materials[0].table = Some(keyed(40, StageValue::BrdfTable(table.clone())));
         match frame_times(&mut renderer, &frame) {
             Ok(ms) => println!("{:<24} {:>22.1} {:>14.1}", format!("wavelet_vertex {terms}"), change_ms, ms),
             Err(e) => println!("{:<24} {:>22.1}   not drawn: {e}", format!("wavelet_vertex {terms}"), change_ms),

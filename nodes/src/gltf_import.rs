@@ -227,7 +227,18 @@ fn read_primitive(
     }
     let base = primitive.material().pbr_metallic_roughness().base_color_factor();
     let base_color = [base[0], base[1], base[2]].map(|c| if c.is_finite() { c.clamp(0.0, 1.0) } else { 0.8 });
-    Ok(Mesh { name: String::new(), positions, normals, uvs, tangents, indices, base_color, visibility_texture: false })
+    let material = primitive.material().name().unwrap_or_default().to_string();
+    Ok(Mesh {
+        name: String::new(),
+        positions,
+        normals,
+        uvs,
+        tangents,
+        indices,
+        base_color,
+        visibility_texture: false,
+        material,
+    })
 }
 
 /// Area-weighted vertex normals.

@@ -250,6 +250,8 @@ pub struct PortSpec {
     pub ty: PortType,
     /// Inputs only: evaluation fails when a required input is unconnected.
     pub required: bool,
+    /// Inputs only: accepts several links (in project order), e.g. the Output's materials.
+    pub many: bool,
 }
 
 /// The signature of a stage computation.

@@ -21,6 +21,10 @@ pub struct Mesh {
     /// Receives a per-texel visibility texture over its UVs (needs non-overlapping UVs).
     #[serde(default)]
     pub visibility_texture: bool,
+    /// Name of the material that shades it (a BRDF editor node id, or a glTF material name);
+    /// empty for the first material.
+    #[serde(default)]
+    pub material: String,
 }
 
 /// Empty, white.
@@ -35,6 +39,7 @@ impl Default for Mesh {
             indices: Vec::new(),
             base_color: [1.0; 3],
             visibility_texture: false,
+            material: String::new(),
         }
     }
 }

@@ -112,7 +112,8 @@ impl<'a> EnvironmentSampler<'a> {
 pub struct ReferenceScene<'a> {
     pub scene: &'a RayScene,
     pub meshes: &'a MeshSet,
-    pub brdf: Brdf,
+    /// The BRDF of each mesh.
+    pub brdfs: Vec<Brdf>,
     /// The environment as the relighting modes see it (after rotation, exposure and tint).
     pub environment: &'a CubeMap,
     /// Draw the environment where camera rays miss.
@@ -161,9 +162,10 @@ impl TriangleTable {
     }
 }
 
-/// The surface seen along a camera ray: position, shading frame (columns `t, b, n`),
+/// The surface seen along a camera ray: its mesh, position, shading frame (columns `t, b, n`),
 /// geometric normal and base colour.
 struct Hit {
+    mesh: usize,
     position: DVec3,
     frame: DMat3,
     geometric: DVec3,
@@ -194,7 +196,7 @@ fn shade_point(rs: &ReferenceScene, table: &TriangleTable, origin: DVec3, dir: D
     let t_raw = lerp(&table.tangents[mi]);
     let tangent = (t_raw - n * n.dot(t_raw)).try_normalize().unwrap_or_else(|| n.any_orthonormal_vector());
     let frame = DMat3::from_cols(tangent, n.cross(tangent), n);
-    Some(Hit { position, frame, geometric, base_color: DVec3::from(mesh.base_color.map(f64::from)) })
+    Some(Hit { mesh: mi, position, frame, geometric, base_color: DVec3::from(mesh.base_color.map(f64::from)) })
 }
 
 /// One MIS estimate of direct environment lighting leaving `hit` towards `wo_world`.
@@ -207,7 +209,7 @@ fn direct_lighting(
 ) -> DVec3 {
     let to_local = hit.frame.transpose();
     let wo = to_local * wo_world;
-    let mut brdf = rs.brdf;
+    let mut brdf = rs.brdfs[hit.mesh];
     brdf.diffuse *= hit.base_color;
     let origin = rs.scene.leave_surface(hit.position, hit.geometric);
     let visible = |wi_world: DVec3| !rs.scene.occluded(origin, Vec3A::from(wi_world.as_vec3()), f32::INFINITY);
@@ -428,7 +430,7 @@ mod tests {
         let rs = ReferenceScene {
             scene: &scene,
             meshes: &meshes,
-            brdf: Brdf::from_material(&material),
+            brdfs: vec![Brdf::from_material(&material); meshes.meshes.len()],
             environment: &environment,
             background: false,
         };
@@ -463,7 +465,13 @@ mod tests {
         let brdf = Brdf::from_material(&material);
         let albedo = crate::quadrature::SphereQuadrature::new(1500, 600)
             .integrate(|wi| brdf.eval(wi, DVec3::Z).x * wi.z.max(0.0));
-        let rs = ReferenceScene { scene: &scene, meshes: &meshes, brdf, environment: &environment, background: false };
+        let rs = ReferenceScene {
+            scene: &scene,
+            meshes: &meshes,
+            brdfs: vec![brdf],
+            environment: &environment,
+            background: false,
+        };
         let camera = PinholeCamera { position: DVec3::new(0.0, 0.0, 4.0), target: DVec3::ZERO, fov_y_deg: 1.0 };
         let image = render(&rs, &camera, (2, 2), 4096, 3, &CancelToken::default(), &|_| {}).unwrap();
         let value = image.pixels.iter().map(|p| p[0] as f64).sum::<f64>() / 4.0;
@@ -488,7 +496,7 @@ mod tests {
         let rs = ReferenceScene {
             scene: &scene,
             meshes: &meshes,
-            brdf: Brdf::from_material(&material),
+            brdfs: vec![Brdf::from_material(&material); meshes.meshes.len()],
             environment: &environment,
             background: false,
         };

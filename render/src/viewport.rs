@@ -6,7 +6,7 @@ use crate::capture::{CapturedFrame, read_texture};
 use crate::{GpuContext, RenderError};
 use glam::{Mat4, Vec3};
 use lightloom_nodes::engine::{Key, StageValue};
-use lightloom_nodes::kinds::output::FrameInputs;
+use lightloom_nodes::kinds::output::{FrameInputs, MAX_MATERIALS};
 use lightloom_nodes::project::Camera;
 use wgpu::util::DeviceExt;
 
@@ -22,9 +22,9 @@ pub const MAX_PRT_BANDS: usize = 8;
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
 struct PrtParams {
     counts: [u32; 4],
-    albedo: [f32; 4],
-    specular: [f32; 4],
-    lobe: [[f32; 4]; 2],
+    albedo: [[f32; 4]; MAX_MATERIALS],
+    specular: [[f32; 4]; MAX_MATERIALS],
+    lobe: [[f32; 4]; 2 * MAX_MATERIALS],
     light: [[f32; 4]; MAX_PRT_BANDS * MAX_PRT_BANDS],
 }
 
@@ -32,8 +32,8 @@ struct PrtParams {
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
 struct WaveletParams {
     counts: [u32; 4],
-    albedo: [f32; 4],
-    specular: [f32; 4],
+    albedo: [[f32; 4]; MAX_MATERIALS],
+    specular: [[f32; 4]; MAX_MATERIALS],
     texels: [u32; 4],
 }
 
@@ -42,7 +42,6 @@ struct WaveletBuffers {
     keys: (Key, Key, Option<Key>),
     has_texels: bool,
     bind_group: wgpu::BindGroup,
-    has_specular: bool,
     cells: u32,
 }
 
@@ -89,7 +88,7 @@ struct Globals {
     inv_view_proj: [[f32; 4]; 4],
     camera_pos: [f32; 4],
     flags: [f32; 4],
-    albedo: [f32; 4],
+    albedo: [[f32; 4]; MAX_MATERIALS],
     irradiance: [[f32; 4]; MAX_SHADER_BANDS * MAX_SHADER_BANDS],
 }
 
@@ -104,6 +103,8 @@ struct Vertex {
     uv: [f32; 2],
     /// Layer of the mesh's per-texel diffuse texture (`wavelet_pixel`), or -1.
     layer: f32,
+    /// Index into the frame's materials.
+    material: u32,
 }
 
 struct MeshBuffers {
@@ -304,7 +305,7 @@ impl ViewportRenderer {
             })
         };
         let vertex_attributes = wgpu::vertex_attr_array![
-            0 => Float32x3, 1 => Float32x3, 2 => Float32x3, 3 => Float32x3, 4 => Float32x2, 5 => Float32
+            0 => Float32x3, 1 => Float32x3, 2 => Float32x3, 3 => Float32x3, 4 => Float32x2, 5 => Float32, 6 => Uint32
         ];
         let vertex_layout = [Some(wgpu::VertexBufferLayout {
             array_stride: std::mem::size_of::<Vertex>() as u64,
@@ -455,12 +456,7 @@ impl ViewportRenderer {
             inv_view_proj: view_proj.inverse().to_cols_array_2d(),
             camera_pos: camera.position.extend(1.0).to_array(),
             flags: [0.0, if frame.settings.background { 1.0 } else { 0.0 }, 0.0, 0.0],
-            albedo: [
-                frame.material.albedo[0] as f32,
-                frame.material.albedo[1] as f32,
-                frame.material.albedo[2] as f32,
-                1.0,
-            ],
+            albedo: material_array(frame, |m| m.albedo.map(|a| a as f32), 1.0),
             irradiance: [[0.0; 4]; MAX_SHADER_BANDS * MAX_SHADER_BANDS],
         };
         if let Some(sh) = &frame.sh {
@@ -634,7 +630,10 @@ impl ViewportRenderer {
 
     fn upload_meshes(&mut self, ctx: &GpuContext, frame: &FrameInputs) -> Result<(), RenderError> {
         // Vertices carry their mesh's texel layer, so the texel stage is part of the key.
-        let key = frame.meshes.key ^ frame.texel_irradiance.as_ref().map_or(0, |t| t.key.rotate_left(1));
+        let assignment = frame.mesh_materials.iter().fold(0u128, |h, m| h.rotate_left(3) ^ (*m as u128 + 1));
+        let key = frame.meshes.key
+            ^ frame.texel_irradiance.as_ref().map_or(0, |t| t.key.rotate_left(1))
+            ^ assignment.rotate_left(17);
         if self.mesh.as_ref().is_some_and(|m| m.key == key) {
             return Ok(());
         }
@@ -651,6 +650,7 @@ impl ViewportRenderer {
             let base = vertices.len() as u32;
             let tangents = lightloom_nodes::mesh::vertex_tangents(mesh);
             let layer = layers.get(m).copied().unwrap_or(-1) as f32;
+            let material = frame.mesh_materials.get(m).copied().unwrap_or(0);
             for i in 0..mesh.positions.len() {
                 vertices.push(Vertex {
                     position: mesh.positions[i],
@@ -659,6 +659,7 @@ impl ViewportRenderer {
                     tangent: tangents[i],
                     uv: mesh.uvs.get(i).copied().unwrap_or([0.0; 2]),
                     layer,
+                    material,
                 });
             }
             indices.extend(mesh.indices.iter().map(|i| i + base));
@@ -728,23 +729,19 @@ impl ViewportRenderer {
             self.prt = Some(PrtBuffers { keys: (transport.key, incident.key), bind_group });
         }
         let bands = t.bands.min(MAX_PRT_BANDS);
-        let lobe = lightloom_nodes::prt::glossy_lobe(&frame.material, bands).filter(|_| !r.coeffs.is_empty());
         let mut params = PrtParams {
-            counts: [bands as u32, n as u32, (n * 3) as u32, lobe.is_some() as u32],
-            albedo: [
-                frame.material.albedo[0] as f32,
-                frame.material.albedo[1] as f32,
-                frame.material.albedo[2] as f32,
-                1.0,
-            ],
-            specular: [0.0; 4],
-            lobe: [[0.0; 4]; 2],
+            counts: [bands as u32, n as u32, (n * 3) as u32, !r.coeffs.is_empty() as u32],
+            albedo: material_array(frame, |m| m.albedo.map(|a| a as f32), 1.0),
+            specular: [[0.0; 4]; MAX_MATERIALS],
+            lobe: [[0.0; 4]; 2 * MAX_MATERIALS],
             light: [[0.0; 4]; MAX_PRT_BANDS * MAX_PRT_BANDS],
         };
-        if let Some(lobe) = lobe {
-            params.specular = [lobe.weight.x as f32, lobe.weight.y as f32, lobe.weight.z as f32, 0.0];
-            for (l, f) in lobe.factors.iter().enumerate().take(MAX_PRT_BANDS) {
-                params.lobe[l / 4][l % 4] = *f as f32;
+        for (i, m) in frame.materials.iter().enumerate().take(MAX_MATERIALS) {
+            if let Some(lobe) = lightloom_nodes::prt::glossy_lobe(&m.material, bands) {
+                params.specular[i] = [lobe.weight.x as f32, lobe.weight.y as f32, lobe.weight.z as f32, 1.0];
+                for (l, f) in lobe.factors.iter().enumerate().take(MAX_PRT_BANDS) {
+                    params.lobe[2 * i + l / 4][l % 4] = *f as f32;
+                }
             }
         }
         if let Some(sh) = &frame.sh {
@@ -762,15 +759,24 @@ impl ViewportRenderer {
     /// For the `wavelet_vertex` mode: uploads the per-vertex products and the material's tables
     /// when their stage keys change. Returns whether to draw with them.
     fn upload_wavelet(&mut self, ctx: &GpuContext, frame: &FrameInputs) -> Result<bool, RenderError> {
-        let (Some(products), Some(table)) = (&frame.local_products, &frame.brdf_table) else {
+        let Some(products) = &frame.local_products else {
             return Ok(false);
         };
         let StageValue::LocalProducts(p) = products.value.as_ref() else {
             return Err(RenderError::Invalid("local_products stage holds no products".into()));
         };
-        let StageValue::BrdfTable(t) = table.value.as_ref() else {
-            return Err(RenderError::Invalid("local_table stage holds no BRDF table".into()));
-        };
+        let mut tables = Vec::new();
+        let mut table_keys: Key = 0;
+        for m in &frame.materials {
+            let Some(keyed) = &m.table else {
+                return Err(RenderError::Invalid(format!("material `{}` has no local-frame table", m.node)));
+            };
+            let StageValue::BrdfTable(t) = keyed.value.as_ref() else {
+                return Err(RenderError::Invalid("local_table stage holds no BRDF table".into()));
+            };
+            table_keys = table_keys.rotate_left(7) ^ keyed.key;
+            tables.push(t);
+        }
         if p.cells == 0 {
             return Ok(false);
         }
@@ -803,9 +809,19 @@ impl ViewportRenderer {
         if self
             .wavelet
             .as_ref()
-            .is_none_or(|w| w.keys != (products.key, table.key, texel_key) || w.cells != p.cells as u32)
+            .is_none_or(|w| w.keys != (products.key, table_keys, texel_key) || w.cells != p.cells as u32)
         {
-            let coarse = t.coarsened(p.cells).map_err(RenderError::Invalid)?;
+            let coarse: Vec<_> =
+                tables.iter().map(|t| t.coarsened(p.cells)).collect::<Result<_, _>>().map_err(RenderError::Invalid)?;
+            // Every material gets a full specular table (zeros without a lobe): fixed stride.
+            let stride =
+                lightloom_nodes::triple_product::THETA_STEPS * lightloom_nodes::triple_product::PHI_STEPS * p.cells;
+            let mut specular_tables = vec![0.0f32; stride * coarse.len()];
+            for (i, t) in coarse.iter().enumerate() {
+                if !t.specular.is_empty() {
+                    specular_tables[i * stride..(i + 1) * stride].copy_from_slice(&t.specular);
+                }
+            }
             let buffer = |label, data: &[f32]| {
                 let data = if data.is_empty() { &[0.0f32][..] } else { data };
                 ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -816,8 +832,8 @@ impl ViewportRenderer {
             };
             let (values, diffuse, specular) = (
                 buffer("wavelet-products", &p.values),
-                buffer("wavelet-diffuse", &coarse.diffuse),
-                buffer("wavelet-specular", &coarse.specular),
+                buffer("wavelet-diffuse", &coarse[0].diffuse),
+                buffer("wavelet-specular", &specular_tables),
             );
             let texel_view = match texels {
                 Some(t) => upload_layers(ctx, t.size as u32, &t.texels),
@@ -836,23 +852,28 @@ impl ViewportRenderer {
                 ],
             });
             self.wavelet = Some(WaveletBuffers {
-                keys: (products.key, table.key, texel_key),
+                keys: (products.key, table_keys, texel_key),
                 has_texels: texels.is_some(),
                 bind_group,
-                has_specular: !coarse.specular.is_empty(),
                 cells: p.cells as u32,
             });
         }
         let w = self.wavelet.as_ref().unwrap();
+        let stride = lightloom_nodes::triple_product::THETA_STEPS * lightloom_nodes::triple_product::PHI_STEPS;
+        let mut specular = [[0.0; 4]; MAX_MATERIALS];
+        for (i, t) in tables.iter().enumerate().take(MAX_MATERIALS) {
+            let has = !t.specular.is_empty() as u32 as f32;
+            specular[i] = [t.specular_color[0], t.specular_color[1], t.specular_color[2], has];
+        }
         let params = WaveletParams {
             counts: [
                 w.cells,
-                w.has_specular as u32,
+                (stride as u32) * w.cells,
                 lightloom_nodes::triple_product::THETA_STEPS as u32,
                 lightloom_nodes::triple_product::PHI_STEPS as u32,
             ],
-            albedo: [t.albedo[0], t.albedo[1], t.albedo[2], 1.0],
-            specular: [t.specular_color[0], t.specular_color[1], t.specular_color[2], 0.0],
+            albedo: material_array(frame, |m| m.albedo.map(|a| a as f32), 1.0),
+            specular,
             texels: [w.has_texels as u32, 0, 0, 0],
         };
         ctx.queue.write_buffer(&self.wavelet_params, 0, bytemuck::bytes_of(&params));
@@ -971,6 +992,20 @@ fn make_bind_group(
             wgpu::BindGroupEntry { binding: 2, resource: wgpu::BindingResource::Sampler(sampler) },
         ],
     })
+}
+
+/// One vec4 per material slot: `rgb` from the material, `w`.
+fn material_array(
+    frame: &FrameInputs,
+    rgb: impl Fn(&lightloom_nodes::kinds::brdf::Material) -> [f32; 3],
+    w: f32,
+) -> [[f32; 4]; MAX_MATERIALS] {
+    let mut out = [[0.0; 4]; MAX_MATERIALS];
+    for (o, m) in out.iter_mut().zip(&frame.materials) {
+        let c = rgb(&m.material);
+        *o = [c[0], c[1], c[2], w];
+    }
+    out
 }
 
 /// Uploads `size²` layers (layer-major) as a filterable half-float 2D array texture.

@@ -80,7 +80,8 @@ pub struct Graph {
     pub project_dir: PathBuf,
     order: Vec<usize>,
     /// `(node, input port)` → index of the node feeding it.
-    feeds: HashMap<(String, String), usize>,
+    /// Upstream nodes of each connected input, in project order.
+    feeds: HashMap<(String, String), Vec<usize>>,
 }
 
 impl Graph {
@@ -136,6 +137,7 @@ impl Graph {
             built.push(GraphNode { id: input.id.to_string(), kind, params });
         }
         let mut connected: HashMap<(&str, &str), &Link> = HashMap::new();
+        let mut valid_links: Vec<Link> = Vec::new();
         for link in links {
             let from = ids.get(link.from_node.as_str()).map(|&i| &built[i]);
             let to = ids.get(link.to_node.as_str()).map(|&i| &built[i]);
@@ -165,10 +167,14 @@ impl Graph {
                     &link.to_port,
                     format!("expects {}, but `{}.{}` provides {}", i.ty, from.id, link.from_port, o.ty),
                 )),
-                _ => {
-                    if connected.insert((link.to_node.as_str(), link.to_port.as_str()), link).is_some() {
+                (_, Some(i)) => {
+                    let key = (link.to_node.as_str(), link.to_port.as_str());
+                    if connected.contains_key(&key) && !i.many {
                         errors.push(GraphError::port(&to.id, &link.to_port, "input has more than one link"));
+                    } else if !connected.contains_key(&key) {
+                        connected.insert(key, link);
                     }
+                    valid_links.push(link.clone());
                 }
             }
         }
@@ -183,7 +189,6 @@ impl Graph {
                 }
             }
         }
-        let valid_links: Vec<Link> = connected.values().map(|l| (*l).clone()).collect();
         let order = match topological_order(&built, &valid_links) {
             Ok(order) => order,
             Err(cycle) => {
@@ -195,8 +200,12 @@ impl Graph {
             return Err(errors);
         }
         let mut links = valid_links;
+        // Stable: links into one port keep their project order.
         links.sort_by(|a, b| (&a.to_node, &a.to_port).cmp(&(&b.to_node, &b.to_port)));
-        let feeds = links.iter().map(|l| ((l.to_node.clone(), l.to_port.clone()), ids[l.from_node.as_str()])).collect();
+        let mut feeds: HashMap<(String, String), Vec<usize>> = HashMap::default();
+        for l in &links {
+            feeds.entry((l.to_node.clone(), l.to_port.clone())).or_default().push(ids[l.from_node.as_str()]);
+        }
         Ok(Self { nodes: built, links, project_dir, order, feeds })
     }
 
@@ -209,9 +218,16 @@ impl Graph {
         self.order.iter().map(|&i| &self.nodes[i])
     }
 
-    /// The node feeding `port` of `node`, if connected.
+    /// The (first) node feeding `port` of `node`, if connected.
     pub fn upstream(&self, node: &str, port: &str) -> Option<&GraphNode> {
-        self.feeds.get(&(node.to_string(), port.to_string())).map(|&i| &self.nodes[i])
+        self.feeds.get(&(node.to_string(), port.to_string())).and_then(|v| v.first()).map(|&i| &self.nodes[i])
+    }
+
+    /// Every node feeding `port` of `node`, in project order.
+    pub fn upstream_all(&self, node: &str, port: &str) -> Vec<&GraphNode> {
+        self.feeds
+            .get(&(node.to_string(), port.to_string()))
+            .map_or(Vec::new(), |v| v.iter().map(|&i| &self.nodes[i]).collect())
     }
 
     /// Sets a parameter after checking it against the kind's spec.

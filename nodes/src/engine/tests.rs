@@ -233,8 +233,8 @@ fn test_kind(name: &'static str, compute: StageFn, persist: bool) -> NodeKindSpe
         name,
         label: name,
         doc: "test",
-        inputs: vec![PortSpec { name: "a", ty: PortType::Medium, required: false }],
-        outputs: vec![PortSpec { name: "out", ty: PortType::Medium, required: false }],
+        inputs: vec![PortSpec { name: "a", ty: PortType::Medium, required: false, many: false }],
+        outputs: vec![PortSpec { name: "out", ty: PortType::Medium, required: false, many: false }],
         params: vec![ParamSpec {
             name: "x",
             label: "x",

@@ -47,7 +47,7 @@ pub fn spec() -> NodeKindSpec {
         label: "BRDF editor",
         doc: "Analytic BRDFs: Lambert, Phong, Blinn-Phong, GGX (isotropic/anisotropic), Ward.",
         inputs: vec![],
-        outputs: vec![PortSpec { name: "material", ty: PortType::Material, required: false }],
+        outputs: vec![PortSpec { name: "material", ty: PortType::Material, required: false, many: false }],
         params: vec![
             ParamSpec {
                 name: "model",

@@ -28,7 +28,7 @@ pub fn spec() -> NodeKindSpec {
         label: "Environment map",
         doc: "Distant HDR lighting from an equirectangular .exr/.hdr file or the built-in sky.",
         inputs: vec![],
-        outputs: vec![PortSpec { name: "environment", ty: PortType::Environment, required: false }],
+        outputs: vec![PortSpec { name: "environment", ty: PortType::Environment, required: false, many: false }],
         params: vec![
             ParamSpec {
                 name: "source",

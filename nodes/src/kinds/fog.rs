@@ -21,7 +21,7 @@ pub fn spec() -> NodeKindSpec {
         label: "Fog medium",
         doc: "Homogeneous single-scattering fog: glows around lights, airlight, light scattered onto surfaces.",
         inputs: vec![],
-        outputs: vec![PortSpec { name: "medium", ty: PortType::Medium, required: false }],
+        outputs: vec![PortSpec { name: "medium", ty: PortType::Medium, required: false, many: false }],
         params: vec![
             ParamSpec {
                 name: "beta",

@@ -16,8 +16,8 @@ pub fn point_light_spec() -> NodeKindSpec {
         name: "PointLight",
         label: "Point light",
         doc: "An isotropic point light; chain several through the `lights` input.",
-        inputs: vec![PortSpec { name: "lights", ty: PortType::Lights, required: false }],
-        outputs: vec![PortSpec { name: "lights", ty: PortType::Lights, required: false }],
+        inputs: vec![PortSpec { name: "lights", ty: PortType::Lights, required: false, many: false }],
+        outputs: vec![PortSpec { name: "lights", ty: PortType::Lights, required: false, many: false }],
         params: vec![
             ParamSpec {
                 name: "position",

@@ -25,7 +25,7 @@ pub const TONEMAPS: &[&str] = &["aces", "reinhard", "linear"];
 pub const VIEWS: &[&str] = &["approximation", "reference", "error"];
 
 pub fn spec() -> NodeKindSpec {
-    let input = |name, ty, required| PortSpec { name, ty, required };
+    let input = |name, ty, required| PortSpec { name, ty, required, many: false };
     NodeKindSpec {
         name: "Output",
         label: "Output",
@@ -33,7 +33,9 @@ pub fn spec() -> NodeKindSpec {
         inputs: vec![
             input("scene", PortType::Scene, true),
             input("environment", PortType::Environment, false),
-            input("material", PortType::Material, false),
+            // Several materials: objects name theirs (`material` on a Scene object or the glTF
+            // material name); unnamed objects take the first.
+            PortSpec { name: "material", ty: PortType::Material, required: false, many: true },
             input("medium", PortType::Medium, false),
             input("lights", PortType::Lights, false),
             input("blockers", PortType::Blockers, false),
@@ -254,15 +256,39 @@ pub struct FrameInputs {
     /// `sh_prt` only: the scene's SH transport and the incident radiance per receiver.
     pub transport: Option<Keyed>,
     pub incident: Option<Keyed>,
-    /// `wavelet_vertex` only: per-vertex lighting × visibility and the material's table.
+    /// Wavelet modes only: per-vertex lighting × visibility.
     pub local_products: Option<Keyed>,
-    pub brdf_table: Option<Keyed>,
     /// `wavelet_pixel` only: per-texel diffuse transfer of the visibility textures.
     pub texel_irradiance: Option<Keyed>,
-    pub material: crate::kinds::brdf::Material,
+    /// The materials linked to the Output, in link order (the default material when none is),
+    /// at most [`MAX_MATERIALS`].
+    pub materials: Vec<FrameMaterial>,
+    /// Per mesh of the scene: its index in `materials`.
+    pub mesh_materials: Vec<u32>,
     pub settings: OutputSettings,
-    /// Connected inputs the renderer does not draw yet, to tell the user.
+    /// Connected inputs the renderer does not draw yet, and material names that matched
+    /// nothing, to tell the user.
     pub ignored_inputs: Vec<String>,
+}
+
+/// Materials one frame can shade with (the shaders' uniform arrays).
+pub const MAX_MATERIALS: usize = 8;
+
+/// One material of a frame.
+#[derive(Clone, Debug)]
+pub struct FrameMaterial {
+    /// The BRDF editor node (empty for the default material).
+    pub node: String,
+    pub material: crate::kinds::brdf::Material,
+    /// Its local-frame table (wavelet modes only).
+    pub table: Option<Keyed>,
+}
+
+impl FrameInputs {
+    /// The material of mesh `i`.
+    pub fn mesh_material(&self, i: usize) -> &crate::kinds::brdf::Material {
+        &self.materials[self.mesh_materials.get(i).copied().unwrap_or(0) as usize].material
+    }
 }
 
 /// Finds the output node (the one named, or the only one).
@@ -307,7 +333,7 @@ impl FrameInputs {
         let rs = crate::reference::ReferenceScene {
             scene,
             meshes,
-            brdf: crate::brdf::Brdf::from_material(&self.material),
+            brdfs: (0..meshes.meshes.len()).map(|i| crate::brdf::Brdf::from_material(self.mesh_material(i))).collect(),
             environment,
             background: self.settings.background,
         };
@@ -331,13 +357,13 @@ impl FrameInputs {
             Some(env) => (Some(keyed(&env, "sh")?), Some(keyed(&env, "rotated_radiance")?)),
             None => (None, None),
         };
-        let material = match upstream("material") {
-            Some(m) => match keyed(&m, "material")?.value.as_ref() {
-                StageValue::Material(m) => m.clone(),
-                _ => return Err("material stage produced an unexpected value".into()),
-            },
-            None => Default::default(),
-        };
+        let material_nodes = graph.upstream_all(output, "material");
+        if material_nodes.len() > MAX_MATERIALS {
+            return Err(format!(
+                "{} materials are linked to the Output; at most {MAX_MATERIALS} are supported",
+                material_nodes.len()
+            ));
+        }
         let settings = match keyed(output, "settings")?.value.as_ref() {
             StageValue::Output(s) => s.clone(),
             _ => return Err("settings stage produced an unexpected value".into()),
@@ -347,18 +373,42 @@ impl FrameInputs {
         } else {
             (None, None)
         };
-        let (local_products, brdf_table) = if settings.mode.starts_with("wavelet") {
-            let material = upstream("material").ok_or("the wavelet mode needs a material (BRDF editor) input")?;
-            (Some(keyed(output, "local_products")?), Some(keyed(&material, "local_table")?))
-        } else {
-            (None, None)
-        };
+        let wavelets = settings.mode.starts_with("wavelet");
+        let mut materials = Vec::new();
+        for node in &material_nodes {
+            let material = match keyed(&node.id, "material")?.value.as_ref() {
+                StageValue::Material(m) => m.clone(),
+                _ => return Err("material stage produced an unexpected value".into()),
+            };
+            let table = if wavelets { Some(keyed(&node.id, "local_table")?) } else { None };
+            materials.push(FrameMaterial { node: node.id.clone(), material, table });
+        }
+        if materials.is_empty() {
+            if wavelets {
+                return Err("the wavelet modes need a material: link a BRDF editor to the Output".into());
+            }
+            materials.push(FrameMaterial { node: String::new(), material: Default::default(), table: None });
+        }
+        let local_products = if wavelets { Some(keyed(output, "local_products")?) } else { None };
         let texel_irradiance =
             if settings.mode == "wavelet_pixel" { Some(keyed(output, "texel_irradiance")?) } else { None };
-        let ignored_inputs = ["medium", "lights", "blockers", "square_lights"]
+        let mut ignored_inputs: Vec<String> = ["medium", "lights", "blockers", "square_lights"]
             .into_iter()
             .filter_map(|p| upstream(p).map(|n| format!("`{p}` (from `{n}`) is not drawn yet")))
             .collect();
+        let mut mesh_materials = Vec::new();
+        if let StageValue::Meshes(set) = meshes.value.as_ref() {
+            for mesh in &set.meshes {
+                let found = materials.iter().position(|m| !mesh.material.is_empty() && m.node == mesh.material);
+                if found.is_none() && !mesh.material.is_empty() {
+                    ignored_inputs.push(format!(
+                        "mesh `{}` asks for material `{}`, which is not linked to the Output; it uses `{}`",
+                        mesh.name, mesh.material, materials[0].node
+                    ));
+                }
+                mesh_materials.push(found.unwrap_or(0) as u32);
+            }
+        }
         Ok(Self {
             meshes,
             ray_scene,
@@ -367,9 +417,9 @@ impl FrameInputs {
             transport,
             incident,
             local_products,
-            brdf_table,
             texel_irradiance,
-            material,
+            materials,
+            mesh_materials,
             settings,
             ignored_inputs,
         })

@@ -15,7 +15,7 @@ pub fn area_light_painter_spec() -> NodeKindSpec {
         label: "Area light painter",
         doc: "A textured area light for near-field relighting (Sun 2008 ch. 4).",
         inputs: vec![],
-        outputs: vec![PortSpec { name: "lights", ty: PortType::Lights, required: false }],
+        outputs: vec![PortSpec { name: "lights", ty: PortType::Lights, required: false, many: false }],
         params: vec![
             ParamSpec {
                 name: "texture",
@@ -64,8 +64,8 @@ pub fn rsl_decomposer_spec() -> NodeKindSpec {
         name: "RslDecomposer",
         label: "RSL decomposer",
         doc: "Fits rotatable square lights to an environment (Xu et al. 2006).",
-        inputs: vec![PortSpec { name: "environment", ty: PortType::Environment, required: true }],
-        outputs: vec![PortSpec { name: "square_lights", ty: PortType::SquareLights, required: false }],
+        inputs: vec![PortSpec { name: "environment", ty: PortType::Environment, required: true, many: false }],
+        outputs: vec![PortSpec { name: "square_lights", ty: PortType::SquareLights, required: false, many: false }],
         params: vec![ParamSpec {
             name: "light_count",
             label: "Lights",
@@ -92,7 +92,7 @@ pub fn blocker_spheres_spec() -> NodeKindSpec {
         label: "Blocker sphere set",
         doc: "Spheres casting soft shadows via SH exponentials (Sun 2008 §5.2).",
         inputs: vec![],
-        outputs: vec![PortSpec { name: "blockers", ty: PortType::Blockers, required: false }],
+        outputs: vec![PortSpec { name: "blockers", ty: PortType::Blockers, required: false, many: false }],
         params: vec![
             ParamSpec {
                 name: "spheres",

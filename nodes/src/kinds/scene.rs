@@ -52,6 +52,10 @@ pub struct SceneObject {
     /// coarse mesh such as a floor quad still receives sharp shadows.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub visibility_texture: bool,
+    /// Id of the BRDF editor node (linked to the Output's `material` input) that shades this
+    /// object; empty for the first linked material.
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub material: String,
 }
 
 fn unit_scale() -> [f64; 3] {
@@ -72,6 +76,7 @@ impl SceneObject {
             scale: [1.0; 3],
             color: grey(),
             visibility_texture: false,
+            material: String::new(),
         }
     }
 
@@ -145,6 +150,7 @@ impl SceneObject {
             .map(|m| {
                 let mut m = m.transformed(transform);
                 m.visibility_texture = self.visibility_texture;
+                m.material = self.material.clone();
                 let tint = self.color.map(|c| c as f32);
                 if single {
                     m.base_color = tint;
@@ -179,7 +185,7 @@ pub fn spec() -> NodeKindSpec {
         label: "Scene",
         doc: "Objects to light: built-in shapes with transforms and colours.",
         inputs: vec![],
-        outputs: vec![PortSpec { name: "scene", ty: PortType::Scene, required: false }],
+        outputs: vec![PortSpec { name: "scene", ty: PortType::Scene, required: false, many: false }],
         params: vec![
             ParamSpec {
                 name: "objects",

@@ -28,8 +28,8 @@ fn registry() -> &'static [NodeKindSpec] {
         name: "Noop",
         label: "no-op",
         doc: "",
-        inputs: vec![PortSpec { name: "in", ty: PortType::Medium, required: false }],
-        outputs: vec![PortSpec { name: "medium", ty: PortType::Medium, required: false }],
+        inputs: vec![PortSpec { name: "in", ty: PortType::Medium, required: false, many: false }],
+        outputs: vec![PortSpec { name: "medium", ty: PortType::Medium, required: false, many: false }],
         params: vec![ParamSpec {
             name: "x",
             label: "x",

@@ -171,8 +171,8 @@ impl Graph {
                     let key = (link.to_node.as_str(), link.to_port.as_str());
                     if connected.contains_key(&key) && !i.many {
                         errors.push(GraphError::port(&to.id, &link.to_port, "input has more than one link"));
-                    } else if !connected.contains_key(&key) {
-                        connected.insert(key, link);
+                    } else {
+                        connected.entry(key).or_insert(link);
                     }
                     valid_links.push(link.clone());
                 }

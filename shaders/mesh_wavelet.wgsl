@@ -20,11 +20,17 @@ struct WaveletParams {
 };
 
 @group(1) @binding(0) var<uniform> wp: WaveletParams;
-@group(1) @binding(1) var<storage, read> products: array<f32>;
+// P_c per vertex and cell, RGB9E5-packed (render/src/packing.rs).
+@group(1) @binding(1) var<storage, read> products: array<u32>;
 @group(1) @binding(2) var<storage, read> diffuse_table: array<f32>;
 @group(1) @binding(3) var<storage, read> specular_table: array<f32>;
 @group(1) @binding(4) var texel_diffuse: texture_2d_array<f32>;
 @group(1) @binding(5) var texel_sampler: sampler;
+
+fn rgb9e5(v: u32) -> vec3<f32> {
+    let scale = exp2(f32(i32(v >> 27u) - 24));
+    return vec3<f32>(f32(v & 0x1ffu), f32((v >> 9u) & 0x1ffu), f32((v >> 18u) & 0x1ffu)) * scale;
+}
 
 struct VertexIn {
     @location(0) position: vec3<f32>,
@@ -50,11 +56,10 @@ fn vs_main(v: VertexIn, @builtin(vertex_index) index: u32) -> VertexOut {
     var out: VertexOut;
     out.clip = globals.view_proj * vec4<f32>(v.position, 1.0);
     let cells = wp.counts.x;
-    let base = index * cells * 3u;
+    let base = index * cells;
     var diffuse = vec3<f32>(0.0);
     for (var c = 0u; c < cells; c = c + 1u) {
-        let p = vec3<f32>(products[base + 3u * c], products[base + 3u * c + 1u], products[base + 3u * c + 2u]);
-        diffuse = diffuse + p * diffuse_table[c];
+        diffuse = diffuse + rgb9e5(products[base + c]) * diffuse_table[c];
     }
     let m = v.material;
     out.albedo = wp.albedo[m].rgb * v.color;
@@ -93,8 +98,7 @@ fn vs_main(v: VertexIn, @builtin(vertex_index) index: u32) -> VertexOut {
             let top = mix(specular_table[r00 + c], specular_table[r01 + c], fj);
             let bottom = mix(specular_table[r10 + c], specular_table[r11 + c], fj);
             let s = mix(top, bottom, fi);
-            let p = vec3<f32>(products[base + 3u * c], products[base + 3u * c + 1u], products[base + 3u * c + 2u]);
-            glossy = glossy + p * s;
+            glossy = glossy + rgb9e5(products[base + c]) * s;
         }
         out.specular = wp.specular[m].rgb * glossy;
     }

@@ -4,6 +4,7 @@
 
 pub mod capture;
 pub mod device;
+pub mod packing;
 pub mod viewport;
 
 pub use capture::{CapturedFrame, write_exr, write_png};

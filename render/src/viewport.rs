@@ -790,7 +790,7 @@ impl ViewportRenderer {
                 p.values.len() / (p.cells * 3)
             )));
         }
-        let bytes = p.values.len() as u64 * 4;
+        let bytes = p.values.len() as u64 / 3 * 4;
         let limit = ctx.device.limits().max_storage_buffer_binding_size;
         if bytes > limit {
             return Err(RenderError::Invalid(format!(
@@ -830,11 +830,16 @@ impl ViewportRenderer {
                     usage: wgpu::BufferUsages::STORAGE,
                 })
             };
-            let (values, diffuse, specular) = (
-                buffer("wavelet-products", &p.values),
-                buffer("wavelet-diffuse", &coarse[0].diffuse),
-                buffer("wavelet-specular", &specular_tables),
-            );
+            // P packed as RGB9E5: 4 bytes per cell instead of 12.
+            let packed: Vec<u32> =
+                p.values.chunks_exact(3).map(|c| crate::packing::rgb9e5([c[0], c[1], c[2]])).collect();
+            let values = ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("wavelet-products"),
+                contents: bytemuck::cast_slice(if packed.is_empty() { &[0u32][..] } else { &packed }),
+                usage: wgpu::BufferUsages::STORAGE,
+            });
+            let (diffuse, specular) =
+                (buffer("wavelet-diffuse", &coarse[0].diffuse), buffer("wavelet-specular", &specular_tables));
             let texel_view = match texels {
                 Some(t) => upload_layers(ctx, t.size as u32, &t.texels),
                 None => upload_layers(ctx, 1, &[[0.0; 3]]),

@@ -1,0 +1,48 @@
+//! Compact GPU encodings of per-vertex coefficient data.
+
+/// Packs a non-negative RGB value into the shared-exponent `RGB9E5` format (9-bit mantissas,
+/// one 5-bit exponent; `EXT_texture_shared_exponent`): 4 bytes instead of 12, relative error
+/// under 2⁻⁹ of the largest channel. `shaders/mesh_wavelet.wgsl` decodes it.
+pub fn rgb9e5(rgb: [f32; 3]) -> u32 {
+    const MANTISSA_BITS: i32 = 9;
+    const BIAS: i32 = 15;
+    const MAX: f32 = (511.0 / 512.0) * 65536.0; // (2^9 - 1)/2^9 · 2^(31 - 15)
+    let c = rgb.map(|v| if v.is_finite() { v.clamp(0.0, MAX) } else { 0.0 });
+    let max = c[0].max(c[1]).max(c[2]);
+    if max <= 0.0 {
+        return 0;
+    }
+    let mut exponent = (max.log2().floor() as i32).max(-BIAS - 1) + 1 + BIAS;
+    let mut scale = 2f32.powi(exponent - BIAS - MANTISSA_BITS);
+    if (max / scale + 0.5).floor() as u32 == 512 {
+        exponent += 1;
+        scale *= 2.0;
+    }
+    let m = c.map(|v| ((v / scale + 0.5).floor() as u32).min(511));
+    m[0] | (m[1] << 9) | (m[2] << 18) | ((exponent.clamp(0, 31) as u32) << 27)
+}
+
+/// Inverse of [`rgb9e5`] (the shader's decode, for tests).
+pub fn rgb9e5_decode(v: u32) -> [f32; 3] {
+    let scale = 2f32.powi((v >> 27) as i32 - 15 - 9);
+    [(v & 0x1ff) as f32 * scale, ((v >> 9) & 0x1ff) as f32 * scale, ((v >> 18) & 0x1ff) as f32 * scale]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rgb9e5_round_trips_within_its_precision() {
+        let values = [[0.0, 0.0, 0.0], [1.0, 0.5, 0.25], [1e-4, 3e-3, 2e-2], [123.4, 0.01, 56.0], [0.3, 0.3, 0.3]];
+        for v in values {
+            let d = rgb9e5_decode(rgb9e5(v));
+            let max = v[0].max(v[1]).max(v[2]);
+            for c in 0..3 {
+                assert!((d[c] - v[c]).abs() <= max / 512.0 + 1e-12, "{v:?} -> {d:?}");
+            }
+        }
+        assert_eq!(rgb9e5([f32::NAN, -1.0, 0.0]), 0);
+        assert!(rgb9e5_decode(rgb9e5([1e9, 0.0, 0.0]))[0] > 6.0e4);
+    }
+}

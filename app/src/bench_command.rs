@@ -63,8 +63,8 @@ fn default_project_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
     let camera = project.camera(None).map_err(|e| anyhow!(e))?;
     let view = CameraView::from_project(&camera);
     let base = project.graph(std::path::Path::new("default.ron")).map_err(|e| anyhow!("{e:?}"))?;
-    println!("\ndefault project, glossy Phong material (BRDF edit = exponent change)");
-    println!("{:<18} {:>18} {:>20}", "mode", "edit→frame ms", "frame 1280x720 ms");
+    println!("\ndefault project, glossy Phong material (BRDF edit = exponent change), 1280x720");
+    println!("{:<18} {:>16} {:>16} {:>12}", "mode", "edit stages ms", "edit→frame ms", "frame ms");
     for (mode, transport) in [("sh_irradiance", "none"), ("sh_prt", "sh"), ("wavelet_vertex", "sh_and_wavelets")] {
         let mut graph = base.clone();
         graph.set_param("output", "mode", ParamValue::Choice(mode.into()))?;
@@ -80,11 +80,12 @@ fn default_project_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
         };
         let frame = frame_of(&graph)?;
         timed_frame(gpu, &mut renderer, &frame, &view, (1280, 720))?;
-        let mut latencies = Vec::new();
+        let (mut latencies, mut stages) = (Vec::new(), Vec::new());
         for i in 0..args.frames {
             graph.set_param("material", "exponent", ParamValue::Float(10.0 + 7.0 * i as f64))?;
             let start = Instant::now();
             let frame = frame_of(&graph)?;
+            stages.push(start.elapsed().as_secs_f64() * 1e3);
             timed_frame(gpu, &mut renderer, &frame, &view, (1280, 720))?;
             latencies.push(start.elapsed().as_secs_f64() * 1e3);
         }
@@ -92,7 +93,7 @@ fn default_project_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
         let frames: Vec<f64> = (0..args.frames)
             .map(|_| timed_frame(gpu, &mut renderer, &frame, &view, (1280, 720)))
             .collect::<Result<_>>()?;
-        println!("{mode:<18} {:>18.1} {:>20.1}", median(latencies), median(frames));
+        println!("{mode:<18} {:>16.1} {:>16.1} {:>12.1}", median(stages), median(latencies), median(frames));
     }
     Ok(())
 }

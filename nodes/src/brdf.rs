@@ -12,6 +12,7 @@
 
 use crate::kinds::brdf::Material;
 use glam::DVec3;
+use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
 
 /// The specular lobe of a model.
@@ -225,6 +226,44 @@ impl Brdf {
     }
 }
 
+/// What the BRDF editor's node shows: the lobe `f(ω_i, ω_o)·cos θ_i` in the plane of
+/// incidence for a few outgoing angles, and the directional albedo at each.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct LobePreview {
+    /// Outgoing polar angles (degrees) of the curves.
+    pub theta_out_deg: Vec<f64>,
+    /// Per curve: luminance of `f·cos θ_i` at incoming angles `-90..=90°` in 1° steps
+    /// (negative angles on the mirror side of the normal).
+    pub curves: Vec<Vec<f32>>,
+    /// Per curve: `∫ f cos θ_i dω_i` (luminance), by quadrature.
+    pub directional_albedo: Vec<f64>,
+}
+
+impl LobePreview {
+    pub fn of(brdf: &Brdf) -> Self {
+        let theta_out_deg = vec![0.0, 45.0, 75.0];
+        let luminance = |c: DVec3| c.dot(DVec3::new(0.2126, 0.7152, 0.0722));
+        let quadrature = crate::quadrature::SphereQuadrature::new(360, 720);
+        let mut curves = Vec::new();
+        let mut directional_albedo = Vec::new();
+        for theta_o in &theta_out_deg {
+            let t = f64::to_radians(*theta_o);
+            let wo = DVec3::new(t.sin(), 0.0, t.cos());
+            curves.push(
+                (-90..=90)
+                    .map(|deg| {
+                        let a = f64::from(deg).to_radians();
+                        let wi = DVec3::new(a.sin(), 0.0, a.cos().max(0.0));
+                        (luminance(brdf.eval(wi, wo)) * wi.z) as f32
+                    })
+                    .collect(),
+            );
+            directional_albedo.push(quadrature.integrate(|wi| luminance(brdf.eval(wi, wo)) * wi.z.max(0.0)));
+        }
+        Self { theta_out_deg, curves, directional_albedo }
+    }
+}
+
 /// Cosine-weighted direction in the upper hemisphere (pdf `cos θ / π`), Malley's method.
 pub fn cosine_hemisphere(u1: f64, u2: f64) -> DVec3 {
     let r = u1.sqrt();
@@ -350,6 +389,32 @@ mod tests {
                 / n as f64;
             assert!((estimate - exact).abs() < 0.01 * exact.max(0.05), "{brdf:?}: MC {estimate} vs {exact}");
         }
+    }
+
+    #[test]
+    fn lobe_preview_albedos_match_closed_forms() {
+        // Lambert: directional albedo = albedo at every angle; the curve is albedo·cos/π.
+        // Normalised Phong at normal incidence adds f0 (the lobe integrates to f0 there).
+        let grey = |v: f64| [v; 3];
+        let lambert = LobePreview::of(&Brdf::from_material(&Material { albedo: grey(0.6), ..Default::default() }));
+        for a in &lambert.directional_albedo {
+            assert!((a - 0.6).abs() < 2e-3, "{a}");
+        }
+        assert!((lambert.curves[0][90] as f64 - 0.6 / PI).abs() < 1e-6);
+        assert!((lambert.curves[0][150] as f64 - 0.6 / PI * 60f64.to_radians().cos()).abs() < 1e-6);
+        let phong = LobePreview::of(&Brdf::from_material(&Material {
+            model: "phong".into(),
+            albedo: grey(0.3),
+            specular: grey(1.0),
+            exponent: 20.0,
+            f0: 0.5,
+            ..Default::default()
+        }));
+        assert!((phong.directional_albedo[0] - 0.8).abs() < 5e-3, "{}", phong.directional_albedo[0]);
+        // The 45° curve peaks near the mirror direction (-45° on this axis; index 45), pulled a
+        // few degrees towards the normal by the cosine.
+        let peak = phong.curves[1].iter().enumerate().max_by(|a, b| a.1.total_cmp(b.1)).unwrap().0;
+        assert!((45..=50).contains(&peak), "peak at index {peak}");
     }
 
     #[test]

@@ -47,6 +47,7 @@ pub enum StageValue {
     BrdfTable(crate::triple_product::BrdfTable),
     LocalProducts(crate::triple_product::LocalProducts),
     TexelIrradiance(crate::triple_product::TexelIrradiance),
+    LobePreview(crate::brdf::LobePreview),
     /// Test stages: a number.
     Number(f64),
     /// In memory only (never persisted): obvhs BVHs are rebuilt on load. Must stay the last
@@ -73,6 +74,7 @@ impl StageValue {
             StageValue::BrdfTable(t) => (t.diffuse.len() + t.specular.len()) * 4,
             StageValue::LocalProducts(p) => p.values.len() * 4,
             StageValue::TexelIrradiance(t) => t.texels.len() * 12,
+            StageValue::LobePreview(p) => p.curves.iter().map(|c| c.len() * 4).sum(),
             StageValue::LocalTransport(t) => t.visibility.iter().map(|v| v.len() * 16 + 24).sum(),
             StageValue::RayScene(s) => s.triangle_count() * 48 * 2,
             StageValue::TexelReceivers(t) => t.receivers.len() * 44,
@@ -104,6 +106,7 @@ impl StageValue {
             StageValue::BrdfTable(_) => "local-frame BRDF table",
             StageValue::LocalProducts(_) => "local-frame lighting × visibility",
             StageValue::TexelIrradiance(_) => "per-texel diffuse transfer",
+            StageValue::LobePreview(_) => "BRDF lobe preview",
             StageValue::Number(_) => "number",
         }
     }

@@ -94,6 +94,15 @@ pub fn spec() -> NodeKindSpec {
                 compute: material,
             },
             StageSpec {
+                name: "preview",
+                version: 1,
+                params: &[],
+                stages: &["material"],
+                inputs: &[],
+                persist: false,
+                compute: preview,
+            },
+            StageSpec {
                 name: "local_table",
                 version: 1,
                 params: &[],
@@ -105,6 +114,14 @@ pub fn spec() -> NodeKindSpec {
         ],
         availability: Availability::Ready,
     }
+}
+
+/// The lobe plot and directional albedos the node shows.
+fn preview(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let StageValue::Material(m) = ctx.stage("material")? else {
+        return Err(StageError::Internal("material stage".into()));
+    };
+    Ok(StageValue::LobePreview(crate::brdf::LobePreview::of(&crate::brdf::Brdf::from_material(m))))
 }
 
 /// The material tabulated in the local frame on 320 icosahedral cells (Ma et al. §3.2; the

@@ -504,3 +504,25 @@ fn each_object_is_shaded_by_its_own_material_in_every_mode() {
         assert!(floor[1] > 3.0 * floor[0], "{mode}/{view}: floor {floor:?} is not green");
     }
 }
+
+#[test]
+fn relighting_modes_without_their_transport_say_what_to_set() {
+    let project = workspace().join("projects/default.ron");
+    let dir = tempdir("mode-errors");
+    for (mode, expected) in [
+        ("sh_prt", "set the Scene's `transport` to `sh`"),
+        ("wavelet_vertex", "set the Scene's `transport` to `sh_and_wavelets`"),
+        ("wavelet_pixel", "set the Scene's `transport` to `sh_and_wavelets`"),
+    ] {
+        let png = dir.join(format!("{mode}.png"));
+        let out = lightloom()
+            .args(["render", project.to_str().unwrap(), "-o", png.to_str().unwrap(), "-q", "--no-disk-cache"])
+            .args(["--set", &format!("output.mode={mode}"), "--width", "32", "--height", "32"])
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(2), "{mode}");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(stderr.contains(expected), "{mode}: {stderr}");
+        assert!(!png.exists(), "{mode}: no image on failure");
+    }
+}

@@ -1,11 +1,12 @@
 // Mesh pass for the `wavelet_vertex` and `wavelet_pixel` modes (nodes/src/triple_product.rs,
-// Ma et al. eq. 7 in top-only cell form), per vertex:
+// Ma et al. eq. 7 in top-only cell form):
 //   B = albedo * sum_c P_c D_c + specular * sum_c P_c S_c(w_o)
-// P_c = dOmega_c L_c V_c is the vertex's lighting x visibility on the local-frame cells, D the
-// diffuse cosine table, S the specular lobe table on a (theta_o, phi_o) grid, interpolated
-// bilinearly at the view direction expressed in the vertex frame [t, n x t, n].
-// In `wavelet_pixel`, meshes with a visibility texture take the diffuse sum per pixel from the
-// per-texel transfer E = sum_c P_c D_c (bilinear), keeping the per-vertex specular.
+// P_c = dOmega_c L_c V_c is lighting x visibility on the local-frame cells, D the diffuse
+// cosine table, S the specular lobe table on a (theta_o, phi_o) grid, interpolated bilinearly
+// at the view direction expressed in the frame [t, n x t, n].
+// Per vertex everywhere; in `wavelet_pixel`, meshes with a visibility texture are shaded per
+// pixel from their texels instead: the diffuse sum from the per-texel transfer E (a filtered
+// texture), the specular sum from the four nearest texels' P (bilinear weights).
 
 const PI: f32 = 3.14159265358979;
 
@@ -15,7 +16,7 @@ struct WaveletParams {
     // Per material: diffuse albedo; specular colour (w = 1 when it has a specular lobe).
     albedo: array<vec4<f32>, 8>,
     specular: array<vec4<f32>, 8>,
-    // x: 1 when a per-texel diffuse texture is bound
+    // x: 1 when per-texel data is bound, y: texels per side
     texels: vec4<u32>,
 };
 
@@ -26,10 +27,63 @@ struct WaveletParams {
 @group(1) @binding(3) var<storage, read> specular_table: array<f32>;
 @group(1) @binding(4) var texel_diffuse: texture_2d_array<f32>;
 @group(1) @binding(5) var texel_sampler: sampler;
+// P_c per texel (layer-major, rows at increasing v), RGB9E5-packed.
+@group(1) @binding(6) var<storage, read> texel_products: array<u32>;
 
 fn rgb9e5(v: u32) -> vec3<f32> {
     let scale = exp2(f32(i32(v >> 27u) - 24));
     return vec3<f32>(f32(v & 0x1ffu), f32((v >> 9u) & 0x1ffu), f32((v >> 18u) & 0x1ffu)) * scale;
+}
+
+// Rows of material m's specular table around w_o and the bilinear fractions.
+struct TableRows {
+    r00: u32,
+    r01: u32,
+    r10: u32,
+    r11: u32,
+    fi: f32,
+    fj: f32,
+};
+
+fn table_rows(wo: vec3<f32>, m: u32) -> TableRows {
+    let cells = wp.counts.x;
+    let theta_steps = wp.counts.z;
+    let phi_steps = wp.counts.w;
+    let theta_max = PI / 2.0 - 1e-3;
+    let theta = min(acos(clamp(wo.z, 0.0, 1.0)), theta_max);
+    let ft = theta / theta_max * f32(theta_steps - 1u);
+    let i = min(u32(floor(ft)), theta_steps - 2u);
+    var phi = atan2(wo.y, wo.x);
+    if (phi < 0.0) {
+        phi = phi + 2.0 * PI;
+    }
+    let fp = phi / (2.0 * PI) * f32(phi_steps);
+    let j = min(u32(floor(fp)), phi_steps - 1u);
+    let j1 = (j + 1u) % phi_steps;
+    let table = m * wp.counts.y;
+    var rows: TableRows;
+    rows.r00 = table + (i * phi_steps + j) * cells;
+    rows.r01 = table + (i * phi_steps + j1) * cells;
+    rows.r10 = table + ((i + 1u) * phi_steps + j) * cells;
+    rows.r11 = table + ((i + 1u) * phi_steps + j1) * cells;
+    rows.fi = ft - f32(i);
+    rows.fj = fp - f32(j);
+    return rows;
+}
+
+fn specular_at(rows: TableRows, c: u32) -> f32 {
+    let top = mix(specular_table[rows.r00 + c], specular_table[rows.r01 + c], rows.fj);
+    let bottom = mix(specular_table[rows.r10 + c], specular_table[rows.r11 + c], rows.fj);
+    return mix(top, bottom, rows.fi);
+}
+
+// The view direction in the frame [t, n x t, n].
+fn local_view(position: vec3<f32>, normal: vec3<f32>, tangent: vec3<f32>) -> vec3<f32> {
+    let n = normalize(normal);
+    let t = normalize(tangent - n * dot(n, tangent));
+    let b = cross(n, t);
+    let view = normalize(globals.camera_pos.xyz - position);
+    return vec3<f32>(dot(view, t), dot(view, b), dot(view, n));
 }
 
 struct VertexIn {
@@ -49,56 +103,38 @@ struct VertexOut {
     @location(2) albedo: vec3<f32>,
     @location(3) uv: vec2<f32>,
     @location(4) @interpolate(flat) layer: i32,
+    @location(5) @interpolate(flat) material: u32,
+    @location(6) position: vec3<f32>,
+    @location(7) normal: vec3<f32>,
+    @location(8) tangent: vec3<f32>,
 };
 
 @vertex
 fn vs_main(v: VertexIn, @builtin(vertex_index) index: u32) -> VertexOut {
     var out: VertexOut;
     out.clip = globals.view_proj * vec4<f32>(v.position, 1.0);
+    let m = v.material;
+    out.material = m;
+    out.position = v.position;
+    out.normal = v.normal;
+    out.tangent = v.tangent;
+    out.uv = v.uv;
+    out.layer = i32(round(v.layer));
+    out.albedo = wp.albedo[m].rgb * v.color;
+    out.specular = vec3<f32>(0.0);
     let cells = wp.counts.x;
     let base = index * cells;
     var diffuse = vec3<f32>(0.0);
     for (var c = 0u; c < cells; c = c + 1u) {
         diffuse = diffuse + rgb9e5(products[base + c]) * diffuse_table[c];
     }
-    let m = v.material;
-    out.albedo = wp.albedo[m].rgb * v.color;
     out.diffuse = out.albedo * diffuse;
-    out.specular = vec3<f32>(0.0);
-    out.uv = v.uv;
-    out.layer = i32(round(v.layer));
-    let n = normalize(v.normal);
-    let t = normalize(v.tangent - n * dot(n, v.tangent));
-    let b = cross(n, t);
-    let view = normalize(globals.camera_pos.xyz - v.position);
-    let wo = vec3<f32>(dot(view, t), dot(view, b), dot(view, n));
+    let wo = local_view(v.position, v.normal, v.tangent);
     if (wp.specular[m].w > 0.0 && wo.z > 0.0) {
-        let theta_steps = wp.counts.z;
-        let phi_steps = wp.counts.w;
-        let theta_max = PI / 2.0 - 1e-3;
-        let theta = min(acos(clamp(wo.z, 0.0, 1.0)), theta_max);
-        let ft = theta / theta_max * f32(theta_steps - 1u);
-        let i = min(u32(floor(ft)), theta_steps - 2u);
-        var phi = atan2(wo.y, wo.x);
-        if (phi < 0.0) {
-            phi = phi + 2.0 * PI;
-        }
-        let fp = phi / (2.0 * PI) * f32(phi_steps);
-        let j = min(u32(floor(fp)), phi_steps - 1u);
-        let fi = ft - f32(i);
-        let fj = fp - f32(j);
-        let j1 = (j + 1u) % phi_steps;
-        let table = m * wp.counts.y;
-        let r00 = table + (i * phi_steps + j) * cells;
-        let r01 = table + (i * phi_steps + j1) * cells;
-        let r10 = table + ((i + 1u) * phi_steps + j) * cells;
-        let r11 = table + ((i + 1u) * phi_steps + j1) * cells;
+        let rows = table_rows(wo, m);
         var glossy = vec3<f32>(0.0);
         for (var c = 0u; c < cells; c = c + 1u) {
-            let top = mix(specular_table[r00 + c], specular_table[r01 + c], fj);
-            let bottom = mix(specular_table[r10 + c], specular_table[r11 + c], fj);
-            let s = mix(top, bottom, fi);
-            glossy = glossy + rgb9e5(products[base + c]) * s;
+            glossy = glossy + rgb9e5(products[base + c]) * specular_at(rows, c);
         }
         out.specular = wp.specular[m].rgb * glossy;
     }
@@ -107,9 +143,35 @@ fn vs_main(v: VertexIn, @builtin(vertex_index) index: u32) -> VertexOut {
 
 @fragment
 fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
-    var diffuse = in.diffuse;
-    if (wp.texels.x == 1u && in.layer >= 0) {
-        diffuse = in.albedo * textureSample(texel_diffuse, texel_sampler, in.uv, in.layer).rgb;
+    if (wp.texels.x == 0u || in.layer < 0) {
+        return vec4<f32>(in.diffuse + in.specular, 1.0);
     }
-    return vec4<f32>(diffuse + in.specular, 1.0);
+    let diffuse = in.albedo * textureSample(texel_diffuse, texel_sampler, in.uv, in.layer).rgb;
+    let m = in.material;
+    var specular = vec3<f32>(0.0);
+    let wo = local_view(in.position, in.normal, in.tangent);
+    if (wp.specular[m].w > 0.0 && wo.z > 0.0) {
+        let size = wp.texels.y;
+        let cells = wp.counts.x;
+        let rows = table_rows(wo, m);
+        // The four texels around the pixel (texel centres at (x + 0.5) / size).
+        let f = clamp(in.uv * f32(size) - 0.5, vec2<f32>(0.0), vec2<f32>(f32(size - 1u)));
+        let x0 = u32(floor(f.x));
+        let y0 = u32(floor(f.y));
+        let x1 = min(x0 + 1u, size - 1u);
+        let y1 = min(y0 + 1u, size - 1u);
+        let w = f - floor(f);
+        let layer = u32(in.layer) * size * size;
+        let t00 = (layer + y0 * size + x0) * cells;
+        let t01 = (layer + y0 * size + x1) * cells;
+        let t10 = (layer + y1 * size + x0) * cells;
+        let t11 = (layer + y1 * size + x1) * cells;
+        for (var c = 0u; c < cells; c = c + 1u) {
+            let top = mix(rgb9e5(texel_products[t00 + c]), rgb9e5(texel_products[t01 + c]), w.x);
+            let bottom = mix(rgb9e5(texel_products[t10 + c]), rgb9e5(texel_products[t11 + c]), w.x);
+            specular = specular + mix(top, bottom, w.y) * specular_at(rows, c);
+        }
+        specular = wp.specular[m].rgb * specular;
+    }
+    return vec4<f32>(diffuse + specular, 1.0);
 }

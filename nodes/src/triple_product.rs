@@ -179,6 +179,11 @@ pub struct TexelIrradiance {
     pub size: usize,
     /// `layers × size²` texels, layer-major, rows at increasing `v`.
     pub texels: Vec<[f32; 3]>,
+    /// Cells per texel of `products`.
+    pub cells: usize,
+    /// Per texel (same order as `texels`): its `P_c = ΔΩ_c L_c V_c`, RGB interleaved, for the
+    /// per-pixel specular sum `Σ P_c S_c(ω_o)`.
+    pub products: Vec<f32>,
     /// Per mesh of the scene: its layer, or -1 without a visibility texture.
     pub mesh_layers: Vec<i32>,
 }
@@ -205,10 +210,12 @@ pub fn texel_irradiance(
         }
     }
     let size = texels.size;
+    let cells = grid.len();
     let mut out = vec![[0.0f32; 3]; layers * size * size];
+    let mut texel_products = vec![0.0f32; out.len() * cells * 3];
     let mut covered = vec![false; out.len()];
     for (i, &(mesh, x, y)) in texels.texels.iter().enumerate() {
-        let p = &products.values[i * grid.len() * 3..(i + 1) * grid.len() * 3];
+        let p = &products.values[i * cells * 3..(i + 1) * cells * 3];
         let mut e = [0.0f64; 3];
         for (c, d) in diffuse.iter().enumerate() {
             for k in 0..3 {
@@ -217,14 +224,16 @@ pub fn texel_irradiance(
         }
         let at = (mesh_layers[mesh as usize] as usize * size + y as usize) * size + x as usize;
         out[at] = e.map(|v| v as f32);
+        texel_products[at * cells * 3..(at + 1) * cells * 3].copy_from_slice(p);
         covered[at] = true;
     }
-    dilate(&mut out, &mut covered, size);
-    Ok(TexelIrradiance { size, texels: out, mesh_layers })
+    dilate(&mut out, &mut texel_products, cells * 3, &mut covered, size);
+    Ok(TexelIrradiance { size, texels: out, cells, products: texel_products, mesh_layers })
 }
 
-/// Fills uncovered texels from covered 8-neighbours, a few rings out.
-fn dilate(texels: &mut [[f32; 3]], covered: &mut [bool], size: usize) {
+/// Fills uncovered texels (and their product vectors of `stride` floats) from covered
+/// 8-neighbours, a few rings out.
+fn dilate(texels: &mut [[f32; 3]], products: &mut [f32], stride: usize, covered: &mut [bool], size: usize) {
     for _ in 0..4 {
         let snapshot: Vec<bool> = covered.to_vec();
         for i in 0..texels.len() {
@@ -233,6 +242,7 @@ fn dilate(texels: &mut [[f32; 3]], covered: &mut [bool], size: usize) {
             }
             let (layer, y, x) = (i / (size * size), (i / size) % size, i % size);
             let (mut sum, mut n) = ([0.0f32; 3], 0);
+            let mut first = None;
             for (dx, dy) in [(-1i64, 0i64), (1, 0), (0, -1), (0, 1), (-1, -1), (1, 1), (-1, 1), (1, -1)] {
                 let (nx, ny) = (x as i64 + dx, y as i64 + dy);
                 if nx < 0 || ny < 0 || nx >= size as i64 || ny >= size as i64 {
@@ -244,10 +254,12 @@ fn dilate(texels: &mut [[f32; 3]], covered: &mut [bool], size: usize) {
                         sum[k] += texels[j][k];
                     }
                     n += 1;
+                    first.get_or_insert(j);
                 }
             }
-            if n > 0 {
+            if let Some(j) = first {
                 texels[i] = sum.map(|s| s / n as f32);
+                products.copy_within(j * stride..(j + 1) * stride, i * stride);
                 covered[i] = true;
             }
         }

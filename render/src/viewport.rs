@@ -41,6 +41,7 @@ struct WaveletParams {
 struct WaveletBuffers {
     keys: (Key, Key, Option<Key>),
     has_texels: bool,
+    texel_size: u32,
     bind_group: wgpu::BindGroup,
     cells: u32,
 }
@@ -230,7 +231,8 @@ impl ViewportRenderer {
                 },
                 storage(1),
                 storage(2),
-                storage(3),
+                wgpu::BindGroupLayoutEntry { visibility: wgpu::ShaderStages::VERTEX_FRAGMENT, ..storage(3) },
+                wgpu::BindGroupLayoutEntry { visibility: wgpu::ShaderStages::FRAGMENT, ..storage(6) },
                 wgpu::BindGroupLayoutEntry {
                     binding: 4,
                     visibility: wgpu::ShaderStages::FRAGMENT,
@@ -844,6 +846,25 @@ impl ViewportRenderer {
                 Some(t) => upload_layers(ctx, t.size as u32, &t.texels),
                 None => upload_layers(ctx, 1, &[[0.0; 3]]),
             };
+            let texel_packed: Vec<u32> = match texels {
+                Some(t) if t.cells == p.cells => {
+                    t.products.chunks_exact(3).map(|c| crate::packing::rgb9e5([c[0], c[1], c[2]])).collect()
+                }
+                _ => vec![0],
+            };
+            if texel_packed.len() as u64 * 4 > limit {
+                return Err(RenderError::Invalid(format!(
+                    "the visibility textures' per-texel data needs {} MiB but this GPU binds at most {} MiB: \
+                     use a smaller visibility texture size or 80 coefficients",
+                    (texel_packed.len() * 4) >> 20,
+                    limit >> 20
+                )));
+            }
+            let texel_products = ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("wavelet-texel-products"),
+                contents: bytemuck::cast_slice(&texel_packed),
+                usage: wgpu::BufferUsages::STORAGE,
+            });
             let bind_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: Some("wavelet"),
                 layout: &self.wavelet_layout,
@@ -854,11 +875,13 @@ impl ViewportRenderer {
                     wgpu::BindGroupEntry { binding: 3, resource: specular.as_entire_binding() },
                     wgpu::BindGroupEntry { binding: 4, resource: wgpu::BindingResource::TextureView(&texel_view) },
                     wgpu::BindGroupEntry { binding: 5, resource: wgpu::BindingResource::Sampler(&self.sampler) },
+                    wgpu::BindGroupEntry { binding: 6, resource: texel_products.as_entire_binding() },
                 ],
             });
             self.wavelet = Some(WaveletBuffers {
                 keys: (products.key, table_keys, texel_key),
-                has_texels: texels.is_some(),
+                has_texels: texels.is_some_and(|t| t.cells == p.cells),
+                texel_size: texels.map_or(0, |t| t.size as u32),
                 bind_group,
                 cells: p.cells as u32,
             });
@@ -879,7 +902,7 @@ impl ViewportRenderer {
             ],
             albedo: material_array(frame, |m| m.albedo.map(|a| a as f32), 1.0),
             specular,
-            texels: [w.has_texels as u32, 0, 0, 0],
+            texels: [w.has_texels as u32, w.texel_size, 0, 0],
         };
         ctx.queue.write_buffer(&self.wavelet_params, 0, bytemuck::bytes_of(&params));
         Ok(true)

@@ -73,7 +73,7 @@ impl StageValue {
             StageValue::IncidentSh(r) => r.coeffs.len() * 4,
             StageValue::BrdfTable(t) => (t.diffuse.len() + t.specular.len()) * 4,
             StageValue::LocalProducts(p) => p.values.len() * 4,
-            StageValue::TexelIrradiance(t) => t.texels.len() * 12,
+            StageValue::TexelIrradiance(t) => t.texels.len() * 12 + t.products.len() * 4,
             StageValue::LobePreview(p) => p.curves.iter().map(|c| c.len() * 4).sum(),
             StageValue::LocalTransport(t) => t.visibility.iter().map(|v| v.len() * 16 + 24).sum(),
             StageValue::RayScene(s) => s.triangle_count() * 48 * 2,

@@ -52,8 +52,8 @@ pub fn spec() -> NodeKindSpec {
                       eq. 2.20). sh_prt: shadowed diffuse transfer plus glossy lobes on the shadowed incident \
                       radiance, per vertex (needs Scene transport `sh`). wavelet_vertex: all-frequency triple \
                       product in each vertex's local frame (Ma et al. eq. 7), 80 or 320 top-only coefficients \
-                      (needs Scene transport `sh_and_wavelets`). wavelet_pixel: the same, with the diffuse term per pixel \
-                      from the visibility textures of objects that have one (sharp shadows on coarse meshes).",
+                      (needs Scene transport `sh_and_wavelets`). wavelet_pixel: the same, per pixel on objects with a \
+                      visibility texture (sharp shadows and reflections on coarse meshes).",
             },
             ParamSpec {
                 name: "wavelet_terms",

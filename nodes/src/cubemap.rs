@@ -269,13 +269,10 @@ impl CubeMap {
         let (x0, y0) = (fx.floor() as usize, fy.floor() as usize);
         let (x1, y1) = ((x0 + 1).min(self.size - 1), (y0 + 1).min(self.size - 1));
         let (tx, ty) = (fx - x0 as f64, fy - y0 as f64);
-        let mut out = [0.0; 3];
-        for c in 0..3 {
-            let t = |x, y| self.texel(face, x, y)[c] as f64;
-            out[c] =
-                (t(x0, y0) * (1.0 - tx) + t(x1, y0) * tx) * (1.0 - ty) + (t(x0, y1) * (1.0 - tx) + t(x1, y1) * tx) * ty;
-        }
-        out
+        let (a, b, c, d) =
+            (self.texel(face, x0, y0), self.texel(face, x1, y0), self.texel(face, x0, y1), self.texel(face, x1, y1));
+        let (w00, w10, w01, w11) = ((1.0 - tx) * (1.0 - ty), tx * (1.0 - ty), (1.0 - tx) * ty, tx * ty);
+        [0, 1, 2].map(|k| a[k] as f64 * w00 + b[k] as f64 * w10 + c[k] as f64 * w01 + d[k] as f64 * w11)
     }
 
     /// Per-texel solid angles for one face (the same for all six).

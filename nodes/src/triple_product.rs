@@ -130,21 +130,30 @@ pub fn local_products(
         )));
     }
     let environment = &prefiltered(environment, grid);
-    let chunks: Vec<Result<Vec<f32>, StageError>> = (0..receivers.len().div_ceil(64))
+    // Receivers with the same frame (every texel of a flat floor, the faces of a box) share
+    // their lighting cells: each chunk computes each distinct frame once.
+    let cell_lighting = |frame: DMat3| -> Vec<DVec3> {
+        grid.samples
+            .iter()
+            .map(|samples| {
+                // ΔΩ_c × the cell's average radiance.
+                samples.iter().map(|(d, w)| DVec3::from(environment.sample(frame * *d)) * *w).sum::<DVec3>()
+            })
+            .collect()
+    };
+    let chunks: Vec<Result<Vec<f32>, StageError>> = (0..receivers.len().div_ceil(256))
         .into_par_iter()
         .map(|chunk| {
             cancel.check()?;
-            let mut out = Vec::with_capacity(64 * grid.len() * 3);
-            for i in chunk * 64..((chunk + 1) * 64).min(receivers.len()) {
+            let mut out = Vec::with_capacity(256 * grid.len() * 3);
+            let mut cache: rustc_hash::FxHashMap<[u64; 9], Vec<DVec3>> = Default::default();
+            for i in chunk * 256..((chunk + 1) * 256).min(receivers.len()) {
                 let frame = receivers.frame(i);
+                let lighting =
+                    cache.entry(frame.to_cols_array().map(f64::to_bits)).or_insert_with(|| cell_lighting(frame));
                 let v = visibility_cells(&transport.visibility[i], grid.level);
-                for (c, samples) in grid.samples.iter().enumerate() {
-                    let mut l = DVec3::ZERO;
-                    for (d, w) in samples {
-                        l += DVec3::from(environment.sample(frame * *d)) * *w;
-                    }
-                    // l is already ΔΩ_c × average radiance.
-                    let p = l * v[c].clamp(0.0, 1.0);
+                for (l, v) in lighting.iter().zip(&v) {
+                    let p = *l * v.clamp(0.0, 1.0);
                     out.extend([p.x as f32, p.y as f32, p.z as f32]);
                 }
             }

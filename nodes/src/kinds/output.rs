@@ -397,17 +397,25 @@ impl FrameInputs {
             .filter_map(|p| upstream(p).map(|n| format!("`{p}` (from `{n}`) is not drawn yet")))
             .collect();
         let mut mesh_materials = Vec::new();
+        let mut unmatched: std::collections::BTreeMap<&str, usize> = Default::default();
         if let StageValue::Meshes(set) = meshes.value.as_ref() {
             for mesh in &set.meshes {
                 let found = materials.iter().position(|m| !mesh.material.is_empty() && m.node == mesh.material);
                 if found.is_none() && !mesh.material.is_empty() {
-                    ignored_inputs.push(format!(
-                        "mesh `{}` asks for material `{}`, which is not linked to the Output; it uses `{}`",
-                        mesh.name, mesh.material, materials[0].node
-                    ));
+                    *unmatched.entry(mesh.material.as_str()).or_default() += 1;
                 }
                 mesh_materials.push(found.unwrap_or(0) as u32);
             }
+        }
+        // With one material linked everything uses it by design; with several, say which
+        // names matched nothing.
+        if materials.len() > 1 && !unmatched.is_empty() {
+            let names: Vec<String> = unmatched.iter().map(|(name, n)| format!("`{name}` ({n} mesh(es))")).collect();
+            ignored_inputs.push(format!(
+                "materials not linked to the Output: {}; those meshes use `{}`",
+                names.join(", "),
+                materials[0].node
+            ));
         }
         Ok(Self {
             meshes,

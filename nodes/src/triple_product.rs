@@ -130,9 +130,15 @@ pub fn local_products(
         )));
     }
     let environment = &prefiltered(environment, grid);
+    // Big meshes look their lighting up in a table of rotated cell averages (Ma et al. §3.3's
+    // pre-rotated lighting), built once; small ones compute each frame directly.
+    let table = (receivers.len() > FRAME_TABLE_THRESHOLD).then(|| FrameTable::build(grid, environment));
     // Receivers with the same frame (every texel of a flat floor, the faces of a box) share
     // their lighting cells: each chunk computes each distinct frame once.
     let cell_lighting = |frame: DMat3| -> Vec<DVec3> {
+        if let Some(table) = &table {
+            return table.lighting(frame);
+        }
         grid.samples
             .iter()
             .map(|samples| {
@@ -165,6 +171,96 @@ pub fn local_products(
         values.extend(c?);
     }
     Ok(LocalProducts { cells: grid.len(), values })
+}
+
+/// Receivers above which lighting comes from a [`FrameTable`] (whose build costs about as
+/// much as this many direct frames; it measured 0.8–1.1 points of relative RMSE worse than
+/// direct on the default project at 320 coefficients, no different on the glossy scene).
+pub const FRAME_TABLE_THRESHOLD: usize = 2 * FRAME_ALPHA * FRAME_BETA * FRAME_GAMMA;
+const FRAME_ALPHA: usize = 32;
+const FRAME_BETA: usize = 17;
+const FRAME_GAMMA: usize = 32;
+
+/// Lighting cell integrals `ΔΩ_c L_c` for frames `R = Rz(α) Ry(β) Rz(γ)` on a grid of
+/// 32 × 17 × 32 Euler angles (11.25° steps; `n = R ẑ`, `γ` turns the tangent about `n`), read
+/// back by trilinear interpolation: Ma et al.'s pre-rotated lighting (their 32×16 normals ×
+/// 32 tangent angles). Interpolating between rotated copies blurs a sharp light by up to half
+/// a step, about the size of a 320-cell cell.
+pub struct FrameTable {
+    cells: usize,
+    values: Vec<DVec3>,
+}
+
+impl FrameTable {
+    pub fn build(grid: &CellGrid, environment: &CubeMap) -> Self {
+        let frames = FRAME_ALPHA * FRAME_BETA * FRAME_GAMMA;
+        let values = (0..frames)
+            .into_par_iter()
+            .flat_map_iter(|f| {
+                let (a, b, g) = (f / (FRAME_BETA * FRAME_GAMMA), (f / FRAME_GAMMA) % FRAME_BETA, f % FRAME_GAMMA);
+                let frame = Self::frame(a as f64, b as f64, g as f64);
+                grid.samples
+                    .iter()
+                    .map(move |samples| {
+                        samples.iter().map(|(d, w)| DVec3::from(environment.sample(frame * *d)) * *w).sum::<DVec3>()
+                    })
+                    .collect::<Vec<_>>()
+            })
+            .collect();
+        Self { cells: grid.len(), values }
+    }
+
+    /// The rotation at (fractional) grid coordinates.
+    fn frame(a: f64, b: f64, g: f64) -> DMat3 {
+        let alpha = a / FRAME_ALPHA as f64 * 2.0 * PI;
+        let beta = b / (FRAME_BETA - 1) as f64 * PI;
+        let gamma = g / FRAME_GAMMA as f64 * 2.0 * PI;
+        DMat3::from_rotation_z(alpha) * DMat3::from_rotation_y(beta) * DMat3::from_rotation_z(gamma)
+    }
+
+    /// ZYZ Euler angles of a rotation (columns `t, b, n`), in grid units.
+    fn grid_coordinates(frame: DMat3) -> (f64, f64, f64) {
+        let (t, b, n) = (frame.x_axis, frame.y_axis, frame.z_axis);
+        let beta = n.z.clamp(-1.0, 1.0).acos();
+        let (alpha, gamma) = if beta.sin() > 1e-9 {
+            (n.y.atan2(n.x), b.z.atan2(-t.z))
+        } else if n.z > 0.0 {
+            (0.0, t.y.atan2(t.x))
+        } else {
+            (0.0, t.y.atan2(-t.x))
+        };
+        (
+            alpha.rem_euclid(2.0 * PI) / (2.0 * PI) * FRAME_ALPHA as f64,
+            beta / PI * (FRAME_BETA - 1) as f64,
+            gamma.rem_euclid(2.0 * PI) / (2.0 * PI) * FRAME_GAMMA as f64,
+        )
+    }
+
+    /// Trilinearly interpolated cell integrals for a frame.
+    pub fn lighting(&self, frame: DMat3) -> Vec<DVec3> {
+        let (a, b, g) = Self::grid_coordinates(frame);
+        let (a0, b0, g0) = (a.floor(), b.floor().min((FRAME_BETA - 2) as f64), g.floor());
+        let (fa, fb, fg) = (a - a0, b - b0, g - g0);
+        let mut out = vec![DVec3::ZERO; self.cells];
+        for (da, wa) in [(0, 1.0 - fa), (1, fa)] {
+            for (db, wb) in [(0, 1.0 - fb), (1, fb)] {
+                for (dg, wg) in [(0, 1.0 - fg), (1, fg)] {
+                    let w = wa * wb * wg;
+                    if w == 0.0 {
+                        continue;
+                    }
+                    let ia = (a0 as usize + da) % FRAME_ALPHA;
+                    let ib = b0 as usize + db;
+                    let ig = (g0 as usize + dg) % FRAME_GAMMA;
+                    let row = ((ia * FRAME_BETA + ib) * FRAME_GAMMA + ig) * self.cells;
+                    for (o, v) in out.iter_mut().zip(&self.values[row..row + self.cells]) {
+                        *o += *v * w;
+                    }
+                }
+            }
+        }
+        out
+    }
 }
 
 /// The environment box-filtered so its texels are about as large as the grid's sub-cells
@@ -415,6 +511,29 @@ mod tests {
     use super::*;
     use crate::kinds::brdf::Material;
     use crate::quadrature::SphereQuadrature;
+
+    #[test]
+    fn frame_table_angles_round_trip_and_interpolate_towards_direct_averages() {
+        let mut rng = crate::sampling::test_rng(9);
+        for _ in 0..200 {
+            let r = crate::sampling::random_rotation(&mut rng);
+            let (a, b, g) = FrameTable::grid_coordinates(r);
+            let back = FrameTable::frame(a, b, g);
+            assert!((back - r).to_cols_array().iter().all(|d| d.abs() < 1e-9), "{r} vs {back}");
+        }
+        // A smooth environment: table lookups match direct cell integrals closely.
+        let environment = CubeMap::from_fn(32, 2, |d| [1.0 + d.x + 0.5 * d.z * d.y, 0.5, 1.0]);
+        let grid = CellGrid::for_coefficients(80).unwrap();
+        let table = FrameTable::build(&grid, &environment);
+        for _ in 0..20 {
+            let frame = crate::sampling::random_rotation(&mut rng);
+            let looked_up = table.lighting(frame);
+            for (c, samples) in grid.samples.iter().enumerate() {
+                let direct: f64 = samples.iter().map(|(d, w)| environment.sample(frame * *d)[0] * w).sum();
+                assert!((looked_up[c].x - direct).abs() < 0.02 * grid.solid_angles[c], "cell {c}");
+            }
+        }
+    }
 
     #[test]
     fn cell_grid_covers_the_sphere() {

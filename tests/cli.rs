@@ -316,6 +316,7 @@ fn eval_reports_that_rotating_the_environment_recomputes_no_projection() {
     assert_eq!(
         recomputed,
         [
+            "sky.rotation",
             "sky.rotated_radiance",
             "sky.sh",
             "sky.haar",
@@ -376,7 +377,7 @@ fn rotating_environment_scene_and_camera_together_leaves_the_image_unchanged() {
         let blob = if (u - 0.3).abs() < 0.05 && (v - 0.3).abs() < 0.06 { 40.0 } else { 0.0 };
         [0.3 + blob + u, 0.4 + blob * 0.8, 0.6 + (1.0 - v)]
     });
-    let project = |yaw: f64, ball: [f64; 3], camera: [f64; 3]| {
+    let project = |mode: &str, yaw: f64, ball: [f64; 3], camera: [f64; 3]| {
         format!(
             r#"(
             version: 2,
@@ -392,11 +393,12 @@ fn rotating_environment_scene_and_camera_together_leaves_the_image_unchanged() {
                         (name: "ball", shape: Sphere(radius: 0.5), translation: ({}, {}, {}), color: (0.9, 0.6, 0.4)),
                     ]),
                     "tessellation": Int(40),
-                    "transport": Choice("sh"),
+                    "transport": Choice("sh_and_wavelets"),
+                    "local_frame_depth": Int(2),
                     "transport_rays": Int(1024),
                 }}),
                 (id: "m", kind: "BrdfEditor", params: {{"model": Choice("phong"), "exponent": Float(6.0), "f0": Float(0.3)}}),
-                (id: "out", kind: "Output", params: {{"mode": Choice("sh_prt"), "background": Bool(false)}}),
+                (id: "out", kind: "Output", params: {{"mode": Choice("{mode}"), "background": Bool(false)}}),
             ],
             links: [
                 (from: ("env", "environment"), to: ("out", "environment")),
@@ -418,20 +420,25 @@ fn rotating_environment_scene_and_camera_together_leaves_the_image_unchanged() {
         assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
         image::open(&exr).unwrap().into_rgb32f()
     };
-    let a = render("a", project(0.0, [0.8, 0.5, 0.3], [0.0, 2.0, 4.0]));
-    // Ry(90°): (x, y, z) -> (z, y, -x).
-    let b = render("b", project(90.0, [0.3, 0.5, -0.8], [4.0, 2.0, 0.0]));
-    let (mut sq, mut sum) = (0.0f64, 0.0f64);
-    for (p, q) in a.pixels().zip(b.pixels()) {
-        for c in 0..3 {
-            sq += ((p[c] - q[c]) as f64).powi(2);
-            sum += p[c] as f64;
+    for mode in ["sh_prt", "wavelet_vertex"] {
+        let a = render(&format!("{mode}-a"), project(mode, 0.0, [0.8, 0.5, 0.3], [0.0, 2.0, 4.0]));
+        // Ry(90°): (x, y, z) -> (z, y, -x).
+        let b = render(&format!("{mode}-b"), project(mode, 90.0, [0.3, 0.5, -0.8], [4.0, 2.0, 0.0]));
+        let (mut sq, mut sum) = (0.0f64, 0.0f64);
+        for (p, q) in a.pixels().zip(b.pixels()) {
+            for c in 0..3 {
+                sq += ((p[c] - q[c]) as f64).powi(2);
+                sum += p[c] as f64;
+            }
         }
+        let n = (a.width() * a.height() * 3) as f64;
+        let relative = (sq / n).sqrt() / (sum / n);
+        assert!(sum > 0.0);
+        assert!(
+            relative < 0.03,
+            "{mode}: rotating everything together changed the image by {relative:.4} relative RMSE"
+        );
     }
-    let n = (a.width() * a.height() * 3) as f64;
-    let relative = (sq / n).sqrt() / (sum / n);
-    assert!(sum > 0.0);
-    assert!(relative < 0.03, "rotating everything together changed the image by {relative:.4} relative RMSE");
 }
 
 #[test]

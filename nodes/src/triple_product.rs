@@ -95,6 +95,15 @@ pub fn visibility_cells(visibility: &SparseVector, level: usize) -> Vec<f64> {
     SphericalHaar::new(level).inverse(&dense)
 }
 
+/// The lighting the wavelet modes see: an unrotated environment, its rotation `R` (the
+/// lit world sees `L(R⁻¹ d)`), and optionally its pre-rotated [`FrameTable`] (built once per
+/// environment content, reused across rotations; for big meshes).
+pub struct Lighting<'a> {
+    pub environment: &'a CubeMap,
+    pub rotation: DMat3,
+    pub table: Option<&'a FrameTable>,
+}
+
 /// Per receiver `P_c = ΔΩ_c L^x_c V^x_c` (RGB interleaved, `(receiver·cells + c)·3 + channel`).
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct LocalProducts {
@@ -109,7 +118,7 @@ pub struct LocalProducts {
 /// hit or missed by point samples.
 pub fn local_products(
     grid: &CellGrid,
-    environment: &CubeMap,
+    lighting: &Lighting,
     receivers: &Receivers,
     transport: &SphericalTransport,
     cancel: &CancelToken,
@@ -129,14 +138,14 @@ pub fn local_products(
             grid.level
         )));
     }
-    let environment = &prefiltered(environment, grid);
-    // Big meshes look their lighting up in a table of rotated cell averages (Ma et al. §3.3's
-    // pre-rotated lighting), built once; small ones compute each frame directly.
-    let table = (receivers.len() > FRAME_TABLE_THRESHOLD).then(|| FrameTable::build(grid, environment));
+    let environment = &prefiltered(lighting.environment, grid);
+    // The rotated environment seen in frame M is the unrotated one in frame R⁻¹M.
+    let inverse_rotation = lighting.rotation.transpose();
     // Receivers with the same frame (every texel of a flat floor, the faces of a box) share
     // their lighting cells: each chunk computes each distinct frame once.
     let cell_lighting = |frame: DMat3| -> Vec<DVec3> {
-        if let Some(table) = &table {
+        let frame = inverse_rotation * frame;
+        if let Some(table) = lighting.table {
             return table.lighting(frame);
         }
         grid.samples
@@ -186,13 +195,20 @@ const FRAME_GAMMA: usize = 32;
 /// back by trilinear interpolation: Ma et al.'s pre-rotated lighting (their 32×16 normals ×
 /// 32 tangent angles). Interpolating between rotated copies blurs a sharp light by up to half
 /// a step, about the size of a 320-cell cell.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct FrameTable {
     cells: usize,
-    values: Vec<DVec3>,
+    values: Vec<[f32; 3]>,
 }
 
 impl FrameTable {
+    pub fn approx_bytes(&self) -> usize {
+        self.values.len() * 12
+    }
+
+    /// The table for an (unrotated) environment, prefiltered for the grid.
     pub fn build(grid: &CellGrid, environment: &CubeMap) -> Self {
+        let environment = &prefiltered(environment, grid);
         let frames = FRAME_ALPHA * FRAME_BETA * FRAME_GAMMA;
         let values = (0..frames)
             .into_par_iter()
@@ -202,7 +218,11 @@ impl FrameTable {
                 grid.samples
                     .iter()
                     .map(move |samples| {
-                        samples.iter().map(|(d, w)| DVec3::from(environment.sample(frame * *d)) * *w).sum::<DVec3>()
+                        let l = samples
+                            .iter()
+                            .map(|(d, w)| DVec3::from(environment.sample(frame * *d)) * *w)
+                            .sum::<DVec3>();
+                        l.as_vec3().to_array()
                     })
                     .collect::<Vec<_>>()
             })
@@ -254,7 +274,7 @@ impl FrameTable {
                     let ig = (g0 as usize + dg) % FRAME_GAMMA;
                     let row = ((ia * FRAME_BETA + ib) * FRAME_GAMMA + ig) * self.cells;
                     for (o, v) in out.iter_mut().zip(&self.values[row..row + self.cells]) {
-                        *o += *v * w;
+                        *o += DVec3::new(v[0] as f64, v[1] as f64, v[2] as f64) * w;
                     }
                 }
             }
@@ -298,13 +318,13 @@ pub struct TexelIrradiance {
 /// UV seams does not darken.
 pub fn texel_irradiance(
     grid: &CellGrid,
-    environment: &CubeMap,
+    lighting: &Lighting,
     texels: &crate::transport::TexelReceivers,
     transport: &SphericalTransport,
     mesh_count: usize,
     cancel: &CancelToken,
 ) -> Result<TexelIrradiance, StageError> {
-    let products = local_products(grid, environment, &texels.receivers, transport, cancel)?;
+    let products = local_products(grid, lighting, &texels.receivers, transport, cancel)?;
     let diffuse = grid.average(|d| d.z.max(0.0) / PI);
     let mut mesh_layers = vec![-1i32; mesh_count];
     let mut layers = 0usize;

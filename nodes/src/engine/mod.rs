@@ -48,6 +48,9 @@ pub enum StageValue {
     LocalProducts(crate::triple_product::LocalProducts),
     TexelIrradiance(crate::triple_product::TexelIrradiance),
     LobePreview(crate::brdf::LobePreview),
+    /// A rotation matrix, column-major.
+    Rotation([f64; 9]),
+    FrameTable(crate::triple_product::FrameTable),
     /// Test stages: a number.
     Number(f64),
     /// In memory only (never persisted): obvhs BVHs are rebuilt on load. Must stay the last
@@ -75,6 +78,8 @@ impl StageValue {
             StageValue::LocalProducts(p) => p.values.len() * 4,
             StageValue::TexelIrradiance(t) => t.texels.len() * 12 + t.products.len() * 4,
             StageValue::LobePreview(p) => p.curves.iter().map(|c| c.len() * 4).sum(),
+            StageValue::Rotation(_) => 72,
+            StageValue::FrameTable(t) => t.approx_bytes(),
             StageValue::LocalTransport(t) => t.visibility.iter().map(|v| v.len() * 16 + 24).sum(),
             StageValue::RayScene(s) => s.triangle_count() * 48 * 2,
             StageValue::TexelReceivers(t) => t.receivers.len() * 44,
@@ -107,6 +112,8 @@ impl StageValue {
             StageValue::LocalProducts(_) => "local-frame lighting × visibility",
             StageValue::TexelIrradiance(_) => "per-texel diffuse transfer",
             StageValue::LobePreview(_) => "BRDF lobe preview",
+            StageValue::Rotation(_) => "rotation",
+            StageValue::FrameTable(_) => "pre-rotated lighting table",
             StageValue::Number(_) => "number",
         }
     }

@@ -47,7 +47,12 @@ fn each_parameter_recomputes_exactly_its_stages() {
     // (node, parameter, new value, stages expected to run) — written from the design, not
     // derived from the stage declarations.
     let table: Vec<(&str, &str, ParamValue, Vec<&str>)> = vec![
-        ("sky", "rotation", Vec3([30.0, 0.0, 0.0]), with_lighting(&["sky.rotated_radiance", "sky.sh", "sky.haar"])),
+        (
+            "sky",
+            "rotation",
+            Vec3([30.0, 0.0, 0.0]),
+            with_lighting(&["sky.rotation", "sky.rotated_radiance", "sky.sh", "sky.haar"]),
+        ),
         ("sky", "exposure", Float(1.0), with_lighting(SKY_AFTER_SOURCE)),
         ("sky", "tint", Color([1.0, 0.9, 0.8]), with_lighting(SKY_AFTER_SOURCE)),
         ("sky", "resolution", Choice("32".into()), with_lighting(SKY_AFTER_SOURCE)),
@@ -147,7 +152,7 @@ fn each_parameter_recomputes_exactly_its_stages() {
     let mut graph = default_graph();
     let first = engine.evaluate(&graph, &CancelToken::default(), None);
     assert!(first.report.failed().is_empty(), "{:?}", first.report.failed());
-    assert_eq!(first.report.computed().len(), 22);
+    assert_eq!(first.report.computed().len(), 23);
     let again = engine.evaluate(&graph, &CancelToken::default(), None);
     assert!(ran(&again.report).is_empty(), "an unchanged graph recomputed {:?}", ran(&again.report));
     for (node, param, value, expected) in table {

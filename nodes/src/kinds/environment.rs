@@ -144,6 +144,15 @@ pub fn spec() -> NodeKindSpec {
                 compute: sh_unrotated,
             },
             StageSpec {
+                name: "rotation",
+                version: 1,
+                params: &["rotation"],
+                stages: &[],
+                inputs: &[],
+                persist: false,
+                compute: rotation,
+            },
+            StageSpec {
                 name: "rotated_radiance",
                 version: 1,
                 params: &["rotation"],
@@ -247,6 +256,13 @@ fn radiance(ctx: &StageContext) -> Result<StageValue, StageError> {
 fn sh_unrotated(ctx: &StageContext) -> Result<StageValue, StageError> {
     let StageValue::CubeMap(cube) = ctx.stage("radiance")? else { return Err(wrong("radiance")) };
     Ok(StageValue::Sh(sh::project_samples(ctx.int("sh_bands")? as usize, cube.samples())))
+}
+
+/// The rotation `R` (column-major): the rotated environment is `L'(d) = L(R⁻¹ d)`. Consumers
+/// that can rotate their query instead of the map (the wavelet modes' frame table) read it with
+/// the unrotated `radiance`, so a rotation rebuilds nothing.
+fn rotation(ctx: &StageContext) -> Result<StageValue, StageError> {
+    Ok(StageValue::Rotation(rotation_matrix(ctx.vec3("rotation")?).to_cols_array()))
 }
 
 fn rotated_radiance(ctx: &StageContext) -> Result<StageValue, StageError> {

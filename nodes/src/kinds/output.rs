@@ -123,7 +123,12 @@ pub fn spec() -> NodeKindSpec {
                 version: 1,
                 params: &["mode", "wavelet_terms"],
                 stages: &[],
-                inputs: &[("scene", "receivers"), ("scene", "transport_local"), ("environment", "rotated_radiance")],
+                inputs: &[
+                    ("scene", "receivers"),
+                    ("scene", "transport_local"),
+                    ("environment", "radiance"),
+                    ("environment", "rotation"),
+                ],
                 persist: false,
                 compute: local_products,
             },
@@ -136,7 +141,8 @@ pub fn spec() -> NodeKindSpec {
                     ("scene", "geometry"),
                     ("scene", "texel_receivers"),
                     ("scene", "transport_texels"),
-                    ("environment", "rotated_radiance"),
+                    ("environment", "radiance"),
+                    ("environment", "rotation"),
                 ],
                 persist: false,
                 compute: texel_irradiance,
@@ -196,17 +202,58 @@ fn local_products(ctx: &StageContext) -> Result<StageValue, StageError> {
                 .into(),
         ));
     }
-    let Some(StageValue::CubeMap(environment)) = ctx.input("environment", "rotated_radiance") else {
+    let grid = crate::triple_product::CellGrid::for_coefficients(terms).map_err(StageError::Failed)?;
+    let Some((environment, rotation)) = wavelet_lighting(ctx)? else {
         return Ok(StageValue::LocalProducts(Default::default()));
     };
-    let grid = crate::triple_product::CellGrid::for_coefficients(terms).map_err(StageError::Failed)?;
+    // Big meshes: the pre-rotated table, memoised on the environment's content, so rotating
+    // the environment only re-reads it with rotated frames.
+    let table = if receivers.len() > crate::triple_product::FRAME_TABLE_THRESHOLD {
+        let key = environment_key(environment, terms);
+        let value =
+            ctx.memo(key, || Ok(StageValue::FrameTable(crate::triple_product::FrameTable::build(&grid, environment))))?;
+        Some(value)
+    } else {
+        None
+    };
+    let table = match table.as_deref() {
+        Some(StageValue::FrameTable(t)) => Some(t),
+        Some(_) => return Err(StageError::Internal("memoised frame table".into())),
+        None => None,
+    };
+    let lighting = crate::triple_product::Lighting { environment, rotation, table };
     Ok(StageValue::LocalProducts(crate::triple_product::local_products(
         &grid,
-        environment,
+        &lighting,
         receivers,
         transport,
         ctx.cancel_token(),
     )?))
+}
+
+/// The unrotated environment and its rotation, or `None` without an environment.
+fn wavelet_lighting<'a>(
+    ctx: &'a StageContext,
+) -> Result<Option<(&'a crate::cubemap::CubeMap, glam::DMat3)>, StageError> {
+    match (ctx.input("environment", "radiance"), ctx.input("environment", "rotation")) {
+        (Some(StageValue::CubeMap(cube)), Some(StageValue::Rotation(r))) => {
+            Ok(Some((cube, glam::DMat3::from_cols_array(r))))
+        }
+        (None, _) => Ok(None),
+        _ => Err(StageError::Internal("environment inputs".into())),
+    }
+}
+
+/// A content key for memoising per-environment tables.
+fn environment_key(cube: &crate::cubemap::CubeMap, cells: usize) -> crate::engine::Key {
+    let mut bytes = Vec::with_capacity(cube.texels.len() * 12 + 32);
+    bytes.extend_from_slice(format!("frame-table v1 {} {cells}", cube.size).as_bytes());
+    for t in &cube.texels {
+        for c in t {
+            bytes.extend_from_slice(&c.to_le_bytes());
+        }
+    }
+    xxhash_rust::xxh3::xxh3_128(&bytes)
 }
 
 /// Per-texel diffuse transfer for the `wavelet_pixel` mode (empty otherwise).
@@ -224,13 +271,14 @@ fn texel_irradiance(ctx: &StageContext) -> Result<StageValue, StageError> {
     else {
         return Err(StageError::Internal("scene inputs".into()));
     };
-    let Some(StageValue::CubeMap(environment)) = ctx.input("environment", "rotated_radiance") else {
+    let Some((environment, rotation)) = wavelet_lighting(ctx)? else {
         return Ok(StageValue::TexelIrradiance(Default::default()));
     };
     let grid = crate::triple_product::CellGrid::for_coefficients(terms).map_err(StageError::Failed)?;
+    let lighting = crate::triple_product::Lighting { environment, rotation, table: None };
     Ok(StageValue::TexelIrradiance(crate::triple_product::texel_irradiance(
         &grid,
-        environment,
+        &lighting,
         texels,
         t,
         meshes.meshes.len(),

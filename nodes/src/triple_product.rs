@@ -85,14 +85,19 @@ impl CellGrid {
 /// Level-`level` cell values of a visibility vector truncated top-only (coefficients below
 /// `20·4^level`), i.e. the box filter of `V` onto those cells.
 pub fn visibility_cells(visibility: &SparseVector, level: usize) -> Vec<f64> {
-    let count = 20 << (2 * level);
+    visibility_cells_in(&SphericalHaar::new(level), visibility)
+}
+
+/// [`visibility_cells`] on a basis built once by the caller.
+fn visibility_cells_in(basis: &SphericalHaar, visibility: &SparseVector) -> Vec<f64> {
+    let count = basis.len();
     let mut dense = vec![0.0; count];
     for &(k, v) in &visibility.entries {
         if (k as usize) < count {
             dense[k as usize] = v;
         }
     }
-    SphericalHaar::new(level).inverse(&dense)
+    basis.inverse(&dense)
 }
 
 /// The lighting the wavelet modes see: an unrotated environment, its rotation `R` (the
@@ -139,6 +144,7 @@ pub fn local_products(
         )));
     }
     let environment = &prefiltered(lighting.environment, grid);
+    let basis = SphericalHaar::new(grid.level);
     // The rotated environment seen in frame M is the unrotated one in frame R⁻¹M.
     let inverse_rotation = lighting.rotation.transpose();
     // Receivers with the same frame (every texel of a flat floor, the faces of a box) share
@@ -166,7 +172,7 @@ pub fn local_products(
                 let frame = receivers.frame(i);
                 let lighting =
                     cache.entry(frame.to_cols_array().map(f64::to_bits)).or_insert_with(|| cell_lighting(frame));
-                let v = visibility_cells(&transport.visibility[i], grid.level);
+                let v = visibility_cells_in(&basis, &transport.visibility[i]);
                 for (l, v) in lighting.iter().zip(&v) {
                     let p = *l * v.clamp(0.0, 1.0);
                     out.extend([p.x as f32, p.y as f32, p.z as f32]);

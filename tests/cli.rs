@@ -452,7 +452,7 @@ fn eval_reports_that_a_brdf_edit_recomputes_only_the_material() {
     let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     let recomputed: Vec<&str> = report["recomputed"].as_array().unwrap().iter().map(|v| v.as_str().unwrap()).collect();
     // The material and its local-frame table; no lighting, transport or product stage.
-    assert_eq!(recomputed, ["gloss.material", "gloss.preview", "gloss.local_table"]);
+    assert_eq!(recomputed, ["gloss.material", "gloss.preview", "gloss.sh_lobe", "gloss.local_table"]);
 }
 
 #[test]

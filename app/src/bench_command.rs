@@ -139,6 +139,7 @@ fn synthetic_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
         materials: vec![lightloom_nodes::kinds::output::FrameMaterial {
             node: "bench".into(),
             material: material.clone(),
+            sh_lobe: lightloom_nodes::prt::glossy_lobe(&material, lightloom_nodes::prt::LOBE_BANDS),
             table: None,
         }],
         mesh_materials: vec![0],

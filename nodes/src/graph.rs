@@ -225,7 +225,7 @@ impl PortType {
     pub fn provided_stages(self) -> &'static [&'static str] {
         match self {
             PortType::Environment => &["radiance", "rotation", "rotated_radiance", "sh", "haar"],
-            PortType::Material => &["material", "local_table"],
+            PortType::Material => &["material", "sh_lobe", "local_table"],
             PortType::Scene => {
                 &["geometry", "receivers", "texel_receivers", "transport_sh", "transport_local", "transport_texels"]
             }

@@ -111,18 +111,22 @@ pub fn glossy_exit(incident: &[f32], factors: &[f64], normal: DVec3, mirror: DVe
 /// The glossy part of a material as the SH mode shades it: per-band convolution factors of
 /// its equivalent Phong lobe ([`crate::brdf::Brdf::equivalent_phong_exponent`]) and the lobe's
 /// RGB weight (`specular colour × f0`). `None` for Lambert.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct GlossyLobe {
     pub exponent: f64,
+    /// Per band `l`: `sqrt(4π/(2l+1)) z_l` (empty for Lambert: no glossy lobe).
     pub factors: Vec<f64>,
-    pub weight: DVec3,
+    pub weight: [f64; 3],
 }
+
+/// Bands of the BRDF editor's SH lobe stage (renderers use a prefix).
+pub const LOBE_BANDS: usize = 16;
 
 pub fn glossy_lobe(material: &crate::kinds::brdf::Material, bands: usize) -> Option<GlossyLobe> {
     let brdf = crate::brdf::Brdf::from_material(material);
     let exponent = brdf.equivalent_phong_exponent()?;
     let factors = lobe_factors(&crate::brdf::Brdf::phong_zonal(exponent, bands));
-    Some(GlossyLobe { exponent, factors, weight: brdf.specular * brdf.f0 })
+    Some(GlossyLobe { exponent, factors, weight: (brdf.specular * brdf.f0).to_array() })
 }
 
 #[cfg(test)]

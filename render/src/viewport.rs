@@ -739,8 +739,8 @@ impl ViewportRenderer {
             light: [[0.0; 4]; MAX_PRT_BANDS * MAX_PRT_BANDS],
         };
         for (i, m) in frame.materials.iter().enumerate().take(MAX_MATERIALS) {
-            if let Some(lobe) = lightloom_nodes::prt::glossy_lobe(&m.material, bands) {
-                params.specular[i] = [lobe.weight.x as f32, lobe.weight.y as f32, lobe.weight.z as f32, 1.0];
+            if let Some(lobe) = m.sh_lobe.as_ref().filter(|l| !l.factors.is_empty()) {
+                params.specular[i] = [lobe.weight[0] as f32, lobe.weight[1] as f32, lobe.weight[2] as f32, 1.0];
                 for (l, f) in lobe.factors.iter().enumerate().take(MAX_PRT_BANDS) {
                     params.lobe[2 * i + l / 4][l % 4] = *f as f32;
                 }

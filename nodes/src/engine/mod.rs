@@ -48,6 +48,7 @@ pub enum StageValue {
     LocalProducts(crate::triple_product::LocalProducts),
     TexelIrradiance(crate::triple_product::TexelIrradiance),
     LobePreview(crate::brdf::LobePreview),
+    ShLobe(crate::prt::GlossyLobe),
     /// A rotation matrix, column-major.
     Rotation([f64; 9]),
     FrameTable(crate::triple_product::FrameTable),
@@ -79,6 +80,7 @@ impl StageValue {
             StageValue::TexelIrradiance(t) => t.texels.len() * 12 + t.products.len() * 4,
             StageValue::LobePreview(p) => p.curves.iter().map(|c| c.len() * 4).sum(),
             StageValue::Rotation(_) => 72,
+            StageValue::ShLobe(l) => l.factors.len() * 8 + 32,
             StageValue::FrameTable(t) => t.approx_bytes(),
             StageValue::LocalTransport(t) => t.visibility.iter().map(|v| v.len() * 16 + 24).sum(),
             StageValue::RayScene(s) => s.triangle_count() * 48 * 2,
@@ -113,6 +115,7 @@ impl StageValue {
             StageValue::TexelIrradiance(_) => "per-texel diffuse transfer",
             StageValue::LobePreview(_) => "BRDF lobe preview",
             StageValue::Rotation(_) => "rotation",
+            StageValue::ShLobe(_) => "SH lobe",
             StageValue::FrameTable(_) => "pre-rotated lighting table",
             StageValue::Number(_) => "number",
         }

@@ -115,24 +115,44 @@ fn each_parameter_recomputes_exactly_its_stages() {
             "material",
             "model",
             Choice("ggx".into()),
-            vec!["material.material", "material.preview", "material.local_table"],
+            vec!["material.material", "material.preview", "material.sh_lobe", "material.local_table"],
         ),
         (
             "material",
             "albedo",
             Color([0.5, 0.5, 0.5]),
-            vec!["material.material", "material.preview", "material.local_table"],
+            vec!["material.material", "material.preview", "material.sh_lobe", "material.local_table"],
         ),
         (
             "material",
             "specular",
             Color([0.2, 0.2, 0.2]),
-            vec!["material.material", "material.preview", "material.local_table"],
+            vec!["material.material", "material.preview", "material.sh_lobe", "material.local_table"],
         ),
-        ("material", "roughness", Float(0.2), vec!["material.material", "material.preview", "material.local_table"]),
-        ("material", "exponent", Float(10.0), vec!["material.material", "material.preview", "material.local_table"]),
-        ("material", "anisotropy", Float(0.5), vec!["material.material", "material.preview", "material.local_table"]),
-        ("material", "f0", Float(0.5), vec!["material.material", "material.preview", "material.local_table"]),
+        (
+            "material",
+            "roughness",
+            Float(0.2),
+            vec!["material.material", "material.preview", "material.sh_lobe", "material.local_table"],
+        ),
+        (
+            "material",
+            "exponent",
+            Float(10.0),
+            vec!["material.material", "material.preview", "material.sh_lobe", "material.local_table"],
+        ),
+        (
+            "material",
+            "anisotropy",
+            Float(0.5),
+            vec!["material.material", "material.preview", "material.sh_lobe", "material.local_table"],
+        ),
+        (
+            "material",
+            "f0",
+            Float(0.5),
+            vec!["material.material", "material.preview", "material.sh_lobe", "material.local_table"],
+        ),
         ("output", "mode", Choice("sh_irradiance".into()), vec![]),
         ("output", "exposure", Float(-1.0), vec!["output.settings"]),
         ("output", "tonemap", Choice("reinhard".into()), vec!["output.settings"]),
@@ -146,13 +166,18 @@ fn each_parameter_recomputes_exactly_its_stages() {
             vec!["output.settings", "output.incident_sh", "output.local_products", "output.texel_irradiance"],
         ),
         ("output", "wavelet_terms", Choice("80".into()), vec!["output.local_products", "output.texel_irradiance"]),
-        ("material", "roughness", Float(0.7), vec!["material.material", "material.preview", "material.local_table"]),
+        (
+            "material",
+            "roughness",
+            Float(0.7),
+            vec!["material.material", "material.preview", "material.sh_lobe", "material.local_table"],
+        ),
     ];
     let engine = Engine::in_memory();
     let mut graph = default_graph();
     let first = engine.evaluate(&graph, &CancelToken::default(), None);
     assert!(first.report.failed().is_empty(), "{:?}", first.report.failed());
-    assert_eq!(first.report.computed().len(), 23);
+    assert_eq!(first.report.computed().len(), 24);
     let again = engine.evaluate(&graph, &CancelToken::default(), None);
     assert!(ran(&again.report).is_empty(), "an unchanged graph recomputed {:?}", ran(&again.report));
     for (node, param, value, expected) in table {

@@ -1,6 +1,6 @@
-//! BRDF editor node: the material's parameters (read by the SH modes, which derive the
-//! zonal lobe on the fly) and the material tabulated in the local frame for the triple
-//! product mode (Ma et al. §3.2; `triple_product::tabulate_brdf`).
+//! BRDF editor node: the material's parameters, its lobe preview, its SH projection (the zonal
+//! lobe the `sh_prt` mode convolves with) and the material tabulated in the local frame for the
+//! triple product modes (Ma et al. §3.2; `triple_product::tabulate_brdf`).
 
 use crate::engine::{StageContext, StageError, StageValue};
 use crate::graph::{Availability, NodeKindSpec, ParamKind, ParamSpec, PortSpec, PortType, StageSpec};
@@ -103,6 +103,15 @@ pub fn spec() -> NodeKindSpec {
                 compute: preview,
             },
             StageSpec {
+                name: "sh_lobe",
+                version: 1,
+                params: &[],
+                stages: &["material"],
+                inputs: &[],
+                persist: false,
+                compute: sh_lobe,
+            },
+            StageSpec {
                 name: "local_table",
                 version: 1,
                 params: &[],
@@ -122,6 +131,15 @@ fn preview(ctx: &StageContext) -> Result<StageValue, StageError> {
         return Err(StageError::Internal("material stage".into()));
     };
     Ok(StageValue::LobePreview(crate::brdf::LobePreview::of(&crate::brdf::Brdf::from_material(m))))
+}
+
+/// The material's SH projection for the `sh_prt` mode: the zonal factors of its (equivalent)
+/// Phong lobe about the mirror direction, 16 bands (empty for Lambert).
+fn sh_lobe(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let StageValue::Material(m) = ctx.stage("material")? else {
+        return Err(StageError::Internal("material stage".into()));
+    };
+    Ok(StageValue::ShLobe(crate::prt::glossy_lobe(m, crate::prt::LOBE_BANDS).unwrap_or_default()))
 }
 
 /// The material tabulated in the local frame on 320 icosahedral cells (Ma et al. §3.2; the

@@ -328,6 +328,8 @@ pub struct FrameMaterial {
     /// The BRDF editor node (empty for the default material).
     pub node: String,
     pub material: crate::kinds::brdf::Material,
+    /// Its SH lobe (`sh_prt` only; no factors for Lambert).
+    pub sh_lobe: Option<crate::prt::GlossyLobe>,
     /// Its local-frame table (wavelet modes only).
     pub table: Option<Keyed>,
 }
@@ -429,13 +431,26 @@ impl FrameInputs {
                 _ => return Err("material stage produced an unexpected value".into()),
             };
             let table = if wavelets { Some(keyed(&node.id, "local_table")?) } else { None };
-            materials.push(FrameMaterial { node: node.id.clone(), material, table });
+            let sh_lobe = if settings.mode == "sh_prt" {
+                match keyed(&node.id, "sh_lobe")?.value.as_ref() {
+                    StageValue::ShLobe(l) => Some(l.clone()),
+                    _ => return Err("sh_lobe stage produced an unexpected value".into()),
+                }
+            } else {
+                None
+            };
+            materials.push(FrameMaterial { node: node.id.clone(), material, sh_lobe, table });
         }
         if materials.is_empty() {
             if wavelets {
                 return Err("the wavelet modes need a material: link a BRDF editor to the Output".into());
             }
-            materials.push(FrameMaterial { node: String::new(), material: Default::default(), table: None });
+            materials.push(FrameMaterial {
+                node: String::new(),
+                material: Default::default(),
+                sh_lobe: None,
+                table: None,
+            });
         }
         let local_products = if wavelets { Some(keyed(output, "local_products")?) } else { None };
         let texel_irradiance =

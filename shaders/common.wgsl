@@ -13,3 +13,59 @@ struct Globals {
 };
 
 @group(0) @binding(0) var<uniform> globals: Globals;
+
+// The viewport's vertex layout (render/src/viewport.rs `Vertex`); mesh passes take what they need.
+struct MeshVertex {
+    @location(0) position: vec3<f32>,
+    @location(1) normal: vec3<f32>,
+    @location(2) color: vec3<f32>,
+    @location(3) tangent: vec3<f32>,
+    @location(4) uv: vec2<f32>,
+    @location(5) layer: f32,
+    @location(6) material: u32,
+};
+
+const PI: f32 = 3.14159265358979;
+const MAX_COEFFS: i32 = 64;
+
+// Real orthonormal SH without the Condon-Shortley phase, by the normalised associated-Legendre
+// recurrence of nodes/src/sh/mod.rs (ShBasis::eval).
+fn sh_basis(n: vec3<f32>, bands: i32) -> array<f32, MAX_COEFFS> {
+    var y: array<f32, MAX_COEFFS>;
+    var c = 1.0;
+    var s = 0.0;
+    var p_mm = sqrt(1.0 / (4.0 * PI));
+    for (var m = 0; m < bands; m = m + 1) {
+        let mf = f32(m);
+        if (m > 0) {
+            p_mm = p_mm * sqrt((2.0 * mf + 1.0) / (2.0 * mf));
+            let nc = c * n.x - s * n.y;
+            let ns = c * n.y + s * n.x;
+            c = nc;
+            s = ns;
+        }
+        var p_prev = 0.0;
+        var p = p_mm;
+        for (var l = m; l < bands; l = l + 1) {
+            if (l == m + 1) {
+                p_prev = p;
+                p = sqrt(2.0 * mf + 3.0) * n.z * p_mm;
+            } else if (l > m + 1) {
+                let lf = f32(l);
+                let a = sqrt((4.0 * lf * lf - 1.0) / (lf * lf - mf * mf));
+                let b = sqrt(((lf - 1.0) * (lf - 1.0) - mf * mf) / (4.0 * (lf - 1.0) * (lf - 1.0) - 1.0));
+                let next = a * (n.z * p - b * p_prev);
+                p_prev = p;
+                p = next;
+            }
+            let base = l * (l + 1);
+            if (m == 0) {
+                y[base] = p;
+            } else {
+                y[base + m] = p * sqrt(2.0) * c;
+                y[base - m] = p * sqrt(2.0) * s;
+            }
+        }
+    }
+    return y;
+}

@@ -2,13 +2,6 @@
 // (Sun 2008 eq. 2.20: E(n) = sum_lm A_l L_lm Y_lm(n); radiance out = albedo * E / pi).
 // The coefficients E_lm arrive precomputed; this shader only evaluates the basis.
 
-struct VertexIn {
-    @location(0) position: vec3<f32>,
-    @location(1) normal: vec3<f32>,
-    @location(2) color: vec3<f32>,
-    @location(6) material: u32,
-};
-
 struct VertexOut {
     @builtin(position) clip: vec4<f32>,
     @location(0) normal: vec3<f32>,
@@ -17,7 +10,7 @@ struct VertexOut {
 };
 
 @vertex
-fn vs_main(v: VertexIn) -> VertexOut {
+fn vs_main(v: MeshVertex) -> VertexOut {
     var out: VertexOut;
     out.clip = globals.view_proj * vec4<f32>(v.position, 1.0);
     out.normal = v.normal;
@@ -26,52 +19,12 @@ fn vs_main(v: VertexIn) -> VertexOut {
     return out;
 }
 
-const PI: f32 = 3.14159265358979;
-
-// Real orthonormal SH without the Condon-Shortley phase, by the same normalised
-// associated-Legendre recurrence as nodes/src/sh/mod.rs (ShBasis::eval).
+// E(n) = sum_k E_k Y_k(n) with the shared basis (common.wgsl).
 fn sh_irradiance(n: vec3<f32>, bands: i32) -> vec3<f32> {
+    let y = sh_basis(n, bands);
     var result = vec3<f32>(0.0);
-    var c = 1.0;
-    var s = 0.0;
-    var p_mm = sqrt(1.0 / (4.0 * PI));
-    for (var m = 0; m < bands; m = m + 1) {
-        let mf = f32(m);
-        if (m > 0) {
-            p_mm = p_mm * sqrt((2.0 * mf + 1.0) / (2.0 * mf));
-            let nc = c * n.x - s * n.y;
-            let ns = c * n.y + s * n.x;
-            c = nc;
-            s = ns;
-        }
-        var scale_c = 1.0;
-        var scale_s = 0.0;
-        if (m > 0) {
-            scale_c = sqrt(2.0) * c;
-            scale_s = sqrt(2.0) * s;
-        }
-        var p_prev = 0.0;
-        var p = p_mm;
-        for (var l = m; l < bands; l = l + 1) {
-            if (l == m + 1) {
-                p_prev = p;
-                p = sqrt(2.0 * mf + 3.0) * n.z * p_mm;
-            } else if (l > m + 1) {
-                let lf = f32(l);
-                let a = sqrt((4.0 * lf * lf - 1.0) / (lf * lf - mf * mf));
-                let b = sqrt(((lf - 1.0) * (lf - 1.0) - mf * mf) / (4.0 * (lf - 1.0) * (lf - 1.0) - 1.0));
-                let next = a * (n.z * p - b * p_prev);
-                p_prev = p;
-                p = next;
-            }
-            let base = l * (l + 1);
-            if (m == 0) {
-                result = result + globals.irradiance[base].rgb * p;
-            } else {
-                result = result + globals.irradiance[base + m].rgb * (p * scale_c);
-                result = result + globals.irradiance[base - m].rgb * (p * scale_s);
-            }
-        }
+    for (var k = 0; k < bands * bands; k = k + 1) {
+        result = result + globals.irradiance[k].rgb * y[k];
     }
     return result;
 }

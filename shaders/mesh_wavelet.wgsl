@@ -8,7 +8,6 @@
 // pixel from their texels instead: the diffuse sum from the per-texel transfer E (a filtered
 // texture), the specular sum from the four nearest texels' P (bilinear weights).
 
-const PI: f32 = 3.14159265358979;
 
 struct WaveletParams {
     // x: cells, y: floats per material's specular table, z: theta steps, w: phi steps
@@ -86,16 +85,6 @@ fn local_view(position: vec3<f32>, normal: vec3<f32>, tangent: vec3<f32>) -> vec
     return vec3<f32>(dot(view, t), dot(view, b), dot(view, n));
 }
 
-struct VertexIn {
-    @location(0) position: vec3<f32>,
-    @location(1) normal: vec3<f32>,
-    @location(2) color: vec3<f32>,
-    @location(3) tangent: vec3<f32>,
-    @location(4) uv: vec2<f32>,
-    @location(5) layer: f32,
-    @location(6) material: u32,
-};
-
 struct VertexOut {
     @builtin(position) clip: vec4<f32>,
     @location(0) diffuse: vec3<f32>,
@@ -110,7 +99,7 @@ struct VertexOut {
 };
 
 @vertex
-fn vs_main(v: VertexIn, @builtin(vertex_index) index: u32) -> VertexOut {
+fn vs_main(v: MeshVertex, @builtin(vertex_index) index: u32) -> VertexOut {
     var out: VertexOut;
     out.clip = globals.view_proj * vec4<f32>(v.position, 1.0);
     let m = v.material;

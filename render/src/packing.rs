@@ -22,6 +22,11 @@ pub fn rgb9e5(rgb: [f32; 3]) -> u32 {
     m[0] | (m[1] << 9) | (m[2] << 18) | ((exponent.clamp(0, 31) as u32) << 27)
 }
 
+/// [`rgb9e5`] of every RGB triple of an interleaved slice.
+pub fn rgb9e5_all(interleaved: &[f32]) -> Vec<u32> {
+    interleaved.chunks_exact(3).map(|c| rgb9e5([c[0], c[1], c[2]])).collect()
+}
+
 /// Inverse of [`rgb9e5`] (the shader's decode, for tests).
 pub fn rgb9e5_decode(v: u32) -> [f32; 3] {
     let scale = 2f32.powi((v >> 27) as i32 - 15 - 9);

@@ -158,122 +158,76 @@ impl ViewportRenderer {
         let device = &ctx.device;
         let sample_count =
             if ctx.adapter.get_texture_format_features(HDR_FORMAT).flags.sample_count_supported(4) { 4 } else { 1 };
+        use wgpu::ShaderStages as Stages;
+        let entry = |binding, visibility, ty| wgpu::BindGroupLayoutEntry { binding, visibility, ty, count: None };
+        let uniform = |binding, visibility| {
+            entry(
+                binding,
+                visibility,
+                wgpu::BindingType::Buffer {
+                    ty: wgpu::BufferBindingType::Uniform,
+                    has_dynamic_offset: false,
+                    min_binding_size: None,
+                },
+            )
+        };
+        let storage = |binding, visibility| {
+            entry(
+                binding,
+                visibility,
+                wgpu::BindingType::Buffer {
+                    ty: wgpu::BufferBindingType::Storage { read_only: true },
+                    has_dynamic_offset: false,
+                    min_binding_size: None,
+                },
+            )
+        };
+        let texture = |binding, view_dimension| {
+            entry(
+                binding,
+                Stages::FRAGMENT,
+                wgpu::BindingType::Texture {
+                    sample_type: wgpu::TextureSampleType::Float { filterable: true },
+                    view_dimension,
+                    multisampled: false,
+                },
+            )
+        };
+        let sampler =
+            |binding| entry(binding, Stages::FRAGMENT, wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering));
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("viewport"),
-            entries: &[
-                wgpu::BindGroupLayoutEntry {
-                    binding: 0,
-                    visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
-                    ty: wgpu::BindingType::Buffer {
-                        ty: wgpu::BufferBindingType::Uniform,
-                        has_dynamic_offset: false,
-                        min_binding_size: None,
-                    },
-                    count: None,
-                },
-                wgpu::BindGroupLayoutEntry {
-                    binding: 1,
-                    visibility: wgpu::ShaderStages::FRAGMENT,
-                    ty: wgpu::BindingType::Texture {
-                        sample_type: wgpu::TextureSampleType::Float { filterable: true },
-                        view_dimension: wgpu::TextureViewDimension::Cube,
-                        multisampled: false,
-                    },
-                    count: None,
-                },
-                wgpu::BindGroupLayoutEntry {
-                    binding: 2,
-                    visibility: wgpu::ShaderStages::FRAGMENT,
-                    ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
-                    count: None,
-                },
-            ],
+            entries: &[uniform(0, Stages::VERTEX_FRAGMENT), texture(1, wgpu::TextureViewDimension::Cube), sampler(2)],
         });
-        let storage = |binding| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: wgpu::ShaderStages::VERTEX,
-            ty: wgpu::BindingType::Buffer {
-                ty: wgpu::BufferBindingType::Storage { read_only: true },
-                has_dynamic_offset: false,
-                min_binding_size: None,
-            },
-            count: None,
-        };
         let prt_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("prt"),
-            entries: &[
-                wgpu::BindGroupLayoutEntry {
-                    binding: 0,
-                    visibility: wgpu::ShaderStages::VERTEX,
-                    ty: wgpu::BindingType::Buffer {
-                        ty: wgpu::BufferBindingType::Uniform,
-                        has_dynamic_offset: false,
-                        min_binding_size: None,
-                    },
-                    count: None,
-                },
-                storage(1),
-                storage(2),
-            ],
+            entries: &[uniform(0, Stages::VERTEX), storage(1, Stages::VERTEX), storage(2, Stages::VERTEX)],
         });
         let wavelet_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("wavelet"),
             entries: &[
-                wgpu::BindGroupLayoutEntry {
-                    binding: 0,
-                    visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
-                    ty: wgpu::BindingType::Buffer {
-                        ty: wgpu::BufferBindingType::Uniform,
-                        has_dynamic_offset: false,
-                        min_binding_size: None,
-                    },
-                    count: None,
-                },
-                storage(1),
-                storage(2),
-                wgpu::BindGroupLayoutEntry { visibility: wgpu::ShaderStages::VERTEX_FRAGMENT, ..storage(3) },
-                wgpu::BindGroupLayoutEntry { visibility: wgpu::ShaderStages::FRAGMENT, ..storage(6) },
-                wgpu::BindGroupLayoutEntry {
-                    binding: 4,
-                    visibility: wgpu::ShaderStages::FRAGMENT,
-                    ty: wgpu::BindingType::Texture {
-                        sample_type: wgpu::TextureSampleType::Float { filterable: true },
-                        view_dimension: wgpu::TextureViewDimension::D2Array,
-                        multisampled: false,
-                    },
-                    count: None,
-                },
-                wgpu::BindGroupLayoutEntry {
-                    binding: 5,
-                    visibility: wgpu::ShaderStages::FRAGMENT,
-                    ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
-                    count: None,
-                },
+                uniform(0, Stages::VERTEX_FRAGMENT),
+                storage(1, Stages::VERTEX),
+                storage(2, Stages::VERTEX),
+                storage(3, Stages::VERTEX_FRAGMENT),
+                texture(4, wgpu::TextureViewDimension::D2Array),
+                sampler(5),
+                storage(6, Stages::FRAGMENT),
             ],
         });
         let tone_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("tonemap"),
             entries: &[
-                wgpu::BindGroupLayoutEntry {
-                    binding: 0,
-                    visibility: wgpu::ShaderStages::FRAGMENT,
-                    ty: wgpu::BindingType::Texture {
+                entry(
+                    0,
+                    Stages::FRAGMENT,
+                    wgpu::BindingType::Texture {
                         sample_type: wgpu::TextureSampleType::Float { filterable: false },
                         view_dimension: wgpu::TextureViewDimension::D2,
                         multisampled: false,
                     },
-                    count: None,
-                },
-                wgpu::BindGroupLayoutEntry {
-                    binding: 1,
-                    visibility: wgpu::ShaderStages::FRAGMENT,
-                    ty: wgpu::BindingType::Buffer {
-                        ty: wgpu::BufferBindingType::Uniform,
-                        has_dynamic_offset: false,
-                        min_binding_size: None,
-                    },
-                    count: None,
-                },
+                ),
+                uniform(1, Stages::FRAGMENT),
             ],
         });
         let common = include_str!("../../shaders/common.wgsl");
@@ -542,11 +496,7 @@ impl ViewportRenderer {
             return Err(RenderError::Invalid(format!("{} pixels do not make a {width}x{height} image", pixels.len())));
         }
         self.ensure_targets(ctx, width, height);
-        let data: Vec<half::f16> = pixels
-            .iter()
-            .flat_map(|p| [p[0], p[1], p[2], 1.0])
-            .map(|v| half::f16::from_f32(v.clamp(0.0, 65000.0)))
-            .collect();
+        let data = to_rgba_f16(pixels);
         let targets = self.targets.as_ref().unwrap();
         ctx.queue.write_texture(
             wgpu::TexelCopyTextureInfo {
@@ -709,16 +659,8 @@ impl ViewportRenderer {
             )));
         }
         if self.prt.as_ref().is_none_or(|p| p.keys != (transport.key, incident.key)) {
-            let buffer = |label, data: &[f32]| {
-                // Storage bindings must not be empty.
-                let data = if data.is_empty() { &[0.0f32][..] } else { data };
-                ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                    label: Some(label),
-                    contents: bytemuck::cast_slice(data),
-                    usage: wgpu::BufferUsages::STORAGE,
-                })
-            };
-            let (transfer, incident_buffer) = (buffer("prt-transfer", &t.transfer), buffer("prt-incident", &r.coeffs));
+            let transfer = storage_buffer(ctx, "prt-transfer", &t.transfer);
+            let incident_buffer = storage_buffer(ctx, "prt-incident", &r.coeffs);
             let bind_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: Some("prt"),
                 layout: &self.prt_layout,
@@ -824,33 +766,17 @@ impl ViewportRenderer {
                     specular_tables[i * stride..(i + 1) * stride].copy_from_slice(&t.specular);
                 }
             }
-            let buffer = |label, data: &[f32]| {
-                let data = if data.is_empty() { &[0.0f32][..] } else { data };
-                ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                    label: Some(label),
-                    contents: bytemuck::cast_slice(data),
-                    usage: wgpu::BufferUsages::STORAGE,
-                })
-            };
             // P packed as RGB9E5: 4 bytes per cell instead of 12.
-            let packed: Vec<u32> =
-                p.values.chunks_exact(3).map(|c| crate::packing::rgb9e5([c[0], c[1], c[2]])).collect();
-            let values = ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("wavelet-products"),
-                contents: bytemuck::cast_slice(if packed.is_empty() { &[0u32][..] } else { &packed }),
-                usage: wgpu::BufferUsages::STORAGE,
-            });
-            let (diffuse, specular) =
-                (buffer("wavelet-diffuse", &coarse[0].diffuse), buffer("wavelet-specular", &specular_tables));
+            let values = storage_buffer(ctx, "wavelet-products", &crate::packing::rgb9e5_all(&p.values));
+            let diffuse = storage_buffer(ctx, "wavelet-diffuse", &coarse[0].diffuse);
+            let specular = storage_buffer(ctx, "wavelet-specular", &specular_tables);
             let texel_view = match texels {
                 Some(t) => upload_layers(ctx, t.size as u32, &t.texels),
                 None => upload_layers(ctx, 1, &[[0.0; 3]]),
             };
-            let texel_packed: Vec<u32> = match texels {
-                Some(t) if t.cells == p.cells => {
-                    t.products.chunks_exact(3).map(|c| crate::packing::rgb9e5([c[0], c[1], c[2]])).collect()
-                }
-                _ => vec![0],
+            let texel_packed = match texels {
+                Some(t) if t.cells == p.cells => crate::packing::rgb9e5_all(&t.products),
+                _ => Vec::new(),
             };
             if texel_packed.len() as u64 * 4 > limit {
                 return Err(RenderError::Invalid(format!(
@@ -860,11 +786,7 @@ impl ViewportRenderer {
                     limit >> 20
                 )));
             }
-            let texel_products = ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("wavelet-texel-products"),
-                contents: bytemuck::cast_slice(&texel_packed),
-                usage: wgpu::BufferUsages::STORAGE,
-            });
+            let texel_products = storage_buffer(ctx, "wavelet-texel-products", &texel_packed);
             let bind_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: Some("wavelet"),
                 layout: &self.wavelet_layout,
@@ -1039,15 +961,27 @@ fn material_array(
 /// Uploads `size²` layers (layer-major) as a filterable half-float 2D array texture.
 fn upload_layers(ctx: &GpuContext, size: u32, texels: &[[f32; 3]]) -> wgpu::TextureView {
     let layers = (texels.len() / (size * size) as usize).max(1) as u32;
-    let data: Vec<half::f16> = texels
-        .iter()
-        .flat_map(|t| [t[0], t[1], t[2], 1.0])
-        .map(|v| half::f16::from_f32(v.clamp(0.0, 65000.0)))
-        .collect();
+    upload_layered(ctx, "texel-diffuse", size, layers, texels, wgpu::TextureViewDimension::D2Array)
+}
+
+/// Uploads six `size²` faces (Vulkan order) as a half-float cube texture.
+fn upload_cube(ctx: &GpuContext, size: u32, texels: &[[f32; 3]]) -> wgpu::TextureView {
+    upload_layered(ctx, "environment", size, 6, texels, wgpu::TextureViewDimension::Cube)
+}
+
+/// Uploads linear RGB as `layers` half-float `size²` layers and views them as `dimension`.
+fn upload_layered(
+    ctx: &GpuContext,
+    label: &str,
+    size: u32,
+    layers: u32,
+    texels: &[[f32; 3]],
+    dimension: wgpu::TextureViewDimension,
+) -> wgpu::TextureView {
     let texture = ctx.device.create_texture_with_data(
         &ctx.queue,
         &wgpu::TextureDescriptor {
-            label: Some("texel-diffuse"),
+            label: Some(label),
             size: wgpu::Extent3d { width: size, height: size, depth_or_array_layers: layers },
             mip_level_count: 1,
             sample_count: 1,
@@ -1057,35 +991,23 @@ fn upload_layers(ctx: &GpuContext, size: u32, texels: &[[f32; 3]]) -> wgpu::Text
             view_formats: &[],
         },
         wgpu::util::TextureDataOrder::LayerMajor,
-        bytemuck::cast_slice(&data),
+        bytemuck::cast_slice(&to_rgba_f16(texels)),
     );
-    texture.create_view(&wgpu::TextureViewDescriptor {
-        dimension: Some(wgpu::TextureViewDimension::D2Array),
-        ..Default::default()
-    })
+    texture.create_view(&wgpu::TextureViewDescriptor { dimension: Some(dimension), ..Default::default() })
 }
 
-/// Uploads six `size²` faces (Vulkan order) as a half-float cube texture.
-fn upload_cube(ctx: &GpuContext, size: u32, texels: &[[f32; 3]]) -> wgpu::TextureView {
-    let data: Vec<half::f16> =
-        texels.iter().flat_map(|t| [t[0], t[1], t[2], 1.0]).map(|v| half::f16::from_f32(v.min(65000.0))).collect();
-    let texture = ctx.device.create_texture_with_data(
-        &ctx.queue,
-        &wgpu::TextureDescriptor {
-            label: Some("environment"),
-            size: wgpu::Extent3d { width: size, height: size, depth_or_array_layers: 6 },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: HDR_FORMAT,
-            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-            view_formats: &[],
-        },
-        wgpu::util::TextureDataOrder::LayerMajor,
-        bytemuck::cast_slice(&data),
-    );
-    texture.create_view(&wgpu::TextureViewDescriptor {
-        dimension: Some(wgpu::TextureViewDimension::Cube),
-        ..Default::default()
+/// Linear RGB to RGBA half floats, clamped to the finite non-negative half range.
+fn to_rgba_f16(pixels: &[[f32; 3]]) -> Vec<half::f16> {
+    pixels.iter().flat_map(|p| [p[0], p[1], p[2], 1.0]).map(|v| half::f16::from_f32(v.clamp(0.0, 65000.0))).collect()
+}
+
+/// A read-only storage buffer (never empty: bindings must have a size).
+fn storage_buffer<T: bytemuck::Pod + Default>(ctx: &GpuContext, label: &str, data: &[T]) -> wgpu::Buffer {
+    let fallback = [T::default()];
+    let data = if data.is_empty() { &fallback[..] } else { data };
+    ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some(label),
+        contents: bytemuck::cast_slice(data),
+        usage: wgpu::BufferUsages::STORAGE,
     })
 }

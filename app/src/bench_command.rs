@@ -173,7 +173,7 @@ fn synthetic_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
         let grid = lightloom_nodes::triple_product::CellGrid::for_coefficients(320).map_err(|e| anyhow!(e))?;
         let brdf = lightloom_nodes::brdf::Brdf::from_material(&material);
         let start = Instant::now();
-        let table = lightloom_nodes::triple_product::tabulate_brdf(&brdf, &grid, &CancelToken::default())
+        let table = lightloom_nodes::triple_product::tabulate_brdf(&brdf, grid, &CancelToken::default())
             .map_err(|e| anyhow!("{e}"))?;
         println!("(BRDF table, 320 cells × 512 outgoing directions: {:.1} ms)", start.elapsed().as_secs_f64() * 1e3);
         table
@@ -193,14 +193,14 @@ fn synthetic_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
         let start = Instant::now();
         // A lighting change: the pre-rotated table (big meshes) and the products.
         let frame_table = (n > lightloom_nodes::triple_product::FRAME_TABLE_THRESHOLD)
-            .then(|| lightloom_nodes::triple_product::FrameTable::build(&grid, &environment));
+            .then(|| lightloom_nodes::triple_product::FrameTable::build(grid, &environment));
         let lighting = lightloom_nodes::triple_product::Lighting {
             environment: &environment,
             rotation: glam::DMat3::IDENTITY,
             table: frame_table.as_ref(),
         };
         let products = lightloom_nodes::triple_product::local_products(
-            &grid,
+            grid,
             &lighting,
             &receivers,
             &transport,
@@ -216,7 +216,7 @@ fn synthetic_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
             table: frame_table.as_ref(),
         };
         lightloom_nodes::triple_product::local_products(
-            &grid,
+            grid,
             &rotated,
             &receivers,
             &transport,

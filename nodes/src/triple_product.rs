@@ -37,8 +37,10 @@ pub struct CellGrid {
 }
 
 impl CellGrid {
-    /// The grid of `coefficients = 20·4^level` cells (20, 80, 320, 1280).
-    pub fn for_coefficients(coefficients: usize) -> Result<Self, String> {
+    /// The grid of `coefficients = 20·4^level` cells (20, 80, 320, 1280), built once per
+    /// process.
+    pub fn for_coefficients(coefficients: usize) -> Result<&'static Self, String> {
+        static GRIDS: [std::sync::OnceLock<CellGrid>; 4] = [const { std::sync::OnceLock::new() }; 4];
         let level = match coefficients {
             20 => 0,
             80 => 1,
@@ -46,6 +48,10 @@ impl CellGrid {
             1280 => 3,
             n => return Err(format!("{n} coefficients is not 20·4^k for k ≤ 3 (use 20, 80, 320 or 1280)")),
         };
+        Ok(GRIDS[level].get_or_init(|| Self::build(level)))
+    }
+
+    fn build(level: usize) -> Self {
         let fine = SphericalHaar::new(level + SUBLEVELS);
         let areas = fine.cell_solid_angles();
         let per = 1 << (2 * SUBLEVELS);
@@ -61,7 +67,7 @@ impl CellGrid {
             })
             .collect();
         let solid_angles = samples.iter().map(|s| s.iter().map(|(_, w)| w).sum()).collect();
-        Ok(Self { level, solid_angles, samples })
+        Self { level, solid_angles, samples }
     }
 
     pub fn len(&self) -> usize {
@@ -550,7 +556,7 @@ mod tests {
         // A smooth environment: table lookups match direct cell integrals closely.
         let environment = CubeMap::from_fn(32, 2, |d| [1.0 + d.x + 0.5 * d.z * d.y, 0.5, 1.0]);
         let grid = CellGrid::for_coefficients(80).unwrap();
-        let table = FrameTable::build(&grid, &environment);
+        let table = FrameTable::build(grid, &environment);
         for _ in 0..20 {
             let frame = crate::sampling::random_rotation(&mut rng);
             let looked_up = table.lighting(frame);
@@ -620,14 +626,14 @@ mod tests {
         let brdf =
             Brdf::from_material(&Material { model: "phong".into(), exponent: 3.0, f0: 1.0, ..Default::default() });
         let cancel = CancelToken::default();
-        let fine = tabulate_brdf(&brdf, &CellGrid::for_coefficients(320).unwrap(), &cancel).unwrap();
-        let coarse = tabulate_brdf(&brdf, &CellGrid::for_coefficients(80).unwrap(), &cancel).unwrap();
+        let fine = tabulate_brdf(&brdf, CellGrid::for_coefficients(320).unwrap(), &cancel).unwrap();
+        let coarse = tabulate_brdf(&brdf, CellGrid::for_coefficients(80).unwrap(), &cancel).unwrap();
         let merged = fine.coarsened(80).unwrap();
         let (g80, g320) = (CellGrid::for_coefficients(80).unwrap(), CellGrid::for_coefficients(320).unwrap());
         let integral =
             |row: &[f32], g: &CellGrid| row.iter().zip(&g.solid_angles).map(|(v, a)| *v as f64 * a).sum::<f64>();
         for (m, f) in merged.specular.chunks(80).zip(fine.specular.chunks(320)) {
-            assert!((integral(m, &g80) - integral(f, &g320)).abs() < 1e-5 * integral(f, &g320).max(1e-3));
+            assert!((integral(m, g80) - integral(f, g320)).abs() < 1e-5 * integral(f, g320).max(1e-3));
         }
         for (a, b) in merged.specular.iter().zip(&coarse.specular).chain(merged.diffuse.iter().zip(&coarse.diffuse)) {
             assert!((a - b).abs() < 0.08 * b.abs().max(0.05), "{a} vs {b}");
@@ -642,7 +648,7 @@ mod tests {
         let grid = CellGrid::for_coefficients(80).unwrap();
         let table = tabulate_brdf(
             &Brdf::from_material(&Material { albedo: [1.0; 3], ..Default::default() }),
-            &grid,
+            grid,
             &CancelToken::default(),
         )
         .unwrap();

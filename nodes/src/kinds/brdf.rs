@@ -150,7 +150,7 @@ fn local_table(ctx: &StageContext) -> Result<StageValue, StageError> {
     };
     let grid = crate::triple_product::CellGrid::for_coefficients(320).map_err(StageError::Internal)?;
     let brdf = crate::brdf::Brdf::from_material(m);
-    Ok(StageValue::BrdfTable(crate::triple_product::tabulate_brdf(&brdf, &grid, ctx.cancel_token())?))
+    Ok(StageValue::BrdfTable(crate::triple_product::tabulate_brdf(&brdf, grid, ctx.cancel_token())?))
 }
 
 fn material(ctx: &StageContext) -> Result<StageValue, StageError> {

@@ -211,7 +211,7 @@ fn local_products(ctx: &StageContext) -> Result<StageValue, StageError> {
     let table = if receivers.len() > crate::triple_product::FRAME_TABLE_THRESHOLD {
         let key = environment_key(environment, terms);
         let value =
-            ctx.memo(key, || Ok(StageValue::FrameTable(crate::triple_product::FrameTable::build(&grid, environment))))?;
+            ctx.memo(key, || Ok(StageValue::FrameTable(crate::triple_product::FrameTable::build(grid, environment))))?;
         Some(value)
     } else {
         None
@@ -223,7 +223,7 @@ fn local_products(ctx: &StageContext) -> Result<StageValue, StageError> {
     };
     let lighting = crate::triple_product::Lighting { environment, rotation, table };
     Ok(StageValue::LocalProducts(crate::triple_product::local_products(
-        &grid,
+        grid,
         &lighting,
         receivers,
         transport,
@@ -277,7 +277,7 @@ fn texel_irradiance(ctx: &StageContext) -> Result<StageValue, StageError> {
     let grid = crate::triple_product::CellGrid::for_coefficients(terms).map_err(StageError::Failed)?;
     let lighting = crate::triple_product::Lighting { environment, rotation, table: None };
     Ok(StageValue::TexelIrradiance(crate::triple_product::texel_irradiance(
-        &grid,
+        grid,
         &lighting,
         texels,
         t,

@@ -397,6 +397,11 @@ mod tests {
         CubeMap::from_fn(16, 2, f)
     }
 
+    /// Every mesh shaded by `brdf`, no background.
+    fn lit<'a>(scene: &'a RayScene, meshes: &'a MeshSet, environment: &'a CubeMap, brdf: Brdf) -> ReferenceScene<'a> {
+        ReferenceScene { scene, meshes, brdfs: vec![brdf; meshes.meshes.len()], environment, background: false }
+    }
+
     #[test]
     fn environment_sampler_pdf_integrates_to_one_and_matches_its_samples() {
         let cube = cube_from(|d| [1.0 + 20.0 * d.y.max(0.0).powi(8), 1.0, 0.5]);
@@ -427,13 +432,7 @@ mod tests {
         let scene = RayScene::build(&meshes);
         let environment = cube_from(|_| [0.7, 0.7, 0.7]);
         let material = Material { albedo: [1.0; 3], ..Default::default() };
-        let rs = ReferenceScene {
-            scene: &scene,
-            meshes: &meshes,
-            brdfs: vec![Brdf::from_material(&material); meshes.meshes.len()],
-            environment: &environment,
-            background: false,
-        };
+        let rs = lit(&scene, &meshes, &environment, Brdf::from_material(&material));
         let camera = PinholeCamera { position: DVec3::new(0.0, 0.0, 4.0), target: DVec3::ZERO, fov_y_deg: 40.0 };
         let image = render(&rs, &camera, (32, 32), 64, 1, &CancelToken::default(), &|_| {}).unwrap();
         // Pixels well inside the silhouette (it is 11.4 px in radius).
@@ -465,13 +464,7 @@ mod tests {
         let brdf = Brdf::from_material(&material);
         let albedo = crate::quadrature::SphereQuadrature::new(1500, 600)
             .integrate(|wi| brdf.eval(wi, DVec3::Z).x * wi.z.max(0.0));
-        let rs = ReferenceScene {
-            scene: &scene,
-            meshes: &meshes,
-            brdfs: vec![brdf],
-            environment: &environment,
-            background: false,
-        };
+        let rs = lit(&scene, &meshes, &environment, brdf);
         let camera = PinholeCamera { position: DVec3::new(0.0, 0.0, 4.0), target: DVec3::ZERO, fov_y_deg: 1.0 };
         let image = render(&rs, &camera, (2, 2), 4096, 3, &CancelToken::default(), &|_| {}).unwrap();
         let value = image.pixels.iter().map(|p| p[0] as f64).sum::<f64>() / 4.0;
@@ -493,13 +486,7 @@ mod tests {
         let scene = RayScene::build(&meshes);
         let environment = cube_from(|_| [1.0; 3]);
         let material = Material { albedo: [1.0; 3], ..Default::default() };
-        let rs = ReferenceScene {
-            scene: &scene,
-            meshes: &meshes,
-            brdfs: vec![Brdf::from_material(&material); meshes.meshes.len()],
-            environment: &environment,
-            background: false,
-        };
+        let rs = lit(&scene, &meshes, &environment, Brdf::from_material(&material));
         // A narrow view of the floor point under the sphere, seen from the side.
         let camera =
             PinholeCamera { position: DVec3::new(3.0, 0.8, 0.0), target: DVec3::new(0.0, 0.0, 0.0), fov_y_deg: 2.0 };

@@ -268,58 +268,40 @@ impl ViewportRenderer {
             step_mode: wgpu::VertexStepMode::Vertex,
             attributes: &vertex_attributes,
         })];
-        let mesh_pipeline = PipelineSpec {
-            label: "mesh",
-            layout: &pipeline_layout,
-            module: &mesh_module,
-            buffers: &vertex_layout,
-            depth_stencil: depth(true, wgpu::CompareFunction::Less),
-            multisample,
-            target: HDR_FORMAT,
-        }
-        .build(device);
-        let prt_pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("mesh-prt"),
-            bind_group_layouts: &[Some(&layout), Some(&prt_layout)],
-            immediate_size: 0,
-        });
-        let prt_pipeline = PipelineSpec {
-            label: "mesh-prt",
-            layout: &prt_pipeline_layout,
-            module: &prt_module,
-            buffers: &vertex_layout,
-            depth_stencil: depth(true, wgpu::CompareFunction::Less),
-            multisample,
-            target: HDR_FORMAT,
-        }
-        .build(device);
-        let prt_params = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("prt-params"),
-            size: std::mem::size_of::<PrtParams>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let wavelet_pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("mesh-wavelet"),
-            bind_group_layouts: &[Some(&layout), Some(&wavelet_layout)],
-            immediate_size: 0,
-        });
-        let wavelet_pipeline = PipelineSpec {
-            label: "mesh-wavelet",
-            layout: &wavelet_pipeline_layout,
-            module: &wavelet_module,
-            buffers: &vertex_layout,
-            depth_stencil: depth(true, wgpu::CompareFunction::Less),
-            multisample,
-            target: HDR_FORMAT,
-        }
-        .build(device);
-        let wavelet_params = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("wavelet-params"),
-            size: std::mem::size_of::<WaveletParams>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        // Mesh passes share the vertex layout, depth test and targets; each has its own shader
+        // and, beyond group 0, its own bind group.
+        let mesh_pass = |label: &str, module: &wgpu::ShaderModule, extra: Option<&wgpu::BindGroupLayout>| {
+            let groups: Vec<Option<&wgpu::BindGroupLayout>> =
+                [Some(&layout), extra].into_iter().flatten().map(Some).collect();
+            let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some(label),
+                bind_group_layouts: &groups,
+                immediate_size: 0,
+            });
+            PipelineSpec {
+                label,
+                layout: &layout,
+                module,
+                buffers: &vertex_layout,
+                depth_stencil: depth(true, wgpu::CompareFunction::Less),
+                multisample,
+                target: HDR_FORMAT,
+            }
+            .build(device)
+        };
+        let mesh_pipeline = mesh_pass("mesh", &mesh_module, None);
+        let prt_pipeline = mesh_pass("mesh-prt", &prt_module, Some(&prt_layout));
+        let wavelet_pipeline = mesh_pass("mesh-wavelet", &wavelet_module, Some(&wavelet_layout));
+        let uniform_buffer = |label: &str, size: usize| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: size as u64,
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            })
+        };
+        let prt_params = uniform_buffer("prt-params", std::mem::size_of::<PrtParams>());
+        let wavelet_params = uniform_buffer("wavelet-params", std::mem::size_of::<WaveletParams>());
         let background_pipeline = PipelineSpec {
             label: "background",
             layout: &pipeline_layout,
@@ -345,18 +327,8 @@ impl ViewportRenderer {
             target: LDR_FORMAT,
         }
         .build(device);
-        let globals = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("globals"),
-            size: std::mem::size_of::<Globals>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let tone_params = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("tone"),
-            size: 16,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        let globals = uniform_buffer("globals", std::mem::size_of::<Globals>());
+        let tone_params = uniform_buffer("tone", 16);
         let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
             label: Some("environment"),
             mag_filter: wgpu::FilterMode::Linear,

@@ -2,6 +2,7 @@
 
 mod accuracy_command;
 mod bench_command;
+mod editor;
 mod project_commands;
 mod sh_command;
 
@@ -14,11 +15,38 @@ use std::sync::Arc;
 #[command(
     name = "lightloom",
     version,
-    about = "Node-based lighting design: all-frequency lighting, fog, soft shadows and BRDF edits"
+    about = "Node-based lighting design: all-frequency lighting, fog, soft shadows and BRDF edits",
+    long_about = "Without a subcommand, opens the editor on PROJECT (or the built-in default project). \
+                  Without a display (no DISPLAY or WAYLAND_DISPLAY), or with --headless, renders the \
+                  project to a PNG instead.",
+    args_conflicts_with_subcommands = true
 )]
 struct Cli {
     #[command(subcommand)]
     command: Option<Command>,
+    #[command(flatten)]
+    editor: EditorArgs,
+}
+
+#[derive(clap::Args, Debug, Default)]
+struct EditorArgs {
+    /// Project to open (.ron) [default: the built-in default project].
+    project: Option<std::path::PathBuf>,
+    /// Do not open a window: render the project headlessly to PNG.
+    #[arg(long)]
+    headless: bool,
+    /// Editor: once the first evaluation is on screen, save a screenshot of the window and quit.
+    #[arg(long, value_name = "PNG")]
+    screenshot: Option<std::path::PathBuf>,
+    /// Editor: print UI frame-time statistics (idle and while background work runs) on exit.
+    #[arg(long)]
+    frame_stats: bool,
+    /// Disk cache for expensive stages [default: $XDG_CACHE_HOME/lightloom or ~/.cache/lightloom].
+    #[arg(long, value_name = "DIR")]
+    cache_dir: Option<std::path::PathBuf>,
+    /// Do not read or write the disk cache.
+    #[arg(long)]
+    no_disk_cache: bool,
 }
 
 #[derive(Subcommand)]
@@ -50,7 +78,7 @@ fn main() {
         Some(Command::Accuracy(args)) => accuracy_command::run(&args).map(|_| true),
         Some(Command::Bench(args)) => bench_command::run(&args).map(|_| true),
         Some(Command::Sh(args)) => sh_command::run(&args).map(|_| true),
-        None => default_job().map(|_| true),
+        None => main_job(cli.editor).map(|_| true),
     };
     match result {
         Ok(true) => {}
@@ -62,27 +90,67 @@ fn main() {
     }
 }
 
-/// Until the editor lands: render the built-in default project headlessly.
-fn default_job() -> Result<()> {
-    let project = lightloom_nodes::project::default_project();
-    let graph = project.graph(std::path::Path::new("default.ron")).map_err(|e| anyhow::anyhow!("{e:?}"))?;
+fn has_display() -> bool {
+    ["DISPLAY", "WAYLAND_DISPLAY"].iter().any(|v| std::env::var_os(v).is_some_and(|d| !d.is_empty()))
+}
+
+/// The editor where there is a display; otherwise a headless render of the same project.
+fn main_job(args: EditorArgs) -> Result<()> {
+    if !args.headless && has_display() {
+        let options = editor::EditorOptions {
+            project: args.project.clone(),
+            screenshot: args.screenshot.clone(),
+            cache_dir: args.cache_dir.clone(),
+            no_disk_cache: args.no_disk_cache,
+            frame_stats: args.frame_stats,
+        };
+        match editor::run(options) {
+            Ok(()) => return Ok(()),
+            Err(e) if args.screenshot.is_some() => return Err(e),
+            Err(e) => eprintln!("{e:#}; rendering headlessly instead"),
+        }
+    } else if !args.headless {
+        eprintln!("no display (DISPLAY and WAYLAND_DISPLAY are unset): rendering headlessly instead of opening the editor");
+    }
+    headless_render(&args)
+}
+
+/// Renders the project (or the built-in default) to `<name>.png` in the current folder.
+fn headless_render(args: &EditorArgs) -> Result<()> {
+    let (project, graph, out) = match &args.project {
+        Some(path) => {
+            let (project, graph) = project_commands::load(path, &[])?;
+            let stem = path.file_stem().map_or("project".into(), |s| s.to_string_lossy().into_owned());
+            (project, graph, std::path::PathBuf::from(format!("{stem}.png")))
+        }
+        None => {
+            let project = lightloom_nodes::project::default_project();
+            let graph =
+                project.graph(std::path::Path::new("default.ron")).map_err(|e| anyhow::anyhow!("{e:?}"))?;
+            (project, graph, std::path::PathBuf::from("lightloom-default.png"))
+        }
+    };
+    let options = project_commands::EvalOptions {
+        cache_dir: args.cache_dir.clone(),
+        no_disk_cache: args.no_disk_cache,
+        ..Default::default()
+    };
     let project_commands::Rendered { frame, eval_ms, render_ms, .. } = project_commands::render_project(
         &project,
         &graph,
-        Arc::new(Engine::in_memory()),
+        Arc::new(if args.project.is_some() { options.engine() } else { Engine::in_memory() }),
         None,
         None,
         (None, None),
         false,
     )?;
-    let path = std::path::Path::new("lightloom-default.png");
-    project_commands::write_image(&frame, path)?;
+    project_commands::write_image(&frame, &out)?;
     println!(
         "{}: rendered {}x{} to {} (evaluation {eval_ms:.0} ms, render {render_ms:.0} ms)",
         project.name,
         frame.width,
         frame.height,
-        path.display()
+        out.display()
     );
     Ok(())
 }

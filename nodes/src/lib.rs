@@ -17,6 +17,7 @@ pub mod gltf_import;
 pub mod graph;
 pub mod kinds;
 pub mod mesh;
+pub mod preview;
 pub mod project;
 pub mod prt;
 pub mod quadrature;

@@ -163,6 +163,18 @@ impl MeshSet {
         self.meshes.iter().map(Mesh::triangle_count).sum()
     }
 
+    /// The mesh holding triangle `index` of the set (triangles numbered mesh after mesh).
+    pub fn mesh_of_triangle(&self, index: usize) -> Option<usize> {
+        let mut first = 0;
+        for (i, m) in self.meshes.iter().enumerate() {
+            first += m.triangle_count();
+            if index < first {
+                return Some(i);
+            }
+        }
+        None
+    }
+
     pub fn bounds(&self) -> ([f32; 3], [f32; 3]) {
         let mut lo = [f32::MAX; 3];
         let mut hi = [f32::MIN; 3];
@@ -286,6 +298,26 @@ pub fn cornell_box(size: f64, segments: usize) -> Vec<Mesh> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn picking_a_ray_finds_the_mesh_it_hits() {
+        // Two spheres side by side: the ray's closest triangle belongs to the nearer mesh.
+        let set = MeshSet {
+            meshes: vec![
+                sphere(1.0, 16).transformed(DMat4::from_translation(glam::DVec3::new(-2.0, 0.0, 0.0))),
+                sphere(1.0, 16).transformed(DMat4::from_translation(glam::DVec3::new(2.0, 0.0, 0.0))),
+            ],
+        };
+        let scene = crate::raycast::RayScene::build(&set);
+        let hit = |x: f32| {
+            let (_, t) = scene.closest(glam::Vec3A::new(x, 0.0, 10.0), glam::Vec3A::new(0.0, 0.0, -1.0))?;
+            set.mesh_of_triangle(t as usize)
+        };
+        assert_eq!(hit(-2.0), Some(0));
+        assert_eq!(hit(2.0), Some(1));
+        assert_eq!(hit(0.0), None);
+        assert_eq!(set.mesh_of_triangle(set.triangle_count()), None);
+    }
 
     /// Signed volume by the divergence theorem; positive for outward-facing closed meshes.
     fn volume(m: &Mesh) -> f64 {

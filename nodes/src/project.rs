@@ -287,6 +287,15 @@ impl Project {
     /// Saves atomically: write a temporary file, fsync, keep the previous file as `NAME.bak`,
     /// rename into place, fsync the folder. The target never exists half-written.
     pub fn save(&self, path: &Path) -> Result<(), ProjectError> {
+        self.write_atomically(path, true)
+    }
+
+    /// Saves atomically without keeping a `.bak` (autosave and recovery files).
+    pub fn save_without_backup(&self, path: &Path) -> Result<(), ProjectError> {
+        self.write_atomically(path, false)
+    }
+
+    fn write_atomically(&self, path: &Path, backup: bool) -> Result<(), ProjectError> {
         let save_err = |source| ProjectError::Save { path: path.into(), source };
         let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
         let file_name =
@@ -297,7 +306,7 @@ impl Project {
             file.write_all(self.to_ron().as_bytes()).map_err(save_err)?;
             file.sync_all().map_err(save_err)?;
         }
-        if path.exists() {
+        if backup && path.exists() {
             let bak = dir.join(format!("{file_name}.bak"));
             let bak_tmp = dir.join(format!(".{file_name}.bak.tmp{}", std::process::id()));
             std::fs::copy(path, &bak_tmp).map_err(save_err)?;

@@ -54,21 +54,15 @@ impl GpuContext {
 
     /// A device on a given adapter (the editor picks one compatible with its window).
     pub fn from_adapter(instance: wgpu::Instance, adapter: wgpu::Adapter) -> Result<Self, RenderError> {
-        // Per-vertex coefficient buffers (PRT, triple products) can be large: take what the
-        // adapter offers for storage buffers.
-        let supported = adapter.limits();
-        let required_limits = wgpu::Limits {
-            max_storage_buffer_binding_size: supported.max_storage_buffer_binding_size,
-            max_buffer_size: supported.max_buffer_size,
-            ..wgpu::Limits::downlevel_defaults().using_resolution(supported)
-        };
-        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
-            label: Some("lightloom"),
-            required_limits,
-            ..Default::default()
-        }))
-        .map_err(|e| RenderError::Device(e.to_string()))?;
+        let (device, queue) = pollster::block_on(adapter.request_device(&device_descriptor(&adapter)))
+            .map_err(|e| RenderError::Device(e.to_string()))?;
         Ok(Self { instance, adapter, device, queue })
+    }
+
+    /// Wraps a device someone else created (the editor's window device, made with
+    /// [`device_descriptor`] so the renderer gets the limits it needs).
+    pub fn from_parts(instance: wgpu::Instance, adapter: wgpu::Adapter, device: wgpu::Device, queue: wgpu::Queue) -> Self {
+        Self { instance, adapter, device, queue }
     }
 
     /// Blocks until the GPU has finished all submitted work (for timing).
@@ -84,4 +78,16 @@ impl GpuContext {
         let info = self.adapter.get_info();
         format!("{} ({:?}, {:?})", info.name, info.backend, info.device_type)
     }
+}
+
+/// What the renderer asks of a device: per-vertex coefficient buffers (PRT, triple products)
+/// can be large, so it takes the storage-buffer sizes the adapter offers.
+pub fn device_descriptor(adapter: &wgpu::Adapter) -> wgpu::DeviceDescriptor<'static> {
+    let supported = adapter.limits();
+    let required_limits = wgpu::Limits {
+        max_storage_buffer_binding_size: supported.max_storage_buffer_binding_size,
+        max_buffer_size: supported.max_buffer_size,
+        ..wgpu::Limits::downlevel_defaults().using_resolution(supported)
+    };
+    wgpu::DeviceDescriptor { label: Some("lightloom"), required_limits, ..Default::default() }
 }

@@ -8,5 +8,5 @@ pub mod packing;
 pub mod viewport;
 
 pub use capture::{CapturedFrame, write_exr, write_png};
-pub use device::{GpuContext, RenderError};
+pub use device::{GpuContext, RenderError, device_descriptor};
 pub use viewport::{CameraView, ViewportRenderer};

@@ -391,6 +391,24 @@ impl FrameInputs {
             .map_err(|e| e.to_string())
     }
 
+    /// The mesh seen through image point `(x, y)` (pixels, `y` down) of a `width × height` view:
+    /// its index in the scene's meshes, or `None` for the background.
+    pub fn pick(
+        &self,
+        camera: &crate::reference::PinholeCamera,
+        (x, y): (f64, f64),
+        (width, height): (usize, usize),
+    ) -> Option<usize> {
+        let (StageValue::RayScene(scene), StageValue::Meshes(meshes)) =
+            (self.ray_scene.value.as_ref(), self.meshes.value.as_ref())
+        else {
+            return None;
+        };
+        let dir = camera.ray(x, y, width.max(1), height.max(1));
+        let (_, triangle) = scene.closest(camera.position.as_vec3a(), dir.as_vec3a())?;
+        meshes.mesh_of_triangle(triangle as usize)
+    }
+
     pub fn gather(evaluation: &Evaluation, graph: &Graph, output: &str) -> Result<Self, String> {
         let keyed = |node: &str, stage: &str| -> Result<Keyed, String> {
             let r = evaluation.get(node, stage).ok_or_else(|| format!("stage {node}.{stage} was not evaluated"))?;

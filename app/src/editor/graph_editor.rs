@@ -1,0 +1,497 @@
+//! The node graph, drawn with egui-snarl. The project is the source of truth: the widget's
+//! graph is synced from it, and everything the user does in the widget comes back as a
+//! [`GraphAction`] that the editor applies to the project as an undoable edit.
+
+use super::jobs::NodeStatus;
+use super::previews::Previews;
+use eframe::egui::{self, Color32, RichText};
+use egui_snarl::ui::{AnyPins, PinInfo, SnarlStyle, SnarlViewer, SnarlWidget};
+use egui_snarl::{InPin, InPinId, NodeId, OutPin, OutPinId, Snarl};
+use lightloom_nodes::engine::Evaluation;
+use lightloom_nodes::graph::{Availability, PortType};
+use lightloom_nodes::kinds;
+use lightloom_nodes::project::Project;
+use std::collections::{HashMap, HashSet};
+
+/// What the user asked the graph for.
+#[derive(Clone, Debug, PartialEq)]
+pub enum GraphAction {
+    Add { kind: String, position: [f32; 2], link: Option<PendingLink> },
+    Connect { from: (String, String), to: (String, String) },
+    Disconnect { from: (String, String), to: (String, String) },
+    DisconnectPort { port: (String, String), input: bool },
+    Remove(Vec<String>),
+    Duplicate(Vec<String>),
+    Copy(Vec<String>),
+    Rename(String),
+    /// Nodes were dragged to new positions.
+    Move(Vec<(String, [f32; 2])>),
+    /// A link was refused: why.
+    Refused(String),
+}
+
+/// A wire dropped on empty space: the new node gets linked to it.
+#[derive(Clone, Debug, PartialEq)]
+pub enum PendingLink {
+    /// From this output to the new node's first input of the same type.
+    FromOutput(String, String),
+    /// From the new node's first output of the type into this input.
+    ToInput(String, String),
+}
+
+/// The add-node popup opened by Shift+A.
+struct AddMenu {
+    screen_pos: egui::Pos2,
+    graph_pos: [f32; 2],
+    query: String,
+}
+
+pub struct GraphEditor {
+    snarl: Snarl<String>,
+    pub widget: SnarlWidget,
+    add_menu: Option<AddMenu>,
+    /// Screen → graph transform of the last frame.
+    to_global: egui::emath::TSTransform,
+    query: String,
+    /// Nodes selected in the widget, by id.
+    pub selected: Vec<String>,
+}
+
+pub fn port_color(ty: PortType) -> Color32 {
+    match ty {
+        PortType::Environment => Color32::from_rgb(230, 190, 60),
+        PortType::Material => Color32::from_rgb(80, 190, 120),
+        PortType::Scene => Color32::from_rgb(90, 150, 230),
+        PortType::Medium => Color32::from_rgb(170, 170, 200),
+        PortType::Lights => Color32::from_rgb(240, 130, 70),
+        PortType::Blockers => Color32::from_rgb(150, 110, 90),
+        PortType::SquareLights => Color32::from_rgb(200, 120, 200),
+    }
+}
+
+fn status_color(status: Option<&NodeStatus>) -> (Color32, &'static str) {
+    match status {
+        Some(NodeStatus::UpToDate) => (Color32::from_rgb(90, 200, 90), "up to date"),
+        Some(NodeStatus::Dirty) | None => (Color32::from_rgb(200, 200, 90), "dirty"),
+        Some(NodeStatus::Running(..)) => (Color32::from_rgb(80, 160, 255), "running"),
+        Some(NodeStatus::Error(_)) => (Color32::from_rgb(235, 70, 60), "error"),
+    }
+}
+
+impl Default for GraphEditor {
+    fn default() -> Self {
+        let style = SnarlStyle { collapsible: Some(true), ..SnarlStyle::new() };
+        Self {
+            snarl: Snarl::new(),
+            widget: SnarlWidget::new().id(egui::Id::new("lightloom-graph")).style(style),
+            add_menu: None,
+            to_global: Default::default(),
+            query: String::new(),
+            selected: Vec::new(),
+        }
+    }
+}
+
+impl GraphEditor {
+    /// Makes the widget's graph match the project: nodes, positions and wires. Nodes that
+    /// stay keep their widget ids (and selection).
+    pub fn sync(&mut self, project: &Project) {
+        let present: HashMap<String, NodeId> = self.snarl.node_ids().map(|(nid, id)| (id.clone(), nid)).collect();
+        let wanted: HashSet<&str> = project.nodes.iter().map(|n| n.id.as_str()).collect();
+        for (id, nid) in &present {
+            if !wanted.contains(id.as_str()) {
+                self.snarl.remove_node(*nid);
+            }
+        }
+        let mut ids = HashMap::new();
+        for n in &project.nodes {
+            let pos = egui::pos2(n.position[0], n.position[1]);
+            let nid = match present.get(&n.id) {
+                Some(&nid) => {
+                    if let Some(info) = self.snarl.get_node_info_mut(nid) {
+                        info.pos = pos;
+                    }
+                    nid
+                }
+                None => self.snarl.insert_node(pos, n.id.clone()),
+            };
+            ids.insert(n.id.as_str(), nid);
+        }
+        let mut desired = HashSet::new();
+        for l in &project.links {
+            let (Some(&a), Some(&b)) = (ids.get(l.from.0.as_str()), ids.get(l.to.0.as_str())) else { continue };
+            let (Some(ka), Some(kb)) =
+                (super::edits::kind_of(project, &l.from.0), super::edits::kind_of(project, &l.to.0))
+            else {
+                continue;
+            };
+            let (Some(o), Some(i)) = (
+                ka.outputs.iter().position(|p| p.name == l.from.1),
+                kb.inputs.iter().position(|p| p.name == l.to.1),
+            ) else {
+                continue;
+            };
+            desired.insert((OutPinId { node: a, output: o }, InPinId { node: b, input: i }));
+        }
+        let current: Vec<_> = self.snarl.wires().collect();
+        for w in &current {
+            if !desired.contains(w) {
+                self.snarl.disconnect(w.0, w.1);
+            }
+        }
+        for w in desired {
+            self.snarl.connect(w.0, w.1);
+        }
+    }
+
+    /// Draws the graph; returns what the user did.
+    pub fn show(
+        &mut self,
+        ui: &mut egui::Ui,
+        project: &Project,
+        status: &HashMap<String, NodeStatus>,
+        evaluation: Option<&Evaluation>,
+        previews: &mut Previews,
+    ) -> Vec<GraphAction> {
+        let mut viewer = Viewer {
+            project,
+            status,
+            evaluation,
+            previews,
+            actions: Vec::new(),
+            to_global: self.to_global,
+            query: &mut self.query,
+        };
+        let response = self.widget.show(&mut self.snarl, &mut viewer, ui);
+        self.to_global = viewer.to_global;
+        let mut actions = std::mem::take(&mut viewer.actions);
+        let selected: Vec<String> = self
+            .widget
+            .get_selected_nodes_at(ui.id(), ui.ctx())
+            .into_iter()
+            .filter_map(|nid| self.snarl.get_node(nid).cloned())
+            .collect();
+        self.selected = selected;
+
+        // Moves: positions that differ from the project's.
+        let moved: Vec<(String, [f32; 2])> = self
+            .snarl
+            .nodes_pos()
+            .filter_map(|(pos, id)| {
+                let n = super::edits::node(project, id)?;
+                (n.position != [pos.x, pos.y]).then(|| (id.clone(), [pos.x, pos.y]))
+            })
+            .collect();
+        if !moved.is_empty() {
+            actions.push(GraphAction::Move(moved));
+        }
+
+        // Keyboard, while the pointer is over the graph and no text field has focus.
+        let hovered = response.contains_pointer();
+        let typing = ui.ctx().egui_wants_keyboard_input();
+        if hovered && !typing {
+            let (add, delete, duplicate, copy) = ui.input(|i| {
+                (
+                    i.modifiers.shift && i.key_pressed(egui::Key::A),
+                    i.key_pressed(egui::Key::Delete) || (i.key_pressed(egui::Key::X) && !i.modifiers.any()),
+                    (i.modifiers.command || i.modifiers.shift) && i.key_pressed(egui::Key::D),
+                    i.events.iter().any(|e| matches!(e, egui::Event::Copy)),
+                )
+            });
+            if add {
+                let screen_pos = ui.input(|i| i.pointer.hover_pos()).unwrap_or(response.rect.center());
+                self.open_add_menu(screen_pos);
+            }
+            if !self.selected.is_empty() {
+                if delete {
+                    actions.push(GraphAction::Remove(self.selected.clone()));
+                }
+                if duplicate {
+                    actions.push(GraphAction::Duplicate(self.selected.clone()));
+                }
+                if copy {
+                    actions.push(GraphAction::Copy(self.selected.clone()));
+                }
+            }
+        }
+        self.show_add_popup(ui.ctx(), &mut actions);
+        actions
+    }
+
+    /// Opens the searchable add-node menu at a screen position (Shift+A).
+    pub fn open_add_menu(&mut self, screen_pos: egui::Pos2) {
+        let graph_pos = self.to_global.inverse() * screen_pos;
+        self.add_menu = Some(AddMenu { screen_pos, graph_pos: [graph_pos.x, graph_pos.y], query: String::new() });
+    }
+
+    fn show_add_popup(&mut self, ctx: &egui::Context, actions: &mut Vec<GraphAction>) {
+        let Some(menu) = self.add_menu.as_mut() else { return };
+        let mut close = ctx.input(|i| i.key_pressed(egui::Key::Escape));
+        let area = egui::Area::new(egui::Id::new("add-node-menu"))
+            .order(egui::Order::Foreground)
+            .fixed_pos(menu.screen_pos)
+            .show(ctx, |ui| {
+                egui::Frame::popup(ui.style()).show(ui, |ui| {
+                    ui.label(RichText::new("Add node").strong());
+                    if let Some(kind) = add_list(ui, &mut menu.query, None) {
+                        actions.push(GraphAction::Add { kind, position: menu.graph_pos, link: None });
+                        close = true;
+                    }
+                })
+            });
+        let clicked_outside = ctx.input(|i| i.pointer.any_pressed())
+            && ctx.input(|i| i.pointer.interact_pos()).is_some_and(|p| !area.response.rect.contains(p));
+        if close || clicked_outside {
+            self.add_menu = None;
+        }
+    }
+}
+
+/// A search field and the matching node kinds; returns the one clicked (or chosen with
+/// Enter). `compatible` limits the list to kinds with a port of that type.
+pub fn add_list(ui: &mut egui::Ui, query: &mut String, compatible: Option<(PortType, bool)>) -> Option<String> {
+    let search = ui.add(egui::TextEdit::singleline(query).hint_text("search…").desired_width(200.0));
+    if !search.has_focus() && query.is_empty() {
+        search.request_focus();
+    }
+    let needle = query.to_lowercase();
+    let matches: Vec<_> = kinds::registry()
+        .iter()
+        .filter(|k| {
+            needle.is_empty()
+                || k.label.to_lowercase().contains(&needle)
+                || k.name.to_lowercase().contains(&needle)
+                || k.doc.to_lowercase().contains(&needle)
+        })
+        .filter(|k| match compatible {
+            None => true,
+            // (type, the new node needs an input of it)
+            Some((ty, true)) => k.inputs.iter().any(|p| p.ty == ty),
+            Some((ty, false)) => k.outputs.iter().any(|p| p.ty == ty),
+        })
+        .collect();
+    let enter = search.lost_focus() && ui.input(|i| i.key_pressed(egui::Key::Enter));
+    if enter && let Some(first) = matches.first() {
+        return Some(first.name.to_string());
+    }
+    let mut chosen = None;
+    for k in &matches {
+        let label = match k.availability {
+            Availability::Ready => k.label.to_string(),
+            Availability::Planned(issue) => format!("{} (planned: {issue})", k.label),
+        };
+        if ui.button(label).on_hover_text(k.doc).clicked() {
+            chosen = Some(k.name.to_string());
+        }
+    }
+    if matches.is_empty() {
+        ui.weak("no node kind matches");
+    }
+    chosen
+}
+
+struct Viewer<'a> {
+    project: &'a Project,
+    status: &'a HashMap<String, NodeStatus>,
+    evaluation: Option<&'a Evaluation>,
+    previews: &'a mut Previews,
+    actions: Vec<GraphAction>,
+    to_global: egui::emath::TSTransform,
+    query: &'a mut String,
+}
+
+impl Viewer<'_> {
+    fn kind(&self, id: &str) -> Option<&'static lightloom_nodes::graph::NodeKindSpec> {
+        super::edits::kind_of(self.project, id)
+    }
+
+    fn out_ref(&self, snarl: &Snarl<String>, pin: OutPinId) -> Option<(String, String)> {
+        let id = snarl.get_node(pin.node)?;
+        Some((id.clone(), self.kind(id)?.outputs.get(pin.output)?.name.to_string()))
+    }
+
+    fn in_ref(&self, snarl: &Snarl<String>, pin: InPinId) -> Option<(String, String)> {
+        let id = snarl.get_node(pin.node)?;
+        Some((id.clone(), self.kind(id)?.inputs.get(pin.input)?.name.to_string()))
+    }
+}
+
+impl SnarlViewer<String> for Viewer<'_> {
+    fn title(&mut self, node: &String) -> String {
+        let n = super::edits::node(self.project, node);
+        let label = n.map(|n| n.label.as_str()).filter(|l| !l.is_empty()).unwrap_or(node);
+        match self.kind(node) {
+            Some(k) => format!("{label} · {}", k.label),
+            None => label.to_string(),
+        }
+    }
+
+    fn show_header(&mut self, node: NodeId, _: &[InPin], _: &[OutPin], ui: &mut egui::Ui, snarl: &mut Snarl<String>) {
+        let id = snarl[node].clone();
+        let status = self.status.get(&id);
+        let (color, word) = status_color(status);
+        ui.horizontal(|ui| {
+            let (rect, response) = ui.allocate_exact_size(egui::vec2(10.0, 10.0), egui::Sense::hover());
+            ui.painter().circle_filled(rect.center(), 4.5, color);
+            let hover = match status {
+                Some(NodeStatus::Error(m)) => format!("error: {m}"),
+                Some(NodeStatus::Running(stage, f)) => format!("running {stage} ({:.0}%)", f * 100.0),
+                _ => word.to_string(),
+            };
+            response.on_hover_text(hover);
+            ui.label(RichText::new(self.title(&id)).strong());
+        });
+    }
+
+    fn inputs(&mut self, node: &String) -> usize {
+        self.kind(node).map_or(0, |k| k.inputs.len())
+    }
+
+    fn outputs(&mut self, node: &String) -> usize {
+        self.kind(node).map_or(0, |k| k.outputs.len())
+    }
+
+    #[allow(refining_impl_trait)]
+    fn show_input(&mut self, pin: &InPin, ui: &mut egui::Ui, snarl: &mut Snarl<String>) -> PinInfo {
+        let id = &snarl[pin.id.node];
+        let Some(spec) = self.kind(id).and_then(|k| k.inputs.get(pin.id.input)) else { return PinInfo::circle() };
+        let text = if spec.many { format!("{} (many)", spec.name) } else { spec.name.to_string() };
+        if spec.required && pin.remotes.is_empty() {
+            ui.label(RichText::new(text).color(Color32::from_rgb(235, 90, 80)))
+                .on_hover_text(format!("required {} input: link one", spec.ty));
+        } else {
+            ui.label(text).on_hover_text(spec.ty.to_string());
+        }
+        PinInfo::circle().with_fill(port_color(spec.ty))
+    }
+
+    #[allow(refining_impl_trait)]
+    fn show_output(&mut self, pin: &OutPin, ui: &mut egui::Ui, snarl: &mut Snarl<String>) -> PinInfo {
+        let id = &snarl[pin.id.node];
+        let Some(spec) = self.kind(id).and_then(|k| k.outputs.get(pin.id.output)) else { return PinInfo::circle() };
+        ui.label(spec.name).on_hover_text(spec.ty.to_string());
+        PinInfo::circle().with_fill(port_color(spec.ty))
+    }
+
+    fn has_body(&mut self, node: &String) -> bool {
+        matches!(self.status.get(node), Some(NodeStatus::Error(_) | NodeStatus::Running(..)))
+            || self.kind(node).is_some_and(|k| super::previews::has_preview(k.name))
+            || self.kind(node).is_some_and(|k| k.availability != Availability::Ready)
+    }
+
+    fn show_body(&mut self, node: NodeId, _: &[InPin], _: &[OutPin], ui: &mut egui::Ui, snarl: &mut Snarl<String>) {
+        let id = snarl[node].clone();
+        ui.vertical(|ui| {
+            ui.set_max_width(220.0);
+            match self.status.get(&id) {
+                Some(NodeStatus::Error(message)) => {
+                    ui.add(egui::Label::new(RichText::new(message).color(Color32::from_rgb(235, 90, 80))).wrap());
+                }
+                Some(NodeStatus::Running(stage, fraction)) => {
+                    ui.add(egui::ProgressBar::new(*fraction).desired_width(200.0).text(stage.as_str()));
+                }
+                _ => {}
+            }
+            if let Some(kind) = self.kind(&id) {
+                if let Availability::Planned(issue) = kind.availability {
+                    ui.weak(format!("technique lands with {issue}"));
+                }
+                if let Some(evaluation) = self.evaluation {
+                    self.previews.show(ui, &id, kind.name, evaluation);
+                }
+            }
+        });
+    }
+
+    fn has_node_menu(&mut self, _: &String) -> bool {
+        true
+    }
+
+    fn show_node_menu(&mut self, node: NodeId, _: &[InPin], _: &[OutPin], ui: &mut egui::Ui, snarl: &mut Snarl<String>) {
+        let id = snarl[node].clone();
+        if ui.button("Rename…").clicked() {
+            self.actions.push(GraphAction::Rename(id.clone()));
+            ui.close();
+        }
+        if ui.button("Duplicate  (Shift+D)").clicked() {
+            self.actions.push(GraphAction::Duplicate(vec![id.clone()]));
+            ui.close();
+        }
+        if ui.button("Copy  (Ctrl+C)").clicked() {
+            self.actions.push(GraphAction::Copy(vec![id.clone()]));
+            ui.close();
+        }
+        if ui.button("Delete  (X, Delete)").clicked() {
+            self.actions.push(GraphAction::Remove(vec![id]));
+            ui.close();
+        }
+    }
+
+    fn has_graph_menu(&mut self, _: egui::Pos2, _: &mut Snarl<String>) -> bool {
+        true
+    }
+
+    fn show_graph_menu(&mut self, pos: egui::Pos2, ui: &mut egui::Ui, _: &mut Snarl<String>) {
+        ui.label(RichText::new("Add node").strong());
+        if let Some(kind) = add_list(ui, self.query, None) {
+            self.actions.push(GraphAction::Add { kind, position: [pos.x, pos.y], link: None });
+            self.query.clear();
+            ui.close();
+        }
+    }
+
+    fn has_dropped_wire_menu(&mut self, _: AnyPins, _: &mut Snarl<String>) -> bool {
+        true
+    }
+
+    fn show_dropped_wire_menu(&mut self, pos: egui::Pos2, ui: &mut egui::Ui, src: AnyPins, snarl: &mut Snarl<String>) {
+        let (ty, link) = match src {
+            AnyPins::Out(pins) => {
+                let Some(r) = pins.first().and_then(|p| self.out_ref(snarl, *p)) else { return };
+                let Some(ty) = self.kind(&r.0).and_then(|k| k.output(&r.1)).map(|p| p.ty) else { return };
+                ((ty, true), PendingLink::FromOutput(r.0, r.1))
+            }
+            AnyPins::In(pins) => {
+                let Some(r) = pins.first().and_then(|p| self.in_ref(snarl, *p)) else { return };
+                let Some(ty) = self.kind(&r.0).and_then(|k| k.input(&r.1)).map(|p| p.ty) else { return };
+                ((ty, false), PendingLink::ToInput(r.0, r.1))
+            }
+        };
+        ui.label(RichText::new(format!("Add a node taking {}", ty.0)).strong());
+        if let Some(kind) = add_list(ui, self.query, Some(ty)) {
+            self.actions.push(GraphAction::Add { kind, position: [pos.x, pos.y], link: Some(link) });
+            self.query.clear();
+            ui.close();
+        }
+    }
+
+    fn connect(&mut self, from: &OutPin, to: &InPin, snarl: &mut Snarl<String>) {
+        let (Some(a), Some(b)) = (self.out_ref(snarl, from.id), self.in_ref(snarl, to.id)) else { return };
+        match super::edits::check_link(self.project, &a, &b) {
+            Ok(()) => self.actions.push(GraphAction::Connect { from: a, to: b }),
+            Err(reason) => self.actions.push(GraphAction::Refused(reason)),
+        }
+    }
+
+    fn disconnect(&mut self, from: &OutPin, to: &InPin, snarl: &mut Snarl<String>) {
+        if let (Some(a), Some(b)) = (self.out_ref(snarl, from.id), self.in_ref(snarl, to.id)) {
+            self.actions.push(GraphAction::Disconnect { from: a, to: b });
+        }
+    }
+
+    fn drop_outputs(&mut self, pin: &OutPin, snarl: &mut Snarl<String>) {
+        if let Some(port) = self.out_ref(snarl, pin.id) {
+            self.actions.push(GraphAction::DisconnectPort { port, input: false });
+        }
+    }
+
+    fn drop_inputs(&mut self, pin: &InPin, snarl: &mut Snarl<String>) {
+        if let Some(port) = self.in_ref(snarl, pin.id) {
+            self.actions.push(GraphAction::DisconnectPort { port, input: true });
+        }
+    }
+
+    fn current_transform(&mut self, to_global: &mut egui::emath::TSTransform, _: &mut Snarl<String>) {
+        self.to_global = *to_global;
+    }
+}

@@ -1,0 +1,194 @@
+//! Work off the UI thread: graph evaluation (through the engine's scheduler, which cancels a
+//! stale evaluation when a newer graph arrives) and Monte Carlo reference renders. The UI
+//! polls them each frame and shows progress; both can be cancelled.
+
+use lightloom_nodes::engine::{CancelToken, Engine, EvalEvent, Evaluation, Graph, Scheduler, StageStatus};
+use lightloom_nodes::kinds::output::FrameInputs;
+use lightloom_nodes::reference::{HdrImage, PinholeCamera};
+use std::collections::HashMap;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU32, Ordering};
+use std::time::Instant;
+
+/// What a node shows in its header.
+#[derive(Clone, Debug, PartialEq)]
+pub enum NodeStatus {
+    UpToDate,
+    /// Waiting for an evaluation to reach it.
+    Dirty,
+    /// A stage is running: `(stage, fraction done)`.
+    Running(String, f32),
+    Error(String),
+}
+
+/// The running evaluation, as seen through its events.
+pub struct Progress {
+    pub started: Instant,
+    pub total: usize,
+    pub done: usize,
+    /// Stages running now with their progress.
+    pub running: Vec<(String, String, f32)>,
+}
+
+/// Background evaluation of the document's graph.
+pub struct Evaluator {
+    pub engine: Arc<Engine>,
+    scheduler: Scheduler,
+    /// Document revision of the graph submitted last (evaluated or in flight).
+    pub submitted_revision: u64,
+    pub progress: Option<Progress>,
+    /// The last evaluation that finished (not cancelled), and the graph it evaluated.
+    pub last: Option<(Arc<Evaluation>, Graph)>,
+    pub status: HashMap<String, NodeStatus>,
+    /// The user cancelled: do not resubmit until the next edit.
+    pub cancelled_revision: Option<u64>,
+    pending_graph: Option<Graph>,
+}
+
+impl Evaluator {
+    pub fn new(engine: Arc<Engine>) -> Self {
+        Self {
+            engine,
+            scheduler: Scheduler::default(),
+            submitted_revision: 0,
+            progress: None,
+            last: None,
+            status: HashMap::new(),
+            cancelled_revision: None,
+            pending_graph: None,
+        }
+    }
+
+    pub fn submit(&mut self, graph: Graph, revision: u64) {
+        for n in &graph.nodes {
+            self.status.insert(n.id.clone(), NodeStatus::Dirty);
+        }
+        self.status.retain(|id, _| graph.node(id).is_some());
+        self.scheduler.submit(&self.engine, graph.clone());
+        self.submitted_revision = revision;
+        self.cancelled_revision = None;
+        self.progress = Some(Progress { started: Instant::now(), total: 0, done: 0, running: Vec::new() });
+        self.pending_graph = Some(graph);
+    }
+
+    pub fn is_running(&self) -> bool {
+        self.progress.is_some()
+    }
+
+    /// Stops the running evaluation; nothing partial is cached.
+    pub fn cancel(&mut self) {
+        if let Some(job) = self.scheduler.current() {
+            job.cancel();
+            self.cancelled_revision = Some(self.submitted_revision);
+        }
+    }
+
+    /// Drains events; returns the evaluation when one has just finished.
+    pub fn poll(&mut self) -> Option<Arc<Evaluation>> {
+        if let (Some(job), Some(progress)) = (self.scheduler.current(), self.progress.as_mut()) {
+            while let Ok(event) = job.events.try_recv() {
+                match event {
+                    EvalEvent::Started { stages } => progress.total = stages,
+                    EvalEvent::StageStarted { node, stage } => {
+                        self.status.insert(node.clone(), NodeStatus::Running(stage.clone(), 0.0));
+                        progress.running.push((node, stage, 0.0));
+                    }
+                    EvalEvent::StageProgress { node, stage, fraction } => {
+                        self.status.insert(node.clone(), NodeStatus::Running(stage.clone(), fraction as f32));
+                        if let Some(r) = progress.running.iter_mut().find(|r| r.0 == node && r.1 == stage) {
+                            r.2 = fraction as f32;
+                        }
+                    }
+                    EvalEvent::StageFinished { node, stage, status, .. } => {
+                        progress.done += 1;
+                        progress.running.retain(|r| !(r.0 == node && r.1 == stage));
+                        if !progress.running.iter().any(|r| r.0 == node) {
+                            let s = if matches!(status, StageStatus::Failed | StageStatus::KnownFailure) {
+                                NodeStatus::Error(format!("{stage} failed"))
+                            } else {
+                                NodeStatus::Dirty
+                            };
+                            self.status.insert(node, s);
+                        }
+                    }
+                    EvalEvent::Finished => {}
+                }
+            }
+        }
+        let evaluation = self.scheduler.poll()?;
+        self.progress = None;
+        let graph = self.pending_graph.take()?;
+        let cancelled = evaluation.report.stages.iter().any(|s| s.status == StageStatus::Cancelled);
+        for n in &graph.nodes {
+            let failed = evaluation.report.stages.iter().find(|s| {
+                s.node == n.id
+                    && matches!(s.status, StageStatus::Failed | StageStatus::KnownFailure | StageStatus::Blocked)
+            });
+            let status = match failed {
+                Some(s) if s.status == StageStatus::Blocked => {
+                    NodeStatus::Error(format!("{}: blocked by a failed input", s.stage))
+                }
+                Some(s) => NodeStatus::Error(format!("{}: {}", s.stage, s.error.as_deref().unwrap_or("failed"))),
+                None if cancelled => NodeStatus::Dirty,
+                None => NodeStatus::UpToDate,
+            };
+            self.status.insert(n.id.clone(), status);
+        }
+        if cancelled {
+            return None;
+        }
+        let evaluation = Arc::new(evaluation);
+        self.last = Some((evaluation.clone(), graph));
+        Some(evaluation)
+    }
+}
+
+/// A Monte Carlo reference render on its own thread.
+pub struct ReferenceJob {
+    cancel: CancelToken,
+    progress: Arc<AtomicU32>,
+    handle: Option<std::thread::JoinHandle<Result<HdrImage, String>>>,
+    pub started: Instant,
+    /// What it renders: `(frame keys, camera, size, samples)` hashed, to know when it is stale.
+    pub signature: u64,
+    pub size: (u32, u32),
+}
+
+impl ReferenceJob {
+    pub fn spawn(frame: Arc<FrameInputs>, camera: PinholeCamera, size: (u32, u32), signature: u64) -> Self {
+        let cancel = CancelToken::default();
+        let progress = Arc::new(AtomicU32::new(0));
+        let (token, counter) = (cancel.clone(), progress.clone());
+        let handle = std::thread::Builder::new()
+            .name("lightloom-reference".into())
+            .spawn(move || {
+                let report = |f: f64| counter.store((f.clamp(0.0, 1.0) * 1e6) as u32, Ordering::Relaxed);
+                frame.render_reference(&camera, (size.0 as usize, size.1 as usize), 1, &token, &report)
+            })
+            .expect("spawn reference thread");
+        Self { cancel, progress, handle: Some(handle), started: Instant::now(), signature, size }
+    }
+
+    pub fn fraction(&self) -> f32 {
+        self.progress.load(Ordering::Relaxed) as f32 / 1e6
+    }
+
+    pub fn cancel(&self) {
+        self.cancel.cancel();
+    }
+
+    /// The finished image (or why it failed), once.
+    pub fn poll(&mut self) -> Option<Result<HdrImage, String>> {
+        if !self.handle.as_ref()?.is_finished() {
+            return None;
+        }
+        let result = self.handle.take()?.join().unwrap_or_else(|_| Err("the reference render panicked".into()));
+        Some(result)
+    }
+}
+
+impl Drop for ReferenceJob {
+    fn drop(&mut self) {
+        self.cancel.cancel();
+    }
+}

@@ -1,0 +1,141 @@
+//! The viewport's orbit camera (Blender-style navigation): orbit around a target, pan the
+//! target in the view plane, dolly towards it, frame the scene.
+
+use glam::{DVec3, Vec3};
+use lightloom_nodes::project::Camera;
+use lightloom_nodes::reference::PinholeCamera;
+use lightloom_render::CameraView;
+
+/// A camera orbiting `target` at `distance`, `yaw` around +Y (0 looks down -Z) and `pitch`
+/// above the horizon, both in radians.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct OrbitCamera {
+    pub target: DVec3,
+    pub distance: f64,
+    pub yaw: f64,
+    pub pitch: f64,
+    pub fov_y_deg: f64,
+}
+
+const PITCH_LIMIT: f64 = 1.55;
+
+impl OrbitCamera {
+    pub fn from_camera(camera: &Camera) -> Self {
+        let target = DVec3::from(camera.target);
+        let offset = DVec3::from(camera.position) - target;
+        let distance = offset.length().max(1e-3);
+        let pitch = (offset.y / distance).clamp(-1.0, 1.0).asin();
+        let yaw = offset.x.atan2(offset.z);
+        Self { target, distance, yaw, pitch, fov_y_deg: camera.fov_y_deg }
+    }
+
+    pub fn position(&self) -> DVec3 {
+        let (sy, cy) = self.yaw.sin_cos();
+        let (sp, cp) = self.pitch.sin_cos();
+        self.target + DVec3::new(sy * cp, sp, cy * cp) * self.distance
+    }
+
+    pub fn to_camera(&self, name: &str) -> Camera {
+        Camera {
+            name: name.into(),
+            position: self.position().to_array(),
+            target: self.target.to_array(),
+            fov_y_deg: self.fov_y_deg,
+        }
+    }
+
+    pub fn view(&self) -> CameraView {
+        CameraView {
+            position: self.position().as_vec3(),
+            target: self.target.as_vec3(),
+            fov_y_deg: self.fov_y_deg as f32,
+        }
+    }
+
+    pub fn pinhole(&self) -> PinholeCamera {
+        PinholeCamera { position: self.position(), target: self.target, fov_y_deg: self.fov_y_deg }
+    }
+
+    /// Turns by a drag of `(dx, dy)` pixels (a full viewport height ≈ half a turn).
+    pub fn orbit(&mut self, (dx, dy): (f64, f64), viewport_height: f64) {
+        let speed = std::f64::consts::PI / viewport_height.max(1.0);
+        self.yaw -= dx * speed;
+        self.pitch = (self.pitch + dy * speed).clamp(-PITCH_LIMIT, PITCH_LIMIT);
+    }
+
+    /// Moves the target so the scene follows a drag of `(dx, dy)` pixels.
+    pub fn pan(&mut self, (dx, dy): (f64, f64), viewport_height: f64) {
+        let forward = (self.target - self.position()).normalize();
+        let right = forward.cross(DVec3::Y).try_normalize().unwrap_or(DVec3::X);
+        let up = right.cross(forward);
+        let world_per_pixel =
+            2.0 * self.distance * (self.fov_y_deg.to_radians() / 2.0).tan() / viewport_height.max(1.0);
+        self.target += (-right * dx + up * dy) * world_per_pixel;
+    }
+
+    /// Dollies towards the target: `factor < 1` moves closer.
+    pub fn zoom(&mut self, factor: f64) {
+        if factor.is_finite() && factor > 0.0 {
+            self.distance = (self.distance * factor).clamp(1e-3, 1e6);
+        }
+    }
+
+    /// Looks at the centre of `bounds` from the current direction, far enough to see it all.
+    pub fn frame(&mut self, (lo, hi): ([f32; 3], [f32; 3])) {
+        let (lo, hi) = (Vec3::from(lo).as_dvec3(), Vec3::from(hi).as_dvec3());
+        if !(lo.x <= hi.x && lo.is_finite() && hi.is_finite()) {
+            return;
+        }
+        let radius = ((hi - lo).length() * 0.5).max(1e-3);
+        self.target = (lo + hi) * 0.5;
+        self.distance = radius / (self.fov_y_deg.to_radians() / 2.0).sin() * 1.1;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn camera() -> Camera {
+        Camera { name: "c".into(), position: [1.0, 2.0, 5.0], target: [0.0, 0.5, 0.0], fov_y_deg: 40.0 }
+    }
+
+    #[test]
+    fn a_project_camera_round_trips() {
+        let orbit = OrbitCamera::from_camera(&camera());
+        let back = orbit.to_camera("c");
+        for i in 0..3 {
+            assert!((back.position[i] - camera().position[i]).abs() < 1e-9);
+        }
+        assert_eq!(back.target, camera().target);
+    }
+
+    #[test]
+    fn orbiting_keeps_the_distance_and_panning_keeps_the_view_direction() {
+        let mut orbit = OrbitCamera::from_camera(&camera());
+        let d = orbit.distance;
+        orbit.orbit((120.0, -40.0), 600.0);
+        assert!(((orbit.position() - orbit.target).length() - d).abs() < 1e-9);
+        orbit.orbit((0.0, 1e6), 600.0);
+        assert!(orbit.pitch <= PITCH_LIMIT, "the camera never flips over the pole");
+        let forward = (orbit.target - orbit.position()).normalize();
+        let target = orbit.target;
+        orbit.pan((30.0, 10.0), 600.0);
+        let moved = orbit.target - target;
+        assert!(moved.length() > 0.0 && moved.dot(forward).abs() < 1e-9, "panning moves in the view plane");
+        assert!(((orbit.target - orbit.position()).normalize() - forward).length() < 1e-9);
+        orbit.zoom(0.5);
+        assert!((orbit.distance - d * 0.5).abs() < 1e-9);
+    }
+
+    #[test]
+    fn framing_fits_the_bounds_in_view() {
+        let mut orbit = OrbitCamera::from_camera(&camera());
+        orbit.frame(([-2.0, 0.0, -2.0], [2.0, 1.0, 2.0]));
+        assert_eq!(orbit.target, DVec3::new(0.0, 0.5, 0.0));
+        let radius = DVec3::new(4.0, 1.0, 4.0).length() / 2.0;
+        // The bounding sphere subtends at most the vertical field of view.
+        let half_angle = (radius / orbit.distance).asin().to_degrees();
+        assert!(half_angle <= orbit.fov_y_deg / 2.0 && half_angle > orbit.fov_y_deg / 2.0 * 0.8);
+    }
+}

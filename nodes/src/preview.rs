@@ -1,0 +1,126 @@
+//! Small display images for node previews in the editor: environment thumbnails and SH
+//! lighting spheres. The lighting math stays here; the editor only shows the pixels.
+
+use crate::cubemap::{CubeMap, equirect_uv_to_dir};
+use crate::sh::{ShBasis, ShRgb};
+use glam::DVec3;
+
+/// An 8-bit sRGB image with alpha (row 0 at the top).
+#[derive(Clone, Debug, PartialEq)]
+pub struct PreviewImage {
+    pub width: usize,
+    pub height: usize,
+    pub rgba: Vec<[u8; 4]>,
+}
+
+fn luminance(c: [f64; 3]) -> f64 {
+    0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]
+}
+
+/// Reinhard on `scale × linear`, then the sRGB transfer function.
+pub fn display_rgb8(linear: [f64; 3], scale: f64) -> [u8; 4] {
+    let encode = |v: f64| {
+        let v = (v * scale).max(0.0);
+        let v = v / (1.0 + v);
+        let s = if v <= 0.003_130_8 { 12.92 * v } else { 1.055 * v.powf(1.0 / 2.4) - 0.055 };
+        (s * 255.0).round().clamp(0.0, 255.0) as u8
+    };
+    [encode(linear[0]), encode(linear[1]), encode(linear[2]), 255]
+}
+
+/// Exposure that maps the mean luminance to middle grey (0.18 before the tone curve).
+fn auto_scale(values: impl Iterator<Item = [f64; 3]>) -> f64 {
+    let (sum, n) = values.fold((0.0, 0usize), |(s, n), c| (s + luminance(c).max(0.0), n + 1));
+    let mean = sum / n.max(1) as f64;
+    if mean > 1e-12 && mean.is_finite() { 0.18 / mean } else { 1.0 }
+}
+
+/// A `width × height` equirectangular thumbnail of a radiance cube map (the README's
+/// equirect convention: the centre looks down -Z, the top row is +Y), auto-exposed.
+pub fn environment_thumbnail(cube: &CubeMap, width: usize, height: usize) -> PreviewImage {
+    let (width, height) = (width.max(1), height.max(1));
+    let linear: Vec<[f64; 3]> = (0..width * height)
+        .map(|i| {
+            let (x, y) = (i % width, i / width);
+            let dir = equirect_uv_to_dir((x as f64 + 0.5) / width as f64, (y as f64 + 0.5) / height as f64);
+            cube.sample(dir)
+        })
+        .collect();
+    let scale = auto_scale(linear.iter().copied());
+    PreviewImage { width, height, rgba: linear.iter().map(|&c| display_rgb8(c, scale)).collect() }
+}
+
+/// The normal a sphere preview shows at pixel `(x, y)`: an orthographic view down -Z of the
+/// unit sphere (+X right, +Y up), or `None` outside its silhouette.
+pub fn sphere_normal(x: usize, y: usize, size: usize) -> Option<DVec3> {
+    let u = 2.0 * (x as f64 + 0.5) / size as f64 - 1.0;
+    let v = 1.0 - 2.0 * (y as f64 + 0.5) / size as f64;
+    let r2 = u * u + v * v;
+    (r2 <= 1.0).then(|| DVec3::new(u, v, (1.0 - r2).sqrt()))
+}
+
+/// A white Lambertian sphere lit by SH radiance: each pixel shows the exit radiance
+/// `E(n)/π` with `E` the SH irradiance (Sun 2008 eq. 2.20), auto-exposed; transparent outside.
+pub fn sh_lighting_sphere(radiance: &ShRgb, size: usize) -> PreviewImage {
+    let size = size.max(1);
+    let irradiance = radiance.irradiance();
+    let basis = ShBasis::new(irradiance.bands);
+    let exit: Vec<Option<[f64; 3]>> = (0..size * size)
+        .map(|i| {
+            sphere_normal(i % size, i / size, size)
+                .map(|n| irradiance.eval(&basis, n).map(|e| e.max(0.0) / std::f64::consts::PI))
+        })
+        .collect();
+    let scale = auto_scale(exit.iter().flatten().copied());
+    let rgba = exit.iter().map(|c| c.map_or([0, 0, 0, 0], |c| display_rgb8(c, scale))).collect();
+    PreviewImage { width: size, height: size, rgba }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sh;
+
+    #[test]
+    fn constant_environment_gives_a_uniform_thumbnail_and_sphere() {
+        let cube = CubeMap::new(4, vec![[0.5, 0.5, 0.5]; 6 * 16]);
+        let thumb = environment_thumbnail(&cube, 32, 16);
+        assert!(thumb.rgba.iter().all(|p| p == &thumb.rgba[0]));
+        // Uniform radiance L: E = πL everywhere, so every sphere pixel is equal.
+        let sh = sh::project_samples(3, cube.samples());
+        let sphere = sh_lighting_sphere(&sh, 24);
+        let inside: Vec<_> = sphere.rgba.iter().filter(|p| p[3] == 255).collect();
+        assert!(inside.len() > 24 * 24 / 2);
+        assert!(inside.iter().all(|p| p[0].abs_diff(inside[0][0]) <= 1), "uniform light must shade uniformly");
+    }
+
+    #[test]
+    fn sphere_is_brightest_where_the_normal_faces_the_light() {
+        // A small bright cap around a direction: the brightest pixel's normal points at it.
+        let light = DVec3::new(0.4, 0.7, 0.6).normalize();
+        let cube = CubeMap::from_fn(16, 2, |d| if d.dot(light) > 0.95 { [10.0; 3] } else { [0.01; 3] });
+        let sh = sh::project_samples(4, cube.samples());
+        let size = 64;
+        let sphere = sh_lighting_sphere(&sh, size);
+        let (best, _) = sphere
+            .rgba
+            .iter()
+            .enumerate()
+            .filter(|(_, p)| p[3] == 255)
+            .max_by_key(|(_, p)| p[1])
+            .expect("sphere pixels");
+        let n = sphere_normal(best % size, best / size, size).unwrap();
+        assert!(n.dot(light) > 0.97, "brightest normal {n} vs light {light}");
+    }
+
+    #[test]
+    fn thumbnail_places_directions_by_the_equirect_convention() {
+        // Only +X is bright: it must land at u = 0.75, v = 0.5.
+        let cube = CubeMap::from_fn(16, 2, |d| if d.x > 0.9 { [5.0; 3] } else { [0.0; 3] });
+        let (w, h) = (64, 32);
+        let thumb = environment_thumbnail(&cube, w, h);
+        let (best, _) = thumb.rgba.iter().enumerate().max_by_key(|(_, p)| p[0]).unwrap();
+        let (x, y) = (best % w, best / w);
+        assert!((x as f64 / w as f64 - 0.75).abs() < 0.1 && (y as f64 / h as f64 - 0.5).abs() < 0.15, "{x},{y}");
+    }
+}

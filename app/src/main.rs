@@ -110,7 +110,9 @@ fn main_job(args: EditorArgs) -> Result<()> {
             Err(e) => eprintln!("{e:#}; rendering headlessly instead"),
         }
     } else if !args.headless {
-        eprintln!("no display (DISPLAY and WAYLAND_DISPLAY are unset): rendering headlessly instead of opening the editor");
+        eprintln!(
+            "no display (DISPLAY and WAYLAND_DISPLAY are unset): rendering headlessly instead of opening the editor"
+        );
     }
     headless_render(&args)
 }
@@ -125,8 +127,7 @@ fn headless_render(args: &EditorArgs) -> Result<()> {
         }
         None => {
             let project = lightloom_nodes::project::default_project();
-            let graph =
-                project.graph(std::path::Path::new("default.ron")).map_err(|e| anyhow::anyhow!("{e:?}"))?;
+            let graph = project.graph(std::path::Path::new("default.ron")).map_err(|e| anyhow::anyhow!("{e:?}"))?;
             (project, graph, std::path::PathBuf::from("lightloom-default.png"))
         }
     };

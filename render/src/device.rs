@@ -61,7 +61,12 @@ impl GpuContext {
 
     /// Wraps a device someone else created (the editor's window device, made with
     /// [`device_descriptor`] so the renderer gets the limits it needs).
-    pub fn from_parts(instance: wgpu::Instance, adapter: wgpu::Adapter, device: wgpu::Device, queue: wgpu::Queue) -> Self {
+    pub fn from_parts(
+        instance: wgpu::Instance,
+        adapter: wgpu::Adapter,
+        device: wgpu::Device,
+        queue: wgpu::Queue,
+    ) -> Self {
         Self { instance, adapter, device, queue }
     }
 

@@ -192,9 +192,7 @@ pub fn state_dir() -> PathBuf {
     if let Some(dir) = std::env::var_os("XDG_STATE_HOME").filter(|d| !d.is_empty()) {
         return PathBuf::from(dir).join("lightloom");
     }
-    std::env::var_os("HOME")
-        .map_or_else(std::env::temp_dir, PathBuf::from)
-        .join(".local/state/lightloom")
+    std::env::var_os("HOME").map_or_else(std::env::temp_dir, PathBuf::from).join(".local/state/lightloom")
 }
 
 /// The recovery file of a project (`None`: the untitled/built-in project): one per project
@@ -219,7 +217,7 @@ pub fn pending_recovery(project: Option<&Path>) -> Option<(PathBuf, std::time::S
     let saved_at = std::fs::metadata(&recovery).and_then(|m| m.modified()).ok()?;
     let project_time = project.and_then(|p| std::fs::metadata(p).and_then(|m| m.modified()).ok());
     match project_time {
-        Some(t) if t >= saved_at => None,
+        Some(t) if t > saved_at => None,
         _ => Some((recovery, saved_at)),
     }
 }
@@ -243,6 +241,20 @@ pub fn remember_recent(path: &Path) {
     if std::fs::create_dir_all(&dir).is_ok() {
         let _ = std::fs::write(dir.join("recent.txt"), text);
     }
+}
+
+/// One state directory for every test in this process (the variable is process-wide).
+#[cfg(test)]
+pub(crate) fn test_state_dir() -> PathBuf {
+    static DIR: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
+    DIR.get_or_init(|| {
+        let dir = std::env::temp_dir().join(format!("lightloom-tests-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("temp dir");
+        // SAFETY: set once, before any test reads it (every test goes through this function).
+        unsafe { std::env::set_var("LIGHTLOOM_STATE_DIR", dir.join("state")) };
+        dir
+    })
+    .clone()
 }
 
 #[cfg(test)]
@@ -296,7 +308,13 @@ mod tests {
         doc.undo();
         assert_eq!(doc.project, original, "two undo steps: the drag and the later edit");
         let revision = doc.revision();
-        assert!(doc.edit("refused", None, |p| { p.name.push('x'); Err::<(), _>("no".into()) }).is_err());
+        assert!(
+            doc.edit("refused", None, |p| {
+                p.name.push('x');
+                Err::<(), _>("no".into())
+            })
+            .is_err()
+        );
         assert_eq!(doc.project, original, "a refused edit changes nothing");
         doc.edit("nothing", None, |_| Ok(())).unwrap();
         assert_eq!(doc.revision(), revision);
@@ -305,10 +323,8 @@ mod tests {
 
     #[test]
     fn save_autosave_and_recovery() {
-        let dir = std::env::temp_dir().join(format!("lightloom-doc-{}", std::process::id()));
+        let dir = test_state_dir().join("document");
         std::fs::create_dir_all(&dir).unwrap();
-        // SAFETY: this test is the only one in this binary that reads the state directory.
-        unsafe { std::env::set_var("LIGHTLOOM_STATE_DIR", dir.join("state")) };
         let path = dir.join("scene.ron");
         let mut doc = Document::new(default_project(), None);
         doc.save_as(&path).unwrap();
@@ -329,9 +345,8 @@ mod tests {
         remember_recent(&path);
         remember_recent(&dir.join("other.ron"));
         remember_recent(&path);
-        let recent = recent_files();
+        let recent: Vec<_> = recent_files().into_iter().filter(|p| p.starts_with(&dir)).collect();
         assert_eq!(recent.len(), 2);
         assert!(recent[0].ends_with("scene.ron"));
-        let _ = std::fs::remove_dir_all(&dir);
     }
 }

@@ -51,9 +51,8 @@ pub fn add_node(project: &mut Project, kind: &str, position: [f32; 2]) -> Result
 fn port_type(project: &Project, (id, port): &PortRef, output: bool) -> Result<(PortType, bool), String> {
     let spec = kind_of(project, id).ok_or_else(|| format!("no node `{id}`"))?;
     let found = if output { spec.output(port) } else { spec.input(port) };
-    let found = found.ok_or_else(|| {
-        format!("{} has no {} `{port}`", spec.label, if output { "output" } else { "input" })
-    })?;
+    let found =
+        found.ok_or_else(|| format!("{} has no {} `{port}`", spec.label, if output { "output" } else { "input" }))?;
     Ok((found.ty, found.many))
 }
 

@@ -16,10 +16,23 @@ use std::collections::{HashMap, HashSet};
 /// What the user asked the graph for.
 #[derive(Clone, Debug, PartialEq)]
 pub enum GraphAction {
-    Add { kind: String, position: [f32; 2], link: Option<PendingLink> },
-    Connect { from: (String, String), to: (String, String) },
-    Disconnect { from: (String, String), to: (String, String) },
-    DisconnectPort { port: (String, String), input: bool },
+    Add {
+        kind: String,
+        position: [f32; 2],
+        link: Option<PendingLink>,
+    },
+    Connect {
+        from: (String, String),
+        to: (String, String),
+    },
+    Disconnect {
+        from: (String, String),
+        to: (String, String),
+    },
+    DisconnectPort {
+        port: (String, String),
+        input: bool,
+    },
     Remove(Vec<String>),
     Duplicate(Vec<String>),
     Copy(Vec<String>),
@@ -55,6 +68,10 @@ pub struct GraphEditor {
     query: String,
     /// Nodes selected in the widget, by id.
     pub selected: Vec<String>,
+    /// Fit the view to the nodes on the next frame (new document, Home).
+    fit_pending: bool,
+    /// A refused link or failed edit, shown over the graph for a few seconds.
+    pub notice: Option<(String, std::time::Instant)>,
 }
 
 pub fn port_color(ty: PortType) -> Color32 {
@@ -88,6 +105,8 @@ impl Default for GraphEditor {
             to_global: Default::default(),
             query: String::new(),
             selected: Vec::new(),
+            fit_pending: true,
+            notice: None,
         }
     }
 }
@@ -125,10 +144,9 @@ impl GraphEditor {
             else {
                 continue;
             };
-            let (Some(o), Some(i)) = (
-                ka.outputs.iter().position(|p| p.name == l.from.1),
-                kb.inputs.iter().position(|p| p.name == l.to.1),
-            ) else {
+            let (Some(o), Some(i)) =
+                (ka.outputs.iter().position(|p| p.name == l.from.1), kb.inputs.iter().position(|p| p.name == l.to.1))
+            else {
                 continue;
             };
             desired.insert((OutPinId { node: a, output: o }, InPinId { node: b, input: i }));
@@ -153,6 +171,12 @@ impl GraphEditor {
         evaluation: Option<&Evaluation>,
         previews: &mut Previews,
     ) -> Vec<GraphAction> {
+        let rect = ui.available_rect_before_wrap();
+        if ui.input(|i| i.key_pressed(egui::Key::Home)) && ui.rect_contains_pointer(rect) {
+            self.fit_pending = true;
+        }
+        let fit = self.fit_pending.then(|| fit_transform(project, rect));
+        self.fit_pending = false;
         let mut viewer = Viewer {
             project,
             status,
@@ -161,8 +185,26 @@ impl GraphEditor {
             actions: Vec::new(),
             to_global: self.to_global,
             query: &mut self.query,
+            fit,
         };
         let response = self.widget.show(&mut self.snarl, &mut viewer, ui);
+        if let Some((text, at)) = &self.notice {
+            if at.elapsed().as_secs_f32() < 6.0 {
+                let pos = egui::pos2(rect.left() + 8.0, rect.bottom() - 8.0);
+                let galley = ui.painter().layout(
+                    text.clone(),
+                    egui::FontId::proportional(14.0),
+                    Color32::WHITE,
+                    rect.width() - 16.0,
+                );
+                let bg = egui::Rect::from_min_size(pos - egui::vec2(0.0, galley.size().y), galley.size()).expand(4.0);
+                ui.painter().rect_filled(bg, 4.0, Color32::from_rgb(140, 30, 30));
+                ui.painter().galley(bg.min + egui::vec2(4.0, 4.0), galley, Color32::WHITE);
+                ui.ctx().request_repaint_after(std::time::Duration::from_millis(500));
+            } else {
+                self.notice = None;
+            }
+        }
         self.to_global = viewer.to_global;
         let mut actions = std::mem::take(&mut viewer.actions);
         let selected: Vec<String> = self
@@ -247,6 +289,24 @@ impl GraphEditor {
     }
 }
 
+/// Graph → screen transform showing every node in `rect` (nodes taken as about 260×200).
+fn fit_transform(project: &Project, rect: egui::Rect) -> egui::emath::TSTransform {
+    let (node_w, node_h) = (260.0, 200.0);
+    let mut lo = egui::pos2(f32::MAX, f32::MAX);
+    let mut hi = egui::pos2(f32::MIN, f32::MIN);
+    for n in &project.nodes {
+        lo = lo.min(egui::pos2(n.position[0], n.position[1]));
+        hi = hi.max(egui::pos2(n.position[0] + node_w, n.position[1] + node_h));
+    }
+    if project.nodes.is_empty() {
+        return egui::emath::TSTransform::from_translation(rect.center().to_vec2());
+    }
+    let bounds = egui::Rect::from_min_max(lo, hi).expand(30.0);
+    let scale = (rect.width() / bounds.width()).min(rect.height() / bounds.height()).clamp(0.3, 1.0);
+    let translation = rect.center().to_vec2() - bounds.center().to_vec2() * scale;
+    egui::emath::TSTransform::new(translation, scale)
+}
+
 /// A search field and the matching node kinds; returns the one clicked (or chosen with
 /// Enter). `compatible` limits the list to kinds with a port of that type.
 pub fn add_list(ui: &mut egui::Ui, query: &mut String, compatible: Option<(PortType, bool)>) -> Option<String> {
@@ -298,6 +358,8 @@ struct Viewer<'a> {
     actions: Vec<GraphAction>,
     to_global: egui::emath::TSTransform,
     query: &'a mut String,
+    /// A transform to impose this frame (fit to view).
+    fit: Option<egui::emath::TSTransform>,
 }
 
 impl Viewer<'_> {
@@ -407,7 +469,14 @@ impl SnarlViewer<String> for Viewer<'_> {
         true
     }
 
-    fn show_node_menu(&mut self, node: NodeId, _: &[InPin], _: &[OutPin], ui: &mut egui::Ui, snarl: &mut Snarl<String>) {
+    fn show_node_menu(
+        &mut self,
+        node: NodeId,
+        _: &[InPin],
+        _: &[OutPin],
+        ui: &mut egui::Ui,
+        snarl: &mut Snarl<String>,
+    ) {
         let id = snarl[node].clone();
         if ui.button("Rename…").clicked() {
             self.actions.push(GraphAction::Rename(id.clone()));
@@ -492,6 +561,9 @@ impl SnarlViewer<String> for Viewer<'_> {
     }
 
     fn current_transform(&mut self, to_global: &mut egui::emath::TSTransform, _: &mut Snarl<String>) {
+        if let Some(fit) = self.fit.take() {
+            *to_global = fit;
+        }
         self.to_global = *to_global;
     }
 }

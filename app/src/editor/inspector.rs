@@ -171,7 +171,7 @@ impl Inspector<'_> {
                 if linked.is_empty() || input.many {
                     let mut chosen = None;
                     egui::ComboBox::from_id_salt(("link", id, input.name))
-                        .selected_text(if linked.is_empty() { "— link —" } else { "+ link" })
+                        .selected_text(format!("link {}…", input.name))
                         .show_ui(ui, |ui| {
                             for c in &candidates {
                                 if ui.selectable_label(false, format!("{}.{}", c.0, c.1)).clicked() {
@@ -185,9 +185,10 @@ impl Inspector<'_> {
                         .response
                         .labelled_by(name.id);
                     if let Some(from) = chosen {
-                        let result = self.doc.edit(format!("Link {}.{} → {id}.{}", from.0, from.1, input.name), None, |p| {
-                            edits::connect(p, &from, &to)
-                        });
+                        let result =
+                            self.doc.edit(format!("Link {}.{} → {id}.{}", from.0, from.1, input.name), None, |p| {
+                                edits::connect(p, &from, &to)
+                            });
                         self.note(result);
                     }
                 }
@@ -214,15 +215,13 @@ impl Inspector<'_> {
             (ParamKind::Vec3 { min, max, .. }, ParamValue::Vec3(v)) => vec3_widget(ui, v, *min, *max, &suffix),
             (ParamKind::Color { max, .. }, ParamValue::Color(v)) => color_widget(ui, v, *max),
             (ParamKind::Choice { options, .. }, ParamValue::Choice(v)) => {
-                let mut r = egui::ComboBox::from_id_salt((id, spec.name))
-                    .selected_text(v.as_str())
-                    .show_ui(ui, |ui| {
-                        let mut changed = false;
-                        for o in options.iter() {
-                            changed |= ui.selectable_value(v, o.to_string(), *o).changed();
-                        }
-                        changed
-                    });
+                let mut r = egui::ComboBox::from_id_salt((id, spec.name)).selected_text(v.as_str()).show_ui(ui, |ui| {
+                    let mut changed = false;
+                    for o in options.iter() {
+                        changed |= ui.selectable_value(v, o.to_string(), *o).changed();
+                    }
+                    changed
+                });
                 if r.inner == Some(true) {
                     r.response.mark_changed();
                 }
@@ -264,14 +263,8 @@ impl Inspector<'_> {
     fn objects_widget(&mut self, ui: &mut egui::Ui, id: &str, spec: &ParamSpec) {
         let ParamValue::Objects(current) = param_value(&self.doc.project, id, spec) else { return };
         let mut objects = current.clone();
-        let materials: Vec<String> = self
-            .doc
-            .project
-            .nodes
-            .iter()
-            .filter(|n| n.kind == "BrdfEditor")
-            .map(|n| n.id.clone())
-            .collect();
+        let materials: Vec<String> =
+            self.doc.project.nodes.iter().filter(|n| n.kind == "BrdfEditor").map(|n| n.id.clone()).collect();
         ui.separator();
         ui.horizontal(|ui| {
             ui.label(RichText::new(format!("Objects ({})", objects.len())).strong());
@@ -338,9 +331,8 @@ impl Inspector<'_> {
                         });
                     ui.end_row();
                     ui.label("Visibility texture");
-                    ui.checkbox(&mut o.visibility_texture, "").on_hover_text(
-                        "precompute per-texel visibility over the UVs: sharp shadows on coarse meshes",
-                    );
+                    ui.checkbox(&mut o.visibility_texture, "")
+                        .on_hover_text("precompute per-texel visibility over the UVs: sharp shadows on coarse meshes");
                     ui.end_row();
                 });
                 ui.horizontal(|ui| {

@@ -14,6 +14,9 @@ pub mod orbit;
 pub mod previews;
 pub mod viewport;
 
+#[cfg(test)]
+mod ui_tests;
+
 use document::Document;
 use eframe::egui::{self, Color32};
 use graph_editor::{GraphAction, GraphEditor, PendingLink};
@@ -77,7 +80,10 @@ enum Pending {
     New,
     /// A recovery file from a session that did not close cleanly.
     Recover(PathBuf, SystemTime),
-    Rename { node: String, text: String },
+    Rename {
+        node: String,
+        text: String,
+    },
 }
 
 struct LogLine {
@@ -156,6 +162,8 @@ pub struct EditorApp {
     screenshot_state: ScreenshotState,
     /// Text for the system clipboard (copied nodes), handed to egui at the end of the frame.
     copy_request: Option<String>,
+    /// Where the viewport image was drawn last frame.
+    pub viewport_rect: egui::Rect,
 }
 
 #[derive(PartialEq, Eq)]
@@ -297,10 +305,15 @@ impl EditorApp {
             close_confirmed: false,
             title: String::new(),
             stats: FrameStats::default(),
-            screenshot_state: if options.screenshot.is_some() { ScreenshotState::Waiting } else { ScreenshotState::None },
+            screenshot_state: if options.screenshot.is_some() {
+                ScreenshotState::Waiting
+            } else {
+                ScreenshotState::None
+            },
             options,
             last_frame: None,
             copy_request: None,
+            viewport_rect: egui::Rect::NOTHING,
             doc,
         };
         if let Some(e) = open_error {
@@ -402,7 +415,11 @@ impl EditorApp {
             Some((n, mean, p95, max)) => format!("{n} frames, mean {mean:.1} ms, p95 {p95:.1} ms, max {max:.1} ms"),
             None => "no frames".into(),
         };
-        format!("UI frame time (ui pass on the UI thread): idle: {}; while background work runs: {}", line(false), line(true))
+        format!(
+            "UI frame time (ui pass on the UI thread): idle: {}; while background work runs: {}",
+            line(false),
+            line(true)
+        )
     }
 
     // ----- evaluation -----
@@ -442,10 +459,7 @@ impl EditorApp {
             self.view.reference = None;
             match result {
                 Ok(image) => {
-                    self.log_info(format!(
-                        "reference rendered in {seconds:.1} s ({}x{})",
-                        image.width, image.height
-                    ));
+                    self.log_info(format!("reference rendered in {seconds:.1} s ({}x{})", image.width, image.height));
                     self.view.reference_image = Some((signature, Arc::new(image)));
                     self.view.drawn = 0;
                 }
@@ -471,7 +485,11 @@ impl EditorApp {
         for f in failed {
             self.log_error(f);
         }
-        let output = if self.doc.project.render.output.is_empty() { None } else { Some(self.doc.project.render.output.as_str()) };
+        let output = if self.doc.project.render.output.is_empty() {
+            None
+        } else {
+            Some(self.doc.project.render.output.as_str())
+        };
         let gathered = find_output(&graph, output).and_then(|o| FrameInputs::gather(evaluation, &graph, &o.id));
         match gathered {
             Ok(frame) => {
@@ -578,12 +596,18 @@ impl EditorApp {
             });
             ui.menu_button("Edit", |ui| {
                 let undo = self.doc.undo_label().map_or("Undo".to_string(), |l| format!("Undo {l}"));
-                if ui.add_enabled(self.doc.undo_label().is_some(), egui::Button::new(format!("{undo}  (Ctrl+Z)"))).clicked() {
+                if ui
+                    .add_enabled(self.doc.undo_label().is_some(), egui::Button::new(format!("{undo}  (Ctrl+Z)")))
+                    .clicked()
+                {
                     self.undo();
                     ui.close();
                 }
                 let redo = self.doc.redo_label().map_or("Redo".to_string(), |l| format!("Redo {l}"));
-                if ui.add_enabled(self.doc.redo_label().is_some(), egui::Button::new(format!("{redo}  (Ctrl+Shift+Z)"))).clicked() {
+                if ui
+                    .add_enabled(self.doc.redo_label().is_some(), egui::Button::new(format!("{redo}  (Ctrl+Shift+Z)")))
+                    .clicked()
+                {
                     self.redo();
                     ui.close();
                 }
@@ -615,7 +639,11 @@ impl EditorApp {
                 let mut query = String::new();
                 if let Some(kind) = graph_editor::add_list(ui, &mut query, None) {
                     let n = self.doc.project.nodes.len() as f32;
-                    self.apply(vec![GraphAction::Add { kind, position: [40.0 + 20.0 * n, 40.0 + 20.0 * n], link: None }]);
+                    self.apply(vec![GraphAction::Add {
+                        kind,
+                        position: [40.0 + 20.0 * n, 40.0 + 20.0 * n],
+                        link: None,
+                    }]);
                     ui.close();
                 }
             });
@@ -638,11 +666,12 @@ impl EditorApp {
                 let fraction = if p.total > 0 { p.done as f32 / p.total as f32 } else { 0.0 };
                 let running: Vec<String> =
                     p.running.iter().map(|(n, s, f)| format!("{n}.{s} {:.0}%", f * 100.0)).collect();
-                ui.add(
-                    egui::ProgressBar::new(fraction)
-                        .desired_width(260.0)
-                        .text(format!("evaluating {}/{} {}", p.done, p.total, running.join(", "))),
-                );
+                ui.add(egui::ProgressBar::new(fraction).desired_width(260.0).text(format!(
+                    "evaluating {}/{} {}",
+                    p.done,
+                    p.total,
+                    running.join(", ")
+                )));
                 ui.label(format!("{:.1} s", p.started.elapsed().as_secs_f64()));
                 if ui.button("Cancel").clicked() {
                     self.evaluator.cancel();
@@ -682,27 +711,29 @@ impl EditorApp {
             ui.selectable_value(&mut self.bottom_tab, BottomTab::Timings, "Stage timings");
         });
         ui.separator();
-        egui::ScrollArea::vertical().stick_to_bottom(self.bottom_tab == BottomTab::Log).show(ui, |ui| match self.bottom_tab {
-            BottomTab::Problems => {
-                if problems.is_empty() {
-                    ui.weak("no problems");
-                }
-                for p in problems {
-                    ui.colored_label(Color32::from_rgb(235, 90, 80), p);
-                }
-            }
-            BottomTab::Log => {
-                for line in &self.log {
-                    let at = line.at.duration_since(SystemTime::UNIX_EPOCH).map_or(0, |d| d.as_secs());
-                    let text = format!("{:02}:{:02}:{:02}  {}", at / 3600 % 24, at / 60 % 60, at % 60, line.text);
-                    if line.error {
-                        ui.colored_label(Color32::from_rgb(235, 90, 80), text);
-                    } else {
-                        ui.label(text);
+        egui::ScrollArea::vertical().stick_to_bottom(self.bottom_tab == BottomTab::Log).show(ui, |ui| {
+            match self.bottom_tab {
+                BottomTab::Problems => {
+                    if problems.is_empty() {
+                        ui.weak("no problems");
+                    }
+                    for p in problems {
+                        ui.colored_label(Color32::from_rgb(235, 90, 80), p);
                     }
                 }
+                BottomTab::Log => {
+                    for line in &self.log {
+                        let at = line.at.duration_since(SystemTime::UNIX_EPOCH).map_or(0, |d| d.as_secs());
+                        let text = format!("{:02}:{:02}:{:02}  {}", at / 3600 % 24, at / 60 % 60, at % 60, line.text);
+                        if line.error {
+                            ui.colored_label(Color32::from_rgb(235, 90, 80), text);
+                        } else {
+                            ui.label(text);
+                        }
+                    }
+                }
+                BottomTab::Timings => self.timings(ui),
             }
-            BottomTab::Timings => self.timings(ui),
         });
     }
 
@@ -716,7 +747,12 @@ impl EditorApp {
         }
         if let Some((evaluation, _)) = &self.evaluator.last {
             for s in evaluation.report.failed() {
-                out.push(format!("{}.{}: {}", s.node, s.stage, s.error.as_deref().unwrap_or("blocked by a failed input")));
+                out.push(format!(
+                    "{}.{}: {}",
+                    s.node,
+                    s.stage,
+                    s.error.as_deref().unwrap_or("blocked by a failed input")
+                ));
             }
             for s in &evaluation.report.stages {
                 for w in &s.warnings {
@@ -847,7 +883,9 @@ impl EditorApp {
                 GraphAction::Duplicate(ids) => {
                     let clipboard = edits::Clipboard::copy(&self.doc.project, &ids);
                     self.doc
-                        .edit(format!("Duplicate {}", ids.join(", ")), None, |p| edits::paste(p, &clipboard, [40.0, 40.0]))
+                        .edit(format!("Duplicate {}", ids.join(", ")), None, |p| {
+                            edits::paste(p, &clipboard, [40.0, 40.0])
+                        })
                         .map(|_| ())
                 }
                 GraphAction::Copy(ids) => {
@@ -872,6 +910,7 @@ impl EditorApp {
                 GraphAction::Refused(reason) => Err(reason),
             };
             if let Err(e) = result {
+                self.graph.notice = Some((e.clone(), Instant::now()));
                 self.log_error(e);
             }
         }
@@ -930,6 +969,7 @@ impl EditorApp {
         self.viewport_toolbar(ui);
         let available = ui.available_size();
         let (rect, response) = ui.allocate_exact_size(available, egui::Sense::click_and_drag());
+        self.viewport_rect = rect;
         self.navigate(ui, &response, rect);
         let scale = self.view.resolution_scale * ui.ctx().pixels_per_point();
         let size = (((rect.width() * scale) as u32).clamp(16, 4096), ((rect.height() * scale) as u32).clamp(16, 4096));
@@ -937,7 +977,12 @@ impl EditorApp {
         let painter = ui.painter_at(rect);
         painter.rect_filled(rect, 0.0, Color32::from_gray(20));
         if let Some(id) = self.host.as_ref().and_then(ViewportHost::texture_id) {
-            painter.image(id, rect, egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0)), Color32::WHITE);
+            painter.image(
+                id,
+                rect,
+                egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0)),
+                Color32::WHITE,
+            );
         }
         self.selection_overlay(&painter, rect);
         let message = if let Some(e) = &self.host_error {
@@ -950,18 +995,31 @@ impl EditorApp {
             None
         };
         if let Some(m) = message {
-            painter.text(rect.center(), egui::Align2::CENTER_CENTER, m, egui::FontId::proportional(16.0), Color32::LIGHT_GRAY);
+            painter.text(
+                rect.center(),
+                egui::Align2::CENTER_CENTER,
+                m,
+                egui::FontId::proportional(16.0),
+                Color32::LIGHT_GRAY,
+            );
         }
         if let Some(error) = &self.view.error {
             painter.text(
                 rect.left_top() + egui::vec2(8.0, 8.0),
                 egui::Align2::LEFT_TOP,
-                format!("error vs reference: RMSE {:.4}, relative {:.1}%, PSNR {:.1} dB", error.rmse, error.relative_rmse * 100.0, error.psnr_db),
+                format!(
+                    "error vs reference: RMSE {:.4}, relative {:.1}%, PSNR {:.1} dB",
+                    error.rmse,
+                    error.relative_rmse * 100.0,
+                    error.psnr_db
+                ),
                 egui::FontId::monospace(12.0),
                 Color32::WHITE,
             );
         }
-        if response.clicked() && let Some(pos) = response.interact_pointer_pos() {
+        if response.clicked()
+            && let Some(pos) = response.interact_pointer_pos()
+        {
             self.pick(pos, rect);
         }
     }
@@ -972,28 +1030,39 @@ impl EditorApp {
             return;
         };
         let spec = lightloom_nodes::kinds::kind("Output").expect("Output kind");
-        let value = |doc: &Document, name: &str| inspector::param_value(&doc.project, &output, spec.param(name).expect("param"));
+        let value = |doc: &Document, name: &str| {
+            inspector::param_value(&doc.project, &output, spec.param(name).expect("param"))
+        };
         let mut changes: Vec<(&str, ParamValue)> = Vec::new();
         ui.horizontal_wrapped(|ui| {
             for (name, label) in [("view", "View"), ("mode", "Mode"), ("tonemap", "Tone map")] {
                 let ParamValue::Choice(current) = value(&self.doc, name) else { continue };
-                let lightloom_nodes::graph::ParamKind::Choice { options, .. } = &spec.param(name).expect("param").kind else {
+                let lightloom_nodes::graph::ParamKind::Choice { options, .. } = &spec.param(name).expect("param").kind
+                else {
                     continue;
                 };
                 let l = ui.label(label);
                 let mut chosen = current.clone();
-                egui::ComboBox::from_id_salt(("viewport", name)).selected_text(current.as_str()).show_ui(ui, |ui| {
-                    for o in options.iter() {
-                        ui.selectable_value(&mut chosen, o.to_string(), *o);
-                    }
-                }).response.labelled_by(l.id);
+                egui::ComboBox::from_id_salt(("viewport", name))
+                    .selected_text(current.as_str())
+                    .show_ui(ui, |ui| {
+                        for o in options.iter() {
+                            ui.selectable_value(&mut chosen, o.to_string(), *o);
+                        }
+                    })
+                    .response
+                    .labelled_by(l.id);
                 if chosen != current {
                     changes.push((name, ParamValue::Choice(chosen)));
                 }
             }
             if let ParamValue::Float(mut exposure) = value(&self.doc, "exposure") {
                 let l = ui.label("Exposure");
-                if ui.add(egui::DragValue::new(&mut exposure).range(-20.0..=20.0).speed(0.05).suffix(" EV")).labelled_by(l.id).changed() {
+                if ui
+                    .add(egui::DragValue::new(&mut exposure).range(-20.0..=20.0).speed(0.05).suffix(" EV"))
+                    .labelled_by(l.id)
+                    .changed()
+                {
                     changes.push(("exposure", ParamValue::Float(exposure)));
                 }
             }
@@ -1010,7 +1079,8 @@ impl EditorApp {
                 self.frame_all();
             }
             if ui.button("Reset view").on_hover_text("back to the project's camera").clicked() {
-                let camera = self.doc.project.camera(Some(&self.view.camera_name)).or_else(|_| self.doc.project.camera(None));
+                let camera =
+                    self.doc.project.camera(Some(&self.view.camera_name)).or_else(|_| self.doc.project.camera(None));
                 if let Ok(c) = camera {
                     self.view.camera = OrbitCamera::from_camera(&c);
                 }
@@ -1106,7 +1176,9 @@ impl EditorApp {
     fn selection_overlay(&self, painter: &egui::Painter, rect: egui::Rect) {
         let (Some(index), Some(frame)) = (self.view.selected_object, &self.view.frame) else { return };
         let Selection::Node(scene_id) = &self.selection else { return };
-        let Some(ParamValue::Objects(objects)) = edits::node(&self.doc.project, scene_id).and_then(|n| n.params.get("objects")) else {
+        let Some(ParamValue::Objects(objects)) =
+            edits::node(&self.doc.project, scene_id).and_then(|n| n.params.get("objects"))
+        else {
             return;
         };
         let Some(object) = objects.get(index) else { return };
@@ -1129,7 +1201,10 @@ impl EditorApp {
         let project = |p: glam::Vec3| {
             let c = view_proj * p.extend(1.0);
             (c.w > 1e-4).then(|| {
-                egui::pos2(rect.left() + (c.x / c.w * 0.5 + 0.5) * rect.width(), rect.top() + (0.5 - c.y / c.w * 0.5) * rect.height())
+                egui::pos2(
+                    rect.left() + (c.x / c.w * 0.5 + 0.5) * rect.width(),
+                    rect.top() + (0.5 - c.y / c.w * 0.5) * rect.height(),
+                )
             })
         };
         let stroke = egui::Stroke::new(1.5, Color32::from_rgb(255, 200, 80));
@@ -1181,7 +1256,10 @@ impl EditorApp {
             return;
         }
         let Some((_, reference)) = self.view.reference_image.clone().filter(|(s, _)| *s == signature) else { return };
-        let view_signature = signature ^ xxhash_rust::xxh3::xxh3_64(format!("{}{}{}", settings.view, settings.exposure, settings.tonemap).as_bytes());
+        let view_signature = signature
+            ^ xxhash_rust::xxh3::xxh3_64(
+                format!("{}{}{}", settings.view, settings.exposure, settings.tonemap).as_bytes(),
+            );
         if view_signature == self.view.drawn {
             return;
         }
@@ -1375,7 +1453,10 @@ impl EditorApp {
                 }
                 what => {
                     ui.heading("Save changes?");
-                    ui.label(format!("{} has unsaved changes.", self.doc.path.as_ref().map_or("This project".into(), |p| p.display().to_string())));
+                    ui.label(format!(
+                        "{} has unsaved changes.",
+                        self.doc.path.as_ref().map_or("This project".into(), |p| p.display().to_string())
+                    ));
                     ui.horizontal(|ui| {
                         if ui.button("Save").clicked() {
                             self.pending = None;
@@ -1428,7 +1509,9 @@ impl EditorApp {
     /// it, and close.
     fn screenshot(&mut self, ctx: &egui::Context) {
         match self.screenshot_state {
-            ScreenshotState::Waiting if self.view.frame.is_some() && self.view.drawn != 0 && !self.evaluator.is_running() => {
+            ScreenshotState::Waiting
+                if self.view.frame.is_some() && self.view.drawn != 0 && !self.evaluator.is_running() =>
+            {
                 ctx.send_viewport_cmd(egui::ViewportCommand::Screenshot(egui::UserData::default()));
                 self.screenshot_state = ScreenshotState::Requested;
             }
@@ -1441,9 +1524,10 @@ impl EditorApp {
                 });
                 if let Some(image) = image {
                     let path = self.options.screenshot.clone().expect("screenshot path");
-                    let saved = image::RgbaImage::from_raw(image.size[0] as u32, image.size[1] as u32, image.as_raw().to_vec())
-                        .ok_or_else(|| "bad screenshot size".to_string())
-                        .and_then(|img| img.save(&path).map_err(|e| e.to_string()));
+                    let saved =
+                        image::RgbaImage::from_raw(image.size[0] as u32, image.size[1] as u32, image.as_raw().to_vec())
+                            .ok_or_else(|| "bad screenshot size".to_string())
+                            .and_then(|img| img.save(&path).map_err(|e| e.to_string()));
                     match saved {
                         Ok(()) => println!("screenshot: {} ({}x{})", path.display(), image.size[0], image.size[1]),
                         Err(e) => eprintln!("screenshot failed: {e}"),

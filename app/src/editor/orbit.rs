@@ -35,7 +35,7 @@ impl OrbitCamera {
         self.target + DVec3::new(sy * cp, sp, cy * cp) * self.distance
     }
 
-    pub fn to_camera(&self, name: &str) -> Camera {
+    pub fn to_camera(self, name: &str) -> Camera {
         Camera {
             name: name.into(),
             position: self.position().to_array(),

@@ -83,7 +83,10 @@ fn lobe_plot(ui: &mut egui::Ui, lobe: &lightloom_nodes::brdf::LobePreview) {
     let painter = ui.painter_at(rect);
     let origin = egui::pos2(rect.center().x, rect.bottom() - 4.0);
     let radius = (rect.height() - 8.0).min(rect.width() / 2.0 - 4.0);
-    painter.line_segment([egui::pos2(rect.left(), origin.y), egui::pos2(rect.right(), origin.y)], Stroke::new(1.0, Color32::GRAY));
+    painter.line_segment(
+        [egui::pos2(rect.left(), origin.y), egui::pos2(rect.right(), origin.y)],
+        Stroke::new(1.0, Color32::GRAY),
+    );
     painter.circle_stroke(origin, radius, Stroke::new(0.5, Color32::from_gray(70)));
     let colors = [Color32::from_rgb(120, 200, 255), Color32::from_rgb(255, 200, 90), Color32::from_rgb(255, 110, 110)];
     for (k, curve) in lobe.curves.iter().enumerate() {

@@ -1,0 +1,191 @@
+//! UI tests: the real editor driven through egui_kittest (headless, rendered by wgpu on
+//! lavapipe): add a node from the Shift+A menu, link it from the inspector, edit a parameter,
+//! undo, save and reopen; refused links say why.
+
+use super::*;
+use eframe::egui::accesskit::Role;
+use egui_kittest::Harness;
+use egui_kittest::kittest::Queryable;
+use std::path::Path;
+
+fn state_dir() -> PathBuf {
+    document::test_state_dir()
+}
+
+fn harness(project: Option<PathBuf>) -> Harness<'static, EditorApp> {
+    state_dir();
+    let mut setup = eframe::egui_wgpu::WgpuSetupCreateNew::without_display_handle();
+    setup.device_descriptor = Arc::new(lightloom_render::device_descriptor);
+    Harness::builder()
+        .with_size(egui::vec2(1400.0, 800.0))
+        .with_max_steps(100_000)
+        .wgpu_setup(eframe::egui_wgpu::WgpuSetup::CreateNew(setup))
+        .build_eframe(move |cc| {
+            let options = EditorOptions { project, no_disk_cache: true, ..Default::default() };
+            EditorApp::new(&cc.egui_ctx, cc.wgpu_render_state.as_ref(), options).expect("editor starts")
+        })
+}
+
+/// Steps until the evaluation is done and its frame drawn.
+fn settle(harness: &mut Harness<'_, EditorApp>) {
+    let start = Instant::now();
+    loop {
+        harness.step();
+        let app = harness.state();
+        if !app.evaluator.is_running() && app.view.frame.is_some() && app.view.drawn != 0 {
+            break;
+        }
+        assert!(start.elapsed() < Duration::from_secs(240), "the editor did not finish evaluating");
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    harness.step();
+}
+
+/// Mean sRGB value of the viewport image in a screenshot.
+fn viewport_mean(harness: &mut Harness<'_, EditorApp>) -> f64 {
+    let rect = harness.state().viewport_rect;
+    let image = harness.render().expect("the UI renders through wgpu");
+    let ppp = harness.ctx.pixels_per_point();
+    let (x0, y0) = ((rect.left() * ppp) as u32, (rect.top() * ppp) as u32);
+    let (x1, y1) = ((rect.right() * ppp) as u32 - 1, (rect.bottom() * ppp) as u32 - 1);
+    let mut sum = 0.0;
+    let mut n = 0.0;
+    for y in (y0..y1).step_by(3) {
+        for x in (x0..x1).step_by(3) {
+            let p = image.get_pixel(x, y);
+            sum += f64::from(p[0]) + f64::from(p[1]) + f64::from(p[2]);
+            n += 3.0;
+        }
+    }
+    sum / n
+}
+
+fn output_exposure(app: &EditorApp) -> f64 {
+    match edits::node(&app.doc.project, "output").and_then(|n| n.params.get("exposure")) {
+        Some(ParamValue::Float(v)) => *v,
+        _ => 0.0,
+    }
+}
+
+#[test]
+fn add_link_edit_undo_save_and_reopen() {
+    let mut harness = harness(None);
+    settle(&mut harness);
+    let lit = viewport_mean(&mut harness);
+    assert!(lit > 20.0, "the viewport shows a lit scene (mean sRGB {lit:.1})");
+    let nodes_before = harness.state().doc.project.nodes.len();
+
+    // Add: Shift+A over the graph, search, pick.
+    let graph_point = egui::pos2(150.0, 500.0);
+    harness.hover_at(graph_point);
+    harness.step();
+    harness.key_press_modifiers(egui::Modifiers::SHIFT, egui::Key::A);
+    harness.step();
+    harness.step();
+    harness.get_by_role(Role::TextInput).type_text("point");
+    harness.step();
+    harness.get_by_label_contains("Point light").click();
+    harness.run_steps(2);
+    let app = harness.state();
+    assert_eq!(app.doc.project.nodes.len(), nodes_before + 1);
+    let added = app.doc.project.nodes.last().unwrap().clone();
+    assert_eq!(added.kind, "PointLight");
+    assert_eq!(app.selection, Selection::Node(added.id.clone()), "the new node is selected");
+
+    // Link: select the Output node, link its `lights` input from the inspector.
+    harness.state_mut().selection = Selection::Node("output".into());
+    harness.step();
+    harness.get_by_role_and_label(Role::ComboBox, "lights (Lights)").click();
+    harness.run_steps(3);
+    harness.get_by_label(&format!("{}.lights", added.id)).click();
+    harness.step();
+    let linked = harness
+        .state()
+        .doc
+        .project
+        .links
+        .iter()
+        .any(|l| l.from == (added.id.clone(), "lights".into()) && l.to == ("output".into(), "lights".into()));
+    assert!(linked, "the inspector linked the point light into the output");
+
+    // Edit: +2 EV exposure from the viewport toolbar; the viewport gets brighter.
+    // (The inspector, drawn first, shows the Output's exposure too: the toolbar's is last.)
+    harness.key_press(egui::Key::Escape);
+    harness.step();
+    harness
+        .query_all_by(|n| n.role() == Role::SpinButton && n.label().as_deref() == Some("Exposure"))
+        .last()
+        .expect("the toolbar's exposure field")
+        .click();
+    harness.step();
+    harness.step();
+    harness.event(egui::Event::Text("2".into()));
+    harness.step();
+    harness.key_press(egui::Key::Enter);
+    harness.step();
+    settle(&mut harness);
+    assert_eq!(output_exposure(harness.state()), 2.0);
+    let brighter = viewport_mean(&mut harness);
+    assert!(brighter > lit * 1.15, "+2 EV must brighten the viewport: {lit:.1} → {brighter:.1}");
+    assert!(harness.state().doc.is_dirty());
+
+    // Undo (Ctrl+Z) restores the exposure and the image.
+    harness.hover_at(graph_point);
+    harness.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
+    settle(&mut harness);
+    assert_eq!(output_exposure(harness.state()), 0.0);
+    let restored = viewport_mean(&mut harness);
+    assert!((restored - lit).abs() < 2.0, "undo restores the image: {lit:.1} vs {restored:.1}");
+
+    // Save (Ctrl+S) to the document's path, then reopen it in a new editor.
+    let path = state_dir().join("saved.ron");
+    harness.state_mut().doc.path = Some(path.clone());
+    harness.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::S);
+    harness.step();
+    assert!(!harness.state().doc.is_dirty(), "saved");
+    assert!(harness.state().doc.title().contains("saved.ron") && !harness.state().doc.title().starts_with('●'));
+    let saved = harness.state().doc.project.clone();
+    drop(harness);
+
+    let mut reopened = harness_with(Some(path.clone()));
+    settle(&mut reopened);
+    assert_eq!(reopened.state().doc.project, saved, "the saved project reopens unchanged");
+    reopened.get_by_label_contains(&format!("{} · Point light", added.id));
+    let again = viewport_mean(&mut reopened);
+    assert!((again - lit).abs() < 2.0, "the reopened project renders the same: {lit:.1} vs {again:.1}");
+}
+
+fn harness_with(project: Option<PathBuf>) -> Harness<'static, EditorApp> {
+    harness(project)
+}
+
+#[test]
+fn refused_links_say_why_and_edits_are_undoable() {
+    let mut harness = harness(None);
+    settle(&mut harness);
+    // What the graph widget reports when a wire is dropped on an input of another type.
+    let reason = edits::check_link(
+        &harness.state().doc.project,
+        &("sky".into(), "environment".into()),
+        &("output".into(), "scene".into()),
+    )
+    .unwrap_err();
+    harness.state_mut().apply(vec![GraphAction::Refused(reason.clone())]);
+    harness.step();
+    let before = harness.state().doc.project.clone();
+    assert!(harness.state().graph.notice.as_ref().is_some_and(|(t, _)| t == &reason));
+    assert_eq!(harness.state().doc.undo_label(), None, "a refused link changes nothing");
+
+    // Delete, duplicate and paste are each one undo step.
+    harness.state_mut().apply(vec![GraphAction::Duplicate(vec!["material".into()])]);
+    harness.state_mut().apply(vec![GraphAction::Remove(vec!["sky".into()])]);
+    harness.step();
+    let app = harness.state();
+    assert_eq!(app.doc.project.nodes.len(), before.nodes.len());
+    assert!(app.doc.project.links.iter().all(|l| l.from.0 != "sky"));
+    assert!(!app.graph_errors.is_empty() || app.doc.project.graph(Path::new("x.ron")).is_ok());
+    harness.state_mut().undo();
+    harness.state_mut().undo();
+    harness.step();
+    assert_eq!(harness.state().doc.project, before);
+}

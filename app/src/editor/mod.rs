@@ -92,30 +92,45 @@ struct LogLine {
     text: String,
 }
 
-/// UI frame times, split by whether an evaluation or reference render was running.
+/// One UI frame's cost.
+#[derive(Clone, Copy, Debug)]
+pub struct FrameSample {
+    /// The editor's ui pass on the UI thread.
+    pub ui_ms: f64,
+    /// eframe's CPU time for the previous whole frame (ui, tessellation, paint submission).
+    pub cpu_ms: Option<f64>,
+    /// Time since the previous frame started.
+    pub gap_ms: f64,
+    /// An evaluation or a reference render was running.
+    pub busy: bool,
+}
+
+/// UI frame times, split by whether background work was running.
 #[derive(Default)]
 pub struct FrameStats {
-    /// `(ms, background work running)`, most recent last.
-    pub frames: Vec<(f64, bool)>,
+    pub frames: Vec<FrameSample>,
+}
+
+fn percentiles(mut v: Vec<f64>) -> Option<(usize, f64, f64, f64)> {
+    if v.is_empty() {
+        return None;
+    }
+    v.sort_by(f64::total_cmp);
+    let mean = v.iter().sum::<f64>() / v.len() as f64;
+    Some((v.len(), mean, v[(v.len() * 95 / 100).min(v.len() - 1)], v[v.len() - 1]))
 }
 
 impl FrameStats {
-    fn record(&mut self, ms: f64, busy: bool) {
-        self.frames.push((ms, busy));
+    fn record(&mut self, sample: FrameSample) {
+        self.frames.push(sample);
         if self.frames.len() > 20_000 {
             self.frames.drain(..10_000);
         }
     }
 
-    /// `(count, mean, p95, max)` in ms of the frames with `busy`.
-    pub fn summary(&self, busy: bool) -> Option<(usize, f64, f64, f64)> {
-        let mut v: Vec<f64> = self.frames.iter().filter(|f| f.1 == busy).map(|f| f.0).collect();
-        if v.is_empty() {
-            return None;
-        }
-        v.sort_by(f64::total_cmp);
-        let mean = v.iter().sum::<f64>() / v.len() as f64;
-        Some((v.len(), mean, v[(v.len() * 95 / 100).min(v.len() - 1)], v[v.len() - 1]))
+    /// `(count, mean, p95, max)` in ms of one measure over the frames with `busy`.
+    pub fn summary(&self, busy: bool, measure: impl Fn(&FrameSample) -> Option<f64>) -> Option<(usize, f64, f64, f64)> {
+        percentiles(self.frames.iter().filter(|f| f.busy == busy).filter_map(measure).collect())
     }
 }
 
@@ -162,8 +177,10 @@ pub struct EditorApp {
     screenshot_state: ScreenshotState,
     /// Text for the system clipboard (copied nodes), handed to egui at the end of the frame.
     copy_request: Option<String>,
-    /// Where the viewport image was drawn last frame.
+    /// Where the viewport image and the graph were drawn last frame.
     pub viewport_rect: egui::Rect,
+    pub graph_rect: egui::Rect,
+    last_cpu_ms: Option<f64>,
 }
 
 #[derive(PartialEq, Eq)]
@@ -212,7 +229,7 @@ struct AppWithStats {
 
 impl eframe::App for AppWithStats {
     fn ui(&mut self, ui: &mut egui::Ui, frame: &mut eframe::Frame) {
-        self.app.ui(ui, frame);
+        eframe::App::ui(&mut self.app, ui, frame);
     }
 
     fn on_exit(&mut self) {
@@ -225,6 +242,7 @@ impl eframe::App for AppWithStats {
 
 impl eframe::App for EditorApp {
     fn ui(&mut self, ui: &mut egui::Ui, frame: &mut eframe::Frame) {
+        self.last_cpu_ms = frame.info().cpu_usage.map(|s| f64::from(s) * 1e3);
         self.frame(ui, frame.wgpu_render_state());
     }
 
@@ -314,6 +332,8 @@ impl EditorApp {
             last_frame: None,
             copy_request: None,
             viewport_rect: egui::Rect::NOTHING,
+            graph_rect: egui::Rect::NOTHING,
+            last_cpu_ms: None,
             doc,
         };
         if let Some(e) = open_error {
@@ -323,6 +343,10 @@ impl EditorApp {
             app.log_error(format!("viewport: {e}"));
         } else if let Some(h) = &app.host {
             app.log_info(format!("viewport renders on {}", h.describe()));
+        }
+        // Start with the Output selected: the inspector shows what the viewport draws.
+        if let Some(output) = app.doc.project.nodes.iter().find(|n| n.kind == "Output") {
+            app.selection = Selection::Node(output.id.clone());
         }
         if let Some((path, at)) = document::pending_recovery(app.doc.path.as_deref()) {
             app.pending = Some(Pending::Recover(path, at));
@@ -362,7 +386,7 @@ impl EditorApp {
         });
         egui::Panel::left("graph")
             .resizable(true)
-            .default_size(ui.available_width() * 0.45)
+            .default_size(ui.available_width() * 0.36)
             .show(ui, |ui| self.graph_panel(ui));
         egui::CentralPanel::default().show(ui, |ui| self.viewport_panel(ui));
 
@@ -391,10 +415,9 @@ impl EditorApp {
         let now = Instant::now();
         if let Some(last) = self.last_frame {
             // Time between frames while the UI is being redrawn continuously.
-            let gap = now.duration_since(last).as_secs_f64() * 1e3;
-            if gap < 1000.0 {
-                self.stats.record(start.elapsed().as_secs_f64() * 1e3, busy);
-            }
+            let gap_ms = now.duration_since(last).as_secs_f64() * 1e3;
+            let ui_ms = now.duration_since(start).as_secs_f64() * 1e3;
+            self.stats.record(FrameSample { ui_ms, cpu_ms: self.last_cpu_ms, gap_ms, busy });
         }
         self.last_frame = Some(now);
     }
@@ -409,17 +432,23 @@ impl EditorApp {
         }
     }
 
-    /// "UI frame time: idle … ; while evaluating or rendering a reference …".
+    /// UI frame times, idle and while background work runs: the ui pass, eframe's CPU time
+    /// per frame, and the interval between frames (a blocked UI thread shows as long gaps).
     pub fn stats_report(&self) -> String {
-        let line = |busy: bool| match self.stats.summary(busy) {
-            Some((n, mean, p95, max)) => format!("{n} frames, mean {mean:.1} ms, p95 {p95:.1} ms, max {max:.1} ms"),
+        let fmt = |v: Option<(usize, f64, f64, f64)>| match v {
+            Some((n, mean, p95, max)) => format!("{n} frames, mean {mean:.1} / p95 {p95:.1} / max {max:.1} ms"),
             None => "no frames".into(),
         };
-        format!(
-            "UI frame time (ui pass on the UI thread): idle: {}; while background work runs: {}",
-            line(false),
-            line(true)
-        )
+        let mut out = String::from("UI frame times");
+        for (busy, name) in [(false, "idle"), (true, "while evaluating or rendering a reference")] {
+            out += &format!(
+                "\n  {name}:\n    ui pass: {}\n    eframe CPU per frame: {}\n    interval between frames: {}",
+                fmt(self.stats.summary(busy, |f| Some(f.ui_ms))),
+                fmt(self.stats.summary(busy, |f| f.cpu_ms)),
+                fmt(self.stats.summary(busy, |f| Some(f.gap_ms))),
+            );
+        }
+        out
     }
 
     // ----- evaluation -----
@@ -693,7 +722,7 @@ impl EditorApp {
                 }
             }
             ui.with_layout(egui::Layout::right_to_left(egui::Align::Center), |ui| {
-                let ui_ms = self.stats.frames.last().map_or(0.0, |f| f.0);
+                let ui_ms = self.stats.frames.last().map_or(0.0, |f| f.ui_ms);
                 let draw_ms = self.host.as_ref().map_or(0.0, |h| h.last_draw_ms);
                 ui.weak(format!("UI {ui_ms:.1} ms · viewport draw {draw_ms:.0} ms"));
                 if self.doc.is_dirty() {
@@ -807,6 +836,7 @@ impl EditorApp {
     // ----- graph -----
 
     fn graph_panel(&mut self, ui: &mut egui::Ui) {
+        self.graph_rect = ui.max_rect();
         let evaluation = self.evaluator.last.as_ref().map(|(e, _)| e.clone());
         let actions =
             self.graph.show(ui, &self.doc.project, &self.evaluator.status, evaluation.as_deref(), &mut self.previews);
@@ -1528,8 +1558,19 @@ impl EditorApp {
                         image::RgbaImage::from_raw(image.size[0] as u32, image.size[1] as u32, image.as_raw().to_vec())
                             .ok_or_else(|| "bad screenshot size".to_string())
                             .and_then(|img| img.save(&path).map_err(|e| e.to_string()));
+                    let ppp = ctx.pixels_per_point();
+                    let px = |r: egui::Rect| {
+                        format!("{:.0},{:.0},{:.0},{:.0}", r.left() * ppp, r.top() * ppp, r.right() * ppp, r.bottom() * ppp)
+                    };
                     match saved {
-                        Ok(()) => println!("screenshot: {} ({}x{})", path.display(), image.size[0], image.size[1]),
+                        Ok(()) => println!(
+                            "screenshot: {} ({}x{}); graph {}; viewport {}",
+                            path.display(),
+                            image.size[0],
+                            image.size[1],
+                            px(self.graph_rect),
+                            px(self.viewport_rect)
+                        ),
                         Err(e) => eprintln!("screenshot failed: {e}"),
                     }
                     self.screenshot_state = ScreenshotState::Done;

@@ -1560,7 +1560,13 @@ impl EditorApp {
                             .and_then(|img| img.save(&path).map_err(|e| e.to_string()));
                     let ppp = ctx.pixels_per_point();
                     let px = |r: egui::Rect| {
-                        format!("{:.0},{:.0},{:.0},{:.0}", r.left() * ppp, r.top() * ppp, r.right() * ppp, r.bottom() * ppp)
+                        format!(
+                            "{:.0},{:.0},{:.0},{:.0}",
+                            r.left() * ppp,
+                            r.top() * ppp,
+                            r.right() * ppp,
+                            r.bottom() * ppp
+                        )
                     };
                     match saved {
                         Ok(()) => println!(

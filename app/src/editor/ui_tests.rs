@@ -82,7 +82,8 @@ fn add_link_edit_undo_save_and_reopen() {
     harness.key_press_modifiers(egui::Modifiers::SHIFT, egui::Key::A);
     harness.step();
     harness.step();
-    harness.get_by_role(Role::TextInput).type_text("point");
+    // The menu's search field has the keyboard focus.
+    harness.get_by(|n| n.role() == Role::TextInput && n.is_focused()).type_text("point");
     harness.step();
     harness.get_by_label_contains("Point light").click();
     harness.run_steps(2);
@@ -188,4 +189,33 @@ fn refused_links_say_why_and_edits_are_undoable() {
     harness.state_mut().undo();
     harness.step();
     assert_eq!(harness.state().doc.project, before);
+}
+
+#[test]
+fn offers_to_recover_autosaved_work_after_a_crash() {
+    let dir = state_dir().join("recovery-test");
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("crashed.ron");
+    let project = lightloom_nodes::project::default_project();
+    project.save(&path).unwrap();
+    // The session that crashed had renamed the project and autosaved.
+    let mut unsaved = project.clone();
+    unsaved.name = "unsaved work".into();
+    let recovery = document::recovery_path(Some(&path));
+    std::fs::create_dir_all(recovery.parent().unwrap()).unwrap();
+    std::thread::sleep(Duration::from_millis(20));
+    unsaved.save_without_backup(&recovery).unwrap();
+
+    let mut harness = harness(Some(path.clone()));
+    harness.run_steps(2);
+    harness.get_by_label("Recover unsaved work?");
+    harness.get_by_label("Recover").click();
+    harness.run_steps(2);
+    let app = harness.state();
+    assert_eq!(app.doc.project.name, "unsaved work", "the autosaved project is back");
+    assert!(app.doc.is_dirty(), "recovered work is unsaved until saved");
+    assert_eq!(app.doc.path.as_deref(), Some(path.as_path()));
+    // Undo returns to the file's contents.
+    harness.state_mut().undo();
+    assert_eq!(harness.state().doc.project, project);
 }

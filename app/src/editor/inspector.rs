@@ -108,7 +108,9 @@ impl Inspector<'_> {
             Some(NodeStatus::Dirty) => {
                 ui.weak("waiting for evaluation");
             }
-            _ => {}
+            Some(NodeStatus::UpToDate) | None => {
+                ui.weak("up to date");
+            }
         }
         let Some(report) = self.report else { return };
         let stages: Vec<_> = report.stages.iter().filter(|s| s.node == id).collect();

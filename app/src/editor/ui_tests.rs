@@ -95,7 +95,7 @@ fn add_link_edit_undo_save_and_reopen() {
 
     // Link: select the Output node, link its `lights` input from the inspector.
     harness.state_mut().selection = Selection::Node("output".into());
-    harness.step();
+    settle(&mut harness);
     harness.get_by_role_and_label(Role::ComboBox, "lights (Lights)").click();
     harness.run_steps(3);
     harness.get_by_label(&format!("{}.lights", added.id)).click();

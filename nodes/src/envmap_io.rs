@@ -7,8 +7,8 @@ use std::path::{Path, PathBuf};
 /// Why an environment map could not be loaded. Every message names the file.
 #[derive(Debug, thiserror::Error)]
 pub enum EnvmapError {
-    #[error("cannot read environment map {path}: {source}")]
-    Io { path: PathBuf, source: std::io::Error },
+    #[error("cannot read environment map {path}: {cause}")]
+    Io { path: PathBuf, cause: std::io::Error },
     #[error(
         "environment map {path} uses EXR compression `{compression}`, which Lightloom's EXR reader cannot decode: \
          re-save it with ZIP, PIZ or no compression (for example `oiiotool {path} --compression zip -o fixed.exr`), \
@@ -39,7 +39,7 @@ pub struct LoadedEnvmap {
 pub fn load_equirect(path: &Path) -> Result<LoadedEnvmap, EnvmapError> {
     let extension = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
     if !path.exists() {
-        return Err(EnvmapError::Io { path: path.into(), source: std::io::Error::from(std::io::ErrorKind::NotFound) });
+        return Err(EnvmapError::Io { path: path.into(), cause: std::io::Error::from(std::io::ErrorKind::NotFound) });
     }
     let (width, height, mut pixels) = match extension.as_str() {
         "exr" => read_exr(path)?,
@@ -99,7 +99,7 @@ fn read_exr(path: &Path) -> Result<(usize, usize, Vec<Rgb>), EnvmapError> {
                 .unwrap_or_else(|| message.to_string());
             EnvmapError::UnsupportedCompression { path: path.into(), compression }
         }
-        exr::error::Error::Io(source) => EnvmapError::Io { path: path.into(), source },
+        exr::error::Error::Io(cause) => EnvmapError::Io { path: path.into(), cause },
         other => EnvmapError::Exr { path: path.into(), message: other.to_string() },
     })?;
     let size = image.layer_data.size;
@@ -108,7 +108,7 @@ fn read_exr(path: &Path) -> Result<(usize, usize, Vec<Rgb>), EnvmapError> {
 }
 
 fn read_hdr(path: &Path) -> Result<(usize, usize, Vec<Rgb>), EnvmapError> {
-    let file = std::fs::File::open(path).map_err(|source| EnvmapError::Io { path: path.into(), source })?;
+    let file = std::fs::File::open(path).map_err(|cause| EnvmapError::Io { path: path.into(), cause })?;
     let decoder = image::codecs::hdr::HdrDecoder::new(std::io::BufReader::new(file))
         .map_err(|e| EnvmapError::Hdr { path: path.into(), message: e.to_string() })?;
     let image = image::DynamicImage::from_decoder(decoder)

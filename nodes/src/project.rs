@@ -91,8 +91,8 @@ pub struct ProjectLink {
 /// line:column, node and parameter.
 #[derive(Debug, thiserror::Error)]
 pub enum ProjectError {
-    #[error("cannot read project {path}: {source}")]
-    Io { path: PathBuf, source: std::io::Error },
+    #[error("cannot read project {path}: {cause}")]
+    Io { path: PathBuf, cause: std::io::Error },
     #[error("{path}:{line}:{column}: {message}")]
     Syntax { path: PathBuf, line: usize, column: usize, message: String },
     #[error(
@@ -103,8 +103,8 @@ pub enum ProjectError {
     Invalid { path: PathBuf, errors: Vec<(Option<usize>, GraphError)> },
     #[error("{path}: {message}")]
     MissingAsset { path: PathBuf, message: String },
-    #[error("cannot save project {path}: {source}")]
-    Save { path: PathBuf, source: std::io::Error },
+    #[error("cannot save project {path}: {cause}")]
+    Save { path: PathBuf, cause: std::io::Error },
 }
 
 fn format_graph_errors(errors: &[(Option<usize>, GraphError)]) -> String {
@@ -172,7 +172,7 @@ impl Project {
                 column: 1,
                 message: "not a text file (invalid UTF-8); a project is a RON text file".into(),
             },
-            _ => ProjectError::Io { path: path.into(), source },
+            _ => ProjectError::Io { path: path.into(), cause: source },
         })?;
         let mut project = Self::from_ron(&text, path)?;
         for o in overrides {
@@ -296,7 +296,7 @@ impl Project {
     }
 
     fn write_atomically(&self, path: &Path, backup: bool) -> Result<(), ProjectError> {
-        let save_err = |source| ProjectError::Save { path: path.into(), source };
+        let save_err = |cause| ProjectError::Save { path: path.into(), cause };
         let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
         let file_name =
             path.file_name().ok_or_else(|| save_err(std::io::Error::other("not a file path")))?.to_string_lossy();

@@ -1528,6 +1528,9 @@ impl EditorApp {
     }
 
     fn autosave(&mut self) {
+        if self.close_confirmed {
+            return;
+        }
         match self.doc.autosave(AUTOSAVE_INTERVAL) {
             Ok(Some(path)) => self.log_info(format!("autosaved to {}", path.display())),
             Ok(None) => {}

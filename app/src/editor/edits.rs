@@ -198,12 +198,15 @@ mod tests {
         let mut p = default_project();
         let err = check_link(&p, &port("output", "x"), &port("sky", "y")).unwrap_err();
         assert!(err.contains("no output"), "{err}");
-        // No kind has an input and an output of one type yet, so plant a link that makes
-        // `sky` depend on `output`: linking the sky into the output would then close a loop.
-        p.links.retain(|l| l.from.0 != "sky");
-        p.links.push(ProjectLink { from: port("output", "any"), to: port("sky", "any") });
-        let err = check_link(&p, &port("sky", "environment"), &port("output", "environment")).unwrap_err();
+        // Point lights chain through their `lights` input: a → b, then b → a closes a loop.
+        let a = add_node(&mut p, "PointLight", [0.0, 0.0]).unwrap();
+        let b = add_node(&mut p, "PointLight", [0.0, 0.0]).unwrap();
+        connect(&mut p, &port(&a, "lights"), &port(&b, "lights")).unwrap();
+        let err = connect(&mut p, &port(&b, "lights"), &port(&a, "lights")).unwrap_err();
         assert!(err.contains("cycle"), "{err}");
+        let err = check_link(&p, &port(&a, "lights"), &port(&a, "lights")).unwrap_err();
+        assert!(err.contains("cycle"), "{err}");
+        assert_eq!(p.links.iter().filter(|l| l.from.0 == b).count(), 0, "the refused link was not added");
     }
 
     #[test]

@@ -26,6 +26,7 @@ pub mod reference;
 pub mod sampling;
 pub mod sat;
 pub mod sh;
+pub mod single_scattering;
 pub mod sky;
 pub mod transport;
 pub mod triple_product;

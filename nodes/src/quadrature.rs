@@ -45,6 +45,41 @@ fn legendre_with_derivative(n: usize, x: f64) -> (f64, f64) {
     (p1, dp)
 }
 
+/// `∫_a^b f` by adaptive Simpson's rule to an absolute tolerance (Richardson-corrected),
+/// for integrands with peaks the caller cannot place exactly (reference integrals).
+pub fn adaptive_simpson(f: &dyn Fn(f64) -> f64, a: f64, b: f64, tolerance: f64) -> f64 {
+    /// An interval with its end and middle values and its Simpson estimate.
+    #[derive(Clone, Copy)]
+    struct Segment {
+        a: f64,
+        b: f64,
+        fa: f64,
+        fm: f64,
+        fb: f64,
+        whole: f64,
+    }
+    fn recurse(f: &dyn Fn(f64) -> f64, s: Segment, tol: f64, depth: u32) -> f64 {
+        let m = 0.5 * (s.a + s.b);
+        let (lm, rm) = (0.5 * (s.a + m), 0.5 * (m + s.b));
+        let (flm, frm) = (f(lm), f(rm));
+        let left =
+            Segment { a: s.a, b: m, fa: s.fa, fm: flm, fb: s.fm, whole: (m - s.a) / 6.0 * (s.fa + 4.0 * flm + s.fm) };
+        let right =
+            Segment { a: m, b: s.b, fa: s.fm, fm: frm, fb: s.fb, whole: (s.b - m) / 6.0 * (s.fm + 4.0 * frm + s.fb) };
+        let delta = left.whole + right.whole - s.whole;
+        if depth == 0 || delta.abs() <= 15.0 * tol {
+            return left.whole + right.whole + delta / 15.0;
+        }
+        recurse(f, left, tol * 0.5, depth - 1) + recurse(f, right, tol * 0.5, depth - 1)
+    }
+    if b <= a {
+        return 0.0;
+    }
+    let (fa, fm, fb) = (f(a), f(0.5 * (a + b)), f(b));
+    let whole = (b - a) / 6.0 * (fa + 4.0 * fm + fb);
+    recurse(f, Segment { a, b, fa, fm, fb, whole }, tolerance, 40)
+}
+
 /// A product quadrature on the unit sphere: Gauss–Legendre in `z = cos θ` times the
 /// trapezoid rule in `φ`. With `n_theta` and `n_phi` points it integrates spherical
 /// harmonics products exactly up to total degree `min(2 n_theta - 1, n_phi - 1)`.
@@ -85,6 +120,16 @@ impl SphereQuadrature {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn adaptive_simpson_integrates_a_sharp_peak() {
+        // ∫_{-1}^{1} ε / (x² + ε²) dx = 2 atan(1/ε): a Lorentzian of width 1e-4.
+        let eps: f64 = 1e-4;
+        let exact = 2.0 * (1.0 / eps).atan();
+        let got = adaptive_simpson(&|x| eps / (x * x + eps * eps), -1.0, 1.0, 1e-10);
+        assert!((got - exact).abs() < 1e-7, "{got} vs {exact}");
+        assert!((adaptive_simpson(&f64::exp, 0.0, 1.0, 1e-12) - (1f64.exp() - 1.0)).abs() < 1e-11);
+    }
 
     #[test]
     fn gauss_legendre_integrates_polynomials_exactly() {

@@ -229,7 +229,7 @@ impl PortType {
             PortType::Scene => {
                 &["geometry", "receivers", "texel_receivers", "transport_sh", "transport_local", "transport_texels"]
             }
-            PortType::Medium => &["medium"],
+            PortType::Medium => &["medium", "f_tables", "g_lambert"],
             PortType::Lights => &["lights"],
             PortType::Blockers => &["spheres"],
             PortType::SquareLights => &["square_lights"],

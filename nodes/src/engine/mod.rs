@@ -52,6 +52,10 @@ pub enum StageValue {
     /// A rotation matrix, column-major.
     Rotation([f64; 9]),
     FrameTable(crate::triple_product::FrameTable),
+    /// Single scattering `F^k` tables (k = 0, 1, …).
+    ScatteringF(Vec<crate::single_scattering::FTable>),
+    /// A single scattering surface table `G_n`.
+    ScatteringG(crate::single_scattering::GTable),
     /// Test stages: a number.
     Number(f64),
     /// In memory only (never persisted): obvhs BVHs are rebuilt on load. Must stay the last
@@ -82,6 +86,8 @@ impl StageValue {
             StageValue::Rotation(_) => 72,
             StageValue::ShLobe(l) => l.factors.len() * 8 + 32,
             StageValue::FrameTable(t) => t.approx_bytes(),
+            StageValue::ScatteringF(t) => t.iter().map(|t| t.table.values.len() * 4).sum(),
+            StageValue::ScatteringG(t) => t.table.values.len() * 4,
             StageValue::LocalTransport(t) => t.visibility.iter().map(|v| v.len() * 16 + 24).sum(),
             StageValue::RayScene(s) => s.triangle_count() * 48 * 2,
             StageValue::TexelReceivers(t) => t.receivers.len() * 44,
@@ -117,6 +123,8 @@ impl StageValue {
             StageValue::Rotation(_) => "rotation",
             StageValue::ShLobe(_) => "SH lobe",
             StageValue::FrameTable(_) => "pre-rotated lighting table",
+            StageValue::ScatteringF(_) => "single scattering F tables",
+            StageValue::ScatteringG(_) => "single scattering G table",
             StageValue::Number(_) => "number",
         }
     }

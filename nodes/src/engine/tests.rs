@@ -593,12 +593,17 @@ fn planned_kinds_recompute_exactly_their_stages_too() {
         link("sky", "environment", "rsl", "environment"),
         link("rsl", "square_lights", "output", "square_lights"),
     ]);
+    // Small fog tables: this test is about keys, not accuracy.
+    let fog = project.nodes.iter_mut().find(|n| n.id == "fog").unwrap();
+    fog.params.insert("table_resolution".into(), Choice("32".into()));
     let mut graph = project.graph(std::path::Path::new("p.ron")).unwrap();
+    let fog_tables = ["fog.medium", "fog.f_tables", "fog.g_lambert"];
     let table: Vec<(&str, &str, ParamValue, Vec<&str>)> = vec![
         ("fog", "beta", Color([0.1, 0.1, 0.2]), vec!["fog.medium"]),
-        ("fog", "phase", Choice("polynomial".into()), vec!["fog.medium"]),
+        // One F table for isotropic fog, one per term of the polynomial.
+        ("fog", "phase", Choice("polynomial".into()), fog_tables.to_vec()),
         ("fog", "phase_coefficients", Vec3([1.0, 0.5, 0.0]), vec!["fog.medium"]),
-        ("fog", "table_resolution", Choice("64".into()), vec!["fog.medium"]),
+        ("fog", "table_resolution", Choice("64".into()), fog_tables.to_vec()),
         ("light1", "position", Vec3([1.0, 2.0, 3.0]), vec!["light1.lights", "light2.lights"]),
         ("light1", "intensity", Color([1.0, 1.0, 1.0]), vec!["light1.lights", "light2.lights"]),
         ("light2", "intensity", Color([2.0, 1.0, 1.0]), vec!["light2.lights"]),

@@ -1,5 +1,7 @@
-//! Fog medium node (Sun 2008 ch. 3): scattering coefficient and phase function. The analytic
-//! airlight and surface-radiance tables (eqs. 3.15–3.29) arrive with the fog issue.
+//! Fog medium node (Sun 2008 ch. 3): scattering coefficient and phase function, and the
+//! tables of [`crate::single_scattering`]: `F^k` (eqs. 3.15, 3.19) and the Lambertian `G`
+//! (eq. 3.23). The tables depend only on their resolution and the number of phase terms, so
+//! changing β, the phase weights or a light recomputes no table.
 
 use crate::engine::{StageContext, StageError, StageValue};
 use crate::graph::{Availability, NodeKindSpec, ParamKind, ParamSpec, PortSpec, PortType, StageSpec};
@@ -48,28 +50,142 @@ pub fn spec() -> NodeKindSpec {
                 name: "table_resolution",
                 label: "Table resolution",
                 unit: "",
-                kind: ParamKind::Choice { options: &["32", "64", "128", "256", "512"], default: "128" },
-                doc: "Resolution of the F and G tables.",
+                kind: ParamKind::Choice { options: &["32", "64", "128", "256", "512"], default: "512" },
+                doc: "Resolution of the F tables (G tables use a quarter, at least 32). 512 keeps the \
+                      airlight within 0.3% of numerical integration (bilinear lookups).",
             },
         ],
-        stages: vec![StageSpec {
-            name: "medium",
-            version: 1,
-            params: &["beta", "phase", "phase_coefficients", "table_resolution"],
-            stages: &[],
-            inputs: &[],
-            persist: false,
-            compute: medium,
-        }],
+        stages: vec![
+            StageSpec {
+                name: "medium",
+                version: 2,
+                params: &["beta", "phase", "phase_coefficients", "table_resolution"],
+                stages: &[],
+                inputs: &[],
+                persist: false,
+                compute: medium,
+            },
+            StageSpec {
+                name: "f_tables",
+                version: 1,
+                params: &["phase", "table_resolution"],
+                stages: &[],
+                inputs: &[],
+                persist: true,
+                compute: f_tables,
+            },
+            StageSpec {
+                name: "g_lambert",
+                version: 1,
+                params: &["table_resolution"],
+                stages: &["f_tables"],
+                inputs: &[],
+                persist: true,
+                compute: g_lambert,
+            },
+        ],
         availability: Availability::Planned("issue 7 (fog medium)"),
     }
 }
 
+fn resolution(ctx: &StageContext) -> Result<usize, StageError> {
+    Ok(ctx.choice("table_resolution")?.parse().unwrap_or(crate::single_scattering::DEFAULT_RESOLUTION))
+}
+
 fn medium(ctx: &StageContext) -> Result<StageValue, StageError> {
-    Ok(StageValue::Medium(Medium {
-        beta: ctx.vec3("beta")?,
-        phase: ctx.choice("phase")?.to_string(),
-        phase_coefficients: ctx.vec3("phase_coefficients")?,
-        table_resolution: ctx.choice("table_resolution")?.parse().unwrap_or(128),
-    }))
+    let beta = ctx.vec3("beta")?;
+    let phase = ctx.choice("phase")?.to_string();
+    let phase_coefficients = ctx.vec3("phase_coefficients")?;
+    if phase == "polynomial" && crate::single_scattering::Phase::polynomial(&phase_coefficients).is_none() {
+        return Err(StageError::Failed(format!(
+            "phase coefficients {phase_coefficients:?} make a phase function that is negative for some angle \
+             or integrates to zero; use a0 > 0 with |a1| ≤ a0 + a2, e.g. (1, 0.5, 0)"
+        )));
+    }
+    let densest = beta.iter().copied().fold(0.0, f64::max);
+    if densest > 2.0 {
+        ctx.warn(format!(
+            "β = {densest} /m: half the light is gone after {:.2} m, so anything a few metres away is black",
+            std::f64::consts::LN_2 / densest
+        ));
+    }
+    Ok(StageValue::Medium(Medium { beta, phase, phase_coefficients, table_resolution: resolution(ctx)? }))
+}
+
+fn f_tables(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let terms = if ctx.choice("phase")? == "polynomial" { 3 } else { 1 };
+    let resolution = resolution(ctx)?;
+    let mut tables = Vec::new();
+    for k in 0..terms {
+        ctx.check_cancel()?;
+        ctx.progress(k as f64 / terms as f64);
+        tables.push(crate::single_scattering::FTable::new(k, resolution));
+    }
+    Ok(StageValue::ScatteringF(tables))
+}
+
+fn g_lambert(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let StageValue::ScatteringF(f) = ctx.stage("f_tables")? else {
+        return Err(StageError::Internal("f_tables".into()));
+    };
+    let resolution = (resolution(ctx)? / 4).max(32);
+    Ok(StageValue::ScatteringG(crate::single_scattering::GTable::new(1.0, resolution, &f[0])))
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::engine::{CancelToken, Engine};
+    use crate::graph::ParamValue;
+    use crate::project::{Project, ProjectNode};
+    use std::collections::BTreeMap;
+    use std::path::Path;
+
+    fn fog_project(beta: f64, resolution: &str) -> Project {
+        let mut params = BTreeMap::new();
+        params.insert("beta".to_string(), ParamValue::Color([beta; 3]));
+        params.insert("table_resolution".to_string(), ParamValue::Choice(resolution.into()));
+        let mut project = crate::project::default_project();
+        project.nodes.push(ProjectNode {
+            id: "fog".into(),
+            kind: "FogMedium".into(),
+            label: String::new(),
+            position: [0.0, 0.0],
+            params,
+        });
+        project
+    }
+
+    #[test]
+    fn changing_beta_recomputes_no_table_and_resolution_does() {
+        let engine = Engine::in_memory();
+        let evaluate =
+            |p: &Project| engine.evaluate(&p.graph(Path::new("fog.ron")).unwrap(), &CancelToken::default(), None);
+        let first = evaluate(&fog_project(0.04, "32"));
+        assert!(first.report.failed().is_empty());
+        let computed = |e: &crate::engine::Evaluation| {
+            e.report.computed().into_iter().filter(|(n, _)| n == "fog").map(|(_, s)| s).collect::<Vec<_>>()
+        };
+        assert_eq!(computed(&first), ["medium", "f_tables", "g_lambert"]);
+        assert_eq!(computed(&evaluate(&fog_project(0.2, "32"))), ["medium"], "β is a uniform, not a table input");
+        assert_eq!(computed(&evaluate(&fog_project(0.2, "64"))), ["medium", "f_tables", "g_lambert"]);
+    }
+
+    #[test]
+    fn bad_media_are_explained() {
+        let engine = Engine::in_memory();
+        let mut dense = fog_project(30.0, "32");
+        let result = engine.evaluate(&dense.graph(Path::new("fog.ron")).unwrap(), &CancelToken::default(), None);
+        assert!(result.report.notes.iter().any(|n| n.contains("black")), "{:?}", result.report.notes);
+        let fog = dense.nodes.iter_mut().find(|n| n.id == "fog").unwrap();
+        fog.params.insert("phase".into(), ParamValue::Choice("polynomial".into()));
+        fog.params.insert("phase_coefficients".into(), ParamValue::Vec3([0.0, 1.0, 0.0]));
+        let result = engine.evaluate(&dense.graph(Path::new("fog.ron")).unwrap(), &CancelToken::default(), None);
+        let failed = result.report.failed();
+        assert!(failed.iter().any(|s| s.error.as_deref().is_some_and(|e| e.contains("negative"))), "{failed:?}");
+        // Negative β never reaches a stage: the parameter's range refuses it.
+        let mut negative = fog_project(0.04, "32");
+        negative.nodes.last_mut().unwrap().params.insert("beta".into(), ParamValue::Color([-0.1, 0.0, 0.0]));
+        let errors = negative.graph(Path::new("fog.ron")).unwrap_err();
+        assert!(errors.iter().any(|e| e.message.contains("outside 0")), "{errors:?}");
+    }
 }

@@ -16,22 +16,23 @@ pub const DEFAULT_RESOLUTION: usize = 512;
 /// Smallest angle to the source used (at 0 the ray hits the point source itself).
 const MIN_GAMMA: f64 = 1e-5;
 
+/// The integrand of `F^k`: `cos^k(2ξ) exp(-u tan ξ)`.
+fn f_integrand(u: f64, k: u32, xi: f64) -> f64 {
+    let t = xi.tan();
+    let decay = if t.is_finite() {
+        (-u * t).exp()
+    } else if u > 0.0 {
+        0.0
+    } else {
+        1.0
+    };
+    (2.0 * xi).cos().powi(k as i32) * decay
+}
+
 /// `F^k(u, v) = ∫_0^v cos^k(2ξ) exp(-u tan ξ) dξ` (eqs. 3.15 and 3.19), by adaptive
 /// quadrature to ~1e-13.
 pub fn special_f(u: f64, v: f64, k: u32) -> f64 {
-    let v = v.clamp(0.0, FRAC_PI_2);
-    let f = |xi: f64| {
-        let t = xi.tan();
-        let decay = if t.is_finite() {
-            (-u * t).exp()
-        } else if u > 0.0 {
-            0.0
-        } else {
-            1.0
-        };
-        (2.0 * xi).cos().powi(k as i32) * decay
-    };
-    adaptive_simpson(&f, 0.0, v, 1e-13)
+    adaptive_simpson(&|xi| f_integrand(u, k, xi), 0.0, v.clamp(0.0, FRAC_PI_2), 1e-13)
 }
 
 /// How tables are read between their samples.
@@ -131,13 +132,28 @@ pub struct FTable {
 }
 
 impl FTable {
+    /// Each column (one `u`) is one running integral over `v`, row to row.
     pub fn new(k: u32, resolution: usize) -> Self {
-        let resolution = resolution.max(2);
-        let table = Table2::from_fn(resolution, resolution, |s, t| {
-            let u = from_s(s);
-            (1.0 + u) * special_f(u, from_r(t), k)
-        });
-        Self { k, table }
+        use rayon::prelude::*;
+        let n = resolution.max(2);
+        let columns: Vec<Vec<f32>> = (0..n)
+            .into_par_iter()
+            .map(|x| {
+                let u = from_s(x as f64 / (n - 1) as f64);
+                let mut running = 0.0;
+                let mut previous = 0.0;
+                (0..n)
+                    .map(|y| {
+                        let v = from_r(y as f64 / (n - 1) as f64);
+                        running += adaptive_simpson(&|xi| f_integrand(u, k, xi), previous, v, 1e-14);
+                        previous = v;
+                        ((1.0 + u) * running) as f32
+                    })
+                    .collect()
+            })
+            .collect();
+        let values = (0..n * n).map(|i| columns[i % n][i / n]).collect();
+        Self { k, table: Table2 { width: n, height: n, values } }
     }
 
     pub fn lookup(&self, u: f64, v: f64, interpolation: Interpolation) -> f64 {
@@ -593,7 +609,16 @@ mod tests {
         let phase = Phase::isotropic();
         println!("resolution interpolation | normalised mean max | relative mean max");
         for resolution in [32, 64, 128, 256, 512] {
+            let start = std::time::Instant::now();
             let table = [FTable::new(0, resolution)];
+            let f_ms = start.elapsed().as_secs_f64() * 1e3;
+            let start = std::time::Instant::now();
+            let _ = GTable::new(1.0, (resolution / 4).max(32), &table[0]);
+            println!(
+                "{resolution:4}: F table {f_ms:.0} ms, G table ({}²) {:.0} ms",
+                (resolution / 4).max(32),
+                start.elapsed().as_secs_f64() * 1e3
+            );
             for interpolation in [Interpolation::Nearest, Interpolation::Bilinear] {
                 let e = airlight_errors(&queries, &phase, &table, interpolation);
                 println!(

@@ -1,0 +1,276 @@
+//! Files: save, save as, open, new, the file dialog, the unsaved-changes and recovery
+//! questions, closing, autosave, and `--screenshot`.
+
+use super::*;
+
+impl EditorApp {
+    pub(super) fn save(&mut self) {
+        match self.doc.path.clone() {
+            Some(path) => self.save_to(&path),
+            None => self.save_as_dialog(false),
+        }
+    }
+
+    pub(super) fn save_as_dialog(&mut self, then_close: bool) {
+        self.file_action = Some(FileAction::SaveAs { then_close });
+        self.file_dialog.save_file();
+    }
+
+    /// Saves to `path` (atomic, with a `.bak` of the previous file).
+    pub fn save_to(&mut self, path: &std::path::Path) {
+        match self.doc.save_as(path) {
+            Ok(()) => {
+                document::remember_recent(path);
+                self.log_info(format!("saved {}", path.display()));
+            }
+            Err(e) => self.log_error(format!("{e:#}")),
+        }
+    }
+
+    /// Asks first when there are unsaved changes.
+    pub(super) fn request(&mut self, what: Pending) {
+        if self.doc.is_dirty() {
+            self.pending = Some(what);
+        } else {
+            self.perform(what);
+        }
+    }
+
+    pub(super) fn perform(&mut self, what: Pending) {
+        match what {
+            Pending::Open(path) => self.open(&path),
+            Pending::New => {
+                self.doc.discard_recovery();
+                self.replace_document(Document::new(default_project(), None));
+            }
+            Pending::Close => {
+                self.close_confirmed = true;
+            }
+            Pending::Recover(..) | Pending::Rename { .. } => {}
+        }
+    }
+
+    /// Opens a project file (errors go to the log; the current document stays).
+    pub fn open(&mut self, path: &std::path::Path) {
+        match Document::open(path) {
+            Ok(doc) => {
+                self.doc.discard_recovery();
+                document::remember_recent(path);
+                self.log_info(format!("opened {}", path.display()));
+                self.replace_document(doc);
+                if let Some((p, at)) = document::pending_recovery(self.doc.path.as_deref()) {
+                    self.pending = Some(Pending::Recover(p, at));
+                }
+            }
+            Err(e) => self.log_error(format!("{e:#}")),
+        }
+    }
+
+    pub(super) fn replace_document(&mut self, doc: Document) {
+        self.doc = doc;
+        self.selection = Selection::None;
+        self.view.selected_object = None;
+        self.view.frame = None;
+        self.view.reference_image = None;
+        if let Ok(c) = self.doc.project.camera(None) {
+            self.view.camera = OrbitCamera::from_camera(&c);
+            self.view.camera_name = c.name;
+        }
+        self.eval_signature = 0;
+        self.graph = GraphEditor::default();
+        self.graph.sync(&self.doc.project);
+    }
+
+    pub(super) fn dialogs(&mut self, ctx: &egui::Context) {
+        self.file_dialog.update(ctx);
+        if let Some(path) = self.file_dialog.take_picked() {
+            match self.file_action.take() {
+                Some(FileAction::Open) => self.request(Pending::Open(path)),
+                Some(FileAction::SaveAs { then_close }) => {
+                    self.save_to(&path);
+                    if then_close && !self.doc.is_dirty() {
+                        self.close_confirmed = true;
+                        ctx.send_viewport_cmd(egui::ViewportCommand::Close);
+                    }
+                }
+                Some(FileAction::Browse { node, param }) => {
+                    let dir = std::path::absolute(self.doc.project_dir()).unwrap_or_default();
+                    let value = path.strip_prefix(&dir).map_or(path.clone(), PathBuf::from).display().to_string();
+                    if let Err(e) = inspector::set_param(&mut self.doc, &node, &param, ParamValue::Path(value)) {
+                        self.log_error(e);
+                    }
+                    self.doc.seal();
+                }
+                None => {}
+            }
+        }
+        let Some(pending) = self.pending.clone() else { return };
+        let modal = egui::Modal::new(egui::Id::new("pending")).show(ctx, |ui| {
+            ui.set_max_width(420.0);
+            match &pending {
+                Pending::Recover(path, at) => {
+                    let age = at.elapsed().map_or(0, |d| d.as_secs());
+                    ui.heading("Recover unsaved work?");
+                    ui.label(format!(
+                        "Lightloom did not close cleanly. Autosaved changes from {} minute(s) ago are in {}.",
+                        age / 60,
+                        path.display()
+                    ));
+                    ui.horizontal(|ui| {
+                        if ui.button("Recover").clicked() {
+                            match Document::open(path) {
+                                Ok(recovered) => {
+                                    let project = recovered.project;
+                                    let _ = self.doc.edit("Recover autosaved changes", None, |p| {
+                                        *p = project;
+                                        Ok(())
+                                    });
+                                    self.log_info(format!("recovered {}", path.display()));
+                                }
+                                Err(e) => self.log_error(format!("{e:#}")),
+                            }
+                            self.pending = None;
+                        }
+                        if ui.button("Discard").clicked() {
+                            let _ = std::fs::remove_file(path);
+                            self.pending = None;
+                        }
+                    });
+                }
+                Pending::Rename { node, text } => {
+                    ui.heading(format!("Rename {node}"));
+                    let mut text = text.clone();
+                    let r = ui.text_edit_singleline(&mut text);
+                    r.request_focus();
+                    let done = ui.input(|i| i.key_pressed(egui::Key::Enter));
+                    self.pending = Some(Pending::Rename { node: node.clone(), text: text.clone() });
+                    ui.horizontal(|ui| {
+                        if ui.button("Rename").clicked() || done {
+                            let node = node.clone();
+                            let result = self.doc.edit(format!("Rename {node}"), None, |p| {
+                                let n = p.nodes.iter_mut().find(|n| n.id == node).ok_or("node vanished")?;
+                                n.label = text.trim().to_string();
+                                Ok(())
+                            });
+                            if let Err(e) = result {
+                                self.log_error(e);
+                            }
+                            self.pending = None;
+                        }
+                        if ui.button("Cancel").clicked() {
+                            self.pending = None;
+                        }
+                    });
+                }
+                what => {
+                    ui.heading("Save changes?");
+                    ui.label(format!(
+                        "{} has unsaved changes.",
+                        self.doc.path.as_ref().map_or("This project".into(), |p| p.display().to_string())
+                    ));
+                    ui.horizontal(|ui| {
+                        if ui.button("Save").clicked() {
+                            self.pending = None;
+                            match self.doc.path.clone() {
+                                Some(p) => {
+                                    self.save_to(&p);
+                                    if !self.doc.is_dirty() {
+                                        self.perform(what.clone());
+                                    }
+                                }
+                                None => self.save_as_dialog(matches!(what, Pending::Close)),
+                            }
+                        }
+                        if ui.button("Discard changes").clicked() {
+                            self.pending = None;
+                            self.doc.discard_recovery();
+                            self.perform(what.clone());
+                        }
+                        if ui.button("Cancel").clicked() {
+                            self.pending = None;
+                        }
+                    });
+                }
+            }
+        });
+        if modal.should_close() && !matches!(pending, Pending::Recover(..)) {
+            self.pending = None;
+        }
+        if self.close_confirmed && matches!(pending, Pending::Close) {
+            ctx.send_viewport_cmd(egui::ViewportCommand::Close);
+        }
+    }
+
+    pub(super) fn handle_close(&mut self, ctx: &egui::Context) {
+        if ctx.input(|i| i.viewport().close_requested()) && !self.close_confirmed && self.doc.is_dirty() {
+            ctx.send_viewport_cmd(egui::ViewportCommand::CancelClose);
+            self.pending = Some(Pending::Close);
+        }
+    }
+
+    pub(super) fn autosave(&mut self) {
+        if self.close_confirmed {
+            return;
+        }
+        match self.doc.autosave(AUTOSAVE_INTERVAL) {
+            Ok(Some(path)) => self.log_info(format!("autosaved to {}", path.display())),
+            Ok(None) => {}
+            Err(e) => self.log_error(format!("autosave failed: {e:#}")),
+        }
+    }
+
+    /// With `--screenshot`: once the first evaluation is on screen, capture the window, save
+    /// it, and close.
+    pub(super) fn screenshot(&mut self, ctx: &egui::Context) {
+        match self.screenshot_state {
+            ScreenshotState::Waiting
+                if self.view.frame.is_some() && self.view.drawn != 0 && !self.evaluator.is_running() =>
+            {
+                ctx.send_viewport_cmd(egui::ViewportCommand::Screenshot(egui::UserData::default()));
+                self.screenshot_state = ScreenshotState::Requested;
+            }
+            ScreenshotState::Requested => {
+                let image = ctx.input(|i| {
+                    i.events.iter().find_map(|e| match e {
+                        egui::Event::Screenshot { image, .. } => Some(image.clone()),
+                        _ => None,
+                    })
+                });
+                if let Some(image) = image {
+                    let path = self.options.screenshot.clone().expect("screenshot path");
+                    let saved =
+                        image::RgbaImage::from_raw(image.size[0] as u32, image.size[1] as u32, image.as_raw().to_vec())
+                            .ok_or_else(|| "bad screenshot size".to_string())
+                            .and_then(|img| img.save(&path).map_err(|e| e.to_string()));
+                    let ppp = ctx.pixels_per_point();
+                    let px = |r: egui::Rect| {
+                        format!(
+                            "{:.0},{:.0},{:.0},{:.0}",
+                            r.left() * ppp,
+                            r.top() * ppp,
+                            r.right() * ppp,
+                            r.bottom() * ppp
+                        )
+                    };
+                    match saved {
+                        Ok(()) => println!(
+                            "screenshot: {} ({}x{}); graph {}; viewport {}",
+                            path.display(),
+                            image.size[0],
+                            image.size[1],
+                            px(self.graph_rect),
+                            px(self.viewport_rect)
+                        ),
+                        Err(e) => eprintln!("screenshot failed: {e}"),
+                    }
+                    self.screenshot_state = ScreenshotState::Done;
+                    self.close_confirmed = true;
+                    ctx.send_viewport_cmd(egui::ViewportCommand::Close);
+                }
+                ctx.request_repaint();
+            }
+            ScreenshotState::Waiting => ctx.request_repaint_after(Duration::from_millis(100)),
+            _ => {}
+        }
+    }
+}

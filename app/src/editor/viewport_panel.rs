@@ -1,0 +1,347 @@
+//! The viewport panel: toolbar, Blender-style navigation, picking, the selection outline, and
+//! drawing (approximation, or the background reference and its error map).
+
+use super::*;
+
+impl EditorApp {
+    pub(super) fn viewport_panel(&mut self, ui: &mut egui::Ui) {
+        self.viewport_toolbar(ui);
+        let available = ui.available_size();
+        let (rect, response) = ui.allocate_exact_size(available, egui::Sense::click_and_drag());
+        self.viewport_rect = rect;
+        self.navigate(ui, &response, rect);
+        let scale = self.view.resolution_scale * ui.ctx().pixels_per_point();
+        let size = (((rect.width() * scale) as u32).clamp(16, 4096), ((rect.height() * scale) as u32).clamp(16, 4096));
+        self.draw_viewport(ui.ctx(), size);
+        let painter = ui.painter_at(rect);
+        painter.rect_filled(rect, 0.0, Color32::from_gray(20));
+        if let Some(id) = self.host.as_ref().and_then(ViewportHost::texture_id) {
+            painter.image(
+                id,
+                rect,
+                egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0)),
+                Color32::WHITE,
+            );
+        }
+        self.selection_overlay(&painter, rect);
+        let message = if let Some(e) = &self.host_error {
+            Some(format!("viewport unavailable: {e}"))
+        } else if let Some(e) = &self.view.frame_error {
+            Some(e.clone())
+        } else if self.view.frame.is_none() {
+            Some("evaluating…".into())
+        } else {
+            None
+        };
+        if let Some(m) = message {
+            painter.text(
+                rect.center(),
+                egui::Align2::CENTER_CENTER,
+                m,
+                egui::FontId::proportional(16.0),
+                Color32::LIGHT_GRAY,
+            );
+        }
+        if let Some(error) = &self.view.error {
+            painter.text(
+                rect.left_top() + egui::vec2(8.0, 8.0),
+                egui::Align2::LEFT_TOP,
+                format!(
+                    "error vs reference: RMSE {:.4}, relative {:.1}%, PSNR {:.1} dB",
+                    error.rmse,
+                    error.relative_rmse * 100.0,
+                    error.psnr_db
+                ),
+                egui::FontId::monospace(12.0),
+                Color32::WHITE,
+            );
+        }
+        if response.clicked()
+            && let Some(pos) = response.interact_pointer_pos()
+        {
+            self.pick(pos, rect);
+        }
+    }
+
+    pub(super) fn viewport_toolbar(&mut self, ui: &mut egui::Ui) {
+        let Some(output) = self.doc.project.nodes.iter().find(|n| n.kind == "Output").map(|n| n.id.clone()) else {
+            ui.weak("no Output node: add one to see the scene");
+            return;
+        };
+        let spec = lightloom_nodes::kinds::kind("Output").expect("Output kind");
+        let value = |doc: &Document, name: &str| {
+            inspector::param_value(&doc.project, &output, spec.param(name).expect("param"))
+        };
+        let mut changes: Vec<(&str, ParamValue)> = Vec::new();
+        ui.horizontal_wrapped(|ui| {
+            for (name, label) in [("view", "View"), ("mode", "Mode"), ("tonemap", "Tone map")] {
+                let ParamValue::Choice(current) = value(&self.doc, name) else { continue };
+                let lightloom_nodes::graph::ParamKind::Choice { options, .. } = &spec.param(name).expect("param").kind
+                else {
+                    continue;
+                };
+                let l = ui.label(label);
+                let mut chosen = current.clone();
+                egui::ComboBox::from_id_salt(("viewport", name))
+                    .selected_text(current.as_str())
+                    .show_ui(ui, |ui| {
+                        for o in options.iter() {
+                            ui.selectable_value(&mut chosen, o.to_string(), *o);
+                        }
+                    })
+                    .response
+                    .labelled_by(l.id);
+                if chosen != current {
+                    changes.push((name, ParamValue::Choice(chosen)));
+                }
+            }
+            if let ParamValue::Float(mut exposure) = value(&self.doc, "exposure") {
+                let l = ui.label("Exposure");
+                if ui
+                    .add(egui::DragValue::new(&mut exposure).range(-20.0..=20.0).speed(0.05).suffix(" EV"))
+                    .labelled_by(l.id)
+                    .changed()
+                {
+                    changes.push(("exposure", ParamValue::Float(exposure)));
+                }
+            }
+            ui.separator();
+            ui.label("Resolution");
+            egui::ComboBox::from_id_salt("resolution")
+                .selected_text(format!("{:.0}%", self.view.resolution_scale * 100.0))
+                .show_ui(ui, |ui| {
+                    for s in [0.25f32, 0.5, 0.75, 1.0] {
+                        ui.selectable_value(&mut self.view.resolution_scale, s, format!("{:.0}%", s * 100.0));
+                    }
+                });
+            if ui.button("Frame all").on_hover_text("Home").clicked() || ui.input(|i| i.key_pressed(egui::Key::Home)) {
+                self.frame_all();
+            }
+            if ui.button("Reset view").on_hover_text("back to the project's camera").clicked() {
+                let camera =
+                    self.doc.project.camera(Some(&self.view.camera_name)).or_else(|_| self.doc.project.camera(None));
+                if let Ok(c) = camera {
+                    self.view.camera = OrbitCamera::from_camera(&c);
+                }
+            }
+            if ui.button("Save view to camera").on_hover_text("store this view in the project's camera").clicked() {
+                let camera = self.view.camera.to_camera(&self.view.camera_name);
+                let result = self.doc.edit("Save view to camera", None, |p| {
+                    match p.cameras.iter_mut().find(|c| c.name == camera.name) {
+                        Some(c) => *c = camera.clone(),
+                        None => p.cameras.insert(0, camera.clone()),
+                    }
+                    Ok(())
+                });
+                if let Err(e) = result {
+                    self.log_error(e);
+                }
+            }
+        });
+        for (name, v) in changes {
+            if let Err(e) = inspector::set_param(&mut self.doc, &output, name, v) {
+                self.log_error(e);
+            }
+        }
+    }
+
+    pub(super) fn frame_all(&mut self) {
+        if let Some(frame) = &self.view.frame
+            && let lightloom_nodes::engine::StageValue::Meshes(m) = frame.meshes.value.as_ref()
+        {
+            self.view.camera.frame(mesh_bounds(m.meshes.iter()));
+        }
+    }
+
+    /// Blender-style: middle drag orbits, Shift+middle pans, Ctrl+middle or the wheel zooms;
+    /// for trackpads, Alt+left drag orbits, Alt+Shift+left pans, pinch zooms; right drag
+    /// also orbits.
+    pub(super) fn navigate(&mut self, ui: &egui::Ui, response: &egui::Response, rect: egui::Rect) {
+        let (delta, shift, ctrl, alt) =
+            ui.input(|i| (i.pointer.delta(), i.modifiers.shift, i.modifiers.command, i.modifiers.alt));
+        let delta = (f64::from(delta.x), f64::from(delta.y));
+        let height = f64::from(rect.height());
+        let middle = response.dragged_by(egui::PointerButton::Middle);
+        let left_alt = response.dragged_by(egui::PointerButton::Primary) && alt;
+        let right = response.dragged_by(egui::PointerButton::Secondary);
+        if middle || left_alt || right {
+            if shift {
+                self.view.camera.pan(delta, height);
+            } else if ctrl && middle {
+                self.view.camera.zoom((delta.1 * 0.01).exp());
+            } else {
+                self.view.camera.orbit(delta, height);
+            }
+        }
+        if response.hovered() {
+            let (scroll, zoom) = ui.input(|i| (i.smooth_scroll_delta.y, i.zoom_delta()));
+            if scroll != 0.0 {
+                self.view.camera.zoom((-f64::from(scroll) * 0.002).exp());
+            }
+            if zoom != 1.0 {
+                self.view.camera.zoom(1.0 / f64::from(zoom));
+            }
+        }
+    }
+
+    pub(super) fn pick(&mut self, pos: egui::Pos2, rect: egui::Rect) {
+        let Some(frame) = &self.view.frame else { return };
+        let local = pos - rect.min;
+        let size = (rect.width().max(1.0) as usize, rect.height().max(1.0) as usize);
+        let camera = self.view.camera.pinhole();
+        let Some(mesh) = frame.pick(&camera, (f64::from(local.x), f64::from(local.y)), size) else {
+            self.view.selected_object = None;
+            return;
+        };
+        let lightloom_nodes::engine::StageValue::Meshes(meshes) = frame.meshes.value.as_ref() else { return };
+        let name = meshes.meshes[mesh].name.split('/').next().unwrap_or_default().to_string();
+        // The Scene node feeding the output, and the object with that name.
+        let Some((_, graph)) = &self.evaluator.last else { return };
+        let Some(output) = graph.nodes.iter().find(|n| n.kind.name == "Output") else { return };
+        let Some(scene) = graph.upstream(&output.id, "scene") else { return };
+        let Some(ParamValue::Objects(objects)) = scene.params.get("objects") else { return };
+        if let Some(index) = objects.iter().position(|o| o.name == name) {
+            self.selection = Selection::Node(scene.id.clone());
+            self.view.selected_object = Some(index);
+            self.log_info(format!("selected object `{name}` of {}", scene.id));
+        } else {
+            self.selection = Selection::Node(scene.id.clone());
+            self.view.selected_object = None;
+            self.log_info(format!("`{}` comes from the scene's file", meshes.meshes[mesh].name));
+        }
+    }
+
+    /// Outlines the selected object's bounding box.
+    pub(super) fn selection_overlay(&self, painter: &egui::Painter, rect: egui::Rect) {
+        let (Some(index), Some(frame)) = (self.view.selected_object, &self.view.frame) else { return };
+        let Selection::Node(scene_id) = &self.selection else { return };
+        let Some(ParamValue::Objects(objects)) =
+            edits::node(&self.doc.project, scene_id).and_then(|n| n.params.get("objects"))
+        else {
+            return;
+        };
+        let Some(object) = objects.get(index) else { return };
+        let lightloom_nodes::engine::StageValue::Meshes(m) = frame.meshes.value.as_ref() else { return };
+        let prefix = format!("{}/", object.name);
+        let parts: Vec<_> = m.meshes.iter().filter(|x| x.name == object.name || x.name.starts_with(&prefix)).collect();
+        if parts.is_empty() {
+            return;
+        }
+        let (lo, hi) = mesh_bounds(parts.into_iter());
+        let all = mesh_bounds(m.meshes.iter());
+        let view_proj = self.view.camera.view().view_proj(rect.width() / rect.height().max(1.0), all);
+        let corner = |i: usize| {
+            glam::Vec3::new(
+                if i & 1 == 0 { lo[0] } else { hi[0] },
+                if i & 2 == 0 { lo[1] } else { hi[1] },
+                if i & 4 == 0 { lo[2] } else { hi[2] },
+            )
+        };
+        let project = |p: glam::Vec3| {
+            let c = view_proj * p.extend(1.0);
+            (c.w > 1e-4).then(|| {
+                egui::pos2(
+                    rect.left() + (c.x / c.w * 0.5 + 0.5) * rect.width(),
+                    rect.top() + (0.5 - c.y / c.w * 0.5) * rect.height(),
+                )
+            })
+        };
+        let stroke = egui::Stroke::new(1.5, Color32::from_rgb(255, 200, 80));
+        for (a, b) in [(0, 1), (2, 3), (4, 5), (6, 7), (0, 2), (1, 3), (4, 6), (5, 7), (0, 4), (1, 5), (2, 6), (3, 7)] {
+            if let (Some(p), Some(q)) = (project(corner(a)), project(corner(b))) {
+                painter.line_segment([p, q], stroke);
+            }
+        }
+    }
+
+    /// Redraws when the frame, camera, size or view changed; starts or shows reference renders.
+    pub(super) fn draw_viewport(&mut self, ctx: &egui::Context, size: (u32, u32)) {
+        let (Some(host), Some(frame)) = (self.host.as_mut(), self.view.frame.clone()) else { return };
+        let settings = &frame.settings;
+        let camera = self.view.camera;
+        let mut h = std::hash::DefaultHasher::new();
+        use std::hash::{Hash, Hasher};
+        (Arc::as_ptr(&frame) as usize).hash(&mut h);
+        format!("{camera:?}").hash(&mut h);
+        size.hash(&mut h);
+        let signature = h.finish();
+        if settings.view == "approximation" {
+            if let Some(job) = self.view.reference.take() {
+                job.cancel();
+            }
+            self.view.error = None;
+            if signature != self.view.drawn {
+                match host.render(ctx, &frame, &camera.view(), size) {
+                    Ok(()) => self.view.drawn = signature,
+                    Err(e) => {
+                        self.view.frame_error = Some(format!("render failed: {e}"));
+                        self.view.drawn = signature;
+                    }
+                }
+            }
+            return;
+        }
+        // Reference and error views: the reference is rendered in the background at the
+        // viewport size; meanwhile the approximation stays on screen.
+        let have = self.view.reference_image.as_ref().is_some_and(|(s, _)| *s == signature);
+        let running = self.view.reference.as_ref().is_some_and(|j| j.signature == signature);
+        if !have && !running {
+            if let Some(old) = self.view.reference.take() {
+                old.cancel();
+            }
+            self.view.reference = Some(ReferenceJob::spawn(frame.clone(), camera.pinhole(), size, signature));
+            let _ = host.render(ctx, &frame, &camera.view(), size);
+            self.view.drawn = 0;
+            return;
+        }
+        let Some((_, reference)) = self.view.reference_image.clone().filter(|(s, _)| *s == signature) else { return };
+        let view_signature = signature
+            ^ xxhash_rust::xxh3::xxh3_64(
+                format!("{}{}{}", settings.view, settings.exposure, settings.tonemap).as_bytes(),
+            );
+        if view_signature == self.view.drawn {
+            return;
+        }
+        self.view.drawn = view_signature;
+        // The approximation at the same size, read back for the comparison.
+        if let Err(e) = host.render(ctx, &frame, &camera.view(), size) {
+            self.view.frame_error = Some(e);
+            return;
+        }
+        let approximation = match host.capture_hdr() {
+            Ok(a) => a,
+            Err(e) => {
+                self.view.frame_error = Some(e);
+                return;
+            }
+        };
+        let mask = reference.surface_mask();
+        self.view.error = reference::compare(&approximation, &reference.pixels, Some(&mask)).ok();
+        let result = if settings.view == "reference" {
+            host.present(ctx, &reference.pixels, size, settings.exposure, &settings.tonemap)
+        } else {
+            let mean = reference.pixels.iter().map(|p| (p[0] + p[1] + p[2]) as f64 / 3.0).sum::<f64>()
+                / reference.pixels.len().max(1) as f64;
+            let map = reference::error_heat_map(&approximation, &reference.pixels, Some(&mask), (mean * 0.5).max(1e-6));
+            host.present(ctx, &map, size, 0.0, "linear")
+        };
+        if let Err(e) = result {
+            self.view.frame_error = Some(e);
+        }
+    }
+}
+
+/// Axis-aligned bounds of meshes.
+pub(super) fn mesh_bounds<'a>(meshes: impl Iterator<Item = &'a lightloom_nodes::mesh::Mesh>) -> ([f32; 3], [f32; 3]) {
+    let mut lo = [f32::MAX; 3];
+    let mut hi = [f32::MIN; 3];
+    for m in meshes {
+        for p in &m.positions {
+            for k in 0..3 {
+                lo[k] = lo[k].min(p[k]);
+                hi[k] = hi[k].max(p[k]);
+            }
+        }
+    }
+    (lo, hi)
+}

@@ -76,6 +76,37 @@ pub fn sh_lighting_sphere(radiance: &ShRgb, size: usize) -> PreviewImage {
     PreviewImage { width: size, height: size, rgba }
 }
 
+/// A point light's glow through fog: a `size²` view (60° across) straight at an isotropic
+/// source 10 m away, the ray to infinity, each pixel the airlight of eq. 3.16 per channel
+/// (`beta` per RGB channel) plus the attenuated source itself in the centre pixel. Fixed
+/// exposure (the source's unattenuated irradiance), so denser fog shows a dimmer, wider glow.
+pub fn fog_glow(
+    beta: [f64; 3],
+    phase: &crate::single_scattering::Phase,
+    tables: &[crate::single_scattering::FTable],
+    size: usize,
+) -> PreviewImage {
+    use crate::single_scattering::{AirlightQuery, Interpolation, airlight};
+    let size = size.max(1);
+    let d_sv = 10.0;
+    let half_fov = 30f64.to_radians();
+    let rgba = (0..size * size)
+        .map(|i| {
+            let (x, y) = (i % size, i / size);
+            let px = (2.0 * (x as f64 + 0.5) / size as f64 - 1.0) * half_fov.tan();
+            let py = (2.0 * (y as f64 + 0.5) / size as f64 - 1.0) * half_fov.tan();
+            let gamma = (px * px + py * py).sqrt().atan();
+            let radiance = beta.map(|b| {
+                let q = AirlightQuery { beta: b, d_sv, d_vp: f64::INFINITY, gamma, i0: 1.0 };
+                airlight(&q, phase, tables, Interpolation::Bilinear)
+            });
+            // Scaled so clear air at 10 m shows the source as mid-grey.
+            display_rgb8(radiance, d_sv * d_sv * 4.0)
+        })
+        .collect();
+    PreviewImage { width: size, height: size, rgba }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -122,5 +153,30 @@ mod tests {
         let (best, _) = thumb.rgba.iter().enumerate().max_by_key(|(_, p)| p[0]).unwrap();
         let (x, y) = (best % w, best / w);
         assert!((x as f64 / w as f64 - 0.75).abs() < 0.1 && (y as f64 / h as f64 - 0.5).abs() < 0.15, "{x},{y}");
+    }
+
+    #[test]
+    fn fog_glow_widens_and_brightens_with_beta_then_fades() {
+        use crate::single_scattering::{FTable, Phase};
+        let tables = [FTable::new(0, 128)];
+        let phase = Phase::isotropic();
+        let size = 33;
+        // Mean brightness of a ring halfway out, per β.
+        let ring = |beta: f64| {
+            let img = fog_glow([beta; 3], &phase, &tables, size);
+            let c = size / 2;
+            let r = size / 4;
+            [(c + r, c), (c - r, c), (c, c + r), (c, c - r)]
+                .iter()
+                .map(|&(x, y)| f64::from(img.rgba[y * size + x][0]))
+                .sum::<f64>()
+        };
+        assert_eq!(ring(0.0), 0.0, "no medium, no glow");
+        assert!(ring(0.05) > ring(0.01), "more scattering, brighter halo");
+        assert!(ring(3.0) < ring(0.1), "very dense fog attenuates the glow away");
+        let img = fog_glow([0.05; 3], &phase, &tables, size);
+        let centre = img.rgba[(size / 2) * size + size / 2][0];
+        let corner = img.rgba[0][0];
+        assert!(centre > corner, "the glow peaks at the source");
     }
 }

@@ -9,7 +9,7 @@ use std::collections::HashMap;
 
 /// Kinds that show a preview.
 pub fn has_preview(kind: &str) -> bool {
-    matches!(kind, "EnvironmentMap" | "BrdfEditor")
+    matches!(kind, "EnvironmentMap" | "BrdfEditor" | "FogMedium")
 }
 
 #[derive(Default)]
@@ -28,16 +28,28 @@ impl Previews {
     ) -> Option<egui::TextureHandle> {
         let result = evaluation.get(node, stage)?;
         let value = result.value.as_ref().ok()?;
+        self.keyed_texture(ctx, node, stage, result.key, || make(value))
+    }
+
+    /// A texture made by `make`, rebuilt only when `key` changes.
+    fn keyed_texture(
+        &mut self,
+        ctx: &egui::Context,
+        node: &str,
+        stage: &'static str,
+        key: Key,
+        make: impl FnOnce() -> Option<PreviewImage>,
+    ) -> Option<egui::TextureHandle> {
         let slot = (node.to_string(), stage);
-        if let Some((key, handle)) = self.textures.get(&slot)
-            && *key == result.key
+        if let Some((cached, handle)) = self.textures.get(&slot)
+            && *cached == key
         {
             return Some(handle.clone());
         }
-        let image = make(value)?;
+        let image = make()?;
         let color = egui::ColorImage::from_rgba_unmultiplied([image.width, image.height], image.rgba.as_flattened());
         let handle = ctx.load_texture(format!("preview-{node}-{stage}"), color, egui::TextureOptions::LINEAR);
-        self.textures.insert(slot, (result.key, handle.clone()));
+        self.textures.insert(slot, (key, handle.clone()));
         Some(handle)
     }
 
@@ -62,6 +74,27 @@ impl Previews {
                             .on_hover_text("SH lighting on a white diffuse sphere (auto-exposed)");
                     }
                 });
+            }
+            "FogMedium" => {
+                let (Some(medium), Some(tables)) = (evaluation.get(node, "medium"), evaluation.get(node, "f_tables"))
+                else {
+                    return;
+                };
+                let (Ok(m), Ok(t)) = (&medium.value, &tables.value) else { return };
+                let (StageValue::Medium(m), StageValue::ScatteringF(t)) = (m.as_ref(), t.as_ref()) else { return };
+                let key = medium.key ^ tables.key.rotate_left(1);
+                let glow = self.keyed_texture(ui.ctx(), node, "glow", key, || {
+                    let phase = if m.phase == "polynomial" {
+                        lightloom_nodes::single_scattering::Phase::polynomial(&m.phase_coefficients)?
+                    } else {
+                        lightloom_nodes::single_scattering::Phase::isotropic()
+                    };
+                    Some(preview::fog_glow(m.beta, &phase, t, 64))
+                });
+                if let Some(t) = glow {
+                    ui.image((t.id(), egui::vec2(80.0, 80.0)))
+                        .on_hover_text("a point light 10 m away seen through this fog (airlight, eq. 3.16)");
+                }
             }
             "BrdfEditor" => {
                 if let Some(Ok(value)) = evaluation.get(node, "preview").map(|r| &r.value)

@@ -219,3 +219,34 @@ fn offers_to_recover_autosaved_work_after_a_crash() {
     harness.state_mut().undo();
     assert_eq!(harness.state().doc.project, project);
 }
+
+/// Asks the window to close, as the window manager's close button does.
+fn request_close(harness: &mut Harness<'_, EditorApp>) {
+    harness.input_mut().viewports.entry(egui::ViewportId::ROOT).or_default().events.push(egui::ViewportEvent::Close);
+    harness.step();
+}
+
+#[test]
+fn closing_with_unsaved_work_asks_first() {
+    let mut harness = harness(None);
+    settle(&mut harness);
+    // Nothing unsaved: closing needs no question.
+    request_close(&mut harness);
+    assert!(harness.query_by_label("Save changes?").is_none());
+    let output = "output".to_string();
+    inspector::set_param(&mut harness.state_mut().doc, &output, "exposure", ParamValue::Float(1.0)).unwrap();
+    harness.step();
+    assert!(harness.state().doc.title().starts_with('●'), "the title marks unsaved changes");
+    request_close(&mut harness);
+    harness.run_steps(2);
+    harness.get_by_label("Save changes?");
+    harness.get_by_label("Cancel").click();
+    harness.run_steps(2);
+    assert!(harness.query_by_label("Save changes?").is_none());
+    assert!(!harness.state().close_confirmed, "cancel keeps the editor open");
+    request_close(&mut harness);
+    harness.run_steps(2);
+    harness.get_by_label("Discard changes").click();
+    harness.run_steps(2);
+    assert!(harness.state().close_confirmed, "discarding lets the window close");
+}

@@ -83,7 +83,9 @@ impl EditorApp {
 
     pub(super) fn dialogs(&mut self, ctx: &egui::Context) {
         self.file_dialog.update(ctx);
-        if let Some(path) = self.file_dialog.take_picked() {
+        let asset = self.asset_dialog.as_mut().and_then(|d| d.update(ctx).picked().map(PathBuf::from));
+        if let Some(path) = self.file_dialog.take_picked().or(asset) {
+            self.asset_dialog = None;
             match self.file_action.take() {
                 Some(FileAction::Open) => self.request(Pending::Open(path)),
                 Some(FileAction::SaveAs { then_close }) => {

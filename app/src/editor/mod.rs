@@ -170,6 +170,8 @@ pub struct EditorApp {
     bottom_tab: BottomTab,
     clipboard: Option<edits::Clipboard>,
     file_dialog: egui_file_dialog::FileDialog,
+    /// The Browse… dialog of a file parameter, while open.
+    asset_dialog: Option<egui_file_dialog::FileDialog>,
     file_action: Option<FileAction>,
     pending: Option<Pending>,
     close_confirmed: bool,
@@ -246,7 +248,7 @@ impl eframe::App for AppWithStats {
 impl eframe::App for EditorApp {
     fn ui(&mut self, ui: &mut egui::Ui, frame: &mut eframe::Frame) {
         self.last_cpu_ms = frame.info().cpu_usage.map(|s| f64::from(s) * 1e3);
-        self.frame(ui, frame.wgpu_render_state());
+        self.frame(ui);
     }
 
     fn on_exit(&mut self) {
@@ -321,6 +323,7 @@ impl EditorApp {
                 .default_file_filter("Lightloom projects")
                 .add_save_extension("Lightloom project", "ron")
                 .default_save_extension("Lightloom project"),
+            asset_dialog: None,
             file_action: None,
             pending: None,
             close_confirmed: false,
@@ -372,10 +375,9 @@ impl EditorApp {
     }
 
     /// One frame of the editor (public so UI tests can drive it through a harness).
-    pub fn frame(&mut self, ui: &mut egui::Ui, render_state: Option<&eframe::egui_wgpu::RenderState>) {
+    pub fn frame(&mut self, ui: &mut egui::Ui) {
         let start = Instant::now();
         let ctx = ui.ctx().clone();
-        let _ = render_state;
         let revision = self.doc.revision();
         self.shortcuts(&ctx);
         self.poll_jobs(&ctx);
@@ -690,9 +692,14 @@ impl EditorApp {
         for r in requests {
             let inspector::InspectorRequest::Browse { node, param, extensions } = r;
             self.file_action = Some(FileAction::Browse { node, param });
-            self.file_dialog.config_mut().file_filters.clear();
-            let _ = extensions;
-            self.file_dialog.pick_file();
+            // Its own dialog, filtered to the parameter's file types (the project dialog keeps
+            // its .ron filter).
+            let mut dialog = egui_file_dialog::FileDialog::new()
+                .add_file_filter_extensions("Supported files", extensions.to_vec())
+                .default_file_filter("Supported files")
+                .initial_directory(std::path::absolute(self.doc.project_dir()).unwrap_or_default());
+            dialog.pick_file();
+            self.asset_dialog = Some(dialog);
         }
     }
 }

@@ -10,7 +10,9 @@ impl EditorApp {
         let (rect, response) = ui.allocate_exact_size(available, egui::Sense::click_and_drag());
         self.viewport_rect = rect;
         self.navigate(ui, &response, rect);
-        let scale = self.view.resolution_scale * ui.ctx().pixels_per_point();
+        // While the view moves, draw at half resolution; the full frame follows on release.
+        let moving = response.dragged() || (response.hovered() && ui.input(|i| i.smooth_scroll_delta.y != 0.0));
+        let scale = self.view.resolution_scale * ui.ctx().pixels_per_point() * if moving { 0.5 } else { 1.0 };
         let size = (((rect.width() * scale) as u32).clamp(16, 4096), ((rect.height() * scale) as u32).clamp(16, 4096));
         self.draw_viewport(ui.ctx(), size);
         let painter = ui.painter_at(rect);

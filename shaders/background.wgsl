@@ -20,10 +20,11 @@ fn vs_main(@builtin(vertex_index) index: u32) -> VertexOut {
 
 @fragment
 fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
-    if (globals.flags.y < 0.5) {
-        return vec4<f32>(0.0, 0.0, 0.0, 1.0);
-    }
     let far = globals.inv_view_proj * vec4<f32>(in.ndc, 1.0, 1.0);
     let dir = normalize(far.xyz / far.w - globals.camera_pos.xyz);
-    return vec4<f32>(textureSample(environment, environment_sampler, dir).rgb, 1.0);
+    var env = textureSample(environment, environment_sampler, dir).rgb;
+    if (globals.flags.y < 0.5) {
+        env = vec3<f32>(0.0);
+    }
+    return vec4<f32>(fog_background(env, dir), 1.0);
 }

@@ -7,6 +7,7 @@ struct VertexOut {
     @location(0) normal: vec3<f32>,
     @location(1) color: vec3<f32>,
     @location(2) @interpolate(flat) material: u32,
+    @location(3) world: vec3<f32>,
 };
 
 @vertex
@@ -16,6 +17,7 @@ fn vs_main(v: MeshVertex) -> VertexOut {
     out.normal = v.normal;
     out.color = v.color;
     out.material = v.material;
+    out.world = v.position;
     return out;
 }
 
@@ -40,6 +42,6 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) ve
     if (bands > 0) {
         irradiance = max(sh_irradiance(n, bands), vec3<f32>(0.0));
     }
-    let radiance = globals.albedo[in.material].rgb * in.color * irradiance / PI;
-    return vec4<f32>(radiance, 1.0);
+    let kd = globals.albedo[in.material].rgb * in.color / PI;
+    return vec4<f32>(fog_shade(kd * irradiance, in.world, n, kd), 1.0);
 }

@@ -25,6 +25,9 @@ struct PrtParams {
 struct VertexOut {
     @builtin(position) clip: vec4<f32>,
     @location(0) color: vec3<f32>,
+    @location(1) world: vec3<f32>,
+    @location(2) normal: vec3<f32>,
+    @location(3) kd: vec3<f32>,
 };
 
 @vertex
@@ -57,10 +60,13 @@ fn vs_main(v: MeshVertex, @builtin(vertex_index) index: u32) -> VertexOut {
         color = color + prt.specular[m].rgb * max(glossy, vec3<f32>(0.0)) * max(dot(n, r), 0.0);
     }
     out.color = color;
+    out.world = v.position;
+    out.normal = v.normal;
+    out.kd = prt.albedo[m].rgb * v.color / PI;
     return out;
 }
 
 @fragment
 fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
-    return vec4<f32>(in.color, 1.0);
+    return vec4<f32>(fog_shade(in.color, in.world, normalize(in.normal), in.kd), 1.0);
 }

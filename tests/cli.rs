@@ -536,3 +536,80 @@ fn relighting_modes_without_their_transport_say_what_to_set() {
         assert!(!png.exists(), "{mode}: no image on failure");
     }
 }
+
+/// The fog shader (GPU) against the same model on the CPU (`single_scattering::shade`, itself
+/// tested against numerical integration of eqs. 3.5 and 3.22): street lamps over a ground plane.
+#[test]
+fn fog_render_matches_the_cpu_model() {
+    use lightloom_nodes::reference::PinholeCamera;
+    use lightloom_nodes::single_scattering::{
+        AirlightQuery, FTable, FogShadingPoint, FogTables, GTable, Interpolation, Phase, airlight, shade,
+    };
+    let dir = std::env::temp_dir().join(format!("lightloom-fog-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let exr = dir.join("fog.exr");
+    let project = Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/projects/fog_lamps.ron");
+    let (width, height) = (160usize, 90usize);
+    let out = lightloom()
+        .args(["render", "--no-disk-cache", "--width", "160", "--height", "90", "-o"])
+        .arg(&exr)
+        .arg(&project)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let gpu = image::open(&exr).unwrap().to_rgb32f();
+
+    // The same scene on the CPU: tables at the project's resolution (F 128², G 32²).
+    let f = [FTable::new(0, 128)];
+    let g = GTable::new(1.0, 32, &f[0]);
+    let tables = FogTables { f: &f, g_lambert: &g, g_phong: None };
+    let beta = 0.04;
+    let lights = [(glam::DVec3::new(-3.0, 4.0, -8.0), 400.0), (glam::DVec3::new(4.0, 4.0, -16.0), 400.0)];
+    let camera = PinholeCamera {
+        position: glam::DVec3::new(0.0, 1.7, 0.0),
+        target: glam::DVec3::new(0.0, 0.8, -10.0),
+        fov_y_deg: 50.0,
+    };
+    let (mut err2, mut ref2, mut compared) = (0.0, 0.0, 0);
+    for y in 0..height {
+        for x in 0..width {
+            let d = camera.ray(x as f64 + 0.5, y as f64 + 0.5, width, height);
+            let cpu = if d.y < -1e-3 {
+                let t = -camera.position.y / d.y;
+                let p = camera.position + d * t;
+                if p.x.abs() > 39.0 || p.z.abs() > 39.0 || t > 60.0 {
+                    continue; // the plane's far edge and the horizon (sub-pixel geometry)
+                }
+                let point = FogShadingPoint {
+                    viewer: camera.position,
+                    point: p,
+                    normal: glam::DVec3::Y,
+                    k_d: 0.8 * 0.8 / std::f64::consts::PI,
+                    k_s: 0.0,
+                    exponent: 1.0,
+                };
+                shade(&point, &lights, beta, &tables)
+            } else {
+                // Sky: the lamps' glows along an infinite ray.
+                lights
+                    .iter()
+                    .map(|(pos, i0)| {
+                        let to = *pos - camera.position;
+                        let gamma = d.dot(to.normalize()).clamp(-1.0, 1.0).acos();
+                        let q = AirlightQuery { beta, d_sv: to.length(), d_vp: f64::INFINITY, gamma, i0: *i0 };
+                        airlight(&q, &Phase::isotropic(), &f, Interpolation::Bilinear)
+                    })
+                    .sum()
+            };
+            let gpu = f64::from(gpu.get_pixel(x as u32, y as u32)[1]);
+            err2 += (gpu - cpu).powi(2);
+            ref2 += cpu * cpu;
+            compared += 1;
+        }
+    }
+    let relative = (err2 / ref2).sqrt();
+    assert!(compared > width * height * 8 / 10, "{compared} pixels compared");
+    eprintln!("GPU fog vs CPU model: relative RMSE {:.3}% over {compared} pixels", relative * 100.0);
+    assert!(relative < 0.005, "GPU fog vs CPU model: relative RMSE {:.2}%", relative * 100.0);
+    let _ = std::fs::remove_dir_all(&dir);
+}

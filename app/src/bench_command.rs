@@ -145,6 +145,8 @@ fn synthetic_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
         mesh_materials: vec![0],
         settings: lightloom_nodes::kinds::output::OutputSettings { mode: mode.into(), ..base_settings.clone() },
         ignored_inputs: Vec::new(),
+        fog: None,
+        lights: Vec::new(),
     };
     let mut renderer = ViewportRenderer::new(gpu);
     let frame_times = |renderer: &mut ViewportRenderer, frame: &FrameInputs| -> Result<f64> {

@@ -6,7 +6,7 @@ use crate::capture::{CapturedFrame, read_texture};
 use crate::{GpuContext, RenderError};
 use glam::{Mat4, Vec3};
 use lightloom_nodes::engine::{Key, StageValue};
-use lightloom_nodes::kinds::output::{FrameInputs, MAX_MATERIALS};
+use lightloom_nodes::kinds::output::{FrameInputs, MAX_LIGHTS, MAX_MATERIALS};
 use lightloom_nodes::project::Camera;
 use wgpu::util::DeviceExt;
 
@@ -147,6 +147,8 @@ pub struct ViewportRenderer {
     tone_params: wgpu::Buffer,
     sampler: wgpu::Sampler,
     environment: (wgpu::TextureView, Option<Key>),
+    fog_params: wgpu::Buffer,
+    fog_tables: FogTables,
     bind_group: wgpu::BindGroup,
     mesh: Option<MeshBuffers>,
     targets: Option<Targets>,
@@ -195,9 +197,28 @@ impl ViewportRenderer {
         };
         let sampler =
             |binding| entry(binding, Stages::FRAGMENT, wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering));
+        // Single scattering tables: R32Float, read with textureLoad (interpolated in WGSL).
+        let table = |binding, view_dimension| {
+            entry(
+                binding,
+                Stages::FRAGMENT,
+                wgpu::BindingType::Texture {
+                    sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                    view_dimension,
+                    multisampled: false,
+                },
+            )
+        };
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("viewport"),
-            entries: &[uniform(0, Stages::VERTEX_FRAGMENT), texture(1, wgpu::TextureViewDimension::Cube), sampler(2)],
+            entries: &[
+                uniform(0, Stages::VERTEX_FRAGMENT),
+                texture(1, wgpu::TextureViewDimension::Cube),
+                sampler(2),
+                uniform(3, Stages::VERTEX_FRAGMENT),
+                table(4, wgpu::TextureViewDimension::D2Array),
+                table(5, wgpu::TextureViewDimension::D2),
+            ],
         });
         let prt_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("prt"),
@@ -231,10 +252,11 @@ impl ViewportRenderer {
             ],
         });
         let common = include_str!("../../shaders/common.wgsl");
+        let fog = include_str!("../../shaders/fog.wgsl");
         let module = |label: &str, source: &str| {
             device.create_shader_module(wgpu::ShaderModuleDescriptor {
                 label: Some(label),
-                source: wgpu::ShaderSource::Wgsl(format!("{common}\n{source}").into()),
+                source: wgpu::ShaderSource::Wgsl(format!("{common}\n{fog}\n{source}").into()),
             })
         };
         let mesh_module = module("mesh.wgsl", include_str!("../../shaders/mesh.wgsl"));
@@ -336,7 +358,13 @@ impl ViewportRenderer {
             ..Default::default()
         });
         let black = upload_cube(ctx, 1, &[[0.0; 3]; 6]);
-        let bind_group = make_bind_group(device, &layout, &globals, &black, &sampler);
+        let fog_params = uniform_buffer("fog", std::mem::size_of::<FogParams>());
+        let fog_tables = FogTables {
+            f: upload_tables(ctx, "f-tables", 1, &[0.0]),
+            g: upload_tables(ctx, "g-table", 1, &[0.0]),
+            key: None,
+        };
+        let bind_group = make_bind_group(device, &layout, &globals, &black, &sampler, &fog_params, &fog_tables);
         Self {
             layout,
             tone_layout,
@@ -355,6 +383,8 @@ impl ViewportRenderer {
             tone_params,
             sampler,
             environment: (black, None),
+            fog_params,
+            fog_tables,
             bind_group,
             mesh: None,
             targets: None,
@@ -376,6 +406,7 @@ impl ViewportRenderer {
         }
         self.upload_meshes(ctx, frame)?;
         self.upload_environment(ctx, frame)?;
+        self.upload_fog(ctx, frame)?;
         self.ensure_targets(ctx, width, height);
         let bounds = self.mesh.as_ref().map_or(([0.0; 3], [0.0; 3]), |m| m.bounds);
         let view_proj = camera.view_proj(width as f32 / height as f32, bounds);
@@ -816,8 +847,55 @@ impl ViewportRenderer {
             }
             None => upload_cube(ctx, 1, &[[0.0; 3]; 6]),
         };
-        self.bind_group = make_bind_group(&ctx.device, &self.layout, &self.globals, &view, &self.sampler);
         self.environment = (view, key);
+        self.rebind(ctx);
+        Ok(())
+    }
+
+    fn rebind(&mut self, ctx: &GpuContext) {
+        self.bind_group = make_bind_group(
+            &ctx.device,
+            &self.layout,
+            &self.globals,
+            &self.environment.0,
+            &self.sampler,
+            &self.fog_params,
+            &self.fog_tables,
+        );
+    }
+
+    /// Point lights and the medium: uniforms every frame, tables when their stages change.
+    fn upload_fog(&mut self, ctx: &GpuContext, frame: &FrameInputs) -> Result<(), RenderError> {
+        let mut params: FogParams = bytemuck::Zeroable::zeroed();
+        params.counts[0] = frame.lights.len().min(MAX_LIGHTS) as f32;
+        for (i, l) in frame.lights.iter().take(MAX_LIGHTS).enumerate() {
+            params.light_position[i] = [l.position[0] as f32, l.position[1] as f32, l.position[2] as f32, 1.0];
+            params.light_intensity[i] = [l.intensity[0] as f32, l.intensity[1] as f32, l.intensity[2] as f32, 0.0];
+        }
+        if let Some(fog) = &frame.fog {
+            params.beta = [fog.beta[0] as f32, fog.beta[1] as f32, fog.beta[2] as f32, 1.0];
+            for (k, w) in fog.phase.iter().take(3).enumerate() {
+                params.phase[k] = *w as f32;
+            }
+            params.phase[3] = fog.phase.len().min(3) as f32;
+            let key = Some(fog.f_tables.key ^ fog.g_lambert.key.rotate_left(7));
+            if self.fog_tables.key != key {
+                let (StageValue::ScatteringF(f), StageValue::ScatteringG(g)) =
+                    (fog.f_tables.value.as_ref(), fog.g_lambert.value.as_ref())
+                else {
+                    return Err(RenderError::Invalid("fog tables hold unexpected values".into()));
+                };
+                let size = f.first().map_or(1, |t| t.table.width);
+                let layers: Vec<f32> = f.iter().flat_map(|t| t.table.values.iter().copied()).collect();
+                self.fog_tables = FogTables {
+                    f: upload_tables(ctx, "f-tables", size as u32, &layers),
+                    g: upload_tables(ctx, "g-table", g.table.width as u32, &g.table.values),
+                    key,
+                };
+                self.rebind(ctx);
+            }
+        }
+        ctx.queue.write_buffer(&self.fog_params, 0, bytemuck::bytes_of(&params));
         Ok(())
     }
 
@@ -904,6 +982,8 @@ fn make_bind_group(
     globals: &wgpu::Buffer,
     environment: &wgpu::TextureView,
     sampler: &wgpu::Sampler,
+    fog_params: &wgpu::Buffer,
+    fog: &FogTables,
 ) -> wgpu::BindGroup {
     device.create_bind_group(&wgpu::BindGroupDescriptor {
         label: Some("viewport"),
@@ -912,8 +992,60 @@ fn make_bind_group(
             wgpu::BindGroupEntry { binding: 0, resource: globals.as_entire_binding() },
             wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::TextureView(environment) },
             wgpu::BindGroupEntry { binding: 2, resource: wgpu::BindingResource::Sampler(sampler) },
+            wgpu::BindGroupEntry { binding: 3, resource: fog_params.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 4, resource: wgpu::BindingResource::TextureView(&fog.f) },
+            wgpu::BindGroupEntry { binding: 5, resource: wgpu::BindingResource::TextureView(&fog.g) },
         ],
     })
+}
+
+/// Square R32Float tables, `values.len() / size²` layers (a 2D array view when several).
+fn upload_tables(ctx: &GpuContext, label: &str, size: u32, values: &[f32]) -> wgpu::TextureView {
+    let layers = (values.len() / (size * size).max(1) as usize).max(1) as u32;
+    let texture = ctx.device.create_texture(&wgpu::TextureDescriptor {
+        label: Some(label),
+        size: wgpu::Extent3d { width: size, height: size, depth_or_array_layers: layers },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: wgpu::TextureFormat::R32Float,
+        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+        view_formats: &[],
+    });
+    ctx.queue.write_texture(
+        wgpu::TexelCopyTextureInfo {
+            texture: &texture,
+            mip_level: 0,
+            origin: wgpu::Origin3d::ZERO,
+            aspect: wgpu::TextureAspect::All,
+        },
+        bytemuck::cast_slice(values),
+        wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(size * 4), rows_per_image: Some(size) },
+        wgpu::Extent3d { width: size, height: size, depth_or_array_layers: layers },
+    );
+    let dimension =
+        if label == "f-tables" { wgpu::TextureViewDimension::D2Array } else { wgpu::TextureViewDimension::D2 };
+    texture.create_view(&wgpu::TextureViewDescriptor { dimension: Some(dimension), ..Default::default() })
+}
+
+/// The fog pass's uniforms (`common.wgsl` `Fog`).
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct FogParams {
+    /// rgb: β per channel (1/m); w: 1 when a medium is linked.
+    beta: [f32; 4],
+    /// Phase polynomial weights `W_0..W_2`; w: how many.
+    phase: [f32; 4],
+    /// x: point light count.
+    counts: [f32; 4],
+    light_position: [[f32; 4]; MAX_LIGHTS],
+    light_intensity: [[f32; 4]; MAX_LIGHTS],
+}
+
+struct FogTables {
+    f: wgpu::TextureView,
+    g: wgpu::TextureView,
+    key: Option<Key>,
 }
 
 /// One vec4 per material slot: `rgb` from the material, `w`.

@@ -108,6 +108,10 @@ fn add_link_edit_undo_save_and_reopen() {
         .iter()
         .any(|l| l.from == (added.id.clone(), "lights".into()) && l.to == ("output".into(), "lights".into()));
     assert!(linked, "the inspector linked the point light into the output");
+    settle(&mut harness);
+    let lit_before = lit;
+    let lit = viewport_mean(&mut harness);
+    assert!(lit > lit_before + 1.0, "the linked point light adds light: {lit_before:.1} → {lit:.1}");
 
     // Edit: +2 EV exposure from the viewport toolbar; the viewport gets brighter.
     // (The inspector, drawn first, shows the Output's exposure too: the toolbar's is last.)

@@ -84,7 +84,9 @@ pub fn spec() -> NodeKindSpec {
                 compute: g_lambert,
             },
         ],
-        availability: Availability::Planned("issue 7 (fog medium)"),
+        availability: Availability::Planned(
+            "issue 7 (Lambertian surfaces are drawn; Phong surfaces and environment light under fog next)",
+        ),
     }
 }
 

@@ -43,7 +43,7 @@ pub fn point_light_spec() -> NodeKindSpec {
             persist: false,
             compute: lights,
         }],
-        availability: Availability::Planned("issue 7 (fog medium and point lights)"),
+        availability: Availability::Planned("issue 7 (drawn as unshadowed diffuse lights; specular highlights next)"),
     }
 }
 

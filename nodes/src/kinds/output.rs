@@ -317,10 +317,29 @@ pub struct FrameInputs {
     /// Connected inputs the renderer does not draw yet, and material names that matched
     /// nothing, to tell the user.
     pub ignored_inputs: Vec<String>,
+    /// The medium linked to the Output, if any.
+    pub fog: Option<FogFrame>,
+    /// Point lights linked to the Output (at most [`MAX_LIGHTS`]).
+    pub lights: Vec<crate::kinds::lights::PointLight>,
 }
 
 /// Materials one frame can shade with (the shaders' uniform arrays).
 pub const MAX_MATERIALS: usize = 8;
+
+/// Point lights one frame can shade with.
+pub const MAX_LIGHTS: usize = 8;
+
+/// A participating medium for one frame (Sun 2008 ch. 3): coefficients and its tables.
+#[derive(Clone, Debug)]
+pub struct FogFrame {
+    /// Scattering coefficient per channel, 1/m.
+    pub beta: [f64; 3],
+    /// Normalised phase polynomial weights `W_k` (eq. 3.18), one per `F^k` table.
+    pub phase: Vec<f64>,
+    /// `F^k` tables (`StageValue::ScatteringF`) and the Lambertian `G` (`ScatteringG`).
+    pub f_tables: Keyed,
+    pub g_lambert: Keyed,
+}
 
 /// One material of a frame.
 #[derive(Clone, Debug)]
@@ -473,10 +492,42 @@ impl FrameInputs {
         let local_products = if wavelets { Some(keyed(output, "local_products")?) } else { None };
         let texel_irradiance =
             if settings.mode == "wavelet_pixel" { Some(keyed(output, "texel_irradiance")?) } else { None };
-        let mut ignored_inputs: Vec<String> = ["medium", "lights", "blockers", "square_lights"]
+        let fog = match upstream("medium") {
+            Some(node) => {
+                let medium = keyed(&node, "medium")?;
+                let StageValue::Medium(m) = medium.value.as_ref() else {
+                    return Err(format!("{node}.medium holds no medium"));
+                };
+                let phase = if m.phase == "polynomial" {
+                    crate::single_scattering::Phase::polynomial(&m.phase_coefficients)
+                        .ok_or_else(|| format!("{node}: the phase polynomial is invalid"))?
+                } else {
+                    crate::single_scattering::Phase::isotropic()
+                };
+                Some(FogFrame {
+                    beta: m.beta,
+                    phase: phase.weights,
+                    f_tables: keyed(&node, "f_tables")?,
+                    g_lambert: keyed(&node, "g_lambert")?,
+                })
+            }
+            None => None,
+        };
+        let mut lights = match upstream("lights") {
+            Some(node) => match keyed(&node, "lights")?.value.as_ref() {
+                StageValue::Lights(list) => list.clone(),
+                _ => return Err(format!("{node}.lights holds no lights")),
+            },
+            None => Vec::new(),
+        };
+        let mut ignored_inputs: Vec<String> = ["blockers", "square_lights"]
             .into_iter()
             .filter_map(|p| upstream(p).map(|n| format!("`{p}` (from `{n}`) is not drawn yet")))
             .collect();
+        if lights.len() > MAX_LIGHTS {
+            ignored_inputs.push(format!("{} point lights are linked; the first {MAX_LIGHTS} are drawn", lights.len()));
+            lights.truncate(MAX_LIGHTS);
+        }
         let mut mesh_materials = Vec::new();
         let mut unmatched: std::collections::BTreeMap<&str, usize> = Default::default();
         if let StageValue::Meshes(set) = meshes.value.as_ref() {
@@ -511,6 +562,8 @@ impl FrameInputs {
             mesh_materials,
             settings,
             ignored_inputs,
+            fog,
+            lights,
         })
     }
 }

@@ -1,0 +1,172 @@
+// Point lights and analytic single scattering in homogeneous fog (Sun 2008 ch. 3; the CPU twin
+// is nodes/src/single_scattering.rs `shade`): L = e^{-T_vp} L_p + sum L_a (eq. 3.29), L_p from
+// eq. 3.27 (Lambert: direct e^{-T_sp}/D^2 cos + beta^2 G_0/(2 pi T_sp)), L_a from eq. 3.16.
+// Tables are R32Float, read with textureLoad and interpolated here (no float filtering needed).
+
+struct Fog {
+    // rgb: beta per channel (1/m); w: 1 when a medium is linked.
+    beta: vec4<f32>,
+    // Phase polynomial weights W_0..W_2 (eq. 3.18, normalised); w: how many.
+    phase: vec4<f32>,
+    // x: point light count.
+    counts: vec4<f32>,
+    light_position: array<vec4<f32>, 8>,
+    light_intensity: array<vec4<f32>, 8>,
+};
+
+@group(0) @binding(3) var<uniform> fog: Fog;
+@group(0) @binding(4) var f_tables: texture_2d_array<f32>;
+@group(0) @binding(5) var g_table: texture_2d<f32>;
+
+const FOG_U_MAX: f32 = 64.0;
+const FOG_U_WARP: f32 = 4.0;
+const FOG_MIN_GAMMA: f32 = 1e-4;
+
+fn fog_bilinear_f(k: i32, s: f32, t: f32) -> f32 {
+    let n = i32(textureDimensions(f_tables).x);
+    let x = clamp(s, 0.0, 1.0) * f32(n - 1);
+    let y = clamp(t, 0.0, 1.0) * f32(n - 1);
+    let x0 = i32(floor(x));
+    let y0 = i32(floor(y));
+    let x1 = min(x0 + 1, n - 1);
+    let y1 = min(y0 + 1, n - 1);
+    let fx = x - f32(x0);
+    let fy = y - f32(y0);
+    let a = mix(textureLoad(f_tables, vec2<i32>(x0, y0), k, 0).r, textureLoad(f_tables, vec2<i32>(x1, y0), k, 0).r, fx);
+    let b = mix(textureLoad(f_tables, vec2<i32>(x0, y1), k, 0).r, textureLoad(f_tables, vec2<i32>(x1, y1), k, 0).r, fx);
+    return mix(a, b, fy);
+}
+
+// F^k(u, v) (eqs. 3.15, 3.19) from its table; the asymptotic series beyond u = 64.
+fn fog_f(k: i32, u: f32, v: f32) -> f32 {
+    if (u > FOG_U_MAX) {
+        let t = tan(min(v, 1.5707));
+        let e = exp(-u * t);
+        return (1.0 - e) / u - (2.0 - e * (u * u * t * t + 2.0 * u * t + 2.0)) / (u * u * u);
+    }
+    let s = sqrt(u / (u + FOG_U_WARP) / (FOG_U_MAX / (FOG_U_MAX + FOG_U_WARP)));
+    let r = acos(clamp(1.0 - 4.0 * v / PI, -1.0, 1.0)) / PI;
+    return fog_bilinear_f(k, s, r) / (1.0 + u);
+}
+
+// The angle between unit vectors, accurate near 0 (acos loses it in f32, and the glow peaks there).
+fn fog_angle(a: vec3<f32>, b: vec3<f32>) -> f32 {
+    return atan2(length(cross(a, b)), dot(a, b));
+}
+
+fn fog_phase(cos_alpha: f32) -> f32 {
+    return fog.phase.x + cos_alpha * (fog.phase.y + cos_alpha * fog.phase.z);
+}
+
+// Airlight of one light along a view ray (eq. 3.16), `d_vp < 0` for a ray to infinity. Where
+// the table difference is ill-conditioned, eq. 3.14 by 6-point Gauss-Legendre (exponent folded).
+fn fog_airlight(beta: f32, d_sv: f32, d_vp: f32, gamma_in: f32, i0: f32) -> f32 {
+    if (beta <= 0.0) {
+        return 0.0;
+    }
+    let gamma = clamp(gamma_in, FOG_MIN_GAMMA, PI);
+    let t_sv = beta * d_sv;
+    let s = max(sin(gamma), FOG_MIN_GAMMA);
+    let c = cos(gamma);
+    let a1 = t_sv * s;
+    var v_far = PI / 2.0;
+    if (d_vp >= 0.0) {
+        v_far = PI / 4.0 + 0.5 * atan((beta * d_vp - t_sv * c) / a1);
+    }
+    let v_near = gamma / 2.0;
+    let scale = beta * beta * i0 / (2.0 * PI * t_sv * s);
+    let terms = i32(fog.phase.w);
+    var table_ok = v_far - v_near >= 0.05;
+    var sum = 0.0;
+    if (table_ok) {
+        for (var k = 0; k < terms; k = k + 1) {
+            let far = fog_f(k, a1, v_far);
+            let near = fog_f(k, a1, v_near);
+            if (abs(far - near) < 1e-2 * max(abs(far), abs(near))) {
+                table_ok = false;
+            }
+            sum = sum + 4.0 * PI * fog.phase[k] * (far - near);
+        }
+    }
+    if (table_ok) {
+        return scale * exp(-t_sv * c) * sum;
+    }
+    var x = array<f32, 6>(-0.9324695, -0.6612094, -0.2386192, 0.2386192, 0.6612094, 0.9324695);
+    var w = array<f32, 6>(0.1713245, 0.3607616, 0.4679139, 0.4679139, 0.3607616, 0.1713245);
+    let mid = 0.5 * (v_far + v_near);
+    let radius = 0.5 * (v_far - v_near);
+    var direct = 0.0;
+    for (var i = 0; i < 6; i = i + 1) {
+        let xi = mid + radius * x[i];
+        direct = direct + w[i] * 4.0 * PI * fog_phase(cos(2.0 * xi)) * exp(-t_sv * c - a1 * tan(xi));
+    }
+    return scale * radius * direct;
+}
+
+// G_0(T_sp, theta_s) (eq. 3.23, Lambert) from its table (T over T/(1+T), theta over [0, pi]).
+fn fog_g(t_sp: f32, theta_s: f32) -> f32 {
+    let n = i32(textureDimensions(g_table).x);
+    let x = clamp(t_sp / (1.0 + t_sp), 0.0, 1.0) * f32(n - 1);
+    let y = clamp(theta_s / PI, 0.0, 1.0) * f32(n - 1);
+    let x0 = i32(floor(x));
+    let y0 = i32(floor(y));
+    let x1 = min(x0 + 1, n - 1);
+    let y1 = min(y0 + 1, n - 1);
+    let a = mix(textureLoad(g_table, vec2<i32>(x0, y0), 0).r, textureLoad(g_table, vec2<i32>(x1, y0), 0).r, x - f32(x0));
+    let b = mix(textureLoad(g_table, vec2<i32>(x0, y1), 0).r, textureLoad(g_table, vec2<i32>(x1, y1), 0).r, x - f32(x0));
+    return mix(a, b, y - f32(y0)) / (1.0 + t_sp);
+}
+
+// What the viewer sees of a Lambertian surface point `p` (normal `n`, reflectance `kd` =
+// albedo/pi) whose environment-lit radiance is `lit`: point lights added, then fog applied.
+fn fog_shade(lit: vec3<f32>, p: vec3<f32>, n: vec3<f32>, kd: vec3<f32>) -> vec3<f32> {
+    let fogged = fog.beta.w > 0.5;
+    let viewer = globals.camera_pos.xyz;
+    let d_vp = length(viewer - p);
+    let view = (p - viewer) / max(d_vp, 1e-6);
+    var out = vec3<f32>(0.0);
+    for (var c = 0; c < 3; c = c + 1) {
+        let beta = select(0.0, fog.beta[c], fogged);
+        var surface = lit[c];
+        var air = 0.0;
+        for (var i = 0; i < i32(fog.counts.x); i = i + 1) {
+            let i0 = fog.light_intensity[i][c];
+            let to_light = fog.light_position[i].xyz - p;
+            let d_sp = max(length(to_light), 1e-4);
+            let cos_s = dot(to_light / d_sp, n);
+            let t_sp = beta * d_sp;
+            var reflected = exp(-t_sp) / (d_sp * d_sp) * max(cos_s, 0.0);
+            if (beta > 0.0) {
+                reflected = reflected + beta * beta * fog_g(t_sp, acos(clamp(cos_s, -1.0, 1.0))) / (2.0 * PI * t_sp);
+                let to_source = fog.light_position[i].xyz - viewer;
+                let d_sv = max(length(to_source), 1e-4);
+                let gamma = fog_angle(view, to_source / d_sv);
+                air = air + fog_airlight(beta, d_sv, d_vp, gamma, i0);
+            }
+            surface = surface + i0 * kd[c] * reflected;
+        }
+        out[c] = exp(-beta * d_vp) * surface + air;
+    }
+    return out;
+}
+
+// The background seen through fog: the environment is extinguished along an infinite ray
+// (environment light under fog is not modelled yet); the lights' glows remain.
+fn fog_background(env: vec3<f32>, dir: vec3<f32>) -> vec3<f32> {
+    if (fog.beta.w < 0.5) {
+        return env;
+    }
+    let viewer = globals.camera_pos.xyz;
+    var out = vec3<f32>(0.0);
+    for (var c = 0; c < 3; c = c + 1) {
+        var air = 0.0;
+        for (var i = 0; i < i32(fog.counts.x); i = i + 1) {
+            let to_source = fog.light_position[i].xyz - viewer;
+            let d_sv = max(length(to_source), 1e-4);
+            let gamma = fog_angle(dir, to_source / d_sv);
+            air = air + fog_airlight(fog.beta[c], d_sv, -1.0, gamma, fog.light_intensity[i][c]);
+        }
+        out[c] = air;
+    }
+    return out;
+}

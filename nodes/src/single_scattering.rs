@@ -747,4 +747,36 @@ mod tests {
             assert!((model - reference).abs() < 0.01 * reference, "β {beta} at ({x}, {z}): {model} vs {reference}");
         }
     }
+
+    /// `cargo test -p lightloom-nodes --release fog_cost_per_pixel -- --ignored --nocapture`
+    #[test]
+    #[ignore = "a timing probe: run in release"]
+    fn fog_cost_per_pixel() {
+        let f = [FTable::new(0, DEFAULT_RESOLUTION)];
+        let g = GTable::new(1.0, DEFAULT_RESOLUTION / 4, &f[0]);
+        let tables = FogTables { f: &f, g_lambert: &g, g_phong: None };
+        let lights = [(glam::DVec3::new(-3.0, 4.0, -8.0), 400.0), (glam::DVec3::new(4.0, 4.0, -16.0), 400.0)];
+        let point = |i: usize| FogShadingPoint {
+            viewer: glam::DVec3::new(0.0, 1.7, 0.0),
+            point: glam::DVec3::new((i % 40) as f64 - 20.0, 0.0, -2.0 - (i / 40 % 40) as f64),
+            normal: glam::DVec3::Y,
+            k_d: 0.2,
+            k_s: 0.0,
+            exponent: 1.0,
+        };
+        let n = 100_000;
+        let start = std::time::Instant::now();
+        let sum: f64 = (0..n).map(|i| shade(&point(i), &lights, 0.04, &tables)).sum();
+        let model = start.elapsed().as_secs_f64() / n as f64;
+        let m = 20;
+        let start = std::time::Instant::now();
+        let sum_ref: f64 = (0..m).map(|i| shade_reference(&point(i * 37), &lights, 0.04)).sum();
+        let reference = start.elapsed().as_secs_f64() / m as f64;
+        println!(
+            "per pixel, 2 lights, one core: analytic {:.2} µs, numerical reference {:.1} ms ({:.0}× slower) [{sum:.3} {sum_ref:.3}]",
+            model * 1e6,
+            reference * 1e3,
+            reference / model
+        );
+    }
 }

@@ -125,6 +125,8 @@ struct Targets {
     depth: wgpu::TextureView,
     ldr: wgpu::Texture,
     ldr_view: wgpu::TextureView,
+    /// The same texels viewed as Rgba8Unorm (sRGB-encoded bytes, no decoding on read).
+    ldr_encoded_view: wgpu::TextureView,
     tone_bind_group: wgpu::BindGroup,
 }
 
@@ -554,9 +556,15 @@ impl ViewportRenderer {
         ctx.queue.submit(Some(encoder.finish()));
     }
 
-    /// The tone-mapped target (for display in the editor).
+    /// The tone-mapped target, sRGB-decoding on read.
     pub fn ldr_view(&self) -> Option<&wgpu::TextureView> {
         self.targets.as_ref().map(|t| &t.ldr_view)
+    }
+
+    /// The tone-mapped target as Rgba8Unorm: its sRGB-encoded bytes, for UIs that blend in
+    /// gamma space (egui's `register_native_texture` expects this).
+    pub fn display_view(&self) -> Option<&wgpu::TextureView> {
+        self.targets.as_ref().map(|t| &t.ldr_encoded_view)
     }
 
     /// Reads the last rendered frame back to the CPU.
@@ -925,8 +933,23 @@ impl ViewportRenderer {
         let hdr_view = hdr.create_view(&Default::default());
         let depth =
             texture("depth", DEPTH_FORMAT, U::RENDER_ATTACHMENT, self.sample_count).create_view(&Default::default());
-        let ldr = texture("ldr", LDR_FORMAT, U::RENDER_ATTACHMENT | U::TEXTURE_BINDING | U::COPY_SRC, 1);
+        // The tone-mapped target also has a plain Rgba8Unorm view: UIs that composite in gamma
+        // space (egui) read the sRGB-encoded bytes as they are.
+        let ldr = device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("ldr"),
+            size,
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: LDR_FORMAT,
+            usage: U::RENDER_ATTACHMENT | U::TEXTURE_BINDING | U::COPY_SRC,
+            view_formats: &[wgpu::TextureFormat::Rgba8Unorm],
+        });
         let ldr_view = ldr.create_view(&Default::default());
+        let ldr_encoded_view = ldr.create_view(&wgpu::TextureViewDescriptor {
+            format: Some(wgpu::TextureFormat::Rgba8Unorm),
+            ..Default::default()
+        });
         let tone_bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("tonemap"),
             layout: &self.tone_layout,
@@ -935,7 +958,18 @@ impl ViewportRenderer {
                 wgpu::BindGroupEntry { binding: 1, resource: self.tone_params.as_entire_binding() },
             ],
         });
-        self.targets = Some(Targets { width, height, msaa, hdr, hdr_view, depth, ldr, ldr_view, tone_bind_group });
+        self.targets = Some(Targets {
+            width,
+            height,
+            msaa,
+            hdr,
+            hdr_view,
+            depth,
+            ldr,
+            ldr_view,
+            ldr_encoded_view,
+            tone_bind_group,
+        });
     }
 }
 

@@ -83,7 +83,7 @@ impl ViewportHost {
     fn publish(&mut self, ctx: &egui::Context) -> Result<(), String> {
         match &mut self.display {
             Display::Native { renderer, id, size } => {
-                let view = self.renderer.ldr_view().ok_or("nothing rendered")?;
+                let view = self.renderer.display_view().ok_or("nothing rendered")?;
                 let mut r = renderer.write();
                 match id {
                     Some(_) if *size == self.size => {}

@@ -73,6 +73,11 @@ fn add_link_edit_undo_save_and_reopen() {
     settle(&mut harness);
     let lit = viewport_mean(&mut harness);
     assert!(lit > 20.0, "the viewport shows a lit scene (mean sRGB {lit:.1})");
+    // What the window shows is what the renderer wrote (no colour-space slip on the way).
+    let written = harness.state().host.as_ref().unwrap().capture_ldr().unwrap();
+    let written = written.iter().map(|p| f64::from(p[0]) + f64::from(p[1]) + f64::from(p[2])).sum::<f64>()
+        / (3 * written.len()) as f64;
+    assert!((written - lit).abs() < 3.0, "the viewport shows {lit:.1}, the renderer wrote {written:.1} (mean sRGB)");
     let nodes_before = harness.state().doc.project.nodes.len();
 
     // Add: Shift+A over the graph, search, pick.

@@ -123,6 +123,11 @@ impl ViewportHost {
         Ok(captured.hdr.iter().map(|p| [p[0], p[1], p[2]]).collect())
     }
 
+    /// The tone-mapped pixels of the last frame (sRGB bytes), as the renderer wrote them.
+    pub fn capture_ldr(&self) -> Result<Vec<[u8; 4]>, String> {
+        Ok(self.renderer.capture(&self.gpu).map_err(|e| e.to_string())?.ldr)
+    }
+
     /// The texture egui draws, once something was rendered.
     pub fn texture_id(&self) -> Option<egui::TextureId> {
         match &self.display {

@@ -124,6 +124,7 @@ impl ViewportHost {
     }
 
     /// The tone-mapped pixels of the last frame (sRGB bytes), as the renderer wrote them.
+    #[cfg(test)]
     pub fn capture_ldr(&self) -> Result<Vec<[u8; 4]>, String> {
         Ok(self.renderer.capture(&self.gpu).map_err(|e| e.to_string())?.ldr)
     }

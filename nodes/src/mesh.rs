@@ -176,16 +176,7 @@ impl MeshSet {
     }
 
     pub fn bounds(&self) -> ([f32; 3], [f32; 3]) {
-        let mut lo = [f32::MAX; 3];
-        let mut hi = [f32::MIN; 3];
-        for m in &self.meshes {
-            let (a, b) = m.bounds();
-            for c in 0..3 {
-                lo[c] = lo[c].min(a[c]);
-                hi[c] = hi[c].max(b[c]);
-            }
-        }
-        (lo, hi)
+        union_bounds(&self.meshes)
     }
 }
 
@@ -293,6 +284,20 @@ pub fn cornell_box(size: f64, segments: usize) -> Vec<Mesh> {
             lift * DMat4::from_translation(DVec3::X * h) * DMat4::from_rotation_z(PI / 2.0),
         ),
     ]
+}
+
+/// Axis-aligned bounds `(min, max)` of several meshes (inverted bounds when there are none).
+pub fn union_bounds<'a>(meshes: impl IntoIterator<Item = &'a Mesh>) -> ([f32; 3], [f32; 3]) {
+    let mut lo = [f32::MAX; 3];
+    let mut hi = [f32::MIN; 3];
+    for m in meshes {
+        let (a, b) = m.bounds();
+        for c in 0..3 {
+            lo[c] = lo[c].min(a[c]);
+            hi[c] = hi[c].max(b[c]);
+        }
+    }
+    (lo, hi)
 }
 
 #[cfg(test)]

@@ -151,7 +151,7 @@ impl EditorApp {
         if let Some(frame) = &self.view.frame
             && let lightloom_nodes::engine::StageValue::Meshes(m) = frame.meshes.value.as_ref()
         {
-            self.view.camera.frame(mesh_bounds(m.meshes.iter()));
+            self.view.camera.frame(m.bounds());
         }
     }
 
@@ -229,8 +229,8 @@ impl EditorApp {
         if parts.is_empty() {
             return;
         }
-        let (lo, hi) = mesh_bounds(parts.into_iter());
-        let all = mesh_bounds(m.meshes.iter());
+        let (lo, hi) = lightloom_nodes::mesh::union_bounds(parts);
+        let all = m.bounds();
         let view_proj = self.view.camera.view().view_proj(rect.width() / rect.height().max(1.0), all);
         let corner = |i: usize| {
             glam::Vec3::new(
@@ -331,19 +331,4 @@ impl EditorApp {
             self.view.frame_error = Some(e);
         }
     }
-}
-
-/// Axis-aligned bounds of meshes.
-pub(super) fn mesh_bounds<'a>(meshes: impl Iterator<Item = &'a lightloom_nodes::mesh::Mesh>) -> ([f32; 3], [f32; 3]) {
-    let mut lo = [f32::MAX; 3];
-    let mut hi = [f32::MIN; 3];
-    for m in meshes {
-        for p in &m.positions {
-            for k in 0..3 {
-                lo[k] = lo[k].min(p[k]);
-                hi[k] = hi[k].max(p[k]);
-            }
-        }
-    }
-    (lo, hi)
 }

@@ -76,7 +76,7 @@ impl EditorApp {
             self.view.camera = OrbitCamera::from_camera(&c);
             self.view.camera_name = c.name;
         }
-        self.eval_signature = 0;
+        self.request_evaluation();
         self.graph = GraphEditor::default();
         self.graph.sync(&self.doc.project);
     }

@@ -25,7 +25,7 @@ impl EditorApp {
             self.request(Pending::New);
         }
         if !typing && pressed(Modifiers::NONE, Key::F5) {
-            self.eval_signature = 0;
+            self.request_evaluation();
         }
         if !typing
             && let Some(text) = ctx.input(|i| {
@@ -146,7 +146,7 @@ impl EditorApp {
             });
             ui.menu_button("Evaluate", |ui| {
                 if ui.button("Re-evaluate  (F5)").clicked() {
-                    self.eval_signature = 0;
+                    self.request_evaluation();
                     ui.close();
                 }
                 if ui.add_enabled(self.evaluator.is_running(), egui::Button::new("Cancel evaluation")).clicked() {
@@ -263,11 +263,10 @@ impl EditorApp {
         out
     }
 
+    /// Asset files the current graph names that do not exist (checked on disk each frame, so
+    /// a file that appears clears its problem).
     pub(super) fn missing_assets(&self) -> Vec<(String, String, PathBuf)> {
-        match self.doc.project.graph(&self.doc.project_dir().join("project.ron")) {
-            Ok(g) => self.doc.project.missing_assets(&g),
-            Err(_) => Vec::new(),
-        }
+        self.built_graph.as_ref().map_or_else(Vec::new, |g| self.doc.project.missing_assets(g))
     }
 
     pub(super) fn timings(&self, ui: &mut egui::Ui) {

@@ -166,6 +166,10 @@ pub struct EditorApp {
     graph_errors: Vec<String>,
     /// Hash of what evaluation reads (nodes, parameters, links): positions and labels excluded.
     eval_signature: u64,
+    /// The document revision and folder last checked for changes, and the graph built from
+    /// them (valid projects only): both are per edit, not per frame.
+    checked_revision: Option<(u64, PathBuf)>,
+    built_graph: Option<lightloom_nodes::engine::Graph>,
     log: Vec<LogLine>,
     bottom_tab: BottomTab,
     clipboard: Option<edits::Clipboard>,
@@ -315,6 +319,8 @@ impl EditorApp {
             host_error: host_error.clone(),
             graph_errors: Vec::new(),
             eval_signature: 0,
+            checked_revision: None,
+            built_graph: None,
             log: Vec::new(),
             bottom_tab: BottomTab::Problems,
             clipboard: None,
@@ -458,20 +464,35 @@ impl EditorApp {
 
     // ----- evaluation -----
 
+    /// Evaluates again even if nothing changed (F5, a new document).
+    pub(super) fn request_evaluation(&mut self) {
+        self.eval_signature = 0;
+        self.checked_revision = None;
+    }
+
     fn submit_if_changed(&mut self) {
-        let signature = eval_signature(&self.doc.project);
+        // Relative asset paths resolve against the project's folder, which Save As can change.
+        let dir = self.doc.project_dir();
+        let checked = Some((self.doc.revision(), dir.clone()));
+        if self.checked_revision == checked {
+            return;
+        }
+        self.checked_revision = checked;
+        let signature =
+            eval_signature(&self.doc.project) ^ xxhash_rust::xxh3::xxh3_64(dir.as_os_str().as_encoded_bytes());
         if signature == self.eval_signature {
             return;
         }
         self.eval_signature = signature;
-        let dir = self.doc.project_dir();
         let scratch = dir.join("project.ron");
         match self.doc.project.graph(&scratch) {
             Ok(graph) => {
                 self.graph_errors.clear();
+                self.built_graph = Some(graph.clone());
                 self.evaluator.submit(graph, self.doc.revision());
             }
             Err(errors) => {
+                self.built_graph = None;
                 self.graph_errors = errors.iter().map(|e| e.to_string()).collect();
                 for e in &errors {
                     if let Some(node) = &e.node {
@@ -675,11 +696,10 @@ impl EditorApp {
             self.selection = Selection::None;
             return;
         }
-        let report = self.evaluator.last.as_ref().map(|(e, _)| e.report.clone());
         let mut inspector = inspector::Inspector {
             doc: &mut self.doc,
             status: self.evaluator.status.get(&id),
-            report: report.as_ref(),
+            report: self.evaluator.last.as_ref().map(|(e, _)| &e.report),
             selected_object: &mut self.view.selected_object,
             requests: Vec::new(),
             errors: Vec::new(),

@@ -16,14 +16,15 @@ struct Fog {
 
 @group(0) @binding(3) var<uniform> fog: Fog;
 @group(0) @binding(4) var f_tables: texture_2d_array<f32>;
-@group(0) @binding(5) var g_table: texture_2d<f32>;
+@group(0) @binding(5) var g_table: texture_2d_array<f32>;
 
 const FOG_U_MAX: f32 = 64.0;
 const FOG_U_WARP: f32 = 4.0;
 const FOG_MIN_GAMMA: f32 = 1e-4;
 
-fn fog_bilinear_f(k: i32, s: f32, t: f32) -> f32 {
-    let n = i32(textureDimensions(f_tables).x);
+// A table at (s, t) in [0, 1]^2, bilinear between its samples (layer `k`).
+fn fog_table(table: texture_2d_array<f32>, k: i32, s: f32, t: f32) -> f32 {
+    let n = i32(textureDimensions(table).x);
     let x = clamp(s, 0.0, 1.0) * f32(n - 1);
     let y = clamp(t, 0.0, 1.0) * f32(n - 1);
     let x0 = i32(floor(x));
@@ -32,8 +33,8 @@ fn fog_bilinear_f(k: i32, s: f32, t: f32) -> f32 {
     let y1 = min(y0 + 1, n - 1);
     let fx = x - f32(x0);
     let fy = y - f32(y0);
-    let a = mix(textureLoad(f_tables, vec2<i32>(x0, y0), k, 0).r, textureLoad(f_tables, vec2<i32>(x1, y0), k, 0).r, fx);
-    let b = mix(textureLoad(f_tables, vec2<i32>(x0, y1), k, 0).r, textureLoad(f_tables, vec2<i32>(x1, y1), k, 0).r, fx);
+    let a = mix(textureLoad(table, vec2<i32>(x0, y0), k, 0).r, textureLoad(table, vec2<i32>(x1, y0), k, 0).r, fx);
+    let b = mix(textureLoad(table, vec2<i32>(x0, y1), k, 0).r, textureLoad(table, vec2<i32>(x1, y1), k, 0).r, fx);
     return mix(a, b, fy);
 }
 
@@ -46,7 +47,7 @@ fn fog_f(k: i32, u: f32, v: f32) -> f32 {
     }
     let s = sqrt(u / (u + FOG_U_WARP) / (FOG_U_MAX / (FOG_U_MAX + FOG_U_WARP)));
     let r = acos(clamp(1.0 - 4.0 * v / PI, -1.0, 1.0)) / PI;
-    return fog_bilinear_f(k, s, r) / (1.0 + u);
+    return fog_table(f_tables, k, s, r) / (1.0 + u);
 }
 
 // The angle between unit vectors, accurate near 0 (acos loses it in f32, and the glow peaks there).
@@ -105,16 +106,7 @@ fn fog_airlight(beta: f32, d_sv: f32, d_vp: f32, gamma_in: f32, i0: f32) -> f32 
 
 // G_0(T_sp, theta_s) (eq. 3.23, Lambert) from its table (T over T/(1+T), theta over [0, pi]).
 fn fog_g(t_sp: f32, theta_s: f32) -> f32 {
-    let n = i32(textureDimensions(g_table).x);
-    let x = clamp(t_sp / (1.0 + t_sp), 0.0, 1.0) * f32(n - 1);
-    let y = clamp(theta_s / PI, 0.0, 1.0) * f32(n - 1);
-    let x0 = i32(floor(x));
-    let y0 = i32(floor(y));
-    let x1 = min(x0 + 1, n - 1);
-    let y1 = min(y0 + 1, n - 1);
-    let a = mix(textureLoad(g_table, vec2<i32>(x0, y0), 0).r, textureLoad(g_table, vec2<i32>(x1, y0), 0).r, x - f32(x0));
-    let b = mix(textureLoad(g_table, vec2<i32>(x0, y1), 0).r, textureLoad(g_table, vec2<i32>(x1, y1), 0).r, x - f32(x0));
-    return mix(a, b, y - f32(y0)) / (1.0 + t_sp);
+    return fog_table(g_table, 0, t_sp / (1.0 + t_sp), theta_s / PI) / (1.0 + t_sp);
 }
 
 // What the viewer sees of a Lambertian surface point `p` (normal `n`, reflectance `kd` =

@@ -219,7 +219,7 @@ impl ViewportRenderer {
                 sampler(2),
                 uniform(3, Stages::VERTEX_FRAGMENT),
                 table(4, wgpu::TextureViewDimension::D2Array),
-                table(5, wgpu::TextureViewDimension::D2),
+                table(5, wgpu::TextureViewDimension::D2Array),
             ],
         });
         let prt_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
@@ -1033,7 +1033,7 @@ fn make_bind_group(
     })
 }
 
-/// Square R32Float tables, `values.len() / size²` layers (a 2D array view when several).
+/// Square R32Float tables, `values.len() / size²` layers, as a 2D array view.
 fn upload_tables(ctx: &GpuContext, label: &str, size: u32, values: &[f32]) -> wgpu::TextureView {
     let layers = (values.len() / (size * size).max(1) as usize).max(1) as u32;
     let texture = ctx.device.create_texture(&wgpu::TextureDescriptor {
@@ -1057,12 +1057,13 @@ fn upload_tables(ctx: &GpuContext, label: &str, size: u32, values: &[f32]) -> wg
         wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(size * 4), rows_per_image: Some(size) },
         wgpu::Extent3d { width: size, height: size, depth_or_array_layers: layers },
     );
-    let dimension =
-        if label == "f-tables" { wgpu::TextureViewDimension::D2Array } else { wgpu::TextureViewDimension::D2 };
-    texture.create_view(&wgpu::TextureViewDescriptor { dimension: Some(dimension), ..Default::default() })
+    texture.create_view(&wgpu::TextureViewDescriptor {
+        dimension: Some(wgpu::TextureViewDimension::D2Array),
+        ..Default::default()
+    })
 }
 
-/// The fog pass's uniforms (`common.wgsl` `Fog`).
+/// The fog uniforms (`fog.wgsl` `Fog`).
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
 struct FogParams {

@@ -1,6 +1,7 @@
 // Point lights and analytic single scattering in homogeneous fog (Sun 2008 ch. 3; the CPU twin
 // is nodes/src/single_scattering.rs `shade`): L = e^{-T_vp} L_p + sum L_a (eq. 3.29), L_p from
-// eq. 3.27 (Lambert: direct e^{-T_sp}/D^2 cos + beta^2 G_0/(2 pi T_sp)), L_a from eq. 3.16.
+// eqs. 3.27-3.28 (Lambert: direct e^{-T_sp}/D^2 cos + beta^2 G_0/(2 pi T_sp); Phong: the same
+// about the mirror direction with cos^n and G_n), L_a from eq. 3.16.
 // Tables are R32Float, read with textureLoad and interpolated here (no float filtering needed).
 
 struct Fog {
@@ -8,8 +9,10 @@ struct Fog {
     beta: vec4<f32>,
     // Phase polynomial weights W_0..W_2 (eq. 3.18, normalised); w: how many.
     phase: vec4<f32>,
-    // x: point light count.
+    // x: point light count; y: G ladder layers; z: ladder layers per octave of exponent.
     counts: vec4<f32>,
+    // Per material: Phong-equivalent lobe weight (rgb) and exponent (w; 0 = no lobe).
+    specular: array<vec4<f32>, 8>,
     light_position: array<vec4<f32>, 8>,
     light_intensity: array<vec4<f32>, 8>,
 };
@@ -104,18 +107,38 @@ fn fog_airlight(beta: f32, d_sv: f32, d_vp: f32, gamma_in: f32, i0: f32) -> f32 
     return scale * radius * direct;
 }
 
-// G_0(T_sp, theta_s) (eq. 3.23, Lambert) from its table (T over T/(1+T), theta over [0, pi]).
-fn fog_g(t_sp: f32, theta_s: f32) -> f32 {
-    return fog_table(g_table, 0, t_sp / (1.0 + t_sp), theta_s / PI) / (1.0 + t_sp);
+// G_n(T_sp, theta_s) (eq. 3.23) from the ladder of exponents (layer k: n = 2^{k/steps}, layer 0
+// the Lambertian G_0): T over T/(1+T), theta over sqrt(theta/pi), tables hold (1+T) e^T G_n;
+// linear in log2 n between layers after normalising by the lobe's solid angle 2 pi/(n+1)
+// (PhongGTables::lookup).
+fn fog_g(exponent: f32, t_sp: f32, theta_s: f32) -> f32 {
+    let n = max(exponent, 1.0);
+    let last = fog.counts.y - 1.0;
+    let steps = fog.counts.z;
+    let position = min(steps * log2(n), last);
+    let lower = floor(position);
+    let upper = min(lower + 1.0, last);
+    let s = t_sp / (1.0 + t_sp);
+    let r = sqrt(clamp(theta_s / PI, 0.0, 1.0));
+    let g_lower = fog_table(g_table, i32(lower), s, r) * (exp2(lower / steps) + 1.0);
+    let g_upper = fog_table(g_table, i32(upper), s, r) * (exp2(upper / steps) + 1.0);
+    return mix(g_lower, g_upper, position - lower) * exp(-t_sp) / ((n + 1.0) * (1.0 + t_sp));
 }
 
-// What the viewer sees of a Lambertian surface point `p` (normal `n`, reflectance `kd` =
-// albedo/pi) whose environment-lit radiance is `lit`: point lights added, then fog applied.
-fn fog_shade(lit: vec3<f32>, p: vec3<f32>, n: vec3<f32>, kd: vec3<f32>) -> vec3<f32> {
+// What the viewer sees of a surface point `p` (normal `n`, diffuse reflectance `kd` = albedo/pi,
+// material slot `material`) whose environment-lit radiance is `lit`: point lights added
+// (Lambert plus the material's Phong-equivalent lobe, k_s = weight (n+2)/(2 pi) cos theta_o as
+// in the SH mode), then fog applied.
+fn fog_shade(lit: vec3<f32>, p: vec3<f32>, n: vec3<f32>, kd: vec3<f32>, material: u32) -> vec3<f32> {
     let fogged = fog.beta.w > 0.5;
     let viewer = globals.camera_pos.xyz;
     let d_vp = length(viewer - p);
     let view = (p - viewer) / max(d_vp, 1e-6);
+    let lobe = fog.specular[material];
+    let exponent = max(lobe.w, 1.0);
+    let mirror = reflect(view, n);
+    let ks = lobe.rgb * (exponent + 2.0) / (2.0 * PI) * max(dot(mirror, n), 0.0);
+    let glossy = lobe.w > 0.0 && max(ks.r, max(ks.g, ks.b)) > 0.0;
     var out = vec3<f32>(0.0);
     for (var c = 0; c < 3; c = c + 1) {
         let beta = select(0.0, fog.beta[c], fogged);
@@ -127,15 +150,25 @@ fn fog_shade(lit: vec3<f32>, p: vec3<f32>, n: vec3<f32>, kd: vec3<f32>) -> vec3<
             let d_sp = max(length(to_light), 1e-4);
             let cos_s = dot(to_light / d_sp, n);
             let t_sp = beta * d_sp;
-            var reflected = exp(-t_sp) / (d_sp * d_sp) * max(cos_s, 0.0);
+            let direct = exp(-t_sp) / (d_sp * d_sp);
+            var reflected = direct * max(cos_s, 0.0);
+            var specular = 0.0;
+            let cos_m = dot(to_light / d_sp, mirror);
+            if (glossy) {
+                specular = direct * pow(max(cos_m, 0.0), exponent) * select(0.0, 1.0, cos_s > 0.0);
+            }
             if (beta > 0.0) {
-                reflected = reflected + beta * beta * fog_g(t_sp, acos(clamp(cos_s, -1.0, 1.0))) / (2.0 * PI * t_sp);
+                reflected = reflected + beta * beta * fog_g(1.0, t_sp, acos(clamp(cos_s, -1.0, 1.0))) / (2.0 * PI * t_sp);
+                if (glossy) {
+                    let theta_m = acos(clamp(cos_m, -1.0, 1.0));
+                    specular = specular + beta * beta * fog_g(exponent, t_sp, theta_m) / (2.0 * PI * t_sp);
+                }
                 let to_source = fog.light_position[i].xyz - viewer;
                 let d_sv = max(length(to_source), 1e-4);
                 let gamma = fog_angle(view, to_source / d_sv);
                 air = air + fog_airlight(beta, d_sv, d_vp, gamma, i0);
             }
-            surface = surface + i0 * kd[c] * reflected;
+            surface = surface + i0 * (kd[c] * reflected + ks[c] * specular);
         }
         out[c] = exp(-beta * d_vp) * surface + air;
     }

@@ -43,5 +43,5 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) ve
         irradiance = max(sh_irradiance(n, bands), vec3<f32>(0.0));
     }
     let kd = globals.albedo[in.material].rgb * in.color / PI;
-    return vec4<f32>(fog_shade(kd * irradiance, in.world, n, kd), 1.0);
+    return vec4<f32>(fog_shade(kd * irradiance, in.world, n, kd, in.material), 1.0);
 }

@@ -28,6 +28,7 @@ struct VertexOut {
     @location(1) world: vec3<f32>,
     @location(2) normal: vec3<f32>,
     @location(3) kd: vec3<f32>,
+    @location(4) @interpolate(flat) material: u32,
 };
 
 @vertex
@@ -63,10 +64,11 @@ fn vs_main(v: MeshVertex, @builtin(vertex_index) index: u32) -> VertexOut {
     out.world = v.position;
     out.normal = v.normal;
     out.kd = prt.albedo[m].rgb * v.color / PI;
+    out.material = m;
     return out;
 }
 
 @fragment
 fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
-    return vec4<f32>(fog_shade(in.color, in.world, normalize(in.normal), in.kd), 1.0);
+    return vec4<f32>(fog_shade(in.color, in.world, normalize(in.normal), in.kd, in.material), 1.0);
 }

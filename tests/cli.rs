@@ -537,14 +537,17 @@ fn relighting_modes_without_their_transport_say_what_to_set() {
     }
 }
 
-/// The fog shader (GPU) against the same model on the CPU (`single_scattering::shade`, itself
-/// tested against numerical integration of eqs. 3.5 and 3.22): street lamps over a ground plane.
+/// The fog shader (GPU) against the same model on the CPU (`single_scattering::shade`) and
+/// against the independent single-scattering reference (`shade_reference`: eq. 3.5 integrated
+/// along every ray, eq. 3.22 over the hemisphere): street lamps over a wet (Phong) street.
 #[test]
-fn fog_render_matches_the_cpu_model() {
+fn fog_render_matches_the_cpu_model_and_the_numerical_reference() {
     use lightloom_nodes::reference::PinholeCamera;
     use lightloom_nodes::single_scattering::{
-        AirlightQuery, FTable, FogShadingPoint, FogTables, GTable, Interpolation, Phase, airlight, shade,
+        AirlightQuery, FTable, FogShadingPoint, FogTables, Interpolation, Phase, PhongGTables, airlight,
+        airlight_reference, shade, shade_reference,
     };
+    use std::f64::consts::PI;
     let dir = std::env::temp_dir().join(format!("lightloom-fog-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let exr = dir.join("fog.exr");
@@ -561,8 +564,8 @@ fn fog_render_matches_the_cpu_model() {
 
     // The same scene on the CPU: tables at the project's resolution (F 128², G 32²).
     let f = [FTable::new(0, 128)];
-    let g = GTable::new(1.0, 32, &f[0]);
-    let tables = FogTables { f: &f, g_lambert: &g, g_phong: None };
+    let g = PhongGTables::new(32);
+    let tables = FogTables { f: &f, g: &g };
     let beta = 0.04;
     let lights = [(glam::DVec3::new(-3.0, 4.0, -8.0), 400.0), (glam::DVec3::new(4.0, 4.0, -16.0), 400.0)];
     let camera = PinholeCamera {
@@ -570,46 +573,70 @@ fn fog_render_matches_the_cpu_model() {
         target: glam::DVec3::new(0.0, 0.8, -10.0),
         fov_y_deg: 50.0,
     };
-    let (mut err2, mut ref2, mut compared) = (0.0, 0.0, 0);
-    for y in 0..height {
-        for x in 0..width {
-            let d = camera.ray(x as f64 + 0.5, y as f64 + 0.5, width, height);
-            let cpu = if d.y < -1e-3 {
-                let t = -camera.position.y / d.y;
-                let p = camera.position + d * t;
-                if p.x.abs() > 39.0 || p.z.abs() > 39.0 || t > 60.0 {
-                    continue; // the plane's far edge and the horizon (sub-pixel geometry)
+    // The `asphalt` material: albedo 0.5 on a 0.8 grey plane; Phong exponent 24, f0 0.3.
+    let (exponent, weight) = (24.0, 0.3);
+    let point_at = |d: glam::DVec3| {
+        let t = -camera.position.y / d.y;
+        let p = camera.position + d * t;
+        (p.x.abs() < 39.0 && p.z.abs() < 39.0 && t < 60.0).then(|| FogShadingPoint {
+            viewer: camera.position,
+            point: p,
+            normal: glam::DVec3::Y,
+            k_d: 0.5 * 0.8 / PI,
+            k_s: weight * (exponent + 2.0) / (2.0 * PI) * (-d.y),
+            exponent,
+        })
+    };
+    let sky = |d: glam::DVec3, reference: bool| -> f64 {
+        lights
+            .iter()
+            .map(|(pos, i0)| {
+                let to = *pos - camera.position;
+                let gamma = d.dot(to.normalize()).clamp(-1.0, 1.0).acos();
+                let q = AirlightQuery { beta, d_sv: to.length(), d_vp: f64::INFINITY, gamma, i0: *i0 };
+                if reference {
+                    airlight_reference(&q, &Phase::isotropic())
+                } else {
+                    airlight(&q, &Phase::isotropic(), &f, Interpolation::Bilinear)
                 }
-                let point = FogShadingPoint {
-                    viewer: camera.position,
-                    point: p,
-                    normal: glam::DVec3::Y,
-                    k_d: 0.8 * 0.8 / std::f64::consts::PI,
-                    k_s: 0.0,
-                    exponent: 1.0,
+            })
+            .sum()
+    };
+    // Relative RMSE of the GPU image against a CPU evaluation over pixels (every `stride`-th).
+    let compare = |stride: usize, reference: bool| {
+        let (mut err2, mut ref2, mut compared) = (0.0, 0.0, 0);
+        for y in (0..height).step_by(stride) {
+            for x in (0..width).step_by(stride) {
+                let d = camera.ray(x as f64 + 0.5, y as f64 + 0.5, width, height);
+                let cpu = if d.y < -1e-3 {
+                    // Skip the plane's far edge and the horizon (sub-pixel geometry).
+                    let Some(point) = point_at(d) else { continue };
+                    if reference {
+                        shade_reference(&point, &lights, beta)
+                    } else {
+                        shade(&point, &lights, beta, &tables)
+                    }
+                } else {
+                    sky(d, reference)
                 };
-                shade(&point, &lights, beta, &tables)
-            } else {
-                // Sky: the lamps' glows along an infinite ray.
-                lights
-                    .iter()
-                    .map(|(pos, i0)| {
-                        let to = *pos - camera.position;
-                        let gamma = d.dot(to.normalize()).clamp(-1.0, 1.0).acos();
-                        let q = AirlightQuery { beta, d_sv: to.length(), d_vp: f64::INFINITY, gamma, i0: *i0 };
-                        airlight(&q, &Phase::isotropic(), &f, Interpolation::Bilinear)
-                    })
-                    .sum()
-            };
-            let gpu = f64::from(gpu.get_pixel(x as u32, y as u32)[1]);
-            err2 += (gpu - cpu).powi(2);
-            ref2 += cpu * cpu;
-            compared += 1;
+                let gpu = f64::from(gpu.get_pixel(x as u32, y as u32)[1]);
+                err2 += (gpu - cpu).powi(2);
+                ref2 += cpu * cpu;
+                compared += 1;
+            }
         }
-    }
-    let relative = (err2 / ref2).sqrt();
+        ((err2 / ref2).sqrt(), compared)
+    };
+    let (model_error, compared) = compare(1, false);
     assert!(compared > width * height * 8 / 10, "{compared} pixels compared");
-    eprintln!("GPU fog vs CPU model: relative RMSE {:.3}% over {compared} pixels", relative * 100.0);
-    assert!(relative < 0.005, "GPU fog vs CPU model: relative RMSE {:.2}%", relative * 100.0);
+    let (reference_error, sampled) = compare(6, true);
+    eprintln!(
+        "GPU fog: relative RMSE {:.3}% against the CPU model ({compared} pixels), {:.3}% against the numerical \
+         reference ({sampled} pixels)",
+        model_error * 100.0,
+        reference_error * 100.0
+    );
+    assert!(model_error < 0.005, "GPU fog vs CPU model: relative RMSE {:.2}%", model_error * 100.0);
+    assert!(reference_error < 0.01, "GPU fog vs numerical reference: relative RMSE {:.2}%", reference_error * 100.0);
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -229,7 +229,7 @@ impl PortType {
             PortType::Scene => {
                 &["geometry", "receivers", "texel_receivers", "transport_sh", "transport_local", "transport_texels"]
             }
-            PortType::Medium => &["medium", "f_tables", "g_lambert"],
+            PortType::Medium => &["medium", "f_tables", "g_tables"],
             PortType::Lights => &["lights"],
             PortType::Blockers => &["spheres"],
             PortType::SquareLights => &["square_lights"],

@@ -880,24 +880,36 @@ impl ViewportRenderer {
             params.light_position[i] = [l.position[0] as f32, l.position[1] as f32, l.position[2] as f32, 1.0];
             params.light_intensity[i] = [l.intensity[0] as f32, l.intensity[1] as f32, l.intensity[2] as f32, 0.0];
         }
+        for (slot, m) in params.specular.iter_mut().zip(&frame.materials) {
+            let brdf = lightloom_nodes::brdf::Brdf::from_material(&m.material);
+            if let Some(exponent) = brdf.equivalent_phong_exponent() {
+                let weight = brdf.specular * brdf.f0;
+                *slot = [weight.x as f32, weight.y as f32, weight.z as f32, exponent.max(1.0) as f32];
+            }
+        }
         if let Some(fog) = &frame.fog {
             params.beta = [fog.beta[0] as f32, fog.beta[1] as f32, fog.beta[2] as f32, 1.0];
             for (k, w) in fog.phase.iter().take(3).enumerate() {
                 params.phase[k] = *w as f32;
             }
             params.phase[3] = fog.phase.len().min(3) as f32;
-            let key = Some(fog.f_tables.key ^ fog.g_lambert.key.rotate_left(7));
+            let (StageValue::ScatteringF(f), StageValue::ScatteringG(g)) =
+                (fog.f_tables.value.as_ref(), fog.g_tables.value.as_ref())
+            else {
+                return Err(RenderError::Invalid("fog tables hold unexpected values".into()));
+            };
+            params.counts[1] = g.tables.len() as f32;
+            params.counts[2] = lightloom_nodes::single_scattering::PHONG_STEPS_PER_OCTAVE as f32;
+            let key = Some(fog.f_tables.key ^ fog.g_tables.key.rotate_left(7));
             if self.fog_tables.key != key {
-                let (StageValue::ScatteringF(f), StageValue::ScatteringG(g)) =
-                    (fog.f_tables.value.as_ref(), fog.g_lambert.value.as_ref())
-                else {
-                    return Err(RenderError::Invalid("fog tables hold unexpected values".into()));
+                let layers = |tables: &mut dyn Iterator<Item = &lightloom_nodes::single_scattering::Table2>| {
+                    tables.flat_map(|t| t.values.iter().copied()).collect::<Vec<f32>>()
                 };
-                let size = f.first().map_or(1, |t| t.table.width);
-                let layers: Vec<f32> = f.iter().flat_map(|t| t.table.values.iter().copied()).collect();
+                let f_size = f.first().map_or(1, |t| t.table.width) as u32;
+                let g_size = g.tables.first().map_or(1, |t| t.table.width) as u32;
                 self.fog_tables = FogTables {
-                    f: upload_tables(ctx, "f-tables", size as u32, &layers),
-                    g: upload_tables(ctx, "g-table", g.table.width as u32, &g.table.values),
+                    f: upload_tables(ctx, "f-tables", f_size, &layers(&mut f.iter().map(|t| &t.table))),
+                    g: upload_tables(ctx, "g-tables", g_size, &layers(&mut g.tables.iter().map(|t| &t.table))),
                     key,
                 };
                 self.rebind(ctx);
@@ -1071,8 +1083,10 @@ struct FogParams {
     beta: [f32; 4],
     /// Phase polynomial weights `W_0..W_2`; w: how many.
     phase: [f32; 4],
-    /// x: point light count.
+    /// x: point light count; y: `G_n` ladder layers; z: layers per octave of exponent.
     counts: [f32; 4],
+    /// Per material: Phong-equivalent lobe weight (rgb) and exponent (w; 0 = no lobe).
+    specular: [[f32; 4]; MAX_MATERIALS],
     light_position: [[f32; 4]; MAX_LIGHTS],
     light_intensity: [[f32; 4]; MAX_LIGHTS],
 }

@@ -55,7 +55,7 @@ pub enum StageValue {
     /// Single scattering `F^k` tables (k = 0, 1, …).
     ScatteringF(Vec<crate::single_scattering::FTable>),
     /// A single scattering surface table `G_n`.
-    ScatteringG(crate::single_scattering::GTable),
+    ScatteringG(crate::single_scattering::PhongGTables),
     /// Test stages: a number.
     Number(f64),
     /// In memory only (never persisted): obvhs BVHs are rebuilt on load. Must stay the last
@@ -87,7 +87,7 @@ impl StageValue {
             StageValue::ShLobe(l) => l.factors.len() * 8 + 32,
             StageValue::FrameTable(t) => t.approx_bytes(),
             StageValue::ScatteringF(t) => t.iter().map(|t| t.table.values.len() * 4).sum(),
-            StageValue::ScatteringG(t) => t.table.values.len() * 4,
+            StageValue::ScatteringG(g) => g.tables.iter().map(|t| t.table.values.len() * 4).sum(),
             StageValue::LocalTransport(t) => t.visibility.iter().map(|v| v.len() * 16 + 24).sum(),
             StageValue::RayScene(s) => s.triangle_count() * 48 * 2,
             StageValue::TexelReceivers(t) => t.receivers.len() * 44,
@@ -124,7 +124,7 @@ impl StageValue {
             StageValue::ShLobe(_) => "SH lobe",
             StageValue::FrameTable(_) => "pre-rotated lighting table",
             StageValue::ScatteringF(_) => "single scattering F tables",
-            StageValue::ScatteringG(_) => "single scattering G table",
+            StageValue::ScatteringG(_) => "single scattering G tables",
             StageValue::Number(_) => "number",
         }
     }

@@ -597,11 +597,12 @@ fn planned_kinds_recompute_exactly_their_stages_too() {
     let fog = project.nodes.iter_mut().find(|n| n.id == "fog").unwrap();
     fog.params.insert("table_resolution".into(), Choice("32".into()));
     let mut graph = project.graph(std::path::Path::new("p.ron")).unwrap();
-    let fog_tables = ["fog.medium", "fog.f_tables", "fog.g_lambert"];
+    let fog_tables = ["fog.medium", "fog.f_tables", "fog.g_tables"];
     let table: Vec<(&str, &str, ParamValue, Vec<&str>)> = vec![
         ("fog", "beta", Color([0.1, 0.1, 0.2]), vec!["fog.medium"]),
-        // One F table for isotropic fog, one per term of the polynomial.
-        ("fog", "phase", Choice("polynomial".into()), fog_tables.to_vec()),
+        // One F table for isotropic fog, one per term of the polynomial; the G tables (eq. 3.23,
+        // isotropic scattering onto surfaces) do not depend on the phase.
+        ("fog", "phase", Choice("polynomial".into()), vec!["fog.medium", "fog.f_tables"]),
         ("fog", "phase_coefficients", Vec3([1.0, 0.5, 0.0]), vec!["fog.medium"]),
         ("fog", "table_resolution", Choice("64".into()), fog_tables.to_vec()),
         ("light1", "position", Vec3([1.0, 2.0, 3.0]), vec!["light1.lights", "light2.lights"]),

@@ -1,7 +1,8 @@
 //! Fog medium node (Sun 2008 ch. 3): scattering coefficient and phase function, and the
-//! tables of [`crate::single_scattering`]: `F^k` (eqs. 3.15, 3.19) and the Lambertian `G`
-//! (eq. 3.23). The tables depend only on their resolution and the number of phase terms, so
-//! changing β, the phase weights or a light recomputes no table.
+//! tables of [`crate::single_scattering`]: `F^k` (eqs. 3.15, 3.19) and `G_n` (eq. 3.23) for
+//! Lambert and a ladder of Phong exponents. The tables depend only on their resolution and the
+//! number of phase terms, so changing β, the phase weights, a material or a light recomputes
+//! no table.
 
 use crate::engine::{StageContext, StageError, StageValue};
 use crate::graph::{Availability, NodeKindSpec, ParamKind, ParamSpec, PortSpec, PortType, StageSpec};
@@ -75,13 +76,13 @@ pub fn spec() -> NodeKindSpec {
                 compute: f_tables,
             },
             StageSpec {
-                name: "g_lambert",
-                version: 1,
+                name: "g_tables",
+                version: 2,
                 params: &["table_resolution"],
-                stages: &["f_tables"],
+                stages: &[],
                 inputs: &[],
                 persist: true,
-                compute: g_lambert,
+                compute: g_tables,
             },
         ],
         availability: Availability::Planned(
@@ -126,12 +127,9 @@ fn f_tables(ctx: &StageContext) -> Result<StageValue, StageError> {
     Ok(StageValue::ScatteringF(tables))
 }
 
-fn g_lambert(ctx: &StageContext) -> Result<StageValue, StageError> {
-    let StageValue::ScatteringF(f) = ctx.stage("f_tables")? else {
-        return Err(StageError::Internal("f_tables".into()));
-    };
+fn g_tables(ctx: &StageContext) -> Result<StageValue, StageError> {
     let resolution = (resolution(ctx)? / 4).max(32);
-    Ok(StageValue::ScatteringG(crate::single_scattering::GTable::new(1.0, resolution, &f[0])))
+    Ok(StageValue::ScatteringG(crate::single_scattering::PhongGTables::new(resolution)))
 }
 
 #[cfg(test)]
@@ -167,9 +165,9 @@ mod tests {
         let computed = |e: &crate::engine::Evaluation| {
             e.report.computed().into_iter().filter(|(n, _)| n == "fog").map(|(_, s)| s).collect::<Vec<_>>()
         };
-        assert_eq!(computed(&first), ["medium", "f_tables", "g_lambert"]);
+        assert_eq!(computed(&first), ["medium", "f_tables", "g_tables"]);
         assert_eq!(computed(&evaluate(&fog_project(0.2, "32"))), ["medium"], "β is a uniform, not a table input");
-        assert_eq!(computed(&evaluate(&fog_project(0.2, "64"))), ["medium", "f_tables", "g_lambert"]);
+        assert_eq!(computed(&evaluate(&fog_project(0.2, "64"))), ["medium", "f_tables", "g_tables"]);
     }
 
     #[test]

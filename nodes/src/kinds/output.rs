@@ -336,9 +336,9 @@ pub struct FogFrame {
     pub beta: [f64; 3],
     /// Normalised phase polynomial weights `W_k` (eq. 3.18), one per `F^k` table.
     pub phase: Vec<f64>,
-    /// `F^k` tables (`StageValue::ScatteringF`) and the Lambertian `G` (`ScatteringG`).
+    /// `F^k` tables (`StageValue::ScatteringF`) and the `G_n` ladder (`ScatteringG`).
     pub f_tables: Keyed,
-    pub g_lambert: Keyed,
+    pub g_tables: Keyed,
 }
 
 /// One material of a frame.
@@ -508,7 +508,7 @@ impl FrameInputs {
                     beta: m.beta,
                     phase: phase.weights,
                     f_tables: keyed(&node, "f_tables")?,
-                    g_lambert: keyed(&node, "g_lambert")?,
+                    g_tables: keyed(&node, "g_tables")?,
                 })
             }
             None => None,

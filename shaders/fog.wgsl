@@ -9,8 +9,13 @@ struct Fog {
     beta: vec4<f32>,
     // Phase polynomial weights W_0..W_2 (eq. 3.18, normalised); w: how many.
     phase: vec4<f32>,
-    // x: point light count; y: G ladder layers; z: ladder layers per octave of exponent.
+    // x: point light count; y: G ladder layers; z: ladder layers per octave of exponent;
+    // w: 1 when surfaces get the scattered environment's irradiance here (wavelet modes).
     counts: vec4<f32>,
+    // rgb: the environment's attenuation e^{-beta D} (eq. 3.37); w: bands of the next field.
+    environment: vec4<f32>,
+    // SH coefficients of the light the fog scatters from the environment (eq. 3.35).
+    environment_scattered: array<vec4<f32>, 64>,
     // Per material: Phong-equivalent lobe weight (rgb) and exponent (w; 0 = no lobe).
     specular: array<vec4<f32>, 8>,
     light_position: array<vec4<f32>, 8>,
@@ -125,15 +130,53 @@ fn fog_g(exponent: f32, t_sp: f32, theta_s: f32) -> f32 {
     return mix(g_lower, g_upper, position - lower) * exp(-t_sp) / ((n + 1.0) * (1.0 + t_sp));
 }
 
+// The environment's glow in direction `dir`: its scattered light (eq. 3.35), band-limited.
+fn fog_environment_glow(dir: vec3<f32>) -> vec3<f32> {
+    let bands = i32(fog.environment.w);
+    if (bands == 0) {
+        return vec3<f32>(0.0);
+    }
+    let y = sh_basis(dir, bands);
+    var sum = vec3<f32>(0.0);
+    for (var k = 0; k < bands * bands; k = k + 1) {
+        sum = sum + fog.environment_scattered[k].rgb * y[k];
+    }
+    return max(sum, vec3<f32>(0.0));
+}
+
+// Irradiance at normal `n` from the environment's scattered light (A_l of Sun 2008 eq. 2.24).
+fn fog_environment_glow_irradiance(n: vec3<f32>) -> vec3<f32> {
+    let bands = min(i32(fog.environment.w), 5);
+    let y = sh_basis(n, bands);
+    var a = array<f32, 5>(PI, 2.0 * PI / 3.0, PI / 4.0, 0.0, -PI / 24.0);
+    var sum = vec3<f32>(0.0);
+    for (var k = 0; k < bands * bands; k = k + 1) {
+        let l = i32(floor(sqrt(f32(k) + 0.5)));
+        sum = sum + a[l] * fog.environment_scattered[k].rgb * y[k];
+    }
+    return max(sum, vec3<f32>(0.0));
+}
+
 // What the viewer sees of a surface point `p` (normal `n`, diffuse reflectance `kd` = albedo/pi,
 // material slot `material`) whose environment-lit radiance is `lit`: point lights added
 // (Lambert plus the material's Phong-equivalent lobe, k_s = weight (n+2)/(2 pi) cos theta_o as
-// in the SH mode), then fog applied.
-fn fog_shade(lit: vec3<f32>, p: vec3<f32>, n: vec3<f32>, kd: vec3<f32>, material: u32) -> vec3<f32> {
+// in the SH mode), then fog applied: the surface attenuated over the view path, the lights'
+// airlight, and the environment's glow in the view direction scattered in along the path
+// (the glow per unit length is about constant along the ray, so the path's share of the
+// infinite ray's glow is 1 - e^{-beta d}).
+fn fog_shade(lit_in: vec3<f32>, p: vec3<f32>, n: vec3<f32>, kd: vec3<f32>, material: u32) -> vec3<f32> {
     let fogged = fog.beta.w > 0.5;
     let viewer = globals.camera_pos.xyz;
     let d_vp = length(viewer - p);
     let view = (p - viewer) / max(d_vp, 1e-6);
+    var lit = lit_in;
+    var glow = vec3<f32>(0.0);
+    if (fogged) {
+        glow = fog_environment_glow(view);
+        if (fog.counts.w > 0.5) {
+            lit = lit * fog.environment.rgb + kd * fog_environment_glow_irradiance(n);
+        }
+    }
     let lobe = fog.specular[material];
     let exponent = max(lobe.w, 1.0);
     let mirror = reflect(view, n);
@@ -170,19 +213,20 @@ fn fog_shade(lit: vec3<f32>, p: vec3<f32>, n: vec3<f32>, kd: vec3<f32>, material
             }
             surface = surface + i0 * (kd[c] * reflected + ks[c] * specular);
         }
-        out[c] = exp(-beta * d_vp) * surface + air;
+        let transmitted = exp(-beta * d_vp);
+        out[c] = transmitted * surface + air + glow[c] * (1.0 - transmitted);
     }
     return out;
 }
 
-// The background seen through fog: the environment is extinguished along an infinite ray
-// (environment light under fog is not modelled yet); the lights' glows remain.
+// The background seen through fog (eq. 3.36): the environment attenuated (eq. 3.37) plus its
+// glow (eq. 3.35, hidden with the background), plus the lights' glows.
 fn fog_background(env: vec3<f32>, dir: vec3<f32>) -> vec3<f32> {
     if (fog.beta.w < 0.5) {
         return env;
     }
     let viewer = globals.camera_pos.xyz;
-    var out = vec3<f32>(0.0);
+    var out = env * fog.environment.rgb + fog_environment_glow(dir) * globals.flags.y;
     for (var c = 0; c < 3; c = c + 1) {
         var air = 0.0;
         for (var i = 0; i < i32(fog.counts.x); i = i + 1) {
@@ -191,7 +235,7 @@ fn fog_background(env: vec3<f32>, dir: vec3<f32>) -> vec3<f32> {
             let gamma = fog_angle(dir, to_source / d_sv);
             air = air + fog_airlight(fog.beta[c], d_sv, -1.0, gamma, fog.light_intensity[i][c]);
         }
-        out[c] = air;
+        out[c] = out[c] + air;
     }
     return out;
 }

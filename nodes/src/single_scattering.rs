@@ -656,6 +656,37 @@ pub fn environment_scattering_bands(
     out
 }
 
+/// How fog changes the light of an environment at distance `D` (eqs. 3.35–3.37), per channel.
+#[derive(Clone, Debug, PartialEq)]
+pub struct EnvironmentFog {
+    /// `e^{-β D}`: what reaches the viewer directly (eq. 3.37).
+    pub attenuation: [f64; 3],
+    /// Per band: [`environment_scattering_bands`] (eq. 3.35).
+    pub scattered: Vec<[f64; 3]>,
+}
+
+impl EnvironmentFog {
+    pub fn new(beta: [f64; 3], distance: f64, phase: &Phase, tables: &[FTable], bands: usize) -> Self {
+        let per_channel = beta.map(|b| environment_scattering_bands(b, distance, phase, tables, bands));
+        Self {
+            attenuation: beta.map(|b| (-b * distance).exp()),
+            scattered: (0..bands).map(|l| [0, 1, 2].map(|c| per_channel[c][l])).collect(),
+        }
+    }
+
+    /// The environment as seen through the fog, `L^attenuated + L^convolved` (eq. 3.36).
+    pub fn fogged(&self, light: &crate::sh::ShRgb) -> crate::sh::ShRgb {
+        let total: Vec<[f64; 3]> =
+            self.scattered.iter().map(|s| [0, 1, 2].map(|c| s[c] + self.attenuation[c])).collect();
+        light.scale_bands_rgb(&total)
+    }
+
+    /// The scattered part alone, `L^convolved` (eq. 3.35).
+    pub fn scattered(&self, light: &crate::sh::ShRgb) -> crate::sh::ShRgb {
+        light.scale_bands_rgb(&self.scattered)
+    }
+}
+
 /// Errors of the table model against the reference over random parameters (the thesis's
 /// Fig. 3.6 experiment): per sample, `|model − reference|` divided by the total airlight over
 /// the hemisphere of view directions around the source (the thesis's normalisation), and
@@ -846,31 +877,67 @@ mod tests {
     }
 
     #[test]
-    fn environment_glow_bands_match_the_psf_integrated_numerically() {
-        // √(4π/(2l+1)) PSF_l by adaptive quadrature of the reference airlight (eq. 3.5).
+    fn environment_glow_bands_match_the_psf_projected_by_a_finer_rule() {
+        // √(4π/(2l+1)) PSF_l = 2π ∫ PSF P_l(cos γ) sin γ dγ by a fine split Gauss–Legendre rule
+        // (the airlight itself is checked against eq. 3.5 above; the glow's irradiance against
+        // eq. 3.22 below).
         let tables = [FTable::new(0, DEFAULT_RESOLUTION)];
         let phase = Phase::isotropic();
+        let (nodes, weights) = gauss_legendre(400);
         for (beta, distance) in [(0.04, 30.0), (0.2, 10.0)] {
             let bands = environment_scattering_bands(beta, distance, &phase, &tables, 4);
             for (l, &band) in bands.iter().enumerate() {
                 let integrand = |gamma: f64| {
                     let q = AirlightQuery { beta, d_sv: distance, d_vp: f64::INFINITY, gamma, i0: 1.0 };
-                    let legendre = match l {
-                        0 => 1.0,
-                        1 => gamma.cos(),
-                        2 => 1.5 * gamma.cos().powi(2) - 0.5,
-                        _ => 2.5 * gamma.cos().powi(3) - 1.5 * gamma.cos(),
-                    };
-                    2.0 * PI * distance * distance * airlight_reference(&q, &phase) * legendre * gamma.sin()
+                    let c = gamma.cos();
+                    let legendre = [1.0, c, 1.5 * c * c - 0.5, 2.5 * c * c * c - 1.5 * c][l];
+                    2.0 * PI
+                        * distance
+                        * distance
+                        * airlight(&q, &phase, &tables, Interpolation::Bilinear)
+                        * legendre
+                        * gamma.sin()
                 };
-                let reference = adaptive_simpson(&integrand, 0.0, PI, 1e-9);
+                let reference: f64 = [(0.0, 1e-3), (1e-3, 0.05), (0.05, 0.5), (0.5, PI)]
+                    .iter()
+                    .map(|&(a, b)| {
+                        let half = (b - a) / 2.0;
+                        nodes.iter().zip(&weights).map(|(x, w)| w * half * integrand(a + half * (x + 1.0))).sum::<f64>()
+                    })
+                    .sum();
                 assert!(
-                    (band - reference).abs() < 2e-3 * bands[0],
+                    (band - reference).abs() < 1e-3 * bands[0],
                     "β {beta}, D {distance}, l {l}: {band} vs {reference}"
                 );
             }
             // A positive lobe peaked at the source: every band positive, higher bands weaker.
             assert!(bands[0] > bands[1] && bands[1] > bands[2] && bands[2] > 0.0, "{bands:?}");
+        }
+    }
+
+    #[test]
+    fn fogged_environment_lights_surfaces_like_eq_3_22_integrated_numerically() {
+        // A small bright source of the environment (radiance × solid angle = 1) at distance D,
+        // in direction +Z: a point source of intensity D². Its glow's irradiance on a surface
+        // tilted by θ from it is the hemisphere integral of the reference airlight (eq. 3.22).
+        let (beta, distance, bands) = (0.05, 30.0, 8);
+        let tables = [FTable::new(0, DEFAULT_RESOLUTION)];
+        let fog = EnvironmentFog::new([beta; 3], distance, &Phase::isotropic(), &tables, bands);
+        let basis = crate::sh::ShBasis::new(bands);
+        let y = basis.eval_vec(glam::DVec3::Z);
+        let light = crate::sh::ShRgb { bands, coeffs: y.iter().map(|&v| [v; 3]).collect() };
+        let scattered = fog.scattered(&light).irradiance();
+        let fogged = fog.fogged(&light).irradiance();
+        let peak = distance * distance * surface_scattered_reference(beta, distance, 0.0, 1.0, 1.0, 96);
+        for theta in [0.0, 0.6, 1.3, 2.2] {
+            let n = glam::DVec3::new(f64::sin(theta), 0.0, f64::cos(theta));
+            let reference = distance * distance * surface_scattered_reference(beta, distance, theta, 1.0, 1.0, 96);
+            let model = scattered.eval(&basis, n)[0];
+            assert!((model - reference).abs() < 0.02 * peak, "θ {theta}: glow irradiance {model} vs {reference}");
+            // The attenuated source adds e^{-βD} cos θ (band-limited like any SH light).
+            let direct = fogged.eval(&basis, n)[0] - model;
+            let expected = (-beta * distance).exp() * theta.cos().max(0.0);
+            assert!((direct - expected).abs() < 0.03, "θ {theta}: attenuated {direct} vs {expected}");
         }
     }
 

@@ -8,6 +8,8 @@ use glam::{Mat4, Vec3};
 use lightloom_nodes::engine::{Key, StageValue};
 use lightloom_nodes::kinds::output::{FrameInputs, MAX_LIGHTS, MAX_MATERIALS};
 use lightloom_nodes::project::Camera;
+use lightloom_nodes::sh::ShRgb;
+use lightloom_nodes::single_scattering::{EnvironmentFog, Phase};
 use wgpu::util::DeviceExt;
 
 const HDR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Float;
@@ -15,6 +17,8 @@ const LDR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
 const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 /// Irradiance bands evaluated per pixel (`Â_l` is 0 for odd `l > 1` and `|Â_6| < 0.016 Â_0`).
 const MAX_SHADER_BANDS: usize = 5;
+/// SH bands of the environment's fog glow (the shader's `sh_basis` evaluates at most 8).
+const MAX_ENVIRONMENT_FOG_BANDS: usize = 8;
 /// Transport bands the `sh_prt` shader evaluates (higher bands of the transport are dropped).
 pub const MAX_PRT_BANDS: usize = 8;
 
@@ -151,6 +155,8 @@ pub struct ViewportRenderer {
     environment: (wgpu::TextureView, Option<Key>),
     fog_params: wgpu::Buffer,
     fog_tables: FogTables,
+    /// The environment's fog factors and what they were computed for (β, D, phase, tables).
+    environment_fog: Option<(Vec<u128>, EnvironmentFog)>,
     bind_group: wgpu::BindGroup,
     mesh: Option<MeshBuffers>,
     targets: Option<Targets>,
@@ -387,6 +393,7 @@ impl ViewportRenderer {
             environment: (black, None),
             fog_params,
             fog_tables,
+            environment_fog: None,
             bind_group,
             mesh: None,
             targets: None,
@@ -408,7 +415,8 @@ impl ViewportRenderer {
         }
         self.upload_meshes(ctx, frame)?;
         self.upload_environment(ctx, frame)?;
-        self.upload_fog(ctx, frame)?;
+        let environment_fog = self.environment_fog(frame)?;
+        self.upload_fog(ctx, frame, environment_fog.as_ref())?;
         self.ensure_targets(ctx, width, height);
         let bounds = self.mesh.as_ref().map_or(([0.0; 3], [0.0; 3]), |m| m.bounds);
         let view_proj = camera.view_proj(width as f32 / height as f32, bounds);
@@ -424,15 +432,18 @@ impl ViewportRenderer {
             let StageValue::Sh(radiance) = sh.value.as_ref() else {
                 return Err(RenderError::Invalid("environment SH stage holds no SH".into()));
             };
-            let irradiance = radiance.irradiance();
+            let irradiance = match &environment_fog {
+                Some(fog) => fog.fogged(radiance).irradiance(),
+                None => radiance.irradiance(),
+            };
             let bands = irradiance.bands.min(MAX_SHADER_BANDS);
             globals.flags[0] = bands as f32;
             for (dst, src) in globals.irradiance.iter_mut().zip(&irradiance.coeffs[..bands * bands]) {
                 *dst = [src[0] as f32, src[1] as f32, src[2] as f32, 0.0];
             }
         }
-        let use_prt = self.upload_prt(ctx, frame)?;
-        let use_wavelet = self.upload_wavelet(ctx, frame)?;
+        let use_prt = self.upload_prt(ctx, frame, environment_fog.as_ref())?;
+        let use_wavelet = self.upload_wavelet(ctx, frame, environment_fog.as_ref())?;
         ctx.queue.write_buffer(&self.globals, 0, bytemuck::bytes_of(&globals));
         let targets = self.targets.as_ref().unwrap();
         let mut encoder =
@@ -648,7 +659,12 @@ impl ViewportRenderer {
 
     /// For the `sh_prt` mode: uploads transfer and incident radiance when their stage keys
     /// change, and the lighting/material uniforms every frame. Returns whether to draw with it.
-    fn upload_prt(&mut self, ctx: &GpuContext, frame: &FrameInputs) -> Result<bool, RenderError> {
+    fn upload_prt(
+        &mut self,
+        ctx: &GpuContext,
+        frame: &FrameInputs,
+        fog: Option<&EnvironmentFog>,
+    ) -> Result<bool, RenderError> {
         let (Some(transport), Some(incident)) = (&frame.transport, &frame.incident) else {
             return Ok(false);
         };
@@ -703,8 +719,20 @@ impl ViewportRenderer {
             let StageValue::Sh(light) = sh.value.as_ref() else {
                 return Err(RenderError::Invalid("environment SH stage holds no SH".into()));
             };
+            // In fog the diffuse transfer sees the fogged environment (sec. 3.6.5); the glossy
+            // lobes read per-vertex incident light computed without fog, so they get only its
+            // attenuation.
+            let fogged = fog.map(|f| f.fogged(light));
+            let light = fogged.as_ref().unwrap_or(light);
             for (dst, src) in params.light.iter_mut().zip(&light.coeffs).take(bands * bands) {
                 *dst = [src[0] as f32, src[1] as f32, src[2] as f32, 0.0];
+            }
+        }
+        if let Some(fog) = fog {
+            for s in params.specular.iter_mut() {
+                for (v, a) in s.iter_mut().zip(fog.attenuation) {
+                    *v *= a as f32;
+                }
             }
         }
         ctx.queue.write_buffer(&self.prt_params, 0, bytemuck::bytes_of(&params));
@@ -713,7 +741,12 @@ impl ViewportRenderer {
 
     /// For the `wavelet_vertex` mode: uploads the per-vertex products and the material's tables
     /// when their stage keys change. Returns whether to draw with them.
-    fn upload_wavelet(&mut self, ctx: &GpuContext, frame: &FrameInputs) -> Result<bool, RenderError> {
+    fn upload_wavelet(
+        &mut self,
+        ctx: &GpuContext,
+        frame: &FrameInputs,
+        fog: Option<&EnvironmentFog>,
+    ) -> Result<bool, RenderError> {
         let Some(products) = &frame.local_products else {
             return Ok(false);
         };
@@ -826,6 +859,15 @@ impl ViewportRenderer {
             let has = !t.specular.is_empty() as u32 as f32;
             specular[i] = [t.specular_color[0], t.specular_color[1], t.specular_color[2], has];
         }
+        // In fog the all-frequency environment light reaches surfaces attenuated; fog.wgsl adds
+        // the scattered part (band-limited, unshadowed).
+        let attenuation = fog.map_or([1.0; 3], |f| f.attenuation.map(|a| a as f32));
+        let mut albedo = material_array(frame, |m| m.albedo.map(|a| a as f32), 1.0);
+        for v in albedo.iter_mut().chain(specular.iter_mut()) {
+            for (c, a) in v.iter_mut().zip(attenuation) {
+                *c *= a;
+            }
+        }
         let params = WaveletParams {
             counts: [
                 w.cells,
@@ -833,7 +875,7 @@ impl ViewportRenderer {
                 lightloom_nodes::triple_product::THETA_STEPS as u32,
                 lightloom_nodes::triple_product::PHI_STEPS as u32,
             ],
-            albedo: material_array(frame, |m| m.albedo.map(|a| a as f32), 1.0),
+            albedo,
             specular,
             texels: [w.has_texels as u32, w.texel_size, 0, 0],
         };
@@ -872,9 +914,56 @@ impl ViewportRenderer {
         );
     }
 
+    /// The environment's light through the frame's fog (sec. 3.6.4), recomputed only when the
+    /// medium, its distance or the tables change. `None` without fog or environment.
+    fn environment_fog(&mut self, frame: &FrameInputs) -> Result<Option<EnvironmentFog>, RenderError> {
+        let (Some(fog), Some(sh)) = (&frame.fog, &frame.sh) else {
+            return Ok(None);
+        };
+        let (StageValue::ScatteringF(tables), StageValue::Sh(light)) = (fog.f_tables.value.as_ref(), sh.value.as_ref())
+        else {
+            return Err(RenderError::Invalid("fog or environment stages hold unexpected values".into()));
+        };
+        let bands = light.bands.min(MAX_ENVIRONMENT_FOG_BANDS);
+        let key: Vec<u128> = fog
+            .beta
+            .iter()
+            .chain(&fog.phase)
+            .chain([&fog.environment_distance])
+            .map(|v| u128::from(v.to_bits()))
+            .chain([fog.f_tables.key, bands as u128])
+            .collect();
+        if self.environment_fog.as_ref().is_none_or(|(k, _)| *k != key) {
+            let phase = Phase { weights: fog.phase.clone() };
+            let fogged = EnvironmentFog::new(fog.beta, fog.environment_distance, &phase, tables, bands);
+            self.environment_fog = Some((key, fogged));
+        }
+        Ok(self.environment_fog.as_ref().map(|(_, f)| f.clone()))
+    }
+
     /// Point lights and the medium: uniforms every frame, tables when their stages change.
-    fn upload_fog(&mut self, ctx: &GpuContext, frame: &FrameInputs) -> Result<(), RenderError> {
+    fn upload_fog(
+        &mut self,
+        ctx: &GpuContext,
+        frame: &FrameInputs,
+        environment_fog: Option<&EnvironmentFog>,
+    ) -> Result<(), RenderError> {
         let mut params: FogParams = bytemuck::Zeroable::zeroed();
+        params.environment = [1.0, 1.0, 1.0, 0.0];
+        if let (Some(fog), Some(sh)) = (environment_fog, &frame.sh) {
+            let StageValue::Sh(light) = sh.value.as_ref() else {
+                return Err(RenderError::Invalid("environment SH stage holds no SH".into()));
+            };
+            let scattered: ShRgb = fog.scattered(light);
+            let a = fog.attenuation;
+            params.environment = [a[0] as f32, a[1] as f32, a[2] as f32, fog.scattered.len() as f32];
+            for (dst, src) in params.environment_scattered.iter_mut().zip(&scattered.coeffs) {
+                *dst = [src[0] as f32, src[1] as f32, src[2] as f32, 0.0];
+            }
+            // The wavelet modes cannot convolve their all-frequency light: fog.wgsl adds the
+            // scattered environment's irradiance to them.
+            params.counts[3] = f32::from(u8::from(frame.settings.mode.starts_with("wavelet")));
+        }
         params.counts[0] = frame.lights.len().min(MAX_LIGHTS) as f32;
         for (i, l) in frame.lights.iter().take(MAX_LIGHTS).enumerate() {
             params.light_position[i] = [l.position[0] as f32, l.position[1] as f32, l.position[2] as f32, 1.0];
@@ -1083,8 +1172,13 @@ struct FogParams {
     beta: [f32; 4],
     /// Phase polynomial weights `W_0..W_2`; w: how many.
     phase: [f32; 4],
-    /// x: point light count; y: `G_n` ladder layers; z: layers per octave of exponent.
+    /// x: point light count; y: `G_n` ladder layers; z: layers per octave of exponent; w: 1
+    /// when the shader adds the scattered environment's irradiance to surfaces.
     counts: [f32; 4],
+    /// rgb: the environment's attenuation `e^{-βD}`; w: bands of `environment_scattered`.
+    environment: [f32; 4],
+    /// SH coefficients of the light fog scatters from the environment (eq. 3.35).
+    environment_scattered: [[f32; 4]; MAX_ENVIRONMENT_FOG_BANDS * MAX_ENVIRONMENT_FOG_BANDS],
     /// Per material: Phong-equivalent lobe weight (rgb) and exponent (w; 0 = no lobe).
     specular: [[f32; 4]; MAX_MATERIALS],
     light_position: [[f32; 4]; MAX_LIGHTS],

@@ -16,6 +16,8 @@ pub struct Medium {
     /// Coefficients of the phase polynomial in cos α (eq. 3.18).
     pub phase_coefficients: [f64; 3],
     pub table_resolution: usize,
+    /// Distance of the environment's light sources (sec. 3.6.4), m.
+    pub environment_distance: f64,
 }
 
 pub fn spec() -> NodeKindSpec {
@@ -48,6 +50,14 @@ pub fn spec() -> NodeKindSpec {
                 doc: "a0 + a1 cos α + a2 cos² α (normalised on use).",
             },
             ParamSpec {
+                name: "environment_distance",
+                label: "Environment distance",
+                unit: "m",
+                kind: ParamKind::Float { min: 0.1, max: 1e5, default: 40.0 },
+                doc: "How far away the environment's light is (sec. 3.6.4): the sky is dimmed by e^(-β·D) and \
+                      its glow, the light the fog scatters from it, lights surfaces and fills the view.",
+            },
+            ParamSpec {
                 name: "table_resolution",
                 label: "Table resolution",
                 unit: "",
@@ -59,8 +69,8 @@ pub fn spec() -> NodeKindSpec {
         stages: vec![
             StageSpec {
                 name: "medium",
-                version: 2,
-                params: &["beta", "phase", "phase_coefficients", "table_resolution"],
+                version: 3,
+                params: &["beta", "phase", "phase_coefficients", "table_resolution", "environment_distance"],
                 stages: &[],
                 inputs: &[],
                 persist: false,
@@ -85,9 +95,7 @@ pub fn spec() -> NodeKindSpec {
                 compute: g_tables,
             },
         ],
-        availability: Availability::Planned(
-            "issue 7 (Lambertian surfaces are drawn; Phong surfaces and environment light under fog next)",
-        ),
+        availability: Availability::Ready,
     }
 }
 
@@ -112,7 +120,13 @@ fn medium(ctx: &StageContext) -> Result<StageValue, StageError> {
             std::f64::consts::LN_2 / densest
         ));
     }
-    Ok(StageValue::Medium(Medium { beta, phase, phase_coefficients, table_resolution: resolution(ctx)? }))
+    Ok(StageValue::Medium(Medium {
+        beta,
+        phase,
+        phase_coefficients,
+        table_resolution: resolution(ctx)?,
+        environment_distance: ctx.float("environment_distance")?,
+    }))
 }
 
 fn f_tables(ctx: &StageContext) -> Result<StageValue, StageError> {

@@ -15,7 +15,8 @@ pub fn point_light_spec() -> NodeKindSpec {
     NodeKindSpec {
         name: "PointLight",
         label: "Point light",
-        doc: "An isotropic point light; chain several through the `lights` input.",
+        doc: "An isotropic point light (unshadowed; diffuse and the material's Phong-equivalent lobe, with \
+              fog glows and scattering when a medium is linked); chain several through the `lights` input.",
         inputs: vec![PortSpec { name: "lights", ty: PortType::Lights, required: false, many: false }],
         outputs: vec![PortSpec { name: "lights", ty: PortType::Lights, required: false, many: false }],
         params: vec![
@@ -43,7 +44,7 @@ pub fn point_light_spec() -> NodeKindSpec {
             persist: false,
             compute: lights,
         }],
-        availability: Availability::Planned("issue 7 (drawn as unshadowed diffuse lights; specular highlights next)"),
+        availability: Availability::Ready,
     }
 }
 

@@ -334,6 +334,8 @@ pub const MAX_LIGHTS: usize = 8;
 pub struct FogFrame {
     /// Scattering coefficient per channel, 1/m.
     pub beta: [f64; 3],
+    /// Distance of the environment's light sources, m (sec. 3.6.4).
+    pub environment_distance: f64,
     /// Normalised phase polynomial weights `W_k` (eq. 3.18), one per `F^k` table.
     pub phase: Vec<f64>,
     /// `F^k` tables (`StageValue::ScatteringF`) and the `G_n` ladder (`ScatteringG`).
@@ -506,6 +508,7 @@ impl FrameInputs {
                 };
                 Some(FogFrame {
                     beta: m.beta,
+                    environment_distance: m.environment_distance,
                     phase: phase.weights,
                     f_tables: keyed(&node, "f_tables")?,
                     g_tables: keyed(&node, "g_tables")?,

@@ -271,6 +271,19 @@ impl ShRgb {
         out
     }
 
+    /// Multiplies band `l` of channel `c` by `factors[l][c]` (per-channel zonal convolution);
+    /// bands beyond `factors` are dropped.
+    pub fn scale_bands_rgb(&self, factors: &[[f64; 3]]) -> Self {
+        let mut out = self.clone();
+        for (i, c) in out.coeffs.iter_mut().enumerate() {
+            let f = factors.get(band_of(i)).copied().unwrap_or([0.0; 3]);
+            for (v, f) in c.iter_mut().zip(f) {
+                *v *= f;
+            }
+        }
+        out
+    }
+
     /// Irradiance coefficients `E_lm = Â_l L_lm` (Sun 2008 eqs. 2.20–2.25).
     pub fn irradiance(&self) -> Self {
         self.scale_bands(&clamped_cosine_factors(self.bands))

@@ -8,6 +8,8 @@
 //!   bands, local-frame products at 80 and 320 cells) and the GPU frame time in each mode. Its
 //!   transport is synthetic (random coefficients of the right shape): costs do not depend on
 //!   the values, and real transport for 100k vertices takes minutes (see `--bench transport`).
+//! * Fog (the street lamps of `tests/projects/fog_lamps.ron`): frame time at 1280×720, and what
+//!   moving a light or changing β costs (no table is recomputed).
 
 use crate::project_commands::{evaluate, fail_on_errors, upstream_of};
 use anyhow::{Result, anyhow};
@@ -55,7 +57,52 @@ pub fn run(args: &BenchArgs) -> Result<()> {
     let gpu = GpuContext::headless()?;
     println!("device: {}", gpu.describe());
     default_project_figures(args, &gpu)?;
+    fog_figures(args, &gpu)?;
     synthetic_figures(args, &gpu)
+}
+
+fn fog_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
+    let path = std::path::Path::new("fog_lamps.ron");
+    let project =
+        lightloom_nodes::project::Project::from_ron(include_str!("../../tests/projects/fog_lamps.ron"), path)?;
+    let view = CameraView::from_project(&project.camera(None).map_err(|e| anyhow!(e))?);
+    let mut graph = project.graph(path).map_err(|e| anyhow!("{e:?}"))?;
+    // The default table resolution (the project uses a smaller one to keep tests quick).
+    graph.set_param("fog", "table_resolution", ParamValue::Choice("512".into()))?;
+    let engine = Arc::new(Engine::in_memory());
+    let mut renderer = ViewportRenderer::new(gpu);
+    let frame_of = |graph: &Graph| -> Result<(FrameInputs, f64)> {
+        let start = Instant::now();
+        let evaluation = evaluate(engine.clone(), graph, true);
+        fail_on_errors(&evaluation, &upstream_of(graph, "output"))?;
+        let frame = FrameInputs::gather(&evaluation, graph, "output").map_err(|e| anyhow!(e))?;
+        Ok((frame, start.elapsed().as_secs_f64() * 1e3))
+    };
+    let (frame, tables_ms) = frame_of(&graph)?;
+    timed_frame(gpu, &mut renderer, &frame, &view, (1280, 720))?;
+    let frames: Vec<f64> =
+        (0..args.frames).map(|_| timed_frame(gpu, &mut renderer, &frame, &view, (1280, 720))).collect::<Result<_>>()?;
+    println!(
+        "
+fog: two street lamps over a wet street, 1280x720 (tables 512² F, 128² × 49 G: {tables_ms:.0} ms once)"
+    );
+    println!("{:<28} {:>16} {:>12}", "edit", "edit stages ms", "frame ms");
+    println!("{:<28} {:>16} {:>12.1}", "(none)", "-", median(frames));
+    for (label, node, param, values) in [
+        ("move a lamp", "lamp1", "position", [[-3.0, 4.0, -9.0], [-2.0, 4.0, -9.0], [-2.0, 5.0, -8.0]]),
+        ("change β", "fog", "beta", [[0.05, 0.05, 0.05], [0.08, 0.08, 0.1], [0.02, 0.03, 0.04]]),
+    ] {
+        let (mut stages, mut frames) = (Vec::new(), Vec::new());
+        for v in values {
+            let value = if param == "beta" { ParamValue::Color(v) } else { ParamValue::Vec3(v) };
+            graph.set_param(node, param, value)?;
+            let (frame, ms) = frame_of(&graph)?;
+            stages.push(ms);
+            frames.push(timed_frame(gpu, &mut renderer, &frame, &view, (1280, 720))?);
+        }
+        println!("{label:<28} {:>16.1} {:>12.1}", median(stages), median(frames));
+    }
+    Ok(())
 }
 
 fn default_project_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {

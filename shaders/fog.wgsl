@@ -130,31 +130,66 @@ fn fog_g(exponent: f32, t_sp: f32, theta_s: f32) -> f32 {
     return mix(g_lower, g_upper, position - lower) * exp(-t_sp) / ((n + 1.0) * (1.0 + t_sp));
 }
 
-// The environment's glow in direction `dir`: its scattered light (eq. 3.35), band-limited.
-fn fog_environment_glow(dir: vec3<f32>) -> vec3<f32> {
-    let bands = i32(fog.environment.w);
-    if (bands == 0) {
-        return vec3<f32>(0.0);
+// sum_lm w_l c_lm Y_lm(dir) over the environment's scattered light c_lm, with w_l = 1 (radiance)
+// or A_l (irradiance, Sun 2008 eq. 2.24; bands above 4 are negligible). The recurrence of
+// common.wgsl `sh_basis`, summed as it goes: no 64-entry array, which software rasterisers
+// would spill in every fragment shader that inlines this.
+fn fog_environment_sum(dir: vec3<f32>, irradiance: bool) -> vec3<f32> {
+    var bands = i32(fog.environment.w);
+    if (irradiance) {
+        bands = min(bands, 5);
     }
-    let y = sh_basis(dir, bands);
     var sum = vec3<f32>(0.0);
-    for (var k = 0; k < bands * bands; k = k + 1) {
-        sum = sum + fog.environment_scattered[k].rgb * y[k];
+    var c = 1.0;
+    var s = 0.0;
+    var p_mm = sqrt(1.0 / (4.0 * PI));
+    for (var m = 0; m < bands; m = m + 1) {
+        let mf = f32(m);
+        if (m > 0) {
+            p_mm = p_mm * sqrt((2.0 * mf + 1.0) / (2.0 * mf));
+            let nc = c * dir.x - s * dir.y;
+            let ns = c * dir.y + s * dir.x;
+            c = nc;
+            s = ns;
+        }
+        var p_prev = 0.0;
+        var p = p_mm;
+        for (var l = m; l < bands; l = l + 1) {
+            if (l == m + 1) {
+                p_prev = p;
+                p = sqrt(2.0 * mf + 3.0) * dir.z * p_mm;
+            } else if (l > m + 1) {
+                let lf = f32(l);
+                let a = sqrt((4.0 * lf * lf - 1.0) / (lf * lf - mf * mf));
+                let b = sqrt(((lf - 1.0) * (lf - 1.0) - mf * mf) / (4.0 * (lf - 1.0) * (lf - 1.0) - 1.0));
+                let next = a * (dir.z * p - b * p_prev);
+                p_prev = p;
+                p = next;
+            }
+            var w = 1.0;
+            if (irradiance) {
+                w = select(select(select(select(-PI / 24.0, 0.0, l == 3), PI / 4.0, l == 2), 2.0 * PI / 3.0, l == 1), PI, l == 0);
+            }
+            let base = l * (l + 1);
+            if (m == 0) {
+                sum = sum + w * p * fog.environment_scattered[base].rgb;
+            } else {
+                let q = w * p * sqrt(2.0);
+                sum = sum + q * (c * fog.environment_scattered[base + m].rgb + s * fog.environment_scattered[base - m].rgb);
+            }
+        }
     }
     return max(sum, vec3<f32>(0.0));
 }
 
-// Irradiance at normal `n` from the environment's scattered light (A_l of Sun 2008 eq. 2.24).
+// The environment's glow in direction `dir`: its scattered light (eq. 3.35), band-limited.
+fn fog_environment_glow(dir: vec3<f32>) -> vec3<f32> {
+    return fog_environment_sum(dir, false);
+}
+
+// Irradiance at normal `n` from the environment's scattered light.
 fn fog_environment_glow_irradiance(n: vec3<f32>) -> vec3<f32> {
-    let bands = min(i32(fog.environment.w), 5);
-    let y = sh_basis(n, bands);
-    var a = array<f32, 5>(PI, 2.0 * PI / 3.0, PI / 4.0, 0.0, -PI / 24.0);
-    var sum = vec3<f32>(0.0);
-    for (var k = 0; k < bands * bands; k = k + 1) {
-        let l = i32(floor(sqrt(f32(k) + 0.5)));
-        sum = sum + a[l] * fog.environment_scattered[k].rgb * y[k];
-    }
-    return max(sum, vec3<f32>(0.0));
+    return fog_environment_sum(n, true);
 }
 
 // What the viewer sees of a surface point `p` (normal `n`, diffuse reflectance `kd` = albedo/pi,

@@ -729,11 +729,7 @@ impl ViewportRenderer {
             }
         }
         if let Some(fog) = fog {
-            for s in params.specular.iter_mut() {
-                for (v, a) in s.iter_mut().zip(fog.attenuation) {
-                    *v *= a as f32;
-                }
-            }
+            attenuate(&mut params.specular, fog.attenuation);
         }
         ctx.queue.write_buffer(&self.prt_params, 0, bytemuck::bytes_of(&params));
         Ok(true)
@@ -861,12 +857,10 @@ impl ViewportRenderer {
         }
         // In fog the all-frequency environment light reaches surfaces attenuated; fog.wgsl adds
         // the scattered part (band-limited, unshadowed).
-        let attenuation = fog.map_or([1.0; 3], |f| f.attenuation.map(|a| a as f32));
         let mut albedo = material_array(frame, |m| m.albedo.map(|a| a as f32), 1.0);
-        for v in albedo.iter_mut().chain(specular.iter_mut()) {
-            for (c, a) in v.iter_mut().zip(attenuation) {
-                *c *= a;
-            }
+        if let Some(fog) = fog {
+            attenuate(&mut albedo, fog.attenuation);
+            attenuate(&mut specular, fog.attenuation);
         }
         let params = WaveletParams {
             counts: [
@@ -1189,6 +1183,15 @@ struct FogTables {
     f: wgpu::TextureView,
     g: wgpu::TextureView,
     key: Option<Key>,
+}
+
+/// Scales the rgb of every material slot by the environment's attenuation `e^{-βD}`.
+fn attenuate(slots: &mut [[f32; 4]], attenuation: [f64; 3]) {
+    for slot in slots {
+        for (v, a) in slot.iter_mut().zip(attenuation) {
+            *v *= a as f32;
+        }
+    }
 }
 
 /// One vec4 per material slot: `rgb` from the material, `w`.

@@ -314,19 +314,13 @@ fn eval_reports_that_rotating_the_environment_recomputes_no_projection() {
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     let recomputed: Vec<&str> = report["recomputed"].as_array().unwrap().iter().map(|v| v.as_str().unwrap()).collect();
-    // The output's lighting products follow the lighting (each is empty outside its mode); no
-    // transport stage runs.
+    // Only what the Output's mode (wavelet_pixel) and its unshadowed preview read follow the
+    // lighting: the rotation, the rotated SH and cube map, and the local-frame products; no
+    // transport or projection stage runs, and stages the mode does not read (the Haar
+    // projection, sh_prt's incident radiance) do not run.
     assert_eq!(
         recomputed,
-        [
-            "sky.rotation",
-            "sky.rotated_radiance",
-            "sky.sh",
-            "sky.haar",
-            "output.incident_sh",
-            "output.local_products",
-            "output.texel_irradiance"
-        ]
+        ["sky.rotation", "sky.rotated_radiance", "sky.sh", "output.local_products", "output.texel_irradiance"]
     );
     let sh = report["after_overrides"]["stages"]
         .as_array()
@@ -454,8 +448,10 @@ fn eval_reports_that_a_brdf_edit_recomputes_only_the_material() {
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     let recomputed: Vec<&str> = report["recomputed"].as_array().unwrap().iter().map(|v| v.as_str().unwrap()).collect();
-    // The material and its local-frame table; no lighting, transport or product stage.
-    assert_eq!(recomputed, ["gloss.material", "gloss.preview", "gloss.sh_lobe", "gloss.local_table"]);
+    // The material and its SH lobe; no lighting, transport or product stage. The mode is
+    // sh_prt, so the local-frame table (wavelet modes) and the lobe plot (the editor's
+    // preview) are not needed and do not run.
+    assert_eq!(recomputed, ["gloss.material", "gloss.sh_lobe"]);
 }
 
 #[test]
@@ -516,24 +512,49 @@ fn each_object_is_shaded_by_its_own_material_in_every_mode() {
 }
 
 #[test]
-fn relighting_modes_without_their_transport_say_what_to_set() {
+fn every_relighting_mode_computes_the_transport_it_reads() {
+    // No transport switch to keep in step with the mode: each mode pulls what it reads, and
+    // the report says why the rest did not run.
     let project = workspace().join("projects/default.ron");
-    let dir = tempdir("mode-errors");
-    for (mode, expected) in [
-        ("sh_prt", "set the Scene's `transport` to `sh`"),
-        ("wavelet_vertex", "set the Scene's `transport` to `sh_and_wavelets`"),
-        ("wavelet_pixel", "set the Scene's `transport` to `sh_and_wavelets`"),
+    let dir = tempdir("mode-transport");
+    let cheap = ["--set", "scene.tessellation=12", "--set", "scene.visibility_texture_size=16"];
+    for (mode, transport, unneeded) in [
+        ("sh_prt", "scene.transport_sh", "scene.transport_local"),
+        ("wavelet_vertex", "scene.transport_local", "scene.transport_sh"),
+        ("wavelet_pixel", "scene.transport_texels", "scene.transport_sh"),
     ] {
         let png = dir.join(format!("{mode}.png"));
         let out = lightloom()
             .args(["render", project.to_str().unwrap(), "-o", png.to_str().unwrap(), "-q", "--no-disk-cache"])
             .args(["--set", &format!("output.mode={mode}"), "--width", "32", "--height", "32"])
+            .args(cheap)
             .output()
             .unwrap();
-        assert_eq!(out.status.code(), Some(2), "{mode}");
-        let stderr = String::from_utf8_lossy(&out.stderr);
-        assert!(stderr.contains(expected), "{mode}: {stderr}");
-        assert!(!png.exists(), "{mode}: no image on failure");
+        assert!(out.status.success(), "{mode}: {}", String::from_utf8_lossy(&out.stderr));
+        assert!(png.exists(), "{mode}");
+        let out = lightloom()
+            .args(["eval", project.to_str().unwrap(), "--report", "json", "--no-disk-cache"])
+            .args(["--set", &format!("output.mode={mode}")])
+            .args(cheap)
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{mode}: {}", String::from_utf8_lossy(&out.stderr));
+        let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        let status = |name: &str| {
+            let stage = report["after_overrides"]["stages"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .find(|s| format!("{}.{}", s["node"].as_str().unwrap(), s["stage"].as_str().unwrap()) == name)
+                .unwrap_or_else(|| panic!("{mode}: no {name} in the report"))
+                .clone();
+            (stage["status"].as_str().unwrap().to_string(), stage["reasons"].clone())
+        };
+        let (ran, _) = status(transport);
+        assert!(["computed", "memory_hit"].contains(&ran.as_str()), "{mode}: {transport} {ran}");
+        let (not_run, reasons) = status(unneeded);
+        assert_eq!(not_run, "not_needed", "{mode}: {unneeded}");
+        assert!(reasons[0].as_str().unwrap().contains(&format!("mode {mode}")), "{mode}: {reasons}");
     }
 }
 

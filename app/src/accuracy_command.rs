@@ -7,7 +7,7 @@ use anyhow::{Result, anyhow};
 use clap::Args;
 use lightloom_nodes::engine::{CancelToken, Graph};
 use lightloom_nodes::graph::ParamValue;
-use lightloom_nodes::kinds::output::{FrameInputs, find_output};
+use lightloom_nodes::kinds::output::{FrameInputs, find_output, frame_request};
 use lightloom_nodes::reference::{self, ImageError, PinholeCamera};
 use lightloom_render::{CameraView, GpuContext, ViewportRenderer};
 use serde::Serialize;
@@ -78,7 +78,7 @@ pub fn run(args: &AccuracyArgs) -> Result<()> {
         PinholeCamera { position: camera.position.into(), target: camera.target.into(), fov_y_deg: camera.fov_y_deg };
 
     let frame_of = |graph: &Graph| -> Result<FrameInputs> {
-        let evaluation = evaluate(engine.clone(), graph, true);
+        let evaluation = evaluate(engine.clone(), graph, frame_request(graph, &output, true), true);
         fail_on_errors(&evaluation, &upstream_of(graph, &output))?;
         FrameInputs::gather(&evaluation, graph, &output).map_err(|e| anyhow!(e))
     };
@@ -118,7 +118,6 @@ pub fn run(args: &AccuracyArgs) -> Result<()> {
     for &bands in &args.bands {
         let mut g = base.clone();
         g.set_param(&output, "mode", ParamValue::Choice("sh_prt".into()))?;
-        g.set_param(&scene, "transport", ParamValue::Choice("sh".into()))?;
         g.set_param(&scene, "transport_bands", ParamValue::Int(bands as i64))?;
         if let Some(env) = &environment {
             g.set_param(env, "sh_bands", ParamValue::Int(bands as i64))?;
@@ -130,7 +129,6 @@ pub fn run(args: &AccuracyArgs) -> Result<()> {
             let mut g = base.clone();
             g.set_param(&output, "mode", ParamValue::Choice(mode.into()))?;
             g.set_param(&output, "wavelet_terms", ParamValue::Choice(terms.to_string()))?;
-            g.set_param(&scene, "transport", ParamValue::Choice("sh_and_wavelets".into()))?;
             rows.push(measure(&g, mode, terms)?);
         }
     }

@@ -11,12 +11,12 @@
 //! * Fog (the street lamps of `tests/projects/fog_lamps.ron`): frame time at 1280×720, and what
 //!   moving a light or changing β costs (no table is recomputed).
 
-use crate::project_commands::{evaluate, fail_on_errors, upstream_of};
+use crate::project_commands::{evaluate, fail_on_errors, output_request, upstream_of};
 use anyhow::{Result, anyhow};
 use clap::Args;
 use lightloom_nodes::engine::{CancelToken, Engine, Graph, StageValue};
 use lightloom_nodes::graph::ParamValue;
-use lightloom_nodes::kinds::output::{FrameInputs, Keyed};
+use lightloom_nodes::kinds::output::{FrameInputs, Keyed, Mode, Tonemap, View};
 use lightloom_nodes::transport::{Receivers, ShTransport, SphericalTransport};
 use lightloom_nodes::wavelet::SparseVector;
 use lightloom_render::{CameraView, GpuContext, ViewportRenderer};
@@ -73,7 +73,7 @@ fn fog_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
     let mut renderer = ViewportRenderer::new(gpu);
     let frame_of = |graph: &Graph| -> Result<(FrameInputs, f64)> {
         let start = Instant::now();
-        let evaluation = evaluate(engine.clone(), graph, true);
+        let evaluation = evaluate(engine.clone(), graph, output_request(graph, "output"), true);
         fail_on_errors(&evaluation, &upstream_of(graph, "output"))?;
         let frame = FrameInputs::gather(&evaluation, graph, "output").map_err(|e| anyhow!(e))?;
         Ok((frame, start.elapsed().as_secs_f64() * 1e3))
@@ -112,16 +112,15 @@ fn default_project_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
     let base = project.graph(std::path::Path::new("default.ron")).map_err(|e| anyhow!("{e:?}"))?;
     println!("\ndefault project, glossy Phong material (BRDF edit = exponent change), 1280x720");
     println!("{:<18} {:>16} {:>16} {:>12}", "mode", "edit stages ms", "edit→frame ms", "frame ms");
-    for (mode, transport) in [("sh_irradiance", "none"), ("sh_prt", "sh"), ("wavelet_vertex", "sh_and_wavelets")] {
+    for mode in ["sh_irradiance", "sh_prt", "wavelet_vertex"] {
         let mut graph = base.clone();
         graph.set_param("output", "mode", ParamValue::Choice(mode.into()))?;
-        graph.set_param("scene", "transport", ParamValue::Choice(transport.into()))?;
         graph.set_param("material", "model", ParamValue::Choice("phong".into()))?;
         graph.set_param("material", "f0", ParamValue::Float(0.3))?;
         let engine = Arc::new(Engine::in_memory());
         let mut renderer = ViewportRenderer::new(gpu);
         let frame_of = |graph: &Graph| -> Result<FrameInputs> {
-            let evaluation = evaluate(engine.clone(), graph, true);
+            let evaluation = evaluate(engine.clone(), graph, output_request(graph, "output"), true);
             fail_on_errors(&evaluation, &upstream_of(graph, "output"))?;
             FrameInputs::gather(&evaluation, graph, "output").map_err(|e| anyhow!(e))
         };
@@ -165,18 +164,20 @@ fn synthetic_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
     let light = lightloom_nodes::sh::project_samples(8, environment.samples());
     let keyed = |key: u128, value: StageValue| Keyed { key, value: Arc::new(value) };
     let base_settings = lightloom_nodes::kinds::output::OutputSettings {
-        mode: String::new(),
+        mode: Mode::ShIrradiance,
         exposure: 0.0,
-        tonemap: "aces".into(),
+        tonemap: Tonemap::Aces,
         background: true,
-        view: "approximation".into(),
+        view: View::Approximation,
         reference_samples: 1,
     };
     let material =
         lightloom_nodes::kinds::brdf::Material { model: "phong".into(), exponent: 20.0, f0: 0.3, ..Default::default() };
-    let frame_with = |mode: &str| FrameInputs {
+    let frame_with = |mode: Mode| FrameInputs {
         meshes: keyed(1, StageValue::Meshes(meshes.clone())),
-        ray_scene: keyed(2, StageValue::Number(0.0)),
+        ray_scene: None,
+        mode,
+        pending: None,
         sh: Some(keyed(3, StageValue::Sh(light.clone()))),
         radiance: Some(keyed(4, StageValue::CubeMap(environment.clone()))),
         transport: None,
@@ -190,7 +191,7 @@ fn synthetic_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
             table: None,
         }],
         mesh_materials: vec![0],
-        settings: lightloom_nodes::kinds::output::OutputSettings { mode: mode.into(), ..base_settings.clone() },
+        settings: lightloom_nodes::kinds::output::OutputSettings { mode, ..base_settings.clone() },
         ignored_inputs: Vec::new(),
         fog: None,
         lights: Vec::new(),
@@ -202,7 +203,7 @@ fn synthetic_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
             (0..args.frames).map(|_| timed_frame(gpu, renderer, frame, &view, (1280, 720))).collect::<Result<_>>()?;
         Ok(median(times))
     };
-    let frame = frame_with("sh_irradiance");
+    let frame = frame_with(Mode::ShIrradiance);
     println!("{:<24} {:>22} {:>14.1}", "sh_irradiance", "-", frame_times(&mut renderer, &frame)?);
     for bands in [6usize, 8] {
         let count = n * bands * bands;
@@ -212,7 +213,7 @@ fn synthetic_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
         let incident = lightloom_nodes::prt::incident_radiance(&light, &transport, &CancelToken::default())
             .map_err(|e| anyhow!("{e}"))?;
         let change_ms = start.elapsed().as_secs_f64() * 1e3;
-        let mut frame = frame_with("sh_prt");
+        let mut frame = frame_with(Mode::ShPrt);
         frame.transport = Some(keyed(10 + bands as u128, StageValue::ShTransport(transport)));
         frame.incident = Some(keyed(20 + bands as u128, StageValue::IncidentSh(incident)));
         let ms = frame_times(&mut renderer, &frame)?;
@@ -273,7 +274,7 @@ fn synthetic_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
         )
         .map_err(|e| anyhow!("{e}"))?;
         let rotation_ms = start.elapsed().as_secs_f64() * 1e3;
-        let mut frame = frame_with("wavelet_vertex");
+        let mut frame = frame_with(Mode::WaveletVertex);
         frame.local_products = Some(keyed(30 + terms as u128, StageValue::LocalProducts(products)));
         frame.materials[0].table = Some(keyed(40, StageValue::BrdfTable(table.clone())));
         match frame_times(&mut renderer, &frame) {

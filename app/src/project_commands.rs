@@ -4,9 +4,9 @@ use anyhow::{Context, Result, anyhow, bail};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use lightloom_nodes::engine::CancelToken;
-use lightloom_nodes::engine::{Engine, EngineConfig, EvalEvent, Evaluation, Graph, StageStatus};
+use lightloom_nodes::engine::{Engine, EngineConfig, EvalEvent, Evaluation, Graph, Request, StageStatus};
 use lightloom_nodes::graph::Availability;
-use lightloom_nodes::kinds::output::{FrameInputs, find_output};
+use lightloom_nodes::kinds::output::{FrameInputs, Tonemap, View, find_output};
 use lightloom_nodes::project::Project;
 use lightloom_nodes::reference::{self, ImageError, PinholeCamera};
 use lightloom_render::{CameraView, CapturedFrame, GpuContext, ViewportRenderer};
@@ -69,6 +69,9 @@ pub struct EvalArgs {
     /// Report format.
     #[arg(long, default_value = "text", value_parser = ["text", "json"])]
     pub report: String,
+    /// Evaluate every stage of every node, not only what the Output's mode and view need.
+    #[arg(long)]
+    pub all: bool,
     #[command(flatten)]
     pub eval: EvalOptions,
 }
@@ -101,9 +104,15 @@ pub(crate) fn load(path: &Path, overrides: &[String]) -> Result<(Project, Graph)
     Ok((project, graph))
 }
 
-/// Evaluates on a background thread, driving a progress bar from its events.
-pub(crate) fn evaluate(engine: Arc<Engine>, graph: &Graph, quiet: bool) -> Evaluation {
-    let job = engine.spawn(graph.clone());
+/// What rendering the Output node `output` needs (its mode and view), for the CLI.
+pub(crate) fn output_request(graph: &Graph, output: &str) -> Request {
+    lightloom_nodes::kinds::output::frame_request(graph, output, false)
+}
+
+/// Evaluates what `request` needs on a background thread, driving a progress bar from its
+/// events.
+pub(crate) fn evaluate(engine: Arc<Engine>, graph: &Graph, request: Request, quiet: bool) -> Evaluation {
+    let job = engine.spawn_request(graph.clone(), request);
     let bar = if quiet { ProgressBar::hidden() } else { ProgressBar::new(0) };
     bar.set_style(
         ProgressStyle::with_template("{spinner} evaluating [{bar:30}] {pos}/{len} {msg}")
@@ -116,7 +125,7 @@ pub(crate) fn evaluate(engine: Arc<Engine>, graph: &Graph, quiet: bool) -> Evalu
             EvalEvent::StageStarted { node, stage } => bar.set_message(format!("{node}.{stage}")),
             EvalEvent::StageFinished { .. } => bar.inc(1),
             EvalEvent::Finished => break,
-            EvalEvent::StageProgress { .. } => bar.tick(),
+            EvalEvent::StageProgress { .. } | EvalEvent::TierReady { .. } => bar.tick(),
         }
     }
     bar.finish_and_clear();
@@ -172,7 +181,7 @@ pub fn render_project(
     let output = find_output(graph, output_name).map_err(|e| anyhow!(e))?;
     let camera = project.camera(camera).map_err(|e| anyhow!(e))?;
     let start = Instant::now();
-    let evaluation = evaluate(engine, graph, quiet);
+    let evaluation = evaluate(engine, graph, output_request(graph, &output.id), quiet);
     let eval_ms = start.elapsed().as_secs_f64() * 1e3;
     fail_on_errors(&evaluation, &upstream_of(graph, &output.id))?;
     let frame = FrameInputs::gather(&evaluation, graph, &output.id).map_err(|e| anyhow!(e))?;
@@ -190,7 +199,7 @@ pub fn render_project(
     let mut renderer = ViewportRenderer::new(&gpu);
     let captured = renderer.render_offscreen(&gpu, &frame, &CameraView::from_project(&camera), width, height)?;
     let render_ms = start.elapsed().as_secs_f64() * 1e3;
-    if frame.settings.view == "approximation" {
+    if frame.settings.view == View::Approximation {
         return Ok(Rendered { frame: captured, eval_ms, render_ms, error: None });
     }
     let start = Instant::now();
@@ -214,12 +223,12 @@ pub fn render_project(
     let mask = reference.surface_mask();
     let error = reference::compare(&approximation, &reference.pixels, Some(&mask)).map_err(|e| anyhow!(e))?;
     let settings = &frame.settings;
-    if settings.view == "reference" {
-        renderer.present(&gpu, &reference.pixels, (width, height), settings.exposure, &settings.tonemap)?;
+    if settings.view == View::Reference {
+        renderer.present(&gpu, &reference.pixels, (width, height), settings.exposure, settings.tonemap)?;
     } else {
         let scale = error_map_scale(&reference.pixels);
         let map = reference::error_heat_map(&approximation, &reference.pixels, Some(&mask), scale);
-        renderer.present(&gpu, &map, (width, height), 0.0, "linear")?;
+        renderer.present(&gpu, &map, (width, height), 0.0, Tonemap::Linear)?;
         if !quiet {
             eprintln!(
                 "error map: black = 0, white = |error| >= {scale:.4} (half the reference's mean radiance); \
@@ -284,8 +293,15 @@ pub fn eval(args: &EvalArgs) -> Result<()> {
     let (_, base) = load(&args.project, &[])?;
     let (_, changed) = load(&args.project, &args.eval.overrides)?;
     let engine = Arc::new(args.eval.engine());
-    let initial = evaluate(engine.clone(), &base, true);
-    let after = evaluate(engine, &changed, true);
+    let request = |graph: &Graph| -> Result<Request> {
+        if args.all {
+            return Ok(Request::everything(graph));
+        }
+        let output = find_output(graph, None).map_err(|e| anyhow!("{e} (or pass --all)"))?;
+        Ok(output_request(graph, &output.id))
+    };
+    let initial = evaluate(engine.clone(), &base, request(&base)?, true);
+    let after = evaluate(engine, &changed, request(&changed)?, true);
     if args.report == "json" {
         let json = serde_json::json!({
             "project": args.project.display().to_string(),
@@ -307,6 +323,7 @@ pub fn eval(args: &EvalArgs) -> Result<()> {
                 StageStatus::KnownFailure => "FAILED (known)",
                 StageStatus::Blocked => "blocked",
                 StageStatus::Cancelled => "cancelled",
+                StageStatus::NotNeeded => "not needed",
             };
             let why = if s.reasons.is_empty() { String::new() } else { format!(" — {}", s.reasons.join("; ")) };
             let err = s.error.as_deref().map(|e| format!(" [{e}]")).unwrap_or_default();

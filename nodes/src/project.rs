@@ -10,7 +10,7 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 /// The version this build writes.
-pub const CURRENT_VERSION: u32 = 2;
+pub const CURRENT_VERSION: u32 = 3;
 
 /// A project: cameras, render settings, nodes and links.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -137,15 +137,21 @@ impl Project {
         let probe: VersionProbe = options.from_str(text).map_err(syntax)?;
         match probe.version {
             CURRENT_VERSION => options.from_str(text).map_err(syntax),
+            2 => options.from_str::<Project>(text).map_err(syntax).map(migrate_v2),
             1 => {
                 let v1: v1::ProjectV1 = options.from_str(text).map_err(syntax)?;
-                v1.migrate().map_err(|message| ProjectError::Syntax { path: path.into(), line: 1, column: 1, message })
+                v1.migrate().map(migrate_v2).map_err(|message| ProjectError::Syntax {
+                    path: path.into(),
+                    line: 1,
+                    column: 1,
+                    message,
+                })
             }
             0 => Err(ProjectError::Syntax {
                 path: path.into(),
                 line: 1,
                 column: 1,
-                message: "missing `version` field (a Lightloom project starts with `(version: 2, ...`)".into(),
+                message: "missing `version` field (a Lightloom project starts with `(version: 3, ...`)".into(),
             }),
             found if found > CURRENT_VERSION => Err(ProjectError::TooNew { path: path.into(), found }),
             found => Err(ProjectError::Syntax {
@@ -348,6 +354,25 @@ fn node_line(text: &str, id: &str) -> Option<usize> {
     text.lines().position(|l| l.contains("id:") && l.contains(&needle)).map(|i| i + 1)
 }
 
+/// Version 2 → 3: evaluation became demand-driven. The Scene's `transport` choice is gone
+/// (each relighting mode computes the transport it reads), and the Output's default mode
+/// became shadowed, so a v2 Output without a mode keeps v2's default, `sh_irradiance`.
+fn migrate_v2(mut project: Project) -> Project {
+    for node in &mut project.nodes {
+        match node.kind.as_str() {
+            "Scene" => {
+                node.params.remove("transport");
+            }
+            "Output" => {
+                node.params.entry("mode".into()).or_insert_with(|| ParamValue::Choice("sh_irradiance".into()));
+            }
+            _ => {}
+        }
+    }
+    project.version = CURRENT_VERSION;
+    project
+}
+
 /// Version 1: the first prototype's format (positions as `pos`, links as `"a.port -> b.port"`
 /// strings, a single `camera`).
 mod v1 {
@@ -425,7 +450,8 @@ mod v1 {
     }
 }
 
-/// The built-in default project: procedural sky, a sphere and a torus on a floor.
+/// The built-in default project: procedural sky, a sphere and a torus on a floor with a
+/// visibility texture, in the all-frequency per-pixel mode (sharp sun shadows).
 pub fn default_project() -> Project {
     let node = |id: &str, kind: &str, x: f32, y: f32| ProjectNode {
         id: id.into(),
@@ -450,7 +476,10 @@ pub fn default_project() -> Project {
             node("sky", "EnvironmentMap", 0.0, 0.0),
             node("scene", "Scene", 0.0, 200.0),
             node("material", "BrdfEditor", 0.0, 400.0),
-            node("output", "Output", 320.0, 150.0),
+            ProjectNode {
+                params: BTreeMap::from([("mode".into(), ParamValue::Choice("wavelet_pixel".into()))]),
+                ..node("output", "Output", 320.0, 150.0)
+            },
         ],
         links: vec![
             link("sky", "environment", "output", "environment"),

@@ -6,7 +6,7 @@ use crate::capture::{CapturedFrame, read_texture};
 use crate::{GpuContext, RenderError};
 use glam::{Mat4, Vec3};
 use lightloom_nodes::engine::{Key, StageValue};
-use lightloom_nodes::kinds::output::{FrameInputs, MAX_LIGHTS, MAX_MATERIALS};
+use lightloom_nodes::kinds::output::{FrameInputs, MAX_LIGHTS, MAX_MATERIALS, Tonemap};
 use lightloom_nodes::project::Camera;
 use lightloom_nodes::sh::ShRgb;
 use lightloom_nodes::single_scattering::{EnvironmentFog, Phase};
@@ -494,7 +494,7 @@ impl ViewportRenderer {
             }
         }
         ctx.queue.submit(Some(encoder.finish()));
-        self.tone_map(ctx, frame.settings.exposure, &frame.settings.tonemap);
+        self.tone_map(ctx, frame.settings.exposure, frame.settings.tonemap);
         Ok(())
     }
 
@@ -506,7 +506,7 @@ impl ViewportRenderer {
         pixels: &[[f32; 3]],
         (width, height): (u32, u32),
         exposure: f64,
-        tonemap: &str,
+        tonemap: Tonemap,
     ) -> Result<(), RenderError> {
         if pixels.len() != width as usize * height as usize || width == 0 || height == 0 {
             return Err(RenderError::Invalid(format!("{} pixels do not make a {width}x{height} image", pixels.len())));
@@ -530,12 +530,12 @@ impl ViewportRenderer {
     }
 
     /// Tone-maps the HDR target into the LDR target.
-    fn tone_map(&self, ctx: &GpuContext, exposure: f64, tonemap: &str) {
+    fn tone_map(&self, ctx: &GpuContext, exposure: f64, tonemap: Tonemap) {
         let Some(targets) = self.targets.as_ref() else { return };
         let tonemap = match tonemap {
-            "aces" => 0.0,
-            "reinhard" => 1.0,
-            _ => 2.0,
+            Tonemap::Aces => 0.0,
+            Tonemap::Reinhard => 1.0,
+            Tonemap::Linear => 2.0,
         };
         ctx.queue.write_buffer(
             &self.tone_params,
@@ -956,7 +956,7 @@ impl ViewportRenderer {
             }
             // The wavelet modes cannot convolve their all-frequency light: fog.wgsl adds the
             // scattered environment's irradiance to them.
-            params.counts[3] = f32::from(u8::from(frame.settings.mode.starts_with("wavelet")));
+            params.counts[3] = f32::from(u8::from(frame.mode.is_wavelet()));
         }
         params.counts[0] = frame.lights.len().min(MAX_LIGHTS) as f32;
         for (i, l) in frame.lights.iter().take(MAX_LIGHTS).enumerate() {

@@ -2,7 +2,7 @@
 //! stale evaluation when a newer graph arrives) and Monte Carlo reference renders. The UI
 //! polls them each frame and shows progress; both can be cancelled.
 
-use lightloom_nodes::engine::{CancelToken, Engine, EvalEvent, Evaluation, Graph, Scheduler, StageStatus};
+use lightloom_nodes::engine::{CancelToken, Engine, EvalEvent, Evaluation, Graph, Request, Scheduler, StageStatus};
 use lightloom_nodes::kinds::output::FrameInputs;
 use lightloom_nodes::reference::{HdrImage, PinholeCamera};
 use std::collections::HashMap;
@@ -26,8 +26,28 @@ pub struct Progress {
     pub started: Instant,
     pub total: usize,
     pub done: usize,
-    /// Stages running now with their progress.
-    pub running: Vec<(String, String, f32)>,
+    /// Stages running now: node, stage, fraction done, when it started.
+    pub running: Vec<(String, String, f32, Instant)>,
+}
+
+impl Progress {
+    /// The running stages as "node.stage 43% (about 12 s left)".
+    pub fn describe(&self) -> String {
+        let parts: Vec<String> = self
+            .running
+            .iter()
+            .map(|(n, s, f, started)| {
+                let elapsed = started.elapsed().as_secs_f64();
+                let f = f64::from(*f);
+                if f > 0.02 && elapsed > 0.5 {
+                    format!("{n}.{s} {:.0}% (about {:.0} s left)", f * 100.0, elapsed * (1.0 - f) / f)
+                } else {
+                    format!("{n}.{s} {:.0}%", f * 100.0)
+                }
+            })
+            .collect();
+        parts.join(", ")
+    }
 }
 
 /// Background evaluation of the document's graph.
@@ -59,12 +79,13 @@ impl Evaluator {
         }
     }
 
-    pub fn submit(&mut self, graph: Graph, revision: u64) {
+    /// Evaluates what `request` needs (the Output's mode and view, previews on screen).
+    pub fn submit(&mut self, graph: Graph, request: Request, revision: u64) {
         for n in &graph.nodes {
             self.status.insert(n.id.clone(), NodeStatus::Dirty);
         }
         self.status.retain(|id, _| graph.node(id).is_some());
-        self.scheduler.submit(&self.engine, graph.clone());
+        self.scheduler.submit_request(&self.engine, graph.clone(), request);
         self.submitted_revision = revision;
         self.cancelled_revision = None;
         self.progress = Some(Progress { started: Instant::now(), total: 0, done: 0, running: Vec::new() });
@@ -91,7 +112,7 @@ impl Evaluator {
                     EvalEvent::Started { stages } => progress.total = stages,
                     EvalEvent::StageStarted { node, stage } => {
                         self.status.insert(node.clone(), NodeStatus::Running(stage.clone(), 0.0));
-                        progress.running.push((node, stage, 0.0));
+                        progress.running.push((node, stage, 0.0, Instant::now()));
                     }
                     EvalEvent::StageProgress { node, stage, fraction } => {
                         self.status.insert(node.clone(), NodeStatus::Running(stage.clone(), fraction as f32));
@@ -111,8 +132,16 @@ impl Evaluator {
                             self.status.insert(node, s);
                         }
                     }
-                    EvalEvent::Finished => {}
+                    EvalEvent::TierReady { .. } | EvalEvent::Finished => {}
                 }
+            }
+            // A finished tier (an unshadowed preview while transport computes) is shown at once.
+            if let Some((_, partial)) = job.take_partial()
+                && let Some(graph) = self.pending_graph.clone()
+            {
+                let partial = Arc::new(partial);
+                self.last = Some((partial.clone(), graph));
+                return Some(partial);
             }
         }
         let evaluation = self.scheduler.poll()?;

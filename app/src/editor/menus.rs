@@ -161,13 +161,11 @@ impl EditorApp {
         ui.horizontal(|ui| {
             if let Some(p) = &self.evaluator.progress {
                 let fraction = if p.total > 0 { p.done as f32 / p.total as f32 } else { 0.0 };
-                let running: Vec<String> =
-                    p.running.iter().map(|(n, s, f)| format!("{n}.{s} {:.0}%", f * 100.0)).collect();
                 ui.add(egui::ProgressBar::new(fraction).desired_width(260.0).text(format!(
                     "evaluating {}/{} {}",
                     p.done,
                     p.total,
-                    running.join(", ")
+                    p.describe()
                 )));
                 ui.label(format!("{:.1} s", p.started.elapsed().as_secs_f64()));
                 if ui.button("Cancel").clicked() {

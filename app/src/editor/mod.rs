@@ -26,7 +26,7 @@ use graph_editor::{GraphAction, GraphEditor, PendingLink};
 use jobs::{Evaluator, NodeStatus, ReferenceJob};
 use lightloom_nodes::engine::{Engine, EngineConfig, Evaluation};
 use lightloom_nodes::graph::ParamValue;
-use lightloom_nodes::kinds::output::{FrameInputs, find_output};
+use lightloom_nodes::kinds::output::{FrameInputs, Tonemap, View, find_output};
 use lightloom_nodes::project::{Project, default_project};
 use lightloom_nodes::reference::{self, HdrImage, ImageError};
 use orbit::OrbitCamera;
@@ -489,7 +489,8 @@ impl EditorApp {
             Ok(graph) => {
                 self.graph_errors.clear();
                 self.built_graph = Some(graph.clone());
-                self.evaluator.submit(graph, self.doc.revision());
+                let request = self.evaluation_request(&graph);
+                self.evaluator.submit(graph, request, self.doc.revision());
             }
             Err(errors) => {
                 self.built_graph = None;
@@ -501,6 +502,30 @@ impl EditorApp {
                 }
             }
         }
+    }
+
+    /// What the editor needs evaluated: the Output's mode and view (with the BVH for picking),
+    /// then the previews of nodes that show one.
+    fn evaluation_request(&self, graph: &lightloom_nodes::engine::Graph) -> lightloom_nodes::engine::Request {
+        let output = if self.doc.project.render.output.is_empty() {
+            None
+        } else {
+            Some(self.doc.project.render.output.as_str())
+        };
+        let request = match find_output(graph, output) {
+            Ok(o) => lightloom_nodes::kinds::output::frame_request(graph, &o.id, true),
+            Err(_) => lightloom_nodes::engine::Request::default(),
+        };
+        let previews: Vec<_> = graph
+            .nodes
+            .iter()
+            .flat_map(|n| {
+                previews::preview_stages(n.kind.name)
+                    .iter()
+                    .map(|s| lightloom_nodes::engine::StageRef::new(n.id.clone(), *s))
+            })
+            .collect();
+        request.with_first("node previews", previews)
     }
 
     fn poll_jobs(&mut self, ctx: &egui::Context) {

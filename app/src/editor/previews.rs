@@ -9,7 +9,17 @@ use std::collections::HashMap;
 
 /// Kinds that show a preview.
 pub fn has_preview(kind: &str) -> bool {
-    matches!(kind, "EnvironmentMap" | "BrdfEditor" | "FogMedium")
+    !preview_stages(kind).is_empty()
+}
+
+/// The stages a kind's preview reads (requested from the engine while the preview shows).
+pub fn preview_stages(kind: &str) -> &'static [&'static str] {
+    match kind {
+        "EnvironmentMap" => &["rotated_radiance", "sh"],
+        "BrdfEditor" => &["preview"],
+        "FogMedium" => &["medium", "f_tables"],
+        _ => &[],
+    }
 }
 
 #[derive(Default)]

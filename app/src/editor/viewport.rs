@@ -5,7 +5,7 @@
 
 use eframe::egui;
 use eframe::egui_wgpu;
-use lightloom_nodes::kinds::output::FrameInputs;
+use lightloom_nodes::kinds::output::{FrameInputs, Tonemap};
 use lightloom_render::{CameraView, GpuContext, ViewportRenderer};
 use std::sync::Arc;
 use std::time::Instant;
@@ -73,7 +73,7 @@ impl ViewportHost {
         pixels: &[[f32; 3]],
         size: (u32, u32),
         exposure: f64,
-        tonemap: &str,
+        tonemap: Tonemap,
     ) -> Result<(), String> {
         self.renderer.present(&self.gpu, pixels, size, exposure, tonemap).map_err(|e| e.to_string())?;
         self.size = size;

@@ -44,6 +44,18 @@ impl EditorApp {
                 Color32::LIGHT_GRAY,
             );
         }
+        if let Some(pending) = self.view.frame.as_ref().and_then(|f| f.pending.clone()) {
+            let progress = self.evaluator.progress.as_ref().map(|p| p.describe()).unwrap_or_default();
+            let text = if progress.is_empty() { pending } else { format!("{pending}\n{progress}") };
+            let galley = painter.layout_no_wrap(text, egui::FontId::proportional(13.0), Color32::WHITE);
+            let at = egui::pos2(rect.left() + 8.0, rect.bottom() - 8.0 - galley.size().y);
+            painter.rect_filled(
+                egui::Rect::from_min_size(at, galley.size()).expand(4.0),
+                3.0,
+                Color32::from_black_alpha(160),
+            );
+            painter.galley(at, galley, Color32::WHITE);
+        }
         if let Some(error) = &self.view.error {
             painter.text(
                 rect.left_top() + egui::vec2(8.0, 8.0),
@@ -267,7 +279,7 @@ impl EditorApp {
         format!("{camera:?}").hash(&mut h);
         size.hash(&mut h);
         let signature = h.finish();
-        if settings.view == "approximation" {
+        if settings.view == View::Approximation {
             if let Some(job) = self.view.reference.take() {
                 job.cancel();
             }
@@ -319,13 +331,13 @@ impl EditorApp {
         };
         let mask = reference.surface_mask();
         self.view.error = reference::compare(&approximation, &reference.pixels, Some(&mask)).ok();
-        let result = if settings.view == "reference" {
-            host.present(ctx, &reference.pixels, size, settings.exposure, &settings.tonemap)
+        let result = if settings.view == View::Reference {
+            host.present(ctx, &reference.pixels, size, settings.exposure, settings.tonemap)
         } else {
             let mean = reference.pixels.iter().map(|p| (p[0] + p[1] + p[2]) as f64 / 3.0).sum::<f64>()
                 / reference.pixels.len().max(1) as f64;
             let map = reference::error_heat_map(&approximation, &reference.pixels, Some(&mask), (mean * 0.5).max(1e-6));
-            host.present(ctx, &map, size, 0.0, "linear")
+            host.present(ctx, &map, size, 0.0, Tonemap::Linear)
         };
         if let Err(e) = result {
             self.view.frame_error = Some(e);

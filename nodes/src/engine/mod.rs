@@ -164,11 +164,109 @@ impl CancelToken {
 /// Progress events, sent while an evaluation runs.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub enum EvalEvent {
-    Started { stages: usize },
-    StageStarted { node: String, stage: String },
-    StageProgress { node: String, stage: String, fraction: f64 },
-    StageFinished { node: String, stage: String, status: StageStatus, ms: f64 },
+    Started {
+        stages: usize,
+    },
+    StageStarted {
+        node: String,
+        stage: String,
+    },
+    StageProgress {
+        node: String,
+        stage: String,
+        fraction: f64,
+    },
+    StageFinished {
+        node: String,
+        stage: String,
+        status: StageStatus,
+        ms: f64,
+    },
+    /// Every stage of request tier `tier` is done; [`EvalJob::take_partial`] holds its results.
+    TierReady {
+        tier: usize,
+        label: String,
+    },
     Finished,
+}
+
+/// A stage of a node, named by node id and stage name.
+#[derive(Clone, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct StageRef {
+    pub node: String,
+    pub stage: String,
+}
+
+impl StageRef {
+    pub fn new(node: impl Into<String>, stage: impl Into<String>) -> Self {
+        Self { node: node.into(), stage: stage.into() }
+    }
+}
+
+impl std::fmt::Display for StageRef {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}.{}", self.node, self.stage)
+    }
+}
+
+/// One tier of a [`Request`]: stages wanted together, with what they are for.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Tier {
+    /// What the tier is for ("preview: unshadowed", "output `output`: mode sh_prt"), shown in
+    /// reports.
+    pub label: String,
+    pub stages: Vec<StageRef>,
+}
+
+/// What an evaluation must produce. Only the requested stages and what they read run; the
+/// rest are reported as not needed. Tiers run in order: every stage a tier needs finishes
+/// before the next tier starts, so a cheap first tier (an unshadowed preview) is ready while
+/// expensive work (shadowed transport) is still computing.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Request {
+    pub tiers: Vec<Tier>,
+}
+
+impl Request {
+    /// Every stage of every node (tests, benchmarks, `lightloom eval --all`).
+    pub fn everything(graph: &Graph) -> Self {
+        let stages = graph
+            .nodes
+            .iter()
+            .flat_map(|n| n.kind.stages.iter().map(|s| StageRef::new(n.id.clone(), s.name)))
+            .collect();
+        Self { tiers: vec![Tier { label: "every stage".into(), stages }] }
+    }
+
+    pub fn new(label: impl Into<String>, stages: Vec<StageRef>) -> Self {
+        Self { tiers: vec![Tier { label: label.into(), stages }] }
+    }
+
+    /// Adds a tier that runs after the ones before it.
+    pub fn then(mut self, label: impl Into<String>, stages: Vec<StageRef>) -> Self {
+        self.tiers.push(Tier { label: label.into(), stages });
+        self
+    }
+
+    /// Adds stages to the first tier (creating it if needed).
+    pub fn with_first(mut self, label: &str, stages: Vec<StageRef>) -> Self {
+        if stages.is_empty() {
+            return self;
+        }
+        match self.tiers.first_mut() {
+            Some(first) => {
+                first.label = format!("{}; {label}", first.label);
+                first.stages.extend(stages);
+            }
+            None => self.tiers.push(Tier { label: label.into(), stages }),
+        }
+        self
+    }
+
+    /// What every tier is for, in order.
+    pub fn describe(&self) -> String {
+        self.tiers.iter().map(|t| t.label.as_str()).collect::<Vec<_>>().join("; ")
+    }
 }
 
 /// What a stage's computation sees: only what it declared it reads.
@@ -271,6 +369,11 @@ impl StageContext<'_> {
         }
     }
 
+    /// A `Choice` parameter as its Rust enum (see [`crate::choice_enum`]).
+    pub fn option<T: std::str::FromStr<Err = String>>(&self, name: &str) -> Result<T, StageError> {
+        self.choice(name)?.parse().map_err(|e| StageError::Internal(format!("parameter `{name}`: {e}")))
+    }
+
     /// A path parameter resolved against the project directory (`None` when empty).
     pub fn path(&self, name: &str) -> Result<Option<PathBuf>, StageError> {
         match self.param(name)? {
@@ -329,6 +432,8 @@ pub enum StageStatus {
     /// Not run because a stage it reads failed.
     Blocked,
     Cancelled,
+    /// Not run: no requested output reads it (the reasons say what was requested).
+    NotNeeded,
 }
 
 /// One line of the evaluation report.
@@ -491,53 +596,113 @@ impl Engine {
 
     /// Evaluates every stage of `graph` (blocking; stages run in parallel on the rayon pool).
     pub fn evaluate(&self, graph: &Graph, cancel: &CancelToken, events: Option<&Sender<EvalEvent>>) -> Evaluation {
+        self.evaluate_request(graph, &Request::everything(graph), cancel, events, &|_, _| {})
+    }
+
+    /// Evaluates what `request` needs, tier by tier (blocking). After each tier but the last,
+    /// `on_tier` gets the evaluation so far (every stage that tier needs is in it).
+    pub fn evaluate_request(
+        &self,
+        graph: &Graph,
+        request: &Request,
+        cancel: &CancelToken,
+        events: Option<&Sender<EvalEvent>>,
+        on_tier: &dyn Fn(usize, Evaluation),
+    ) -> Evaluation {
         let start = Instant::now();
         let instances = self.schedule(graph);
+        let mut notes = Vec::new();
+        let tier_of = needed_tiers(graph, &instances, request, &mut notes);
         if let Some(tx) = events {
-            let _ = tx.send(EvalEvent::Started { stages: instances.len() });
+            let _ = tx.send(EvalEvent::Started { stages: tier_of.iter().flatten().count() });
         }
         let mut results: Vec<Option<Outcome>> = (0..instances.len()).map(|_| None).collect();
-        let mut notes = Vec::new();
-        // Waves: every instance whose dependencies are done.
-        loop {
-            let ready: Vec<usize> = (0..instances.len())
-                .filter(|&i| results[i].is_none() && instances[i].deps.iter().all(|(d, _)| results[*d].is_some()))
-                .collect();
-            if ready.is_empty() {
-                break;
-            }
-            // Cache hits resolve inline; only real work goes to the thread pool.
-            let (cached, work): (Vec<usize>, Vec<usize>) = {
-                let memory = self.memory.lock().unwrap();
-                ready.iter().partition(|&&i| memory.contains(instances[i].key))
-            };
-            let mut done: Vec<(usize, _)> = cached
-                .iter()
-                .map(|&i| (i, self.run_instance(graph, &instances, i, &results, cancel, events)))
-                .collect();
-            if work.len() == 1 {
-                done.push((work[0], self.run_instance(graph, &instances, work[0], &results, cancel, events)));
-            } else {
-                use rayon::prelude::*;
-                done.par_extend(
-                    work.par_iter().map(|&i| (i, self.run_instance(graph, &instances, i, &results, cancel, events))),
-                );
-            }
-            for (i, (outcome, note)) in done {
-                if let Some(n) = note {
-                    notes.push(n);
+        for (tier, spec) in request.tiers.iter().enumerate() {
+            // Waves: every instance of this tier (or an earlier one) whose dependencies are done.
+            loop {
+                let ready: Vec<usize> = (0..instances.len())
+                    .filter(|&i| {
+                        results[i].is_none()
+                            && tier_of[i].is_some_and(|t| t <= tier)
+                            && instances[i].deps.iter().all(|(d, _)| results[*d].is_some())
+                    })
+                    .collect();
+                if ready.is_empty() {
+                    break;
                 }
-                results[i] = Some(outcome);
+                // Cache hits resolve inline; only real work goes to the thread pool.
+                let (cached, work): (Vec<usize>, Vec<usize>) = {
+                    let memory = self.memory.lock().unwrap();
+                    ready.iter().partition(|&&i| memory.contains(instances[i].key))
+                };
+                let mut done: Vec<(usize, _)> = cached
+                    .iter()
+                    .map(|&i| (i, self.run_instance(graph, &instances, i, &results, cancel, events)))
+                    .collect();
+                if work.len() == 1 {
+                    done.push((work[0], self.run_instance(graph, &instances, work[0], &results, cancel, events)));
+                } else {
+                    use rayon::prelude::*;
+                    done.par_extend(
+                        work.par_iter()
+                            .map(|&i| (i, self.run_instance(graph, &instances, i, &results, cancel, events))),
+                    );
+                }
+                for (i, (outcome, note)) in done {
+                    if let Some(n) = note {
+                        notes.push(n);
+                    }
+                    results[i] = Some(outcome);
+                }
+            }
+            if tier + 1 < request.tiers.len() && !cancel.is_cancelled() {
+                on_tier(tier, self.assemble(&instances, &results, None, notes.clone(), start, false));
+                if let Some(tx) = events {
+                    let _ = tx.send(EvalEvent::TierReady { tier, label: spec.label.clone() });
+                }
             }
         }
+        let evaluation = self.assemble(&instances, &results, Some(request), notes, start, true);
+        if let Some(tx) = events {
+            let _ = tx.send(EvalEvent::Finished);
+        }
+        evaluation
+    }
+
+    /// The evaluation of the finished instances. With `request`, stages it did not need are
+    /// reported as such; `commit` records keys for the next evaluation's "why" reasons.
+    fn assemble(
+        &self,
+        instances: &[Instance],
+        results: &[Option<Outcome>],
+        request: Option<&Request>,
+        mut notes: Vec<String>,
+        start: Instant,
+        commit: bool,
+    ) -> Evaluation {
         let mut last = self.last.lock().unwrap();
         let mut report = Report { stages: Vec::with_capacity(instances.len()), ..Default::default() };
         let mut out = Vec::with_capacity(instances.len());
         let mut index = HashMap::with_capacity_and_hasher(instances.len(), Default::default());
         for (inst, result) in instances.iter().zip(results) {
-            let (value, status, ms, reasons) = result.expect("every instance ran");
+            let Some((value, status, ms, reasons)) = result.clone() else {
+                if let Some(request) = request {
+                    report.stages.push(StageReport {
+                        node: inst.node.id.clone(),
+                        kind: Cow::Borrowed(inst.node.kind.name),
+                        stage: Cow::Borrowed(inst.spec.name),
+                        key: inst.key,
+                        status: StageStatus::NotNeeded,
+                        reasons: vec![format!("not read by what was requested ({})", request.describe())],
+                        ms: 0.0,
+                        error: None,
+                        warnings: Vec::new(),
+                    });
+                }
+                continue;
+            };
             let slot = stage_slot(&inst.node.id, inst.spec.name);
-            if value.is_ok() && last.get(&slot).is_none_or(|r| r.key != inst.key) {
+            if commit && value.is_ok() && last.get(&slot).is_none_or(|r| r.key != inst.key) {
                 last.insert(slot, StageRecord { key: inst.key, components: inst.components.clone() });
             }
             let warnings = if value.is_ok() {
@@ -563,9 +728,6 @@ impl Engine {
         report.total_ms = start.elapsed().as_secs_f64() * 1e3;
         report.memory_cache_bytes = self.memory.lock().unwrap().used_bytes();
         report.notes = notes;
-        if let Some(tx) = events {
-            let _ = tx.send(EvalEvent::Finished);
-        }
         Evaluation { results: out, index, report }
     }
 
@@ -783,17 +945,29 @@ impl Engine {
         }
     }
 
-    /// Runs [`Engine::evaluate`] on a background thread.
+    /// Runs [`Engine::evaluate`] (every stage) on a background thread.
     pub fn spawn(self: &Arc<Self>, graph: Graph) -> EvalJob {
+        let request = Request::everything(&graph);
+        self.spawn_request(graph, request)
+    }
+
+    /// Runs [`Engine::evaluate_request`] on a background thread; the evaluation after each
+    /// tier but the last is kept for [`EvalJob::take_partial`].
+    pub fn spawn_request(self: &Arc<Self>, graph: Graph, request: Request) -> EvalJob {
         let cancel = CancelToken::default();
         let (tx, rx) = std::sync::mpsc::channel();
         let engine = Arc::clone(self);
         let token = cancel.clone();
+        let partial: Arc<Mutex<Option<(usize, Evaluation)>>> = Arc::default();
+        let slot = partial.clone();
         let handle = std::thread::Builder::new()
             .name("lightloom-eval".into())
-            .spawn(move || engine.evaluate(&graph, &token, Some(&tx)))
+            .spawn(move || {
+                let keep = |tier: usize, evaluation: Evaluation| *slot.lock().unwrap() = Some((tier, evaluation));
+                engine.evaluate_request(&graph, &request, &token, Some(&tx), &keep)
+            })
             .expect("spawn evaluation thread");
-        EvalJob { cancel, events: rx, handle: Some(handle) }
+        EvalJob { cancel, events: rx, handle: Some(handle), partial }
     }
 }
 
@@ -802,6 +976,7 @@ pub struct EvalJob {
     cancel: CancelToken,
     pub events: std::sync::mpsc::Receiver<EvalEvent>,
     handle: Option<std::thread::JoinHandle<Evaluation>>,
+    partial: Arc<Mutex<Option<(usize, Evaluation)>>>,
 }
 
 impl EvalJob {
@@ -813,6 +988,11 @@ impl EvalJob {
 
     pub fn is_finished(&self) -> bool {
         self.handle.as_ref().is_none_or(|h| h.is_finished())
+    }
+
+    /// The evaluation after the latest finished tier (not the last), once.
+    pub fn take_partial(&self) -> Option<(usize, Evaluation)> {
+        self.partial.lock().unwrap().take()
     }
 
     /// Waits for the result.
@@ -829,12 +1009,17 @@ pub struct Scheduler {
 
 impl Scheduler {
     pub fn submit(&mut self, engine: &Arc<Engine>, graph: Graph) {
+        let request = Request::everything(&graph);
+        self.submit_request(engine, graph, request);
+    }
+
+    pub fn submit_request(&mut self, engine: &Arc<Engine>, graph: Graph, request: Request) {
         if let Some(old) = self.current.take() {
             old.cancel();
             // Let it wind down on its own thread; its results are discarded.
             std::thread::spawn(move || drop(old.wait()));
         }
-        self.current = Some(engine.spawn(graph));
+        self.current = Some(engine.spawn_request(graph, request));
     }
 
     /// The finished evaluation, if the current one is done.
@@ -848,6 +1033,39 @@ impl Scheduler {
     pub fn current(&self) -> Option<&EvalJob> {
         self.current.as_ref()
     }
+}
+
+/// For each instance, the first request tier that needs it (directly or through what it
+/// reads), or `None` when nothing requested reads it. Unknown stages become notes.
+fn needed_tiers(
+    graph: &Graph,
+    instances: &[Instance],
+    request: &Request,
+    notes: &mut Vec<String>,
+) -> Vec<Option<usize>> {
+    let index: HashMap<(&str, &str), usize> =
+        instances.iter().enumerate().map(|(i, inst)| ((inst.node.id.as_str(), inst.spec.name), i)).collect();
+    let mut tier_of: Vec<Option<usize>> = vec![None; instances.len()];
+    for (tier, spec) in request.tiers.iter().enumerate() {
+        let mut stack: Vec<usize> = Vec::new();
+        for target in &spec.stages {
+            match index.get(&(target.node.as_str(), target.stage.as_str())) {
+                Some(&i) => stack.push(i),
+                None if graph.node(&target.node).is_none() => {
+                    notes.push(format!("requested stage {target}: there is no node `{}`", target.node))
+                }
+                None => notes.push(format!("requested stage {target}: the node has no such stage")),
+            }
+        }
+        while let Some(i) = stack.pop() {
+            if tier_of[i].is_some() {
+                continue;
+            }
+            tier_of[i] = Some(tier);
+            stack.extend(instances[i].deps.iter().map(|(d, _)| *d));
+        }
+    }
+    tier_of
 }
 
 /// External files a `.gltf` refers to (buffers and images by relative URI), so editing a `.bin`

@@ -66,21 +66,6 @@ fn each_parameter_recomputes_exactly_its_stages() {
         ("scene", "objects", Objects(crate::kinds::scene::default_objects()[..2].to_vec()), with_lighting(SCENE_ALL)),
         (
             "scene",
-            "transport",
-            Choice("sh".into()),
-            vec![
-                "scene.transport_sh",
-                "scene.transport_objects",
-                "scene.transport_haar",
-                "scene.transport_local",
-                "scene.transport_texels",
-                "output.incident_sh",
-                "output.local_products",
-                "output.texel_irradiance",
-            ],
-        ),
-        (
-            "scene",
             "visibility_texture_size",
             Choice("16".into()),
             vec!["scene.texel_receivers", "scene.transport_texels", "output.texel_irradiance"],
@@ -153,18 +138,16 @@ fn each_parameter_recomputes_exactly_its_stages() {
             Float(0.5),
             vec!["material.material", "material.preview", "material.sh_lobe", "material.local_table"],
         ),
-        ("output", "mode", Choice("sh_irradiance".into()), vec![]),
+        // Setting the current value (the default project's shadowed mode) recomputes nothing.
+        ("output", "mode", Choice("wavelet_pixel".into()), vec![]),
         ("output", "exposure", Float(-1.0), vec!["output.settings"]),
         ("output", "tonemap", Choice("reinhard".into()), vec!["output.settings"]),
         ("output", "background", Bool(false), vec!["output.settings"]),
         ("output", "view", Choice("error".into()), vec!["output.settings"]),
         ("output", "reference_samples", Int(16), vec!["output.settings"]),
-        (
-            "output",
-            "mode",
-            Choice("sh_prt".into()),
-            vec!["output.settings", "output.incident_sh", "output.local_products", "output.texel_irradiance"],
-        ),
+        // The lighting products no longer read the mode: they are pulled by the modes that
+        // draw them, so switching modes recomputes only the settings.
+        ("output", "mode", Choice("sh_irradiance".into()), vec!["output.settings"]),
         ("output", "wavelet_terms", Choice("80".into()), vec!["output.local_products", "output.texel_irradiance"]),
         (
             "material",
@@ -685,7 +668,6 @@ fn scene_transport_stages_cover_every_receiver_and_follow_transforms() {
     ];
     graph.set_param("scene", "objects", ParamValue::Objects(objects.clone())).unwrap();
     graph.set_param("scene", "tessellation", ParamValue::Int(8)).unwrap();
-    graph.set_param("scene", "transport", ParamValue::Choice("sh_and_wavelets".into())).unwrap();
     graph.set_param("scene", "transport_rays", ParamValue::Int(64)).unwrap();
     graph.set_param("scene", "haar_resolution", ParamValue::Choice("4".into())).unwrap();
     let eval = engine.evaluate(&graph, &CancelToken::default(), None);
@@ -740,7 +722,6 @@ fn moving_a_rigid_object_reuses_every_per_object_transport() {
     ];
     graph.set_param("scene", "objects", ParamValue::Objects(objects.clone())).unwrap();
     graph.set_param("scene", "tessellation", ParamValue::Int(12)).unwrap();
-    graph.set_param("scene", "transport", ParamValue::Choice("sh".into())).unwrap();
     graph.set_param("scene", "transport_rays", ParamValue::Int(128)).unwrap();
     let stage = |eval: &Evaluation| eval.report.stages.iter().find(|s| s.stage == "transport_objects").unwrap().clone();
     let first = engine.evaluate(&graph, &CancelToken::default(), None);
@@ -785,7 +766,6 @@ fn a_gltf_file_is_one_object_with_its_own_transport() {
     let mut graph = default_graph();
     graph.set_param("scene", "objects", ParamValue::Objects(Vec::new())).unwrap();
     graph.set_param("scene", "file", ParamValue::Path(file.display().to_string())).unwrap();
-    graph.set_param("scene", "transport", ParamValue::Choice("sh".into())).unwrap();
     graph.set_param("scene", "transport_rays", ParamValue::Int(1024)).unwrap();
     let eval = engine.evaluate(&graph, &CancelToken::default(), None);
     assert!(eval.report.failed().is_empty(), "{:?}", eval.report.failed());
@@ -865,4 +845,164 @@ fn repairs_are_reported_as_stage_warnings_even_on_cache_hits() {
         assert!(eval.report.notes.iter().any(|n| n.starts_with("sky.source: ")), "{:?}", eval.report.notes);
     }
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+// ---- demand-driven evaluation ----------------------------------------------------------
+
+/// The default graph, cheap enough to evaluate every mode in a test.
+fn small_default_graph() -> Graph {
+    let mut graph = default_graph();
+    graph.set_param("scene", "tessellation", ParamValue::Int(12)).unwrap();
+    graph.set_param("scene", "transport_rays", ParamValue::Int(32)).unwrap();
+    graph.set_param("scene", "local_frame_depth", ParamValue::Int(2)).unwrap();
+    graph.set_param("scene", "visibility_texture_size", ParamValue::Choice("16".into())).unwrap();
+    graph
+}
+
+fn evaluated(report: &Report) -> BTreeSet<String> {
+    report
+        .stages
+        .iter()
+        .filter(|s| s.status != StageStatus::NotNeeded)
+        .map(|s| format!("{}.{}", s.node, s.stage))
+        .collect()
+}
+
+#[test]
+fn each_mode_and_view_evaluates_exactly_the_stages_it_reads() {
+    use crate::kinds::output::frame_request;
+    // Written from what each mode draws, not derived from the stage declarations.
+    const UNSHADOWED: &[&str] = &[
+        "output.settings",
+        "scene.geometry",
+        "sky.source",
+        "sky.radiance",
+        "sky.sh_unrotated",
+        "sky.sh",
+        "sky.rotated_radiance",
+        "material.material",
+    ];
+    let with = |extra: &[&'static str]| -> Vec<&'static str> { [UNSHADOWED, extra].concat() };
+    let wavelet_vertex = with(&[
+        "scene.receivers",
+        "scene.ray_scene",
+        "scene.transport_local",
+        "sky.rotation",
+        "material.local_table",
+        "output.local_products",
+    ]);
+    let table: Vec<(&str, &str, Vec<&str>)> = vec![
+        ("sh_irradiance", "approximation", UNSHADOWED.to_vec()),
+        (
+            "sh_prt",
+            "approximation",
+            with(&[
+                "scene.receivers",
+                "scene.ray_scene",
+                "scene.transport_sh",
+                "material.sh_lobe",
+                "output.incident_sh",
+            ]),
+        ),
+        ("wavelet_vertex", "approximation", wavelet_vertex.clone()),
+        (
+            "wavelet_pixel",
+            "approximation",
+            [
+                wavelet_vertex.as_slice(),
+                &["scene.texel_receivers", "scene.transport_texels", "output.texel_irradiance"],
+            ]
+            .concat(),
+        ),
+        ("sh_irradiance", "reference", with(&["scene.ray_scene"])),
+        ("sh_irradiance", "error", with(&["scene.ray_scene"])),
+    ];
+    let engine = Engine::in_memory();
+    for (mode, view, expected) in table {
+        let mut graph = small_default_graph();
+        graph.set_param("output", "mode", ParamValue::Choice(mode.into())).unwrap();
+        graph.set_param("output", "view", ParamValue::Choice(view.into())).unwrap();
+        let request = frame_request(&graph, "output", false);
+        let eval = engine.evaluate_request(&graph, &request, &CancelToken::default(), None, &|_, _| {});
+        assert!(eval.report.failed().is_empty(), "{mode}/{view}: {:?}", eval.report.failed());
+        assert_eq!(evaluated(&eval.report), set(&expected), "{mode}/{view}");
+        // Everything else is reported, with why it did not run.
+        for s in eval.report.stages.iter().filter(|s| s.status == StageStatus::NotNeeded) {
+            assert!(s.reasons[0].contains(&format!("mode {mode}")), "{}.{}: {:?}", s.node, s.stage, s.reasons);
+        }
+        assert_eq!(eval.report.stages.len(), 24, "every stage is reported");
+    }
+}
+
+#[test]
+fn edits_the_current_view_does_not_read_schedule_nothing() {
+    use crate::kinds::output::frame_request;
+    use ParamValue::*;
+    let engine = Engine::in_memory();
+    let mut graph = small_default_graph();
+    graph.set_param("output", "mode", Choice("sh_irradiance".into())).unwrap();
+    let run = |graph: &Graph| {
+        let request = frame_request(graph, "output", false);
+        engine.evaluate_request(graph, &request, &CancelToken::default(), None, &|_, _| {})
+    };
+    run(&graph);
+    for (node, param, value) in [
+        ("scene", "transport_rays", Int(64)),
+        ("scene", "transport_bands", Int(4)),
+        ("scene", "haar_terms", Int(64)),
+        ("scene", "local_frame_terms", Int(80)),
+        ("scene", "visibility_texture_size", Choice("32".into())),
+        ("sky", "wavelet_terms", Int(64)),
+        ("output", "wavelet_terms", Choice("80".into())),
+    ] {
+        graph.set_param(node, param, value).unwrap();
+        let eval = run(&graph);
+        assert!(ran(&eval.report).is_empty(), "{node}.{param} ran {:?}", ran(&eval.report));
+    }
+    // Switching the mode pulls only what the new mode lacks: sh_prt's transport and products.
+    graph.set_param("output", "mode", Choice("sh_prt".into())).unwrap();
+    assert_eq!(
+        ran(&run(&graph).report),
+        set(&[
+            "output.settings",
+            "scene.receivers",
+            "scene.ray_scene",
+            "scene.transport_sh",
+            "material.sh_lobe",
+            "output.incident_sh"
+        ])
+    );
+    // And switching back is free: every stage it reads is still in the memory cache.
+    graph.set_param("output", "mode", Choice("sh_irradiance".into())).unwrap();
+    assert!(ran(&run(&graph).report).is_empty());
+}
+
+#[test]
+fn the_first_evaluation_shows_an_unshadowed_frame_before_the_transport_then_a_shadowed_one() {
+    use crate::kinds::output::{FrameInputs, Mode, frame_request};
+    let engine = Arc::new(Engine::in_memory());
+    let graph = default_graph();
+    let request = frame_request(&graph, "output", true);
+    assert_eq!(request.tiers.len(), 2, "a shadowed default mode gets an unshadowed tier first");
+    let job = engine.spawn_request(graph.clone(), request);
+    let mut tiers = Vec::new();
+    for event in job.events.iter() {
+        match event {
+            EvalEvent::TierReady { tier, .. } => tiers.push(tier),
+            EvalEvent::Finished => break,
+            _ => {}
+        }
+    }
+    assert_eq!(tiers, [0]);
+    let (_, partial) = job.take_partial().expect("the preview tier's evaluation");
+    let transport = partial.report.stages.iter().find(|s| s.stage.starts_with("transport_"));
+    assert!(transport.is_none(), "the preview is ready before the transport runs: {transport:?}");
+    let preview = FrameInputs::gather(&partial, &graph, "output").unwrap();
+    assert_eq!((preview.mode, preview.settings.mode), (Mode::ShIrradiance, Mode::WaveletPixel));
+    assert!(preview.pending.as_deref().is_some_and(|p| p.contains("unshadowed")), "{:?}", preview.pending);
+    assert!(preview.local_products.is_none() && preview.texel_irradiance.is_none() && preview.ray_scene.is_some());
+    let done = job.wait();
+    let shadowed = FrameInputs::gather(&done, &graph, "output").unwrap();
+    assert_eq!(shadowed.mode, Mode::WaveletPixel);
+    assert!(shadowed.pending.is_none() && shadowed.local_products.is_some() && shadowed.texel_irradiance.is_some());
 }

@@ -1,28 +1,66 @@
 //! Output node: what the viewport and `lightloom render` draw, and how (relighting mode,
 //! exposure, tone mapping).
 
-use crate::engine::{Evaluation, Graph, Key, StageContext, StageError, StageValue};
-use crate::graph::{Availability, NodeKindSpec, ParamKind, ParamSpec, PortSpec, PortType, StageSpec};
+use crate::engine::{Evaluation, Graph, GraphNode, Key, Request, StageContext, StageError, StageRef, StageValue};
+use crate::graph::{Availability, NodeKindSpec, ParamKind, ParamSpec, ParamValue, PortSpec, PortType, StageSpec};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct OutputSettings {
-    pub mode: String,
+    pub mode: Mode,
     pub exposure: f64,
-    pub tonemap: String,
+    pub tonemap: Tonemap,
     pub background: bool,
     /// What the viewport shows: the approximation, the Monte Carlo reference, or the error map.
-    pub view: String,
+    pub view: View,
     /// Reference samples per pixel.
     pub reference_samples: usize,
 }
 
-/// Relighting modes the renderer implements today.
-pub const MODES: &[&str] = &["sh_irradiance", "sh_prt", "wavelet_vertex", "wavelet_pixel"];
+crate::choice_enum! {
+    /// Relighting modes.
+    pub enum Mode {
+        /// Unshadowed diffuse lighting from the environment's SH, per pixel.
+        ShIrradiance = "sh_irradiance",
+        /// Shadowed SH transfer per vertex, glossy lobes on the shadowed incident radiance.
+        ShPrt = "sh_prt",
+        /// All-frequency local-frame triple product per vertex.
+        WaveletVertex = "wavelet_vertex",
+        /// The same, per pixel on objects with a visibility texture.
+        WaveletPixel = "wavelet_pixel",
+    }
+}
+
+impl Mode {
+    pub fn is_wavelet(self) -> bool {
+        matches!(self, Mode::WaveletVertex | Mode::WaveletPixel)
+    }
+
+    /// Whether surfaces are shadowed (needs precomputed visibility transport).
+    pub fn is_shadowed(self) -> bool {
+        self != Mode::ShIrradiance
+    }
+}
+
+crate::choice_enum! {
+    /// What the viewport shows.
+    pub enum View {
+        Approximation = "approximation",
+        Reference = "reference",
+        Error = "error",
+    }
+}
+
+crate::choice_enum! {
+    pub enum Tonemap {
+        Aces = "aces",
+        Reinhard = "reinhard",
+        Linear = "linear",
+    }
+}
+
 pub const WAVELET_TERMS: &[&str] = &["80", "320"];
-pub const TONEMAPS: &[&str] = &["aces", "reinhard", "linear"];
-pub const VIEWS: &[&str] = &["approximation", "reference", "error"];
 
 pub fn spec() -> NodeKindSpec {
     let input = |name, ty, required| PortSpec { name, ty, required, many: false };
@@ -47,13 +85,15 @@ pub fn spec() -> NodeKindSpec {
                 name: "mode",
                 label: "Relighting mode",
                 unit: "",
-                kind: ParamKind::Choice { options: MODES, default: "sh_irradiance" },
+                kind: ParamKind::Choice { options: Mode::NAMES, default: "sh_prt" },
                 doc: "sh_irradiance: unshadowed diffuse lighting from the environment's SH, per pixel (Sun 2008 \
                       eq. 2.20). sh_prt: shadowed diffuse transfer plus glossy lobes on the shadowed incident \
-                      radiance, per vertex (needs Scene transport `sh`). wavelet_vertex: all-frequency triple \
-                      product in each vertex's local frame (Ma et al. eq. 7), 80 or 320 top-only coefficients \
-                      (needs Scene transport `sh_and_wavelets`). wavelet_pixel: the same, per pixel on objects with a \
-                      visibility texture (sharp shadows and reflections on coarse meshes).",
+                      radiance, per vertex. wavelet_vertex: all-frequency triple \
+                      product in each vertex's local frame (Ma et al. eq. 7), 80 or 320 top-only coefficients. \
+                      wavelet_pixel: the same, per pixel on objects with a \
+                      visibility texture (sharp shadows and reflections on coarse meshes). Each mode computes the \
+                      transport it reads when first chosen; until then the view shows the unshadowed SH \
+                      lighting and says so.",
             },
             ParamSpec {
                 name: "wavelet_terms",
@@ -73,7 +113,7 @@ pub fn spec() -> NodeKindSpec {
                 name: "tonemap",
                 label: "Tone mapping",
                 unit: "",
-                kind: ParamKind::Choice { options: TONEMAPS, default: "aces" },
+                kind: ParamKind::Choice { options: Tonemap::NAMES, default: "aces" },
                 doc: "Applied to PNG output and the viewport; EXR output stays linear.",
             },
             ParamSpec {
@@ -87,7 +127,7 @@ pub fn spec() -> NodeKindSpec {
                 name: "view",
                 label: "View",
                 unit: "",
-                kind: ParamKind::Choice { options: VIEWS, default: "approximation" },
+                kind: ParamKind::Choice { options: View::NAMES, default: "approximation" },
                 doc: "approximation: the relighting mode; reference: Monte Carlo ground truth (same scene, BRDF, \
                       environment and camera); error: heat map of |approximation - reference| with its RMSE.",
             },
@@ -111,8 +151,8 @@ pub fn spec() -> NodeKindSpec {
             },
             StageSpec {
                 name: "incident_sh",
-                version: 1,
-                params: &["mode"],
+                version: 2,
+                params: &[],
                 stages: &[],
                 inputs: &[("scene", "transport_sh"), ("environment", "sh")],
                 persist: false,
@@ -120,8 +160,8 @@ pub fn spec() -> NodeKindSpec {
             },
             StageSpec {
                 name: "local_products",
-                version: 1,
-                params: &["mode", "wavelet_terms"],
+                version: 2,
+                params: &["wavelet_terms"],
                 stages: &[],
                 inputs: &[
                     ("scene", "receivers"),
@@ -129,13 +169,13 @@ pub fn spec() -> NodeKindSpec {
                     ("environment", "radiance"),
                     ("environment", "rotation"),
                 ],
-                persist: false,
+                persist: true,
                 compute: local_products,
             },
             StageSpec {
                 name: "texel_irradiance",
-                version: 1,
-                params: &["mode", "wavelet_terms"],
+                version: 2,
+                params: &["wavelet_terms"],
                 stages: &[],
                 inputs: &[
                     ("scene", "geometry"),
@@ -144,7 +184,7 @@ pub fn spec() -> NodeKindSpec {
                     ("environment", "radiance"),
                     ("environment", "rotation"),
                 ],
-                persist: false,
+                persist: true,
                 compute: texel_irradiance,
             },
         ],
@@ -154,41 +194,30 @@ pub fn spec() -> NodeKindSpec {
 
 fn settings(ctx: &StageContext) -> Result<StageValue, StageError> {
     Ok(StageValue::Output(OutputSettings {
-        mode: ctx.choice("mode")?.to_string(),
+        mode: ctx.option("mode")?,
         exposure: ctx.float("exposure")?,
-        tonemap: ctx.choice("tonemap")?.to_string(),
+        tonemap: ctx.option("tonemap")?,
         background: ctx.boolean("background")?,
-        view: ctx.choice("view")?.to_string(),
+        view: ctx.option("view")?,
         reference_samples: ctx.int("reference_samples")? as usize,
     }))
 }
 
-/// Shadowed incident radiance `R = L·V` per receiver for the `sh_prt` mode (empty otherwise).
+/// Shadowed incident radiance `R = L·V` per receiver for the `sh_prt` mode (pulled only by it).
 /// Depends on lighting and transport only: BRDF and camera edits reuse it.
 fn incident_sh(ctx: &StageContext) -> Result<StageValue, StageError> {
-    if ctx.choice("mode")? != "sh_prt" {
-        return Ok(StageValue::IncidentSh(Default::default()));
-    }
     let Some(StageValue::ShTransport(transport)) = ctx.input("scene", "transport_sh") else {
         return Err(StageError::Internal("scene transport input".into()));
     };
-    if transport.visibility.is_empty() {
-        return Err(StageError::Failed(
-            "mode `sh_prt` needs shadowed transport: set the Scene's `transport` to `sh` or `sh_and_wavelets`".into(),
-        ));
-    }
     let Some(StageValue::Sh(light)) = ctx.input("environment", "sh") else {
         return Ok(StageValue::IncidentSh(Default::default()));
     };
     Ok(StageValue::IncidentSh(crate::prt::incident_radiance(light, transport, ctx.cancel_token())?))
 }
 
-/// Per-vertex `P_c = ΔΩ_c L^x_c V^x_c` for the `wavelet_vertex` mode (empty otherwise).
+/// Per-vertex `P_c = ΔΩ_c L^x_c V^x_c` for the wavelet modes (pulled only by them).
 /// Depends on lighting and transport only: BRDF and camera edits reuse it.
 fn local_products(ctx: &StageContext) -> Result<StageValue, StageError> {
-    if !ctx.choice("mode")?.starts_with("wavelet") {
-        return Ok(StageValue::LocalProducts(Default::default()));
-    }
     let terms: usize =
         ctx.choice("wavelet_terms")?.parse().map_err(|_| StageError::Internal("wavelet_terms".into()))?;
     let (Some(StageValue::Receivers(receivers)), Some(StageValue::LocalTransport(transport))) =
@@ -196,12 +225,6 @@ fn local_products(ctx: &StageContext) -> Result<StageValue, StageError> {
     else {
         return Err(StageError::Internal("scene inputs".into()));
     };
-    if transport.visibility.is_empty() && !receivers.is_empty() {
-        return Err(StageError::Failed(
-            "mode `wavelet_vertex` needs local-frame visibility: set the Scene's `transport` to `sh_and_wavelets`"
-                .into(),
-        ));
-    }
     let grid = crate::triple_product::CellGrid::for_coefficients(terms).map_err(StageError::Failed)?;
     let Some((environment, rotation)) = wavelet_lighting(ctx)? else {
         return Ok(StageValue::LocalProducts(Default::default()));
@@ -256,11 +279,8 @@ fn environment_key(cube: &crate::cubemap::CubeMap, cells: usize) -> crate::engin
     xxhash_rust::xxh3::xxh3_128(&bytes)
 }
 
-/// Per-texel diffuse transfer for the `wavelet_pixel` mode (empty otherwise).
+/// Per-texel diffuse transfer for the `wavelet_pixel` mode (pulled only by it).
 fn texel_irradiance(ctx: &StageContext) -> Result<StageValue, StageError> {
-    if ctx.choice("mode")? != "wavelet_pixel" {
-        return Ok(StageValue::TexelIrradiance(Default::default()));
-    }
     let terms: usize =
         ctx.choice("wavelet_terms")?.parse().map_err(|_| StageError::Internal("wavelet_terms".into()))?;
     let (
@@ -297,8 +317,12 @@ pub struct Keyed {
 #[derive(Clone, Debug)]
 pub struct FrameInputs {
     pub meshes: Keyed,
-    /// The scene's BVH (for the reference renderer).
-    pub ray_scene: Keyed,
+    /// The scene's BVH (for the reference renderer and picking), when it was requested.
+    pub ray_scene: Option<Keyed>,
+    /// The mode drawn: the Output's mode, or [`Mode::ShIrradiance`] while that mode's transport
+    /// is still computing (then `pending` says so).
+    pub mode: Mode,
+    pub pending: Option<String>,
     pub sh: Option<Keyed>,
     pub radiance: Option<Keyed>,
     /// `sh_prt` only: the scene's SH transport and the incident radiance per receiver.
@@ -379,6 +403,75 @@ pub fn find_output<'g>(graph: &'g Graph, name: Option<&str>) -> Result<&'g crate
     }
 }
 
+/// The stages a frame of `mode` reads from the Output node `output` and what feeds it.
+pub fn mode_stages(graph: &Graph, output: &str, mode: Mode) -> Vec<StageRef> {
+    let mut stages = vec![StageRef::new(output, "settings")];
+    let upstream = |port: &str| graph.upstream(output, port).map(|n| n.id.clone());
+    if let Some(scene) = upstream("scene") {
+        stages.push(StageRef::new(&scene, "geometry"));
+        if mode == Mode::ShPrt {
+            stages.push(StageRef::new(&scene, "transport_sh"));
+        }
+    }
+    if let Some(env) = upstream("environment") {
+        stages.push(StageRef::new(&env, "sh"));
+        stages.push(StageRef::new(&env, "rotated_radiance"));
+    }
+    for material in graph.upstream_all(output, "material") {
+        stages.push(StageRef::new(&material.id, "material"));
+        match mode {
+            Mode::ShPrt => stages.push(StageRef::new(&material.id, "sh_lobe")),
+            Mode::WaveletVertex | Mode::WaveletPixel => stages.push(StageRef::new(&material.id, "local_table")),
+            Mode::ShIrradiance => {}
+        }
+    }
+    if let Some(medium) = upstream("medium") {
+        stages.extend(["medium", "f_tables", "g_tables"].map(|s| StageRef::new(&medium, s)));
+    }
+    if let Some(lights) = upstream("lights") {
+        stages.push(StageRef::new(&lights, "lights"));
+    }
+    match mode {
+        Mode::ShIrradiance => {}
+        Mode::ShPrt => stages.push(StageRef::new(output, "incident_sh")),
+        Mode::WaveletVertex => stages.push(StageRef::new(output, "local_products")),
+        Mode::WaveletPixel => {
+            stages.push(StageRef::new(output, "local_products"));
+            stages.push(StageRef::new(output, "texel_irradiance"));
+        }
+    }
+    stages
+}
+
+/// The Output's mode and view as set in the graph.
+pub fn output_mode_and_view(node: &GraphNode) -> (Mode, View) {
+    let choice = |name: &str| match node.params.get(name) {
+        Some(ParamValue::Choice(c)) => c.clone(),
+        _ => String::new(),
+    };
+    (choice("mode").parse().unwrap_or(Mode::ShIrradiance), choice("view").parse().unwrap_or(View::Approximation))
+}
+
+/// What drawing the Output node `output` needs, as an engine request. A shadowed mode first
+/// gets an unshadowed tier, so a frame is ready before its transport is. The reference and
+/// error views (and `picking`, for the editor's object selection) add the scene's BVH.
+pub fn frame_request(graph: &Graph, output: &str, picking: bool) -> Request {
+    let Some(node) = graph.node(output) else { return Request::default() };
+    let (mode, view) = output_mode_and_view(node);
+    let mut first = mode_stages(graph, output, Mode::ShIrradiance);
+    if (picking || view != View::Approximation)
+        && let Some(scene) = graph.upstream(output, "scene")
+    {
+        first.push(StageRef::new(&scene.id, "ray_scene"));
+    }
+    if mode.is_shadowed() {
+        Request::new(format!("output `{output}`: unshadowed preview"), first)
+            .then(format!("output `{output}`: mode {mode}"), mode_stages(graph, output, mode))
+    } else {
+        Request::new(format!("output `{output}`: mode {mode}"), first)
+    }
+}
+
 impl FrameInputs {
     /// The Monte Carlo reference of this frame (see [`crate::reference`]).
     pub fn render_reference(
@@ -389,8 +482,8 @@ impl FrameInputs {
         cancel: &crate::engine::CancelToken,
         progress: &(dyn Fn(f64) + Sync),
     ) -> Result<crate::reference::HdrImage, String> {
-        let StageValue::RayScene(scene) = self.ray_scene.value.as_ref() else {
-            return Err("scene ray_scene stage holds no BVH".into());
+        let Some(StageValue::RayScene(scene)) = self.ray_scene.as_ref().map(|r| r.value.as_ref()) else {
+            return Err("the scene's ray_scene stage was not evaluated".into());
         };
         let StageValue::Meshes(meshes) = self.meshes.value.as_ref() else {
             return Err("scene geometry stage holds no meshes".into());
@@ -420,8 +513,8 @@ impl FrameInputs {
         (x, y): (f64, f64),
         (width, height): (usize, usize),
     ) -> Option<usize> {
-        let (StageValue::RayScene(scene), StageValue::Meshes(meshes)) =
-            (self.ray_scene.value.as_ref(), self.meshes.value.as_ref())
+        let (Some(StageValue::RayScene(scene)), StageValue::Meshes(meshes)) =
+            (self.ray_scene.as_ref().map(|r| r.value.as_ref()), self.meshes.value.as_ref())
         else {
             return None;
         };
@@ -441,7 +534,7 @@ impl FrameInputs {
         let upstream = |port: &str| graph.upstream(output, port).map(|n| n.id.clone());
         let scene = upstream("scene").ok_or("the Output node's scene input is not connected")?;
         let meshes = keyed(&scene, "geometry")?;
-        let ray_scene = keyed(&scene, "ray_scene")?;
+        let ray_scene = evaluation.get(&scene, "ray_scene").map(|_| keyed(&scene, "ray_scene")).transpose()?;
         let (sh, radiance) = match upstream("environment") {
             Some(env) => (Some(keyed(&env, "sh")?), Some(keyed(&env, "rotated_radiance")?)),
             None => (None, None),
@@ -457,12 +550,19 @@ impl FrameInputs {
             StageValue::Output(s) => s.clone(),
             _ => return Err("settings stage produced an unexpected value".into()),
         };
-        let (transport, incident) = if settings.mode == "sh_prt" {
+        // The best mode ready now: the requested one, or the unshadowed preview while the
+        // requested mode's transport is still computing.
+        let ready =
+            mode_stages(graph, output, settings.mode).iter().all(|r| evaluation.get(&r.node, &r.stage).is_some());
+        let mode = if ready { settings.mode } else { Mode::ShIrradiance };
+        let pending =
+            (!ready).then(|| format!("unshadowed preview: mode {} is still computing what it needs", settings.mode));
+        let (transport, incident) = if mode == Mode::ShPrt {
             (Some(keyed(&scene, "transport_sh")?), Some(keyed(output, "incident_sh")?))
         } else {
             (None, None)
         };
-        let wavelets = settings.mode.starts_with("wavelet");
+        let wavelets = mode.is_wavelet();
         let mut materials = Vec::new();
         for node in &material_nodes {
             let material = match keyed(&node.id, "material")?.value.as_ref() {
@@ -470,7 +570,7 @@ impl FrameInputs {
                 _ => return Err("material stage produced an unexpected value".into()),
             };
             let table = if wavelets { Some(keyed(&node.id, "local_table")?) } else { None };
-            let sh_lobe = if settings.mode == "sh_prt" {
+            let sh_lobe = if mode == Mode::ShPrt {
                 match keyed(&node.id, "sh_lobe")?.value.as_ref() {
                     StageValue::ShLobe(l) => Some(l.clone()),
                     _ => return Err("sh_lobe stage produced an unexpected value".into()),
@@ -492,8 +592,7 @@ impl FrameInputs {
             });
         }
         let local_products = if wavelets { Some(keyed(output, "local_products")?) } else { None };
-        let texel_irradiance =
-            if settings.mode == "wavelet_pixel" { Some(keyed(output, "texel_irradiance")?) } else { None };
+        let texel_irradiance = if mode == Mode::WaveletPixel { Some(keyed(output, "texel_irradiance")?) } else { None };
         let fog = match upstream("medium") {
             Some(node) => {
                 let medium = keyed(&node, "medium")?;
@@ -555,6 +654,8 @@ impl FrameInputs {
         Ok(Self {
             meshes,
             ray_scene,
+            mode,
+            pending,
             sh,
             radiance,
             transport,

@@ -216,13 +216,6 @@ pub fn spec() -> NodeKindSpec {
                 doc: "Texels per side of the visibility textures of objects that ask for one.",
             },
             ParamSpec {
-                name: "transport",
-                label: "Transport precompute",
-                unit: "",
-                kind: ParamKind::Choice { options: &["none", "sh", "sh_and_wavelets"], default: "none" },
-                doc: "Which visibility transports to precompute at the receivers.",
-            },
-            ParamSpec {
                 name: "transport_bands",
                 label: "Transport SH bands",
                 unit: "",
@@ -304,8 +297,8 @@ pub fn spec() -> NodeKindSpec {
             },
             StageSpec {
                 name: "transport_sh",
-                version: 1,
-                params: &["transport", "transport_bands", "transport_rays"],
+                version: 2,
+                params: &["transport_bands", "transport_rays"],
                 stages: &["receivers", "ray_scene"],
                 inputs: &[],
                 persist: true,
@@ -313,8 +306,8 @@ pub fn spec() -> NodeKindSpec {
             },
             StageSpec {
                 name: "transport_objects",
-                version: 1,
-                params: &["transport", "objects", "tessellation", "file", "transport_bands", "transport_rays"],
+                version: 2,
+                params: &["objects", "tessellation", "file", "transport_bands", "transport_rays"],
                 stages: &[],
                 inputs: &[],
                 persist: true,
@@ -322,8 +315,8 @@ pub fn spec() -> NodeKindSpec {
             },
             StageSpec {
                 name: "transport_haar",
-                version: 1,
-                params: &["transport", "haar_resolution", "haar_terms"],
+                version: 2,
+                params: &["haar_resolution", "haar_terms"],
                 stages: &["receivers", "ray_scene"],
                 inputs: &[],
                 persist: true,
@@ -331,8 +324,8 @@ pub fn spec() -> NodeKindSpec {
             },
             StageSpec {
                 name: "transport_local",
-                version: 1,
-                params: &["transport", "local_frame_depth", "local_frame_terms"],
+                version: 2,
+                params: &["local_frame_depth", "local_frame_terms"],
                 stages: &["receivers", "ray_scene"],
                 inputs: &[],
                 persist: true,
@@ -340,8 +333,8 @@ pub fn spec() -> NodeKindSpec {
             },
             StageSpec {
                 name: "transport_texels",
-                version: 1,
-                params: &["transport", "local_frame_depth", "local_frame_terms"],
+                version: 2,
+                params: &["local_frame_depth", "local_frame_terms"],
                 stages: &["texel_receivers", "ray_scene"],
                 inputs: &[],
                 persist: true,
@@ -361,9 +354,7 @@ fn texel_receivers(ctx: &StageContext) -> Result<StageValue, StageError> {
 
 fn transport_texels(ctx: &StageContext) -> Result<StageValue, StageError> {
     let (depth, keep) = (ctx.int("local_frame_depth")? as usize, ctx.int("local_frame_terms")? as usize);
-    let Some((r, s)) = transport_inputs(ctx, &["sh_and_wavelets"], "texel_receivers")? else {
-        return Ok(StageValue::LocalTransport(Default::default()));
-    };
+    let (r, s) = transport_inputs(ctx, "texel_receivers")?;
     Ok(StageValue::LocalTransport(transport::spherical_transport(s, r, depth, keep, ctx.cancel_token(), &|f| {
         ctx.progress(f)
     })?))
@@ -392,29 +383,20 @@ fn ray_scene(ctx: &StageContext) -> Result<StageValue, StageError> {
     Ok(StageValue::RayScene(std::sync::Arc::new(RayScene::build(meshes))))
 }
 
-/// The receivers and ray scene, or `None` when `transport` does not ask for `level`.
-fn transport_inputs<'a>(
-    ctx: &'a StageContext,
-    level: &[&str],
-    receivers: &str,
-) -> Result<Option<(&'a Receivers, &'a RayScene)>, StageError> {
-    if !level.contains(&ctx.choice("transport")?) {
-        return Ok(None);
-    }
+/// The receivers (`receivers` or `texel_receivers`) and the ray scene.
+fn transport_inputs<'a>(ctx: &'a StageContext, receivers: &str) -> Result<(&'a Receivers, &'a RayScene), StageError> {
     let r = match ctx.stage(receivers)? {
         StageValue::Receivers(r) => r,
         StageValue::TexelReceivers(t) => &t.receivers,
         _ => return Err(wrong(receivers)),
     };
     let StageValue::RayScene(s) = ctx.stage("ray_scene")? else { return Err(wrong("ray_scene")) };
-    Ok(Some((r, s)))
+    Ok((r, s))
 }
 
 fn transport_sh(ctx: &StageContext) -> Result<StageValue, StageError> {
     let (bands, rays) = (ctx.int("transport_bands")? as usize, ctx.int("transport_rays")? as usize);
-    let Some((r, s)) = transport_inputs(ctx, &["sh", "sh_and_wavelets"], "receivers")? else {
-        return Ok(StageValue::ShTransport(Default::default()));
-    };
+    let (r, s) = transport_inputs(ctx, "receivers")?;
     Ok(StageValue::ShTransport(transport::sh_transport(s, r, bands, rays, ctx.cancel_token(), &|f| ctx.progress(f))?))
 }
 
@@ -426,9 +408,6 @@ fn transport_objects(ctx: &StageContext) -> Result<StageValue, StageError> {
     };
     let (tessellation, bands, rays) =
         (ctx.int("tessellation")? as usize, ctx.int("transport_bands")? as usize, ctx.int("transport_rays")? as usize);
-    if !["sh", "sh_and_wavelets"].contains(&ctx.choice("transport")?) {
-        return Ok(StageValue::ObjectTransport(Vec::new()));
-    }
     let mut out = Vec::with_capacity(objects.len());
     for object in objects {
         let mut bytes = postcard::to_stdvec(&object.shape).map_err(|e| StageError::Internal(e.to_string()))?;
@@ -486,9 +465,7 @@ fn transport_haar(ctx: &StageContext) -> Result<StageValue, StageError> {
     let size: usize =
         ctx.choice("haar_resolution")?.parse().map_err(|_| StageError::Internal("haar_resolution".into()))?;
     let keep = ctx.int("haar_terms")? as usize;
-    let Some((r, s)) = transport_inputs(ctx, &["sh_and_wavelets"], "receivers")? else {
-        return Ok(StageValue::HaarTransport(Default::default()));
-    };
+    let (r, s) = transport_inputs(ctx, "receivers")?;
     Ok(StageValue::HaarTransport(transport::haar_transport(s, r, size, keep, ctx.cancel_token(), &|f| {
         ctx.progress(f)
     })?))
@@ -496,9 +473,7 @@ fn transport_haar(ctx: &StageContext) -> Result<StageValue, StageError> {
 
 fn transport_local(ctx: &StageContext) -> Result<StageValue, StageError> {
     let (depth, keep) = (ctx.int("local_frame_depth")? as usize, ctx.int("local_frame_terms")? as usize);
-    let Some((r, s)) = transport_inputs(ctx, &["sh_and_wavelets"], "receivers")? else {
-        return Ok(StageValue::LocalTransport(Default::default()));
-    };
+    let (r, s) = transport_inputs(ctx, "receivers")?;
     Ok(StageValue::LocalTransport(transport::spherical_transport(s, r, depth, keep, ctx.cancel_token(), &|f| {
         ctx.progress(f)
     })?))

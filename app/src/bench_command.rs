@@ -174,12 +174,12 @@ fn synthetic_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
     let material =
         lightloom_nodes::kinds::brdf::Material { model: "phong".into(), exponent: 20.0, f0: 0.3, ..Default::default() };
     let frame_with = |mode: Mode| FrameInputs {
-        meshes: keyed(1, StageValue::Meshes(meshes.clone())),
+        meshes: keyed(1, StageValue::new(meshes.clone())),
         ray_scene: None,
         mode,
         pending: None,
-        sh: Some(keyed(3, StageValue::Sh(light.clone()))),
-        radiance: Some(keyed(4, StageValue::CubeMap(environment.clone()))),
+        sh: Some(keyed(3, StageValue::new(light.clone()))),
+        radiance: Some(keyed(4, StageValue::new(environment.clone()))),
         transport: None,
         incident: None,
         local_products: None,
@@ -214,8 +214,8 @@ fn synthetic_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
             .map_err(|e| anyhow!("{e}"))?;
         let change_ms = start.elapsed().as_secs_f64() * 1e3;
         let mut frame = frame_with(Mode::ShPrt);
-        frame.transport = Some(keyed(10 + bands as u128, StageValue::ShTransport(transport)));
-        frame.incident = Some(keyed(20 + bands as u128, StageValue::IncidentSh(incident)));
+        frame.transport = Some(keyed(10 + bands as u128, StageValue::new(transport)));
+        frame.incident = Some(keyed(20 + bands as u128, StageValue::new(incident)));
         let ms = frame_times(&mut renderer, &frame)?;
         println!("{:<24} {:>22.1} {:>14.1}", format!("sh_prt {bands} bands"), change_ms, ms);
     }
@@ -275,8 +275,8 @@ fn synthetic_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
         .map_err(|e| anyhow!("{e}"))?;
         let rotation_ms = start.elapsed().as_secs_f64() * 1e3;
         let mut frame = frame_with(Mode::WaveletVertex);
-        frame.local_products = Some(keyed(30 + terms as u128, StageValue::LocalProducts(products)));
-        frame.materials[0].table = Some(keyed(40, StageValue::BrdfTable(table.clone())));
+        frame.local_products = Some(keyed(30 + terms as u128, StageValue::new(products)));
+        frame.materials[0].table = Some(keyed(40, StageValue::new(table.clone())));
         match frame_times(&mut renderer, &frame) {
             Ok(ms) => println!(
                 "{:<24} {:>22} {:>14.1}",

@@ -103,6 +103,7 @@ fn main_job(args: EditorArgs) -> Result<()> {
             cache_dir: args.cache_dir.clone(),
             no_disk_cache: args.no_disk_cache,
             frame_stats: args.frame_stats,
+            viewport_slow_down: std::time::Duration::ZERO,
         };
         match editor::run(options) {
             Ok(()) => return Ok(()),

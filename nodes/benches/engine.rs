@@ -3,15 +3,21 @@
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use lightloom_nodes::engine::graph::NodeInput;
-use lightloom_nodes::engine::{CancelToken, Engine, Graph, Link, StageContext, StageError, StageValue};
+use lightloom_nodes::engine::{
+    CancelToken, Engine, Graph, Link, Request, StageContext, StageError, StageRef, StageValue,
+};
 use lightloom_nodes::graph::{
     Availability, NodeKindSpec, ParamKind, ParamSpec, ParamValue, PortSpec, PortType, StageSpec,
 };
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 
+#[derive(Debug)]
+struct Unit;
+lightloom_nodes::stage_type!(Unit, "unit");
+
 fn noop(_: &StageContext) -> Result<StageValue, StageError> {
-    Ok(StageValue::Number(0.0))
+    Ok(StageValue::new(Unit))
 }
 
 fn registry() -> &'static [NodeKindSpec] {
@@ -21,7 +27,7 @@ fn registry() -> &'static [NodeKindSpec] {
         params: &["x"],
         stages,
         inputs,
-        persist: false,
+        persist: None,
         compute: noop,
     };
     Box::leak(Box::new([NodeKindSpec {
@@ -70,6 +76,15 @@ fn incremental(c: &mut Criterion) {
             counter += 1.0;
             graph.set_param("n199", "x", ParamValue::Float(counter)).unwrap();
             engine.evaluate(&graph, &CancelToken::default(), None)
+        })
+    });
+    // Pulled: only what one leaf's output reads (its 3 stages and its 7 ancestors' 21).
+    let leaf = Request::new("leaf", vec![StageRef::new("n199", "medium")]);
+    c.bench_function("engine_200_nodes_leaf_change_requested", |b| {
+        b.iter(|| {
+            counter += 1.0;
+            graph.set_param("n199", "x", ParamValue::Float(counter)).unwrap();
+            engine.evaluate_request(&graph, &leaf, &CancelToken::default(), None, &|_, _| {})
         })
     });
     c.bench_function("engine_200_nodes_no_change", |b| {

@@ -15,6 +15,9 @@ use glam::DVec3;
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
 
+// Stage value types this module owns (see `engine::value`).
+crate::stage_type!(LobePreview, "BRDF lobe preview", |v| v.curves.iter().map(|c| c.len() * 4).sum());
+
 /// The specular lobe of a model.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Lobe {

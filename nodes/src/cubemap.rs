@@ -14,6 +14,10 @@ use glam::DVec3;
 use rayon::prelude::*;
 use std::f64::consts::PI;
 
+// Stage value types this module owns (see `engine::value`).
+crate::stage_type!(Equirect, "image", |v| v.pixels.len() * 12);
+crate::stage_type!(CubeMap, "cube map", |v| v.texels.len() * 12);
+
 /// Number of cube faces.
 pub const FACES: usize = 6;
 

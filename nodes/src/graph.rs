@@ -268,8 +268,9 @@ pub struct StageSpec {
     pub stages: &'static [&'static str],
     /// `(input port, upstream stage)` pairs.
     pub inputs: &'static [(&'static str, &'static str)],
-    /// Expensive results also go to the on-disk cache.
-    pub persist: bool,
+    /// Expensive results also go to the on-disk cache, written and read with this codec
+    /// (`Some(Codec::of::<T>())` for a stage producing a persisted `T`).
+    pub persist: Option<crate::engine::Codec>,
     pub compute: StageFn,
 }
 

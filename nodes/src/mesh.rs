@@ -5,6 +5,9 @@ use glam::{DMat3, DMat4, DVec3};
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
 
+// Stage value types this module owns (see `engine::value`).
+crate::stage_type!(MeshSet, "meshes", |v| v.approx_bytes());
+
 /// An indexed triangle mesh in world space (counter-clockwise front faces).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Mesh {

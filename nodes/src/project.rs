@@ -306,19 +306,17 @@ impl Project {
         let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
         let file_name =
             path.file_name().ok_or_else(|| save_err(std::io::Error::other("not a file path")))?.to_string_lossy();
-        let tmp = dir.join(format!(".{file_name}.tmp{}", std::process::id()));
-        {
-            let mut file = std::fs::File::create(&tmp).map_err(save_err)?;
-            file.write_all(self.to_ron().as_bytes()).map_err(save_err)?;
-            file.sync_all().map_err(save_err)?;
-        }
+        let mut file = tempfile::Builder::new().prefix(&format!(".{file_name}.")).tempfile_in(dir).map_err(save_err)?;
+        file.write_all(self.to_ron().as_bytes()).map_err(save_err)?;
+        keep_permissions(file.as_file(), path).map_err(save_err)?;
+        file.as_file().sync_all().map_err(save_err)?;
         if backup && path.exists() {
-            let bak = dir.join(format!("{file_name}.bak"));
-            let bak_tmp = dir.join(format!(".{file_name}.bak.tmp{}", std::process::id()));
-            std::fs::copy(path, &bak_tmp).map_err(save_err)?;
-            std::fs::rename(&bak_tmp, &bak).map_err(save_err)?;
+            let bak =
+                tempfile::Builder::new().prefix(&format!(".{file_name}.bak.")).tempfile_in(dir).map_err(save_err)?;
+            std::fs::copy(path, bak.path()).map_err(save_err)?;
+            bak.persist(dir.join(format!("{file_name}.bak"))).map_err(|e| save_err(e.error))?;
         }
-        std::fs::rename(&tmp, path).map_err(save_err)?;
+        file.persist(path).map_err(|e| save_err(e.error))?;
         if let Ok(d) = std::fs::File::open(dir) {
             let _ = d.sync_all();
         }
@@ -448,6 +446,20 @@ mod v1 {
             })
         }
     }
+}
+
+/// Gives a temporary file the permissions of the file it replaces (a new file: `rw-r--r--`
+/// less the umask's usual group and other write bits), not the temporary file's private ones.
+pub fn keep_permissions(file: &std::fs::File, replaced: &Path) -> std::io::Result<()> {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        let mode = std::fs::metadata(replaced).map(|m| m.permissions().mode()).unwrap_or(0o644);
+        file.set_permissions(std::fs::Permissions::from_mode(mode))?;
+    }
+    #[cfg(not(unix))]
+    let _ = (file, replaced);
+    Ok(())
 }
 
 /// The built-in default project: procedural sky, a sphere and a torus on a floor with a

@@ -9,6 +9,9 @@ use obvhs::ray::{Ray, RayHit};
 use obvhs::rt_triangle::RtTriangle;
 use obvhs::triangle::Triangle;
 
+// Stage value types this module owns (see `engine::value`).
+crate::stage_type!(RayScene, "ray-tracing scene", |v| v.triangle_count() * 48 * 2);
+
 /// Triangles and their BVH. Not serialisable (obvhs has no serde): rebuilt on load.
 pub struct RayScene {
     bvh: CwBvh,

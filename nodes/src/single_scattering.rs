@@ -10,6 +10,17 @@
 use crate::quadrature::{adaptive_simpson, gauss_legendre};
 use std::f64::consts::{FRAC_PI_2, FRAC_PI_4, PI};
 
+// Stage value types this module owns (see `engine::value`).
+crate::stage_type!(Vec<FTable>, "single scattering F tables", encoding = 1, |v| v
+    .iter()
+    .map(|t| t.table.values.len() * 4)
+    .sum());
+crate::stage_type!(PhongGTables, "single scattering G tables", encoding = 1, |v| v
+    .tables
+    .iter()
+    .map(|t| t.table.values.len() * 4)
+    .sum());
+
 /// The `F` and `G` table resolution the fog node uses unless told otherwise.
 pub const DEFAULT_RESOLUTION: usize = 512;
 

@@ -23,6 +23,23 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
 
+// Stage value types this module owns (see `engine::value`).
+crate::stage_type!(Receivers, "receivers", |v| v.len() * 36);
+crate::stage_type!(ShTransport, "SH transport", encoding = 1, |v| (v.visibility.len() + v.transfer.len()) * 4);
+crate::stage_type!(HaarTransport, "Haar transport", encoding = 1, |v| v
+    .visibility
+    .iter()
+    .chain(&v.transfer)
+    .map(|c| c.len() * 16 + 24)
+    .sum());
+crate::stage_type!(SphericalTransport, "local-frame transport", encoding = 1, |v| v
+    .visibility
+    .iter()
+    .map(|c| c.len() * 16 + 24)
+    .sum());
+crate::stage_type!(TexelReceivers, "texel receivers", |v| v.receivers.len() * 44);
+crate::stage_type!(Vec<ObjectTransport>, "per-object transport", encoding = 1, |v| v.len() * 160);
+
 /// Receiver points: every mesh vertex, in mesh order, with a local frame.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct Receivers {

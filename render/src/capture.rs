@@ -89,8 +89,12 @@ pub fn write_exr(frame: &CapturedFrame, path: &Path) -> Result<(), String> {
 fn write_atomically(path: &Path, write: impl FnOnce(&Path) -> Result<(), String>) -> Result<(), String> {
     let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
     let name = path.file_name().ok_or_else(|| format!("{} is not a file path", path.display()))?.to_string_lossy();
-    let ext = path.extension().map(|e| e.to_string_lossy().to_string()).unwrap_or_default();
-    let tmp = dir.join(format!(".{name}.tmp{}.{ext}", std::process::id()));
-    write(&tmp).map_err(|e| format!("cannot write {}: {e}", path.display()))?;
-    std::fs::rename(&tmp, path).map_err(|e| format!("cannot write {}: {e}", path.display()))
+    let ext = path.extension().map(|e| format!(".{}", e.to_string_lossy())).unwrap_or_default();
+    let cannot = |e: &dyn std::fmt::Display| format!("cannot write {}: {e}", path.display());
+    // The temporary file keeps the extension: the image writers pick the format from it.
+    let tmp =
+        tempfile::Builder::new().prefix(&format!(".{name}.")).suffix(&ext).tempfile_in(dir).map_err(|e| cannot(&e))?;
+    write(tmp.path()).map_err(|e| cannot(&e))?;
+    lightloom_nodes::project::keep_permissions(tmp.as_file(), path).map_err(|e| cannot(&e))?;
+    tmp.persist(path).map(|_| ()).map_err(|e| cannot(&e.error))
 }

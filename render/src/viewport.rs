@@ -5,8 +5,8 @@
 use crate::capture::{CapturedFrame, read_texture};
 use crate::{GpuContext, RenderError};
 use glam::{Mat4, Vec3};
-use lightloom_nodes::engine::{Key, StageValue};
-use lightloom_nodes::kinds::output::{FrameInputs, MAX_LIGHTS, MAX_MATERIALS, Tonemap};
+use lightloom_nodes::engine::{Key, StageType};
+use lightloom_nodes::kinds::output::{FrameInputs, Keyed, MAX_LIGHTS, MAX_MATERIALS, Tonemap};
 use lightloom_nodes::project::Camera;
 use lightloom_nodes::sh::ShRgb;
 use lightloom_nodes::single_scattering::{EnvironmentFog, Phase};
@@ -429,9 +429,7 @@ impl ViewportRenderer {
             irradiance: [[0.0; 4]; MAX_SHADER_BANDS * MAX_SHADER_BANDS],
         };
         if let Some(sh) = &frame.sh {
-            let StageValue::Sh(radiance) = sh.value.as_ref() else {
-                return Err(RenderError::Invalid("environment SH stage holds no SH".into()));
-            };
+            let radiance = stage_value::<ShRgb>(sh)?;
             let irradiance = match &environment_fog {
                 Some(fog) => fog.fogged(radiance).irradiance(),
                 None => radiance.irradiance(),
@@ -611,15 +609,14 @@ impl ViewportRenderer {
         if self.mesh.as_ref().is_some_and(|m| m.key == key) {
             return Ok(());
         }
-        let StageValue::Meshes(set) = frame.meshes.value.as_ref() else {
-            return Err(RenderError::Invalid("scene geometry stage holds no meshes".into()));
-        };
+        let set = stage_value::<lightloom_nodes::mesh::MeshSet>(&frame.meshes)?;
         let mut vertices = Vec::new();
         let mut indices = Vec::new();
-        let layers = match frame.texel_irradiance.as_ref().map(|t| t.value.as_ref()) {
-            Some(StageValue::TexelIrradiance(t)) => t.mesh_layers.clone(),
-            _ => Vec::new(),
-        };
+        let layers = frame
+            .texel_irradiance
+            .as_ref()
+            .and_then(|t| t.value.get::<lightloom_nodes::triple_product::TexelIrradiance>())
+            .map_or(Vec::new(), |t| t.mesh_layers.clone());
         for (m, mesh) in set.meshes.iter().enumerate() {
             let base = vertices.len() as u32;
             let tangents = lightloom_nodes::mesh::vertex_tangents(mesh);
@@ -668,16 +665,13 @@ impl ViewportRenderer {
         let (Some(transport), Some(incident)) = (&frame.transport, &frame.incident) else {
             return Ok(false);
         };
-        let StageValue::ShTransport(t) = transport.value.as_ref() else {
-            return Err(RenderError::Invalid("scene transport stage holds no SH transport".into()));
-        };
-        let StageValue::IncidentSh(r) = incident.value.as_ref() else {
-            return Err(RenderError::Invalid("incident radiance stage holds no SH".into()));
-        };
-        let vertices: usize = match frame.meshes.value.as_ref() {
-            StageValue::Meshes(m) => m.meshes.iter().map(|m| m.positions.len()).sum(),
-            _ => 0,
-        };
+        let t = stage_value::<lightloom_nodes::transport::ShTransport>(transport)?;
+        let r = stage_value::<lightloom_nodes::prt::IncidentSh>(incident)?;
+        let vertices: usize = frame
+            .meshes
+            .value
+            .get::<lightloom_nodes::mesh::MeshSet>()
+            .map_or(0, |m| m.meshes.iter().map(|m| m.positions.len()).sum());
         let n = t.bands * t.bands;
         if t.transfer.len() != vertices * n || (!r.coeffs.is_empty() && r.coeffs.len() != vertices * n * 3) {
             return Err(RenderError::Invalid(format!(
@@ -716,9 +710,7 @@ impl ViewportRenderer {
             }
         }
         if let Some(sh) = &frame.sh {
-            let StageValue::Sh(light) = sh.value.as_ref() else {
-                return Err(RenderError::Invalid("environment SH stage holds no SH".into()));
-            };
+            let light = stage_value::<ShRgb>(sh)?;
             // In fog the diffuse transfer sees the fogged environment (sec. 3.6.5); the glossy
             // lobes read per-vertex incident light computed without fog, so they get only its
             // attenuation.
@@ -746,28 +738,25 @@ impl ViewportRenderer {
         let Some(products) = &frame.local_products else {
             return Ok(false);
         };
-        let StageValue::LocalProducts(p) = products.value.as_ref() else {
-            return Err(RenderError::Invalid("local_products stage holds no products".into()));
-        };
+        let p = stage_value::<lightloom_nodes::triple_product::LocalProducts>(products)?;
         let mut tables = Vec::new();
         let mut table_keys: Key = 0;
         for m in &frame.materials {
             let Some(keyed) = &m.table else {
                 return Err(RenderError::Invalid(format!("material `{}` has no local-frame table", m.node)));
             };
-            let StageValue::BrdfTable(t) = keyed.value.as_ref() else {
-                return Err(RenderError::Invalid("local_table stage holds no BRDF table".into()));
-            };
+            let t = stage_value::<lightloom_nodes::triple_product::BrdfTable>(keyed)?;
             table_keys = table_keys.rotate_left(7) ^ keyed.key;
             tables.push(t);
         }
         if p.cells == 0 {
             return Ok(false);
         }
-        let vertices: usize = match frame.meshes.value.as_ref() {
-            StageValue::Meshes(m) => m.meshes.iter().map(|m| m.positions.len()).sum(),
-            _ => 0,
-        };
+        let vertices: usize = frame
+            .meshes
+            .value
+            .get::<lightloom_nodes::mesh::MeshSet>()
+            .map_or(0, |m| m.meshes.iter().map(|m| m.positions.len()).sum());
         if p.values.len() != vertices * p.cells * 3 {
             return Err(RenderError::Invalid(format!(
                 "triple-product data covers {} receivers for {vertices} vertices",
@@ -786,10 +775,11 @@ impl ViewportRenderer {
             )));
         }
         let texel_key = frame.texel_irradiance.as_ref().map(|t| t.key);
-        let texels = match frame.texel_irradiance.as_ref().map(|t| t.value.as_ref()) {
-            Some(StageValue::TexelIrradiance(t)) if !t.texels.is_empty() => Some(t),
-            _ => None,
-        };
+        let texels = frame
+            .texel_irradiance
+            .as_ref()
+            .and_then(|t| t.value.get::<lightloom_nodes::triple_product::TexelIrradiance>())
+            .filter(|t| !t.texels.is_empty());
         if self
             .wavelet
             .as_ref()
@@ -884,9 +874,7 @@ impl ViewportRenderer {
         }
         let view = match &frame.radiance {
             Some(r) => {
-                let StageValue::CubeMap(cube) = r.value.as_ref() else {
-                    return Err(RenderError::Invalid("environment radiance stage holds no cube map".into()));
-                };
+                let cube = stage_value::<lightloom_nodes::cubemap::CubeMap>(r)?;
                 upload_cube(ctx, cube.size as u32, &cube.texels)
             }
             None => upload_cube(ctx, 1, &[[0.0; 3]; 6]),
@@ -914,10 +902,8 @@ impl ViewportRenderer {
         let (Some(fog), Some(sh)) = (&frame.fog, &frame.sh) else {
             return Ok(None);
         };
-        let (StageValue::ScatteringF(tables), StageValue::Sh(light)) = (fog.f_tables.value.as_ref(), sh.value.as_ref())
-        else {
-            return Err(RenderError::Invalid("fog or environment stages hold unexpected values".into()));
-        };
+        let tables = stage_value::<Vec<lightloom_nodes::single_scattering::FTable>>(&fog.f_tables)?;
+        let light = stage_value::<ShRgb>(sh)?;
         let bands = light.bands.min(MAX_ENVIRONMENT_FOG_BANDS);
         let key: Vec<u128> = fog
             .beta
@@ -945,9 +931,7 @@ impl ViewportRenderer {
         let mut params: FogParams = bytemuck::Zeroable::zeroed();
         params.environment = [1.0, 1.0, 1.0, 0.0];
         if let (Some(fog), Some(sh)) = (environment_fog, &frame.sh) {
-            let StageValue::Sh(light) = sh.value.as_ref() else {
-                return Err(RenderError::Invalid("environment SH stage holds no SH".into()));
-            };
+            let light = stage_value::<ShRgb>(sh)?;
             let scattered: ShRgb = fog.scattered(light);
             let a = fog.attenuation;
             params.environment = [a[0] as f32, a[1] as f32, a[2] as f32, fog.scattered.len() as f32];
@@ -976,11 +960,8 @@ impl ViewportRenderer {
                 params.phase[k] = *w as f32;
             }
             params.phase[3] = fog.phase.len().min(3) as f32;
-            let (StageValue::ScatteringF(f), StageValue::ScatteringG(g)) =
-                (fog.f_tables.value.as_ref(), fog.g_tables.value.as_ref())
-            else {
-                return Err(RenderError::Invalid("fog tables hold unexpected values".into()));
-            };
+            let f = stage_value::<Vec<lightloom_nodes::single_scattering::FTable>>(&fog.f_tables)?;
+            let g = stage_value::<lightloom_nodes::single_scattering::PhongGTables>(&fog.g_tables)?;
             params.counts[1] = g.tables.len() as f32;
             params.counts[2] = lightloom_nodes::single_scattering::PHONG_STEPS_PER_OCTAVE as f32;
             let key = Some(fog.f_tables.key ^ fog.g_tables.key.rotate_left(7));
@@ -1260,4 +1241,9 @@ fn storage_buffer<T: bytemuck::Pod + Default>(ctx: &GpuContext, label: &str, dat
         contents: bytemuck::cast_slice(data),
         usage: wgpu::BufferUsages::STORAGE,
     })
+}
+
+/// A gathered stage's value as `T`, or an error naming what it holds instead.
+fn stage_value<T: StageType>(keyed: &Keyed) -> Result<&T, RenderError> {
+    keyed.value.expect::<T>().map_err(|e| RenderError::Invalid(e.to_string()))
 }

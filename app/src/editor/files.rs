@@ -226,7 +226,10 @@ impl EditorApp {
     pub(super) fn screenshot(&mut self, ctx: &egui::Context) {
         match self.screenshot_state {
             ScreenshotState::Waiting
-                if self.view.frame.is_some() && self.view.drawn != 0 && !self.evaluator.is_running() =>
+                if self.view.frame.is_some()
+                    && self.view.drawn != 0
+                    && !self.evaluator.is_running()
+                    && !self.host.as_ref().is_some_and(|h| h.is_busy()) =>
             {
                 ctx.send_viewport_cmd(egui::ViewportCommand::Screenshot(egui::UserData::default()));
                 self.screenshot_state = ScreenshotState::Requested;

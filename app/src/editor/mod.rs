@@ -26,9 +26,9 @@ use graph_editor::{GraphAction, GraphEditor, PendingLink};
 use jobs::{Evaluator, NodeStatus, ReferenceJob};
 use lightloom_nodes::engine::{Engine, EngineConfig, Evaluation};
 use lightloom_nodes::graph::ParamValue;
-use lightloom_nodes::kinds::output::{FrameInputs, Tonemap, View, find_output};
+use lightloom_nodes::kinds::output::{FrameInputs, View, find_output};
 use lightloom_nodes::project::{Project, default_project};
-use lightloom_nodes::reference::{self, HdrImage, ImageError};
+use lightloom_nodes::reference::{HdrImage, ImageError};
 use orbit::OrbitCamera;
 use previews::Previews;
 use std::path::PathBuf;
@@ -43,6 +43,8 @@ pub struct EditorOptions {
     pub project: Option<PathBuf>,
     /// Save a screenshot of the window here once the first evaluation is shown, then quit.
     pub screenshot: Option<PathBuf>,
+    /// Delays every viewport frame (tests of a slow adapter).
+    pub viewport_slow_down: Duration,
     /// Disk cache for expensive stages (`None`: the default folder).
     pub cache_dir: Option<PathBuf>,
     pub no_disk_cache: bool,
@@ -219,7 +221,7 @@ pub fn run(options: EditorOptions) -> anyhow::Result<()> {
         "Lightloom",
         native,
         Box::new(move |cc| {
-            let app = EditorApp::new(&cc.egui_ctx, cc.wgpu_render_state.as_ref(), options)?;
+            let app = EditorApp::new(&cc.egui_ctx, options)?;
             Ok(Box::new(AppWithStats { app, out: stats_out }))
         }),
     )
@@ -272,13 +274,9 @@ fn eval_signature(project: &Project) -> u64 {
 }
 
 impl EditorApp {
-    /// An editor on `options.project` (or the default project). `render_state` is eframe's
-    /// wgpu device; without one the viewport renders on its own headless device.
-    pub fn new(
-        ctx: &egui::Context,
-        render_state: Option<&eframe::egui_wgpu::RenderState>,
-        options: EditorOptions,
-    ) -> anyhow::Result<Self> {
+    /// An editor on `options.project` (or the default project). The viewport renders on its
+    /// own device on a render thread (see `viewport.rs`).
+    pub fn new(ctx: &egui::Context, options: EditorOptions) -> anyhow::Result<Self> {
         let (doc, open_error) = match &options.project {
             Some(path) => match Document::open(path) {
                 Ok(doc) => (doc, None),
@@ -292,7 +290,7 @@ impl EditorApp {
             Some(options.cache_dir.clone().unwrap_or_else(lightloom_nodes::engine::cache::DiskCache::default_dir))
         };
         let engine = Arc::new(Engine::new(EngineConfig { disk_cache, ..Default::default() }));
-        let (host, host_error) = match ViewportHost::new(render_state) {
+        let (host, host_error) = match ViewportHost::new(options.viewport_slow_down) {
             Ok(h) => (Some(h), None),
             Err(e) => (None, Some(e)),
         };

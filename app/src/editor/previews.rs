@@ -3,8 +3,13 @@
 //! stage). Textures are cached by stage key, so they are rebuilt only when the stage changes.
 
 use eframe::egui::{self, Color32, Stroke};
+use lightloom_nodes::brdf::LobePreview;
+use lightloom_nodes::cubemap::CubeMap;
 use lightloom_nodes::engine::{Evaluation, StageValue, key::Key};
+use lightloom_nodes::kinds::fog::Medium;
 use lightloom_nodes::preview::{self, PreviewImage};
+use lightloom_nodes::sh::ShRgb;
+use lightloom_nodes::single_scattering::FTable;
 use std::collections::HashMap;
 
 /// Kinds that show a preview.
@@ -68,16 +73,14 @@ impl Previews {
         match kind {
             "EnvironmentMap" => {
                 ui.horizontal(|ui| {
-                    let thumb = self.texture(ui.ctx(), evaluation, node, "rotated_radiance", |v| match v {
-                        StageValue::CubeMap(c) => Some(preview::environment_thumbnail(c, 192, 96)),
-                        _ => None,
+                    let thumb = self.texture(ui.ctx(), evaluation, node, "rotated_radiance", |v| {
+                        v.get::<CubeMap>().map(|c| preview::environment_thumbnail(c, 192, 96))
                     });
                     if let Some(t) = thumb {
                         ui.image((t.id(), egui::vec2(128.0, 64.0))).on_hover_text("environment (auto-exposed)");
                     }
-                    let sphere = self.texture(ui.ctx(), evaluation, node, "sh", |v| match v {
-                        StageValue::Sh(sh) => Some(preview::sh_lighting_sphere(sh, 96)),
-                        _ => None,
+                    let sphere = self.texture(ui.ctx(), evaluation, node, "sh", |v| {
+                        v.get::<ShRgb>().map(|sh| preview::sh_lighting_sphere(sh, 96))
                     });
                     if let Some(t) = sphere {
                         ui.image((t.id(), egui::vec2(64.0, 64.0)))
@@ -91,7 +94,7 @@ impl Previews {
                     return;
                 };
                 let (Ok(m), Ok(t)) = (&medium.value, &tables.value) else { return };
-                let (StageValue::Medium(m), StageValue::ScatteringF(t)) = (m.as_ref(), t.as_ref()) else { return };
+                let (Some(m), Some(t)) = (m.get::<Medium>(), t.get::<Vec<FTable>>()) else { return };
                 let key = medium.key ^ tables.key.rotate_left(1);
                 let glow = self.keyed_texture(ui.ctx(), node, "glow", key, || {
                     let phase = if m.phase == "polynomial" {
@@ -108,7 +111,7 @@ impl Previews {
             }
             "BrdfEditor" => {
                 if let Some(Ok(value)) = evaluation.get(node, "preview").map(|r| &r.value)
-                    && let StageValue::LobePreview(lobe) = value.as_ref()
+                    && let Some(lobe) = value.get::<LobePreview>()
                 {
                     lobe_plot(ui, lobe);
                 }

@@ -13,6 +13,10 @@ fn state_dir() -> PathBuf {
 }
 
 fn harness(project: Option<PathBuf>) -> Harness<'static, EditorApp> {
+    harness_with_options(EditorOptions { project, no_disk_cache: true, ..Default::default() })
+}
+
+fn harness_with_options(options: EditorOptions) -> Harness<'static, EditorApp> {
     state_dir();
     let mut setup = eframe::egui_wgpu::WgpuSetupCreateNew::without_display_handle();
     setup.device_descriptor = Arc::new(lightloom_render::device_descriptor);
@@ -20,19 +24,21 @@ fn harness(project: Option<PathBuf>) -> Harness<'static, EditorApp> {
         .with_size(egui::vec2(1400.0, 800.0))
         .with_max_steps(100_000)
         .wgpu_setup(eframe::egui_wgpu::WgpuSetup::CreateNew(setup))
-        .build_eframe(move |cc| {
-            let options = EditorOptions { project, no_disk_cache: true, ..Default::default() };
-            EditorApp::new(&cc.egui_ctx, cc.wgpu_render_state.as_ref(), options).expect("editor starts")
-        })
+        .build_eframe(move |cc| EditorApp::new(&cc.egui_ctx, options).expect("editor starts"))
 }
 
 /// Steps until the evaluation is done and its frame drawn.
 fn settle(harness: &mut Harness<'_, EditorApp>) {
     let start = Instant::now();
+    let mut quiet = 0;
     loop {
         harness.step();
         let app = harness.state();
-        if !app.evaluator.is_running() && app.view.frame.is_some() && app.view.drawn != 0 {
+        let drawing = app.host.as_ref().is_some_and(|h| h.is_busy());
+        let done = !app.evaluator.is_running() && app.view.frame.is_some() && app.view.drawn != 0 && !drawing;
+        // Two quiet passes in a row: a frame that just arrived may ask for the next one.
+        quiet = if done { quiet + 1 } else { 0 };
+        if quiet >= 2 {
             break;
         }
         assert!(start.elapsed() < Duration::from_secs(240), "the editor did not finish evaluating");
@@ -157,16 +163,13 @@ fn add_link_edit_undo_save_and_reopen() {
     let saved = harness.state().doc.project.clone();
     drop(harness);
 
-    let mut reopened = harness_with(Some(path.clone()));
+    let mut reopened =
+        harness_with_options(EditorOptions { project: Some(path.clone()), no_disk_cache: true, ..Default::default() });
     settle(&mut reopened);
     assert_eq!(reopened.state().doc.project, saved, "the saved project reopens unchanged");
     reopened.get_by_label_contains(&format!("{} · Point light", added.id));
     let again = viewport_mean(&mut reopened);
     assert!((again - lit).abs() < 2.0, "the reopened project renders the same: {lit:.1} vs {again:.1}");
-}
-
-fn harness_with(project: Option<PathBuf>) -> Harness<'static, EditorApp> {
-    harness(project)
 }
 
 #[test]
@@ -244,7 +247,8 @@ fn closing_with_unsaved_work_asks_first() {
     assert!(harness.query_by_label("Save changes?").is_none());
     let output = "output".to_string();
     inspector::set_param(&mut harness.state_mut().doc, &output, "exposure", ParamValue::Float(1.0)).unwrap();
-    harness.step();
+    // Let the edit's evaluation finish (its status-bar Cancel would be a second "Cancel").
+    settle(&mut harness);
     assert!(harness.state().doc.title().starts_with('●'), "the title marks unsaved changes");
     request_close(&mut harness);
     harness.run_steps(2);
@@ -258,4 +262,39 @@ fn closing_with_unsaved_work_asks_first() {
     harness.get_by_label("Discard changes").click();
     harness.run_steps(2);
     assert!(harness.state().close_confirmed, "discarding lets the window close");
+}
+
+#[test]
+fn the_ui_stays_responsive_while_a_slow_viewport_frame_renders() {
+    // Every viewport frame takes 1.5 s, as on a slow adapter; the UI must not wait for it.
+    let slow = Duration::from_millis(1500);
+    let mut harness =
+        harness_with_options(EditorOptions { no_disk_cache: true, viewport_slow_down: slow, ..Default::default() });
+    settle(&mut harness);
+    let shown = harness.state().view.drawn;
+    // Orbit: a new frame is requested and renders on the viewport thread.
+    harness.state_mut().view.camera.orbit((40.0, 10.0), 600.0);
+    harness.step();
+    assert!(harness.state().host.as_ref().unwrap().is_busy(), "the new frame is rendering");
+    let mut passes = Vec::new();
+    let start = Instant::now();
+    while start.elapsed() < Duration::from_millis(800) {
+        let t = Instant::now();
+        harness.step();
+        passes.push(t.elapsed().as_secs_f64() * 1e3);
+    }
+    // Meanwhile the last finished frame stays on screen, and the slow one is still rendering.
+    assert_eq!(harness.state().view.drawn, shown, "the previous frame stays on screen");
+    assert!(harness.state().host.as_ref().unwrap().is_busy());
+    passes.sort_by(f64::total_cmp);
+    let median = passes[passes.len() / 2];
+    assert!(passes.len() >= 10, "only {} UI passes in 0.8 s: the UI waits for the viewport", passes.len());
+    assert!(median < 16.0, "median UI pass {median:.1} ms while the viewport renders ({passes:?})");
+    // And the new frame arrives.
+    let start = Instant::now();
+    while harness.state().view.drawn == shown {
+        harness.step();
+        std::thread::sleep(Duration::from_millis(10));
+        assert!(start.elapsed() < Duration::from_secs(60), "the slow frame never arrived");
+    }
 }

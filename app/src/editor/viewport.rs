@@ -1,139 +1,224 @@
-//! The 3D viewport's GPU side: draws frames with the renderer crate and hands the tone-mapped
-//! image to egui. In the editor window it shares eframe's wgpu device and shows the render
-//! target directly; where there is no window device (UI tests) it renders on a headless
-//! device and uploads the read-back pixels.
+//! The 3D viewport's GPU side, off the UI thread. A render thread owns the renderer on its own
+//! wgpu device (on a software rasteriser a shared queue would make every UI frame wait for the
+//! viewport), draws the newest job, reads the tone-mapped image back and hands it to the UI,
+//! which shows the last finished frame while the next one renders.
 
 use eframe::egui;
-use eframe::egui_wgpu;
-use lightloom_nodes::kinds::output::{FrameInputs, Tonemap};
+use lightloom_nodes::kinds::output::{FrameInputs, Tonemap, View};
+use lightloom_nodes::reference::{self, HdrImage, ImageError};
 use lightloom_render::{CameraView, GpuContext, ViewportRenderer};
 use std::sync::Arc;
-use std::time::Instant;
+use std::sync::mpsc::{Receiver, Sender, TryRecvError};
+use std::time::{Duration, Instant};
 
-enum Display {
-    /// eframe's renderer shows our target texture (same device).
-    Native { renderer: Arc<egui::mutex::RwLock<egui_wgpu::Renderer>>, id: Option<egui::TextureId>, size: (u32, u32) },
-    /// Read back to the CPU and uploaded as an egui texture.
-    Uploaded(Option<egui::TextureHandle>),
+/// What to draw.
+pub enum Job {
+    /// The approximation.
+    Render { frame: Arc<FrameInputs>, camera: CameraView, size: (u32, u32) },
+    /// The reference, or the error heat map of the approximation against it, through the
+    /// frame's exposure and tone mapping.
+    Compare { frame: Arc<FrameInputs>, camera: CameraView, size: (u32, u32), reference: Arc<HdrImage>, view: View },
+}
+
+/// A finished job.
+pub struct Finished {
+    /// The caller's signature of the job.
+    pub signature: u64,
+    pub size: (u32, u32),
+    /// Tone-mapped sRGB bytes.
+    pub ldr: Vec<[u8; 4]>,
+    /// For [`Job::Compare`]: the approximation's error against the reference.
+    pub error: Option<ImageError>,
+    pub draw_ms: f64,
 }
 
 pub struct ViewportHost {
-    gpu: GpuContext,
-    renderer: ViewportRenderer,
-    display: Display,
+    /// `None` once dropping: the render thread then finishes its job and exits.
+    jobs: Option<Sender<(u64, Job)>>,
+    thread: Option<std::thread::JoinHandle<()>>,
+    finished: Receiver<Result<Finished, (u64, String)>>,
+    texture: Option<egui::TextureHandle>,
+    description: String,
+    cpu: bool,
+    /// Signature of the newest job sent, and of the frame on screen.
+    pub requested: Option<u64>,
+    pub shown: Option<u64>,
     /// Size of the image on screen now.
     pub size: (u32, u32),
-    /// Milliseconds the last draw took on the UI thread (submit, and readback when uploading).
+    /// Milliseconds the last frame took on the render thread.
     pub last_draw_ms: f64,
+    /// The tone-mapped pixels on screen (what the renderer wrote).
+    last_ldr: Vec<[u8; 4]>,
 }
 
 impl ViewportHost {
-    pub fn new(render_state: Option<&egui_wgpu::RenderState>) -> Result<Self, String> {
-        let (gpu, display) = match render_state {
-            Some(rs) => (
-                GpuContext::from_parts(rs.instance.clone(), rs.adapter.clone(), rs.device.clone(), rs.queue.clone()),
-                Display::Native { renderer: rs.renderer.clone(), id: None, size: (0, 0) },
-            ),
-            None => (GpuContext::headless().map_err(|e| e.to_string())?, Display::Uploaded(None)),
-        };
-        let renderer = ViewportRenderer::new(&gpu);
-        Ok(Self { gpu, renderer, display, size: (0, 0), last_draw_ms: 0.0 })
+    /// Starts the render thread on its own device. `slow_down` delays every job (tests of a
+    /// slow adapter).
+    pub fn new(slow_down: Duration) -> Result<Self, String> {
+        let gpu = GpuContext::headless().map_err(|e| e.to_string())?;
+        let description = gpu.describe();
+        let cpu = gpu.adapter.get_info().device_type == eframe::wgpu::DeviceType::Cpu;
+        let (jobs, job_rx) = std::sync::mpsc::channel::<(u64, Job)>();
+        let (done_tx, finished) = std::sync::mpsc::channel();
+        let thread = std::thread::Builder::new()
+            .name("lightloom-viewport".into())
+            .spawn(move || render_thread(gpu, job_rx, done_tx, slow_down))
+            .map_err(|e| format!("cannot start the viewport thread: {e}"))?;
+        Ok(Self {
+            jobs: Some(jobs),
+            thread: Some(thread),
+            finished,
+            texture: None,
+            description,
+            cpu,
+            requested: None,
+            shown: None,
+            size: (0, 0),
+            last_draw_ms: 0.0,
+            last_ldr: Vec::new(),
+        })
     }
 
     /// "adapter (backend, type)".
     pub fn describe(&self) -> String {
-        self.gpu.describe()
+        self.description.clone()
     }
 
     /// Software rasteriser (lavapipe, llvmpipe)? The editor then renders at a lower resolution.
     pub fn is_cpu(&self) -> bool {
-        self.gpu.adapter.get_info().device_type == eframe::wgpu::DeviceType::Cpu
+        self.cpu
     }
 
-    /// Draws a frame of the approximation.
-    pub fn render(
-        &mut self,
-        ctx: &egui::Context,
-        frame: &FrameInputs,
-        camera: &CameraView,
-        size: (u32, u32),
-    ) -> Result<(), String> {
-        let start = Instant::now();
-        self.renderer.render(&self.gpu, frame, camera, size.0, size.1).map_err(|e| e.to_string())?;
-        self.size = size;
-        self.publish(ctx)?;
-        self.last_draw_ms = start.elapsed().as_secs_f64() * 1e3;
-        Ok(())
+    /// Queues a job unless it is the one already requested; the render thread skips to the
+    /// newest job, so a stream of camera moves never queues up.
+    pub fn request(&mut self, signature: u64, job: Job) {
+        if self.requested == Some(signature) {
+            return;
+        }
+        self.requested = Some(signature);
+        if let Some(jobs) = &self.jobs {
+            let _ = jobs.send((signature, job));
+        }
     }
 
-    /// Shows a CPU image (the reference, an error map) through the same tone mapping.
-    pub fn present(
-        &mut self,
-        ctx: &egui::Context,
-        pixels: &[[f32; 3]],
-        size: (u32, u32),
-        exposure: f64,
-        tonemap: Tonemap,
-    ) -> Result<(), String> {
-        self.renderer.present(&self.gpu, pixels, size, exposure, tonemap).map_err(|e| e.to_string())?;
-        self.size = size;
-        self.publish(ctx)
+    /// Whether a requested frame is still rendering.
+    pub fn is_busy(&self) -> bool {
+        self.requested.is_some() && self.requested != self.shown
     }
 
-    fn publish(&mut self, ctx: &egui::Context) -> Result<(), String> {
-        match &mut self.display {
-            Display::Native { renderer, id, size } => {
-                let view = self.renderer.display_view().ok_or("nothing rendered")?;
-                let mut r = renderer.write();
-                match id {
-                    Some(_) if *size == self.size => {}
-                    Some(id) => {
-                        r.update_egui_texture_from_wgpu_texture(
-                            &self.gpu.device,
-                            view,
-                            eframe::wgpu::FilterMode::Linear,
-                            *id,
-                        );
-                        *size = self.size;
-                    }
-                    None => {
-                        *id = Some(r.register_native_texture(&self.gpu.device, view, eframe::wgpu::FilterMode::Linear));
-                        *size = self.size;
-                    }
-                }
-            }
-            Display::Uploaded(handle) => {
-                let captured = self.renderer.capture(&self.gpu).map_err(|e| e.to_string())?;
-                let image = egui::ColorImage::from_rgba_unmultiplied(
-                    [captured.width as usize, captured.height as usize],
-                    captured.ldr.as_flattened(),
-                );
-                match handle {
-                    Some(h) => h.set(image, egui::TextureOptions::LINEAR),
-                    None => *handle = Some(ctx.load_texture("viewport", image, egui::TextureOptions::LINEAR)),
+    /// Shows frames that finished since the last call; returns the newest, or its error.
+    pub fn poll(&mut self, ctx: &egui::Context) -> Option<Result<Finished, String>> {
+        let mut newest = None;
+        loop {
+            match self.finished.try_recv() {
+                Ok(result) => newest = Some(result),
+                Err(TryRecvError::Empty) => break,
+                Err(TryRecvError::Disconnected) => {
+                    return Some(Err("the viewport thread stopped".into()));
                 }
             }
         }
-        Ok(())
+        match newest? {
+            Ok(done) => {
+                let image = egui::ColorImage::from_rgba_unmultiplied(
+                    [done.size.0 as usize, done.size.1 as usize],
+                    done.ldr.as_flattened(),
+                );
+                match &mut self.texture {
+                    Some(h) => h.set(image, egui::TextureOptions::LINEAR),
+                    None => self.texture = Some(ctx.load_texture("viewport", image, egui::TextureOptions::LINEAR)),
+                }
+                self.shown = Some(done.signature);
+                self.size = done.size;
+                self.last_draw_ms = done.draw_ms;
+                self.last_ldr = done.ldr.clone();
+                Some(Ok(done))
+            }
+            Err((signature, e)) => {
+                self.shown = Some(signature);
+                Some(Err(e))
+            }
+        }
     }
 
-    /// Linear radiance of the last rendered frame (for comparisons with the reference).
-    pub fn capture_hdr(&self) -> Result<Vec<[f32; 3]>, String> {
-        let captured = self.renderer.capture(&self.gpu).map_err(|e| e.to_string())?;
-        Ok(captured.hdr.iter().map(|p| [p[0], p[1], p[2]]).collect())
-    }
-
-    /// The tone-mapped pixels of the last frame (sRGB bytes), as the renderer wrote them.
+    /// The tone-mapped pixels on screen (sRGB bytes), as the renderer wrote them.
     #[cfg(test)]
     pub fn capture_ldr(&self) -> Result<Vec<[u8; 4]>, String> {
-        Ok(self.renderer.capture(&self.gpu).map_err(|e| e.to_string())?.ldr)
+        Ok(self.last_ldr.clone())
     }
 
     /// The texture egui draws, once something was rendered.
     pub fn texture_id(&self) -> Option<egui::TextureId> {
-        match &self.display {
-            Display::Native { id, .. } => *id,
-            Display::Uploaded(h) => h.as_ref().map(|h| h.id()),
+        self.texture.as_ref().map(|h| h.id())
+    }
+}
+
+impl Drop for ViewportHost {
+    /// Stops the render thread and waits for it, so its device is torn down before the
+    /// process exits (a GPU driver still rendering at exit can crash).
+    fn drop(&mut self) {
+        self.jobs = None;
+        if let Some(thread) = self.thread.take() {
+            let _ = thread.join();
+        }
+    }
+}
+
+fn render_thread(
+    gpu: GpuContext,
+    jobs: Receiver<(u64, Job)>,
+    done: Sender<Result<Finished, (u64, String)>>,
+    slow_down: Duration,
+) {
+    let mut renderer = ViewportRenderer::new(&gpu);
+    while let Ok(mut job) = jobs.recv() {
+        // Only the newest job matters.
+        while let Ok(newer) = jobs.try_recv() {
+            job = newer;
+        }
+        let (signature, job) = job;
+        let start = Instant::now();
+        std::thread::sleep(slow_down);
+        let result = run(&gpu, &mut renderer, job).map(|(size, ldr, error)| Finished {
+            signature,
+            size,
+            ldr,
+            error,
+            draw_ms: start.elapsed().as_secs_f64() * 1e3,
+        });
+        if done.send(result.map_err(|e| (signature, e))).is_err() {
+            return;
+        }
+    }
+}
+
+type Drawn = ((u32, u32), Vec<[u8; 4]>, Option<ImageError>);
+
+fn run(gpu: &GpuContext, renderer: &mut ViewportRenderer, job: Job) -> Result<Drawn, String> {
+    let text = |e: lightloom_render::RenderError| e.to_string();
+    match job {
+        Job::Render { frame, camera, size } => {
+            renderer.render(gpu, &frame, &camera, size.0, size.1).map_err(|e| format!("render failed: {e}"))?;
+            Ok((size, renderer.capture(gpu).map_err(text)?.ldr, None))
+        }
+        Job::Compare { frame, camera, size, reference, view } => {
+            // The approximation at the reference's size, read back for the comparison.
+            renderer.render(gpu, &frame, &camera, size.0, size.1).map_err(|e| format!("render failed: {e}"))?;
+            let approximation: Vec<[f32; 3]> =
+                renderer.capture(gpu).map_err(text)?.hdr.iter().map(|p| [p[0], p[1], p[2]]).collect();
+            let mask = reference.surface_mask();
+            let error = reference::compare(&approximation, &reference.pixels, Some(&mask)).ok();
+            let settings = &frame.settings;
+            if view == View::Reference {
+                renderer.present(gpu, &reference.pixels, size, settings.exposure, settings.tonemap).map_err(text)?;
+            } else {
+                let mean = reference.pixels.iter().map(|p| (p[0] + p[1] + p[2]) as f64 / 3.0).sum::<f64>()
+                    / reference.pixels.len().max(1) as f64;
+                let map =
+                    reference::error_heat_map(&approximation, &reference.pixels, Some(&mask), (mean * 0.5).max(1e-6));
+                renderer.present(gpu, &map, size, 0.0, Tonemap::Linear).map_err(text)?;
+            }
+            Ok((size, renderer.capture(gpu).map_err(text)?.ldr, error))
         }
     }
 }

@@ -161,7 +161,7 @@ impl EditorApp {
 
     pub(super) fn frame_all(&mut self) {
         if let Some(frame) = &self.view.frame
-            && let lightloom_nodes::engine::StageValue::Meshes(m) = frame.meshes.value.as_ref()
+            && let Some(m) = frame.meshes.value.get::<lightloom_nodes::mesh::MeshSet>()
         {
             self.view.camera.frame(m.bounds());
         }
@@ -207,7 +207,7 @@ impl EditorApp {
             self.view.selected_object = None;
             return;
         };
-        let lightloom_nodes::engine::StageValue::Meshes(meshes) = frame.meshes.value.as_ref() else { return };
+        let Some(meshes) = frame.meshes.value.get::<lightloom_nodes::mesh::MeshSet>() else { return };
         let name = meshes.meshes[mesh].name.split('/').next().unwrap_or_default().to_string();
         // The Scene node feeding the output, and the object with that name.
         let Some((_, graph)) = &self.evaluator.last else { return };
@@ -235,7 +235,7 @@ impl EditorApp {
             return;
         };
         let Some(object) = objects.get(index) else { return };
-        let lightloom_nodes::engine::StageValue::Meshes(m) = frame.meshes.value.as_ref() else { return };
+        let Some(m) = frame.meshes.value.get::<lightloom_nodes::mesh::MeshSet>() else { return };
         let prefix = format!("{}/", object.name);
         let parts: Vec<_> = m.meshes.iter().filter(|x| x.name == object.name || x.name.starts_with(&prefix)).collect();
         if parts.is_empty() {
@@ -268,9 +268,28 @@ impl EditorApp {
         }
     }
 
-    /// Redraws when the frame, camera, size or view changed; starts or shows reference renders.
+    /// Shows frames the render thread finished, and asks it for a new one when the frame,
+    /// camera, size or view changed; starts or shows reference renders. Never waits for the
+    /// GPU: the last finished frame stays on screen while the next one renders.
     pub(super) fn draw_viewport(&mut self, ctx: &egui::Context, size: (u32, u32)) {
-        let (Some(host), Some(frame)) = (self.host.as_mut(), self.view.frame.clone()) else { return };
+        let Some(host) = self.host.as_mut() else { return };
+        match host.poll(ctx) {
+            Some(Ok(done)) => {
+                self.view.drawn = done.signature;
+                if done.error.is_some() {
+                    self.view.error = done.error;
+                }
+            }
+            Some(Err(e)) => {
+                self.view.frame_error = Some(e);
+                self.view.drawn = host.shown.unwrap_or(0);
+            }
+            None => {}
+        }
+        if host.is_busy() {
+            ctx.request_repaint_after(std::time::Duration::from_millis(15));
+        }
+        let Some(frame) = self.view.frame.clone() else { return };
         let settings = &frame.settings;
         let camera = self.view.camera;
         let mut h = std::hash::DefaultHasher::new();
@@ -279,18 +298,17 @@ impl EditorApp {
         format!("{camera:?}").hash(&mut h);
         size.hash(&mut h);
         let signature = h.finish();
+        let render =
+            |frame: &Arc<FrameInputs>| viewport::Job::Render { frame: frame.clone(), camera: camera.view(), size };
         if settings.view == View::Approximation {
             if let Some(job) = self.view.reference.take() {
                 job.cancel();
             }
             self.view.error = None;
             if signature != self.view.drawn {
-                match host.render(ctx, &frame, &camera.view(), size) {
-                    Ok(()) => self.view.drawn = signature,
-                    Err(e) => {
-                        self.view.frame_error = Some(format!("render failed: {e}"));
-                        self.view.drawn = signature;
-                    }
+                host.request(signature, render(&frame));
+                if host.shown == Some(signature) {
+                    self.view.drawn = signature;
                 }
             }
             return;
@@ -304,8 +322,7 @@ impl EditorApp {
                 old.cancel();
             }
             self.view.reference = Some(ReferenceJob::spawn(frame.clone(), camera.pinhole(), size, signature));
-            let _ = host.render(ctx, &frame, &camera.view(), size);
-            self.view.drawn = 0;
+            host.request(signature, render(&frame));
             return;
         }
         let Some((_, reference)) = self.view.reference_image.clone().filter(|(s, _)| *s == signature) else { return };
@@ -313,34 +330,18 @@ impl EditorApp {
             ^ xxhash_rust::xxh3::xxh3_64(
                 format!("{}{}{}", settings.view, settings.exposure, settings.tonemap).as_bytes(),
             );
-        if view_signature == self.view.drawn {
-            return;
-        }
-        self.view.drawn = view_signature;
-        // The approximation at the same size, read back for the comparison.
-        if let Err(e) = host.render(ctx, &frame, &camera.view(), size) {
-            self.view.frame_error = Some(e);
-            return;
-        }
-        let approximation = match host.capture_hdr() {
-            Ok(a) => a,
-            Err(e) => {
-                self.view.frame_error = Some(e);
-                return;
+        if view_signature != self.view.drawn {
+            let job = viewport::Job::Compare {
+                frame: frame.clone(),
+                camera: camera.view(),
+                size,
+                reference,
+                view: settings.view,
+            };
+            host.request(view_signature, job);
+            if host.shown == Some(view_signature) {
+                self.view.drawn = view_signature;
             }
-        };
-        let mask = reference.surface_mask();
-        self.view.error = reference::compare(&approximation, &reference.pixels, Some(&mask)).ok();
-        let result = if settings.view == View::Reference {
-            host.present(ctx, &reference.pixels, size, settings.exposure, settings.tonemap)
-        } else {
-            let mean = reference.pixels.iter().map(|p| (p[0] + p[1] + p[2]) as f64 / 3.0).sum::<f64>()
-                / reference.pixels.len().max(1) as f64;
-            let map = reference::error_heat_map(&approximation, &reference.pixels, Some(&mask), (mean * 0.5).max(1e-6));
-            host.present(ctx, &map, size, 0.0, Tonemap::Linear)
-        };
-        if let Err(e) = result {
-            self.view.frame_error = Some(e);
         }
     }
 }

@@ -1,53 +1,43 @@
 //! Result caches: a bounded in-memory LRU cache and a checksummed, content-addressed disk
 //! cache for expensive stages.
 
-use super::StageValue;
 use super::key::{Key, key_hex};
-use rustc_hash::FxHashMap as HashMap;
+use super::value::{Codec, StageValue};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-/// In-memory cache bounded by an approximate byte budget; least recently used entries go first.
+/// In-memory cache bounded by an approximate byte budget; least recently used entries go
+/// first (the `lru` crate keeps the order, so eviction is O(1) per entry).
 pub struct MemoryCache {
     budget: usize,
     used: usize,
-    tick: u64,
-    entries: HashMap<Key, (Arc<StageValue>, usize, u64)>,
+    entries: lru::LruCache<Key, (Arc<StageValue>, usize)>,
 }
 
 impl MemoryCache {
     pub fn new(budget_bytes: usize) -> Self {
-        Self { budget: budget_bytes, used: 0, tick: 0, entries: HashMap::default() }
+        Self { budget: budget_bytes, used: 0, entries: lru::LruCache::unbounded() }
     }
 
     pub fn get(&mut self, key: Key) -> Option<Arc<StageValue>> {
-        self.tick += 1;
-        let tick = self.tick;
-        self.entries.get_mut(&key).map(|e| {
-            e.2 = tick;
-            e.0.clone()
-        })
+        self.entries.get(&key).map(|e| e.0.clone())
     }
 
     pub fn contains(&self, key: Key) -> bool {
-        self.entries.contains_key(&key)
+        self.entries.contains(&key)
     }
 
     pub fn insert(&mut self, key: Key, value: Arc<StageValue>) {
-        self.tick += 1;
         let size = value.approx_bytes();
-        if let Some(old) = self.entries.insert(key, (value, size, self.tick)) {
-            self.used -= old.1;
+        if let Some((_, old)) = self.entries.put(key, (value, size)) {
+            self.used -= old;
         }
         self.used += size;
+        // The entry just inserted is the most recent, so it goes last (and stays when alone).
         while self.used > self.budget && self.entries.len() > 1 {
-            let oldest = self.entries.iter().filter(|(k, _)| **k != key).min_by_key(|(_, e)| e.2).map(|(k, _)| *k);
-            match oldest {
-                Some(k) => {
-                    let removed = self.entries.remove(&k).unwrap();
-                    self.used -= removed.1;
-                }
+            match self.entries.pop_lru() {
+                Some((_, (_, removed))) => self.used -= removed,
                 None => break,
             }
         }
@@ -66,18 +56,21 @@ impl MemoryCache {
     }
 }
 
-const MAGIC: &[u8; 8] = b"LLCACHE1";
+/// Version 2 records the value's type name and encoding version in every entry.
+const MAGIC: &[u8; 8] = b"LLCACHE2";
 
 /// What a disk lookup found.
 pub enum DiskLookup {
     Hit(StageValue),
     Miss,
-    /// An entry existed but failed its checks; it was removed and must be recomputed.
+    /// An entry existed but failed its checks (or holds another type or encoding version);
+    /// it was removed and must be recomputed.
     Corrupt(String),
 }
 
-/// Content-addressed files `dir/ab/<key>.bin`: magic, key, payload length, xxh3-64 checksum,
-/// postcard payload. Writes are atomic (temporary file + rename).
+/// Content-addressed files `dir/ab/<key>.bin`: magic, key, the value's type name and encoding
+/// version, payload length, xxh3-64 checksum, payload. Writes are atomic (temporary file +
+/// rename).
 #[derive(Clone, Debug)]
 pub struct DiskCache {
     dir: PathBuf,
@@ -108,13 +101,14 @@ impl DiskCache {
         self.dir.join(&hex[..2]).join(format!("{hex}.bin"))
     }
 
-    pub fn load(&self, key: Key) -> DiskLookup {
+    /// The entry for `key`, decoded with `codec` (whose type and encoding it must record).
+    pub fn load(&self, key: Key, codec: &Codec) -> DiskLookup {
         let path = self.path_for(key);
         let bytes = match std::fs::read(&path) {
             Ok(b) => b,
             Err(_) => return DiskLookup::Miss,
         };
-        match decode(&bytes, key) {
+        match decode(&bytes, key, codec) {
             Ok(value) => DiskLookup::Hit(value),
             Err(why) => {
                 let _ = std::fs::remove_file(&path);
@@ -123,41 +117,70 @@ impl DiskCache {
         }
     }
 
-    pub fn store(&self, key: Key, value: &StageValue) -> std::io::Result<()> {
-        let payload = postcard::to_stdvec(value).map_err(std::io::Error::other)?;
+    pub fn store(&self, key: Key, value: &StageValue, codec: &Codec) -> std::io::Result<()> {
+        let payload = (codec.encode)(value).map_err(std::io::Error::other)?;
         let path = self.path_for(key);
-        std::fs::create_dir_all(path.parent().unwrap())?;
-        let tmp = path.with_extension(format!("tmp{}", std::process::id()));
-        {
-            let mut file = std::fs::File::create(&tmp)?;
-            file.write_all(MAGIC)?;
-            file.write_all(&key.to_le_bytes())?;
-            file.write_all(&(payload.len() as u64).to_le_bytes())?;
-            file.write_all(&xxhash_rust::xxh3::xxh3_64(&payload).to_le_bytes())?;
-            file.write_all(&payload)?;
-            file.sync_all()?;
-        }
-        std::fs::rename(&tmp, &path)
+        let dir = path.parent().expect("entries live in a subfolder");
+        std::fs::create_dir_all(dir)?;
+        let mut file = tempfile::NamedTempFile::new_in(dir)?;
+        file.write_all(MAGIC)?;
+        file.write_all(&key.to_le_bytes())?;
+        let name = codec.type_name.as_bytes();
+        file.write_all(&[name.len().min(255) as u8])?;
+        file.write_all(&name[..name.len().min(255)])?;
+        file.write_all(&codec.encoding.to_le_bytes())?;
+        file.write_all(&(payload.len() as u64).to_le_bytes())?;
+        file.write_all(&xxhash_rust::xxh3::xxh3_64(&payload).to_le_bytes())?;
+        file.write_all(&payload)?;
+        file.as_file().sync_all()?;
+        file.persist(&path).map(|_| ()).map_err(|e| e.error)
     }
 }
 
-fn decode(bytes: &[u8], key: Key) -> Result<StageValue, String> {
-    let header = 8 + 16 + 8 + 8;
-    if bytes.len() < header || &bytes[..8] != MAGIC {
-        return Err("not a Lightloom cache entry".into());
+/// Reads fixed-size fields off the front of an entry.
+struct Reader<'a>(&'a [u8]);
+
+impl<'a> Reader<'a> {
+    fn take(&mut self, n: usize) -> Result<&'a [u8], String> {
+        if self.0.len() < n {
+            return Err("truncated header".into());
+        }
+        let (head, rest) = self.0.split_at(n);
+        self.0 = rest;
+        Ok(head)
     }
-    let stored_key = u128::from_le_bytes(bytes[8..24].try_into().unwrap());
+
+    fn u64(&mut self) -> Result<u64, String> {
+        Ok(u64::from_le_bytes(self.take(8)?.try_into().unwrap()))
+    }
+}
+
+fn decode(bytes: &[u8], key: Key, codec: &Codec) -> Result<StageValue, String> {
+    let mut r = Reader(bytes);
+    if r.take(8).ok() != Some(MAGIC.as_slice()) {
+        return Err("not a Lightloom cache entry (or an older cache format)".into());
+    }
+    let stored_key = u128::from_le_bytes(r.take(16)?.try_into().unwrap());
     if stored_key != key {
         return Err("entry holds a different key".into());
     }
-    let len = u64::from_le_bytes(bytes[24..32].try_into().unwrap()) as usize;
-    let checksum = u64::from_le_bytes(bytes[32..40].try_into().unwrap());
-    let payload = &bytes[header..];
+    let name_len = r.take(1)?[0] as usize;
+    let name = String::from_utf8_lossy(r.take(name_len)?).to_string();
+    let encoding = u32::from_le_bytes(r.take(4)?.try_into().unwrap());
+    if name != codec.type_name || encoding != codec.encoding {
+        return Err(format!(
+            "entry holds {name} (encoding {encoding}), expected {} (encoding {})",
+            codec.type_name, codec.encoding
+        ));
+    }
+    let len = r.u64()? as usize;
+    let checksum = r.u64()?;
+    let payload = r.0;
     if payload.len() != len {
         return Err(format!("truncated: {} of {len} payload bytes", payload.len()));
     }
     if xxhash_rust::xxh3::xxh3_64(payload) != checksum {
         return Err("checksum mismatch".into());
     }
-    postcard::from_bytes(payload).map_err(|e| format!("undecodable payload: {e}"))
+    (codec.decode)(payload).map_err(|e| format!("undecodable payload: {e}"))
 }

@@ -8,9 +8,11 @@
 pub mod cache;
 pub mod graph;
 pub mod key;
+pub mod value;
 
 pub use graph::{Graph, GraphError, GraphNode, Link};
 pub use key::Key;
+pub use value::{Codec, Persisted, StageType, StageValue};
 
 use crate::graph::{ParamValue, StageSpec};
 use cache::{DiskCache, DiskLookup, MemoryCache};
@@ -23,112 +25,6 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::Sender;
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
-
-/// The result of a stage.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub enum StageValue {
-    Image(crate::cubemap::Equirect),
-    CubeMap(crate::cubemap::CubeMap),
-    Sh(crate::sh::ShRgb),
-    Wavelet(crate::kinds::environment::WaveletLighting),
-    Meshes(crate::mesh::MeshSet),
-    Material(crate::kinds::brdf::Material),
-    Medium(crate::kinds::fog::Medium),
-    Lights(Vec<crate::kinds::lights::PointLight>),
-    Spheres(Vec<([f64; 3], f64)>),
-    Output(crate::kinds::output::OutputSettings),
-    Receivers(crate::transport::Receivers),
-    ShTransport(crate::transport::ShTransport),
-    HaarTransport(crate::transport::HaarTransport),
-    LocalTransport(crate::transport::SphericalTransport),
-    TexelReceivers(crate::transport::TexelReceivers),
-    ObjectTransport(Vec<crate::transport::ObjectTransport>),
-    IncidentSh(crate::prt::IncidentSh),
-    BrdfTable(crate::triple_product::BrdfTable),
-    LocalProducts(crate::triple_product::LocalProducts),
-    TexelIrradiance(crate::triple_product::TexelIrradiance),
-    LobePreview(crate::brdf::LobePreview),
-    ShLobe(crate::prt::GlossyLobe),
-    /// A rotation matrix, column-major.
-    Rotation([f64; 9]),
-    FrameTable(crate::triple_product::FrameTable),
-    /// Single scattering `F^k` tables (k = 0, 1, …).
-    ScatteringF(Vec<crate::single_scattering::FTable>),
-    /// A single scattering surface table `G_n`.
-    ScatteringG(crate::single_scattering::PhongGTables),
-    /// Test stages: a number.
-    Number(f64),
-    /// In memory only (never persisted): obvhs BVHs are rebuilt on load. Must stay the last
-    /// variant: serde numbers the remaining variants without it when deserialising.
-    #[serde(skip)]
-    RayScene(Arc<crate::raycast::RayScene>),
-}
-
-impl StageValue {
-    /// Approximate heap size, for the memory budget.
-    pub fn approx_bytes(&self) -> usize {
-        64 + match self {
-            StageValue::Image(i) => i.pixels.len() * 12,
-            StageValue::CubeMap(c) => c.texels.len() * 12,
-            StageValue::Sh(s) => s.coeffs.len() * 24,
-            StageValue::Wavelet(w) => w.channels.iter().map(|c| c.len() * 16).sum(),
-            StageValue::Meshes(m) => m.approx_bytes(),
-            StageValue::Lights(l) => l.len() * 48,
-            StageValue::Spheres(s) => s.len() * 32,
-            StageValue::Receivers(r) => r.len() * 36,
-            StageValue::ShTransport(t) => (t.visibility.len() + t.transfer.len()) * 4,
-            StageValue::HaarTransport(t) => t.visibility.iter().chain(&t.transfer).map(|v| v.len() * 16 + 24).sum(),
-            StageValue::IncidentSh(r) => r.coeffs.len() * 4,
-            StageValue::BrdfTable(t) => (t.diffuse.len() + t.specular.len()) * 4,
-            StageValue::LocalProducts(p) => p.values.len() * 4,
-            StageValue::TexelIrradiance(t) => t.texels.len() * 12 + t.products.len() * 4,
-            StageValue::LobePreview(p) => p.curves.iter().map(|c| c.len() * 4).sum(),
-            StageValue::Rotation(_) => 72,
-            StageValue::ShLobe(l) => l.factors.len() * 8 + 32,
-            StageValue::FrameTable(t) => t.approx_bytes(),
-            StageValue::ScatteringF(t) => t.iter().map(|t| t.table.values.len() * 4).sum(),
-            StageValue::ScatteringG(g) => g.tables.iter().map(|t| t.table.values.len() * 4).sum(),
-            StageValue::LocalTransport(t) => t.visibility.iter().map(|v| v.len() * 16 + 24).sum(),
-            StageValue::RayScene(s) => s.triangle_count() * 48 * 2,
-            StageValue::TexelReceivers(t) => t.receivers.len() * 44,
-            StageValue::ObjectTransport(o) => o.len() * 160,
-            _ => 64,
-        }
-    }
-
-    pub fn type_name(&self) -> &'static str {
-        match self {
-            StageValue::Image(_) => "image",
-            StageValue::CubeMap(_) => "cube map",
-            StageValue::Sh(_) => "SH",
-            StageValue::Wavelet(_) => "wavelet",
-            StageValue::Meshes(_) => "meshes",
-            StageValue::Material(_) => "material",
-            StageValue::Medium(_) => "medium",
-            StageValue::Lights(_) => "lights",
-            StageValue::Spheres(_) => "spheres",
-            StageValue::Output(_) => "output settings",
-            StageValue::Receivers(_) => "receivers",
-            StageValue::ShTransport(_) => "SH transport",
-            StageValue::HaarTransport(_) => "Haar transport",
-            StageValue::LocalTransport(_) => "local-frame transport",
-            StageValue::RayScene(_) => "ray-tracing scene",
-            StageValue::TexelReceivers(_) => "texel receivers",
-            StageValue::ObjectTransport(_) => "per-object transport",
-            StageValue::IncidentSh(_) => "incident radiance SH",
-            StageValue::BrdfTable(_) => "local-frame BRDF table",
-            StageValue::LocalProducts(_) => "local-frame lighting × visibility",
-            StageValue::TexelIrradiance(_) => "per-texel diffuse transfer",
-            StageValue::LobePreview(_) => "BRDF lobe preview",
-            StageValue::Rotation(_) => "rotation",
-            StageValue::ShLobe(_) => "SH lobe",
-            StageValue::FrameTable(_) => "pre-rotated lighting table",
-            StageValue::ScatteringF(_) => "single scattering F tables",
-            StageValue::ScatteringG(_) => "single scattering G tables",
-            StageValue::Number(_) => "number",
-        }
-    }
-}
 
 /// Why a stage failed.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
@@ -280,7 +176,7 @@ pub struct StageContext<'a> {
     cancel: &'a CancelToken,
     events: Option<&'a Sender<EvalEvent>>,
     engine: &'a Engine,
-    persist: bool,
+    persist: Option<Codec>,
     memo_hits: std::sync::atomic::AtomicUsize,
     memo_misses: std::sync::atomic::AtomicUsize,
     warnings: Mutex<Vec<String>>,
@@ -296,35 +192,37 @@ impl StageContext<'_> {
     /// Caches a part of this stage's work under `key`, a hash of everything that part depends
     /// on (so a stage over many items recomputes only the items that changed). Memoised parts
     /// share the engine's memory cache, and its disk cache when the stage persists.
-    pub fn memo(
+    pub fn memo<T: Persisted>(
         &self,
         key: Key,
-        compute: impl FnOnce() -> Result<StageValue, StageError>,
-    ) -> Result<Arc<StageValue>, StageError> {
+        compute: impl FnOnce() -> Result<T, StageError>,
+    ) -> Result<Memo<T>, StageError> {
         use std::sync::atomic::Ordering::Relaxed;
-        if let Some(v) = self.engine.memory.lock().unwrap().get(key) {
+        let codec = Codec::of::<T>();
+        let cached = self.engine.memory.lock().unwrap().get(key).filter(|v| v.get::<T>().is_some());
+        if let Some(v) = cached {
             self.memo_hits.fetch_add(1, Relaxed);
-            return Ok(v);
+            return Ok(Memo::new(v));
         }
-        if self.persist
+        if self.persist.is_some()
             && let Some(disk) = &self.engine.disk
-            && let DiskLookup::Hit(v) = disk.load(key)
+            && let DiskLookup::Hit(v) = disk.load(key, &codec)
         {
             let v = Arc::new(v);
             self.engine.memory.lock().unwrap().insert(key, v.clone());
             self.memo_hits.fetch_add(1, Relaxed);
-            return Ok(v);
+            return Ok(Memo::new(v));
         }
-        let v = Arc::new(compute()?);
+        let v = Arc::new(StageValue::new(compute()?));
         self.cancel.check()?;
         self.memo_misses.fetch_add(1, Relaxed);
-        if self.persist
+        if self.persist.is_some()
             && let Some(disk) = &self.engine.disk
         {
-            let _ = disk.store(key, &v);
+            let _ = disk.store(key, &v, &codec);
         }
         self.engine.memory.lock().unwrap().insert(key, v.clone());
-        Ok(v)
+        Ok(Memo::new(v))
     }
 
     fn param(&self, name: &str) -> Result<&ParamValue, StageError> {
@@ -387,16 +285,28 @@ impl StageContext<'_> {
         self.param(name)
     }
 
-    /// An earlier stage of this node.
-    pub fn stage(&self, name: &str) -> Result<&StageValue, StageError> {
-        self.stages.get(name).map(|v| v.as_ref()).ok_or_else(|| {
+    /// An earlier stage of this node, as its type; a wrong type is an error naming both.
+    pub fn stage<T: StageType>(&self, name: &str) -> Result<&T, StageError> {
+        let value = self.stages.get(name).ok_or_else(|| {
             StageError::Internal(format!("stage `{}` read stage `{name}` it did not declare", self.stage))
-        })
+        })?;
+        value.expect::<T>().map_err(|e| StageError::Internal(format!("stage `{name}`: {e}")))
     }
 
-    /// An upstream stage through an input port; `None` when the port is unconnected.
-    pub fn input(&self, port: &str, stage: &str) -> Option<&StageValue> {
-        self.inputs.iter().find(|((p, s), _)| *p == port && *s == stage).map(|(_, v)| v.as_ref())
+    /// An upstream stage through an input port, as its type; `None` when the port is
+    /// unconnected.
+    pub fn input<T: StageType>(&self, port: &str, stage: &str) -> Result<Option<&T>, StageError> {
+        match self.inputs.iter().find(|((p, s), _)| *p == port && *s == stage) {
+            None => Ok(None),
+            Some((_, value)) => {
+                value.expect::<T>().map(Some).map_err(|e| StageError::Internal(format!("input `{port}.{stage}`: {e}")))
+            }
+        }
+    }
+
+    /// Like [`StageContext::input`], for inputs the node cannot work without.
+    pub fn required_input<T: StageType>(&self, port: &str, stage: &str) -> Result<&T, StageError> {
+        self.input::<T>(port, stage)?.ok_or_else(|| StageError::Failed(format!("the `{port}` input is not connected")))
     }
 
     pub fn check_cancel(&self) -> Result<(), StageError> {
@@ -416,6 +326,27 @@ impl StageContext<'_> {
                 fraction,
             });
         }
+    }
+}
+
+/// A memoised part of a stage's work (see [`StageContext::memo`]): a shared `T`.
+#[derive(Clone, Debug)]
+pub struct Memo<T> {
+    value: Arc<StageValue>,
+    _type: std::marker::PhantomData<fn() -> T>,
+}
+
+impl<T: StageType> Memo<T> {
+    fn new(value: Arc<StageValue>) -> Self {
+        debug_assert!(value.get::<T>().is_some());
+        Self { value, _type: std::marker::PhantomData }
+    }
+}
+
+impl<T: StageType> std::ops::Deref for Memo<T> {
+    type Target = T;
+    fn deref(&self) -> &T {
+        self.value.get::<T>().expect("memo holds its type")
     }
 }
 
@@ -841,10 +772,10 @@ impl Engine {
         }
         let mut reasons = self.reasons(inst);
         let mut note = None;
-        if inst.spec.persist
+        if let Some(codec) = &inst.spec.persist
             && let Some(disk) = &self.disk
         {
-            match disk.load(inst.key) {
+            match disk.load(inst.key, codec) {
                 DiskLookup::Hit(value) => {
                     let value = Arc::new(value);
                     self.memory.lock().unwrap().insert(inst.key, value.clone());
@@ -903,9 +834,9 @@ impl Engine {
         match outcome {
             Ok(value) if !cancel.is_cancelled() => {
                 let value = Arc::new(value);
-                if inst.spec.persist
+                if let Some(codec) = &inst.spec.persist
                     && let Some(disk) = &self.disk
-                    && let Err(e) = disk.store(inst.key, &value)
+                    && let Err(e) = disk.store(inst.key, &value, codec)
                 {
                     note = Some(format!("{}.{}: could not write the disk cache: {e}", inst.node.id, inst.spec.name));
                 }

@@ -1,6 +1,7 @@
 use super::*;
 use crate::graph::{Availability, NodeKindSpec, ParamKind, ParamSpec, PortSpec, PortType, StageSpec};
 use crate::project::{Project, ProjectLink, ProjectNode, default_project};
+use serde::{Deserialize, Serialize};
 use std::collections::BTreeSet;
 use std::sync::atomic::AtomicUsize;
 
@@ -199,8 +200,8 @@ fn rotated_sh_matches_projecting_the_rotated_cube_map() {
     graph.set_param("sky", "sun_size", ParamValue::Float(12.0)).unwrap();
     graph.set_param("sky", "resolution", ParamValue::Choice("128".into())).unwrap();
     let eval = engine.evaluate(&graph, &CancelToken::default(), None);
-    let StageValue::Sh(rotated) = eval.value("sky", "sh").unwrap().as_ref().clone() else { panic!() };
-    let StageValue::CubeMap(cube) = eval.value("sky", "rotated_radiance").unwrap().as_ref().clone() else { panic!() };
+    let rotated = eval.value("sky", "sh").unwrap().expect::<crate::sh::ShRgb>().unwrap().clone();
+    let cube = eval.value("sky", "rotated_radiance").unwrap().expect::<crate::cubemap::CubeMap>().unwrap().clone();
     let direct = crate::sh::project_samples(rotated.bands, cube.samples());
     let scale = direct.coeffs[0][0].abs();
     for (a, b) in rotated.coeffs.iter().zip(&direct.coeffs) {
@@ -212,17 +213,22 @@ fn rotated_sh_matches_projecting_the_rotated_cube_map() {
 
 // ---- test kinds ------------------------------------------------------------------------
 
+/// The test kinds' stage value.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+struct Number(f64);
+crate::stage_type!(Number, "number", encoding = 1, |_v| 64);
+
 /// Only the disk-cache test uses the `Counted` kind, so its count is not raced by other tests.
 static COUNTED_RUNS: AtomicUsize = AtomicUsize::new(0);
 
 fn counted(ctx: &StageContext) -> Result<StageValue, StageError> {
     COUNTED_RUNS.fetch_add(1, Ordering::SeqCst);
-    Ok(StageValue::Number(ctx.float("x")? * 2.0))
+    Ok(StageValue::new(Number(ctx.float("x")? * 2.0)))
 }
 static CONCURRENT: AtomicUsize = AtomicUsize::new(0);
 
 fn expensive(ctx: &StageContext) -> Result<StageValue, StageError> {
-    Ok(StageValue::Number(ctx.float("x")? * 2.0))
+    Ok(StageValue::new(Number(ctx.float("x")? * 2.0)))
 }
 
 fn slow(ctx: &StageContext) -> Result<StageValue, StageError> {
@@ -232,7 +238,7 @@ fn slow(ctx: &StageContext) -> Result<StageValue, StageError> {
         ctx.progress(i as f64 / 1000.0);
         std::thread::sleep(std::time::Duration::from_millis(10));
     }
-    Ok(StageValue::Number(ctx.float("x")?))
+    Ok(StageValue::new(Number(ctx.float("x")?)))
 }
 
 fn meet(ctx: &StageContext) -> Result<StageValue, StageError> {
@@ -241,7 +247,7 @@ fn meet(ctx: &StageContext) -> Result<StageValue, StageError> {
     while CONCURRENT.load(Ordering::SeqCst) < 2 && start.elapsed().as_secs() < 5 {
         std::thread::yield_now();
     }
-    Ok(StageValue::Number(if CONCURRENT.load(Ordering::SeqCst) >= 2 { 1.0 } else { 0.0 } + ctx.float("x")? * 0.0))
+    Ok(StageValue::new(Number(if CONCURRENT.load(Ordering::SeqCst) >= 2 { 1.0 } else { 0.0 } + ctx.float("x")? * 0.0)))
 }
 
 fn fails(_: &StageContext) -> Result<StageValue, StageError> {
@@ -249,11 +255,8 @@ fn fails(_: &StageContext) -> Result<StageValue, StageError> {
 }
 
 fn sum(ctx: &StageContext) -> Result<StageValue, StageError> {
-    let a = match ctx.input("a", "value") {
-        Some(StageValue::Number(v)) => *v,
-        _ => 0.0,
-    };
-    Ok(StageValue::Number(a + ctx.float("x")?))
+    let a = ctx.input::<Number>("a", "value")?.map_or(0.0, |n| n.0);
+    Ok(StageValue::new(Number(a + ctx.float("x")?)))
 }
 
 fn test_kind(name: &'static str, compute: StageFn, persist: bool) -> NodeKindSpec {
@@ -276,7 +279,7 @@ fn test_kind(name: &'static str, compute: StageFn, persist: bool) -> NodeKindSpe
             params: &["x"],
             stages: &[],
             inputs: &[("a", "value")],
-            persist,
+            persist: persist.then(Codec::of::<Number>),
             compute,
         }],
         availability: Availability::Ready,
@@ -338,7 +341,7 @@ fn disk_cache_serves_fresh_engines_and_recomputes_corrupt_entries() {
     assert_eq!(first.report.stages[0].status, StageStatus::Computed);
     let second = Engine::new(config()).evaluate(&graph, &CancelToken::default(), None);
     assert_eq!(second.report.stages[0].status, StageStatus::DiskHit);
-    assert_eq!(*second.value("e", "value").unwrap(), StageValue::Number(42.0));
+    assert_eq!(second.value("e", "value").unwrap().get::<Number>(), Some(&Number(42.0)));
     assert_eq!(COUNTED_RUNS.load(Ordering::SeqCst) - before, 1);
     // Corrupt the entry: flip a payload byte; then truncate it.
     let path = Engine::new(config()).disk_cache().unwrap().path_for(first.results[0].key);
@@ -357,7 +360,7 @@ fn disk_cache_serves_fresh_engines_and_recomputes_corrupt_entries() {
         let stage = &eval.report.stages[0];
         assert_eq!(stage.status, StageStatus::Computed, "corrupt entry must be recomputed");
         assert!(stage.reasons.iter().any(|r| r.contains("corrupt")), "{:?}", stage.reasons);
-        assert_eq!(*eval.value("e", "value").unwrap(), StageValue::Number(42.0));
+        assert_eq!(eval.value("e", "value").unwrap().get::<Number>(), Some(&Number(42.0)));
         // The recomputed entry replaced the corrupt one.
         let next = Engine::new(config()).evaluate(&graph, &CancelToken::default(), None);
         assert_eq!(next.report.stages[0].status, StageStatus::DiskHit);
@@ -389,7 +392,7 @@ fn cancellation_stops_running_stages_and_caches_nothing_partial() {
     fast.set_param("after", "x", ParamValue::Float(0.5)).unwrap();
     let eval = engine.evaluate(&fast, &CancelToken::default(), None);
     assert!(eval.report.failed().is_empty());
-    assert_eq!(*eval.value("after", "value").unwrap(), StageValue::Number(2.5));
+    assert_eq!(eval.value("after", "value").unwrap().get::<Number>(), Some(&Number(2.5)));
 }
 
 #[test]
@@ -407,7 +410,7 @@ fn scheduler_cancels_the_stale_evaluation() {
         assert!(t.elapsed().as_secs() < 10, "the new evaluation never finished");
         std::thread::sleep(std::time::Duration::from_millis(5));
     };
-    assert_eq!(*eval.value("e", "value").unwrap(), StageValue::Number(2.0));
+    assert_eq!(eval.value("e", "value").unwrap().get::<Number>(), Some(&Number(2.0)));
 }
 
 #[test]
@@ -416,8 +419,8 @@ fn independent_stages_run_in_parallel_off_the_calling_thread() {
     let graph = test_graph(&[("a", "Meet"), ("b", "Meet")], &[]);
     let job = engine.spawn(graph);
     let eval = job.wait();
-    assert_eq!(*eval.value("a", "value").unwrap(), StageValue::Number(1.0), "stages did not overlap");
-    assert_eq!(*eval.value("b", "value").unwrap(), StageValue::Number(1.0));
+    assert_eq!(eval.value("a", "value").unwrap().get::<Number>(), Some(&Number(1.0)), "stages did not overlap");
+    assert_eq!(eval.value("b", "value").unwrap().get::<Number>(), Some(&Number(1.0)));
 }
 
 #[test]
@@ -427,13 +430,13 @@ fn failures_propagate_downstream_and_leave_the_rest() {
     let eval = engine.evaluate(&graph, &CancelToken::default(), None);
     assert_eq!(eval.value("bad", "value").unwrap_err(), StageError::Failed("deliberate failure".into()));
     assert_eq!(eval.value("down", "value").unwrap_err(), StageError::Upstream("bad.value".into()));
-    assert_eq!(*eval.value("ok", "value").unwrap(), StageValue::Number(1.0));
+    assert_eq!(eval.value("ok", "value").unwrap().get::<Number>(), Some(&Number(1.0)));
 }
 
 #[test]
 fn memory_cache_stays_within_budget_evicting_least_recently_used() {
     let mut cache = MemoryCache::new(1000);
-    let item = |v: f64| Arc::new(StageValue::Number(v)); // 128 bytes each
+    let item = |v: f64| Arc::new(StageValue::new(Number(v))); // 128 bytes each
     for k in 0..7u128 {
         cache.insert(k, item(k as f64));
     }
@@ -617,7 +620,8 @@ fn planned_kinds_recompute_exactly_their_stages_too() {
     let first = engine.evaluate(&graph, &CancelToken::default(), None);
     let failed: BTreeSet<String> = first.report.failed().iter().map(|s| format!("{}.{}", s.node, s.stage)).collect();
     assert_eq!(failed, set(&["area.lights", "rsl.square_lights"]), "only the planned techniques fail");
-    let StageValue::Lights(lights) = first.value("light2", "lights").unwrap().as_ref().clone() else { panic!() };
+    let lights =
+        first.value("light2", "lights").unwrap().expect::<Vec<crate::kinds::lights::PointLight>>().unwrap().clone();
     assert_eq!(lights.len(), 2, "point lights chain");
     for (node, param, value, expected) in table {
         graph.set_param(node, param, value).unwrap();
@@ -630,31 +634,70 @@ fn planned_kinds_recompute_exactly_their_stages_too() {
 fn persisted_stage_values_round_trip_through_the_disk_format() {
     use crate::transport::{HaarTransport, ShTransport, SphericalTransport};
     use crate::wavelet::SparseVector;
-    let values = [
-        StageValue::Number(1.5),
-        StageValue::ShTransport(ShTransport { bands: 2, rays: 16, visibility: vec![1.0; 8], transfer: vec![0.5; 8] }),
-        StageValue::HaarTransport(HaarTransport {
+    fn round_trip<T: Persisted + PartialEq + Clone>(disk: &cache::DiskCache, key: Key, value: T) {
+        let codec = Codec::of::<T>();
+        disk.store(key, &StageValue::new(value.clone()), &codec).unwrap();
+        match disk.load(key, &codec) {
+            cache::DiskLookup::Hit(back) => assert_eq!(back.get::<T>(), Some(&value), "{}", T::NAME),
+            _ => panic!("{} did not round-trip", T::NAME),
+        }
+    }
+    let dir = temp_dir("roundtrip");
+    let disk = cache::DiskCache::new(&dir);
+    round_trip(&disk, 0, Number(1.5));
+    round_trip(&disk, 1, ShTransport { bands: 2, rays: 16, visibility: vec![1.0; 8], transfer: vec![0.5; 8] });
+    round_trip(
+        &disk,
+        2,
+        HaarTransport {
             size: 4,
             keep: 2,
             visibility: vec![SparseVector { entries: vec![(0, 1.0), (7, -0.5)] }],
             transfer: vec![SparseVector::default()],
-        }),
-        StageValue::LocalTransport(SphericalTransport {
-            depth: 1,
-            keep: 3,
-            visibility: vec![SparseVector { entries: vec![(3, 2.0)] }],
-        }),
-        StageValue::Sh(crate::sh::ShRgb::zero(2)),
-    ];
-    let dir = temp_dir("roundtrip");
+        },
+    );
+    round_trip(
+        &disk,
+        3,
+        SphericalTransport { depth: 1, keep: 3, visibility: vec![SparseVector { entries: vec![(3, 2.0)] }] },
+    );
+}
+
+/// A value type whose encoding changed: same name, a new `ENCODING`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+struct NumberV2(f64, f64);
+impl StageType for NumberV2 {
+    const NAME: &'static str = "number";
+}
+impl Persisted for NumberV2 {
+    const ENCODING: u32 = 2;
+}
+
+#[test]
+fn disk_entries_of_another_type_or_encoding_are_recomputed_not_misread() {
+    let dir = temp_dir("encoding");
     let disk = cache::DiskCache::new(&dir);
-    for (k, v) in values.iter().enumerate() {
-        disk.store(k as u128, v).unwrap();
-        match disk.load(k as u128) {
-            cache::DiskLookup::Hit(back) => assert_eq!(&back, v),
-            _ => panic!("{} did not round-trip", v.type_name()),
+    disk.store(7, &StageValue::new(Number(3.0)), &Codec::of::<Number>()).unwrap();
+    // The same bytes would decode as garbage under the new layout; the header says why not.
+    match disk.load(7, &Codec::of::<NumberV2>()) {
+        cache::DiskLookup::Corrupt(why) => {
+            assert!(why.contains("number (encoding 1), expected number (encoding 2)"), "{why}")
         }
+        _ => panic!("an entry with an older encoding was trusted"),
     }
+    assert!(matches!(disk.load(7, &Codec::of::<Number>()), cache::DiskLookup::Miss), "the stale entry is removed");
+    disk.store(8, &StageValue::new(Number(3.0)), &Codec::of::<Number>()).unwrap();
+    match disk.load(8, &Codec::of::<crate::transport::ShTransport>()) {
+        cache::DiskLookup::Corrupt(why) => assert!(why.contains("expected SH transport"), "{why}"),
+        _ => panic!("an entry of another type was trusted"),
+    }
+}
+
+#[test]
+fn a_stage_reading_the_wrong_type_gets_an_error_naming_both() {
+    let value = StageValue::new(Number(1.0));
+    let err = value.expect::<crate::sh::ShRgb>().unwrap_err();
+    assert_eq!(err.to_string(), "internal error: expected SH, found number");
 }
 
 #[test]
@@ -672,14 +715,16 @@ fn scene_transport_stages_cover_every_receiver_and_follow_transforms() {
     graph.set_param("scene", "haar_resolution", ParamValue::Choice("4".into())).unwrap();
     let eval = engine.evaluate(&graph, &CancelToken::default(), None);
     assert!(eval.report.failed().is_empty(), "{:?}", eval.report.failed());
-    let StageValue::Receivers(r) = eval.value("scene", "receivers").unwrap().as_ref().clone() else { panic!() };
-    let StageValue::ShTransport(sh) = eval.value("scene", "transport_sh").unwrap().as_ref().clone() else { panic!() };
-    let StageValue::HaarTransport(haar) = eval.value("scene", "transport_haar").unwrap().as_ref().clone() else {
-        panic!()
-    };
-    let StageValue::LocalTransport(local) = eval.value("scene", "transport_local").unwrap().as_ref().clone() else {
-        panic!()
-    };
+    let r = eval.value("scene", "receivers").unwrap().expect::<crate::transport::Receivers>().unwrap().clone();
+    let sh = eval.value("scene", "transport_sh").unwrap().expect::<crate::transport::ShTransport>().unwrap().clone();
+    let haar =
+        eval.value("scene", "transport_haar").unwrap().expect::<crate::transport::HaarTransport>().unwrap().clone();
+    let local = eval
+        .value("scene", "transport_local")
+        .unwrap()
+        .expect::<crate::transport::SphericalTransport>()
+        .unwrap()
+        .clone();
     assert_eq!(sh.visibility.len(), r.len() * 36);
     assert_eq!(haar.visibility.len(), r.len());
     assert_eq!(local.visibility.len(), r.len());
@@ -704,7 +749,7 @@ fn scene_transport_stages_cover_every_receiver_and_follow_transforms() {
     moved[1].translation = [1.0, 0.5, -0.5];
     graph.set_param("scene", "objects", ParamValue::Objects(moved)).unwrap();
     let eval2 = engine.evaluate(&graph, &CancelToken::default(), None);
-    let StageValue::Receivers(r2) = eval2.value("scene", "receivers").unwrap().as_ref().clone() else { panic!() };
+    let r2 = eval2.value("scene", "receivers").unwrap().expect::<crate::transport::Receivers>().unwrap().clone();
     for i in r.mesh_offsets[1]..r.len() {
         let d = [0, 1, 2].map(|c| r2.positions[i][c] - r.positions[i][c]);
         assert!((d[0] - 1.0).abs() < 1e-5 && d[1].abs() < 1e-5 && (d[2] + 0.5).abs() < 1e-5, "{d:?}");
@@ -726,10 +771,12 @@ fn moving_a_rigid_object_reuses_every_per_object_transport() {
     let stage = |eval: &Evaluation| eval.report.stages.iter().find(|s| s.stage == "transport_objects").unwrap().clone();
     let first = engine.evaluate(&graph, &CancelToken::default(), None);
     assert!(stage(&first).reasons.iter().any(|r| r == "2 part(s) computed, 0 reused"), "{:?}", stage(&first).reasons);
-    let StageValue::ObjectTransport(before) = first.value("scene", "transport_objects").unwrap().as_ref().clone()
-    else {
-        panic!()
-    };
+    let before = first
+        .value("scene", "transport_objects")
+        .unwrap()
+        .expect::<Vec<crate::transport::ObjectTransport>>()
+        .unwrap()
+        .clone();
     // The torus self-shadows (its inner ring sees less sky than its outer rim); the ball does not.
     let v00 = |t: &crate::transport::ObjectTransport, i: usize| t.sh.receiver(i).0[0];
     let torus_min = (0..before[0].sh.visibility.len() / 36).map(|i| v00(&before[0], i)).fold(f32::MAX, f32::min);
@@ -741,9 +788,12 @@ fn moving_a_rigid_object_reuses_every_per_object_transport() {
     let moved = engine.evaluate(&graph, &CancelToken::default(), None);
     assert_eq!(stage(&moved).status, StageStatus::Computed);
     assert!(stage(&moved).reasons.iter().any(|r| r == "0 part(s) computed, 2 reused"), "{:?}", stage(&moved).reasons);
-    let StageValue::ObjectTransport(after) = moved.value("scene", "transport_objects").unwrap().as_ref().clone() else {
-        panic!()
-    };
+    let after = moved
+        .value("scene", "transport_objects")
+        .unwrap()
+        .expect::<Vec<crate::transport::ObjectTransport>>()
+        .unwrap()
+        .clone();
     assert_eq!(after[1].sh, before[1].sh);
     assert_ne!(after[1].world_from_object, before[1].world_from_object);
     // Changing the ball's shape recomputes only the ball.
@@ -769,11 +819,13 @@ fn a_gltf_file_is_one_object_with_its_own_transport() {
     graph.set_param("scene", "transport_rays", ParamValue::Int(1024)).unwrap();
     let eval = engine.evaluate(&graph, &CancelToken::default(), None);
     assert!(eval.report.failed().is_empty(), "{:?}", eval.report.failed());
-    let StageValue::Meshes(meshes) = eval.value("scene", "geometry").unwrap().as_ref().clone() else { panic!() };
-    let StageValue::ObjectTransport(objects) = eval.value("scene", "transport_objects").unwrap().as_ref().clone()
-    else {
-        panic!()
-    };
+    let meshes = eval.value("scene", "geometry").unwrap().expect::<crate::mesh::MeshSet>().unwrap().clone();
+    let objects = eval
+        .value("scene", "transport_objects")
+        .unwrap()
+        .expect::<Vec<crate::transport::ObjectTransport>>()
+        .unwrap()
+        .clone();
     assert_eq!(objects.len(), 1);
     assert_eq!(objects[0].name, "BoxTextured.gltf");
     let vertices: usize = meshes.meshes.iter().map(|m| m.positions.len()).sum();

@@ -6,6 +6,9 @@ use crate::engine::{StageContext, StageError, StageValue};
 use crate::graph::{Availability, NodeKindSpec, ParamKind, ParamSpec, PortSpec, PortType, StageSpec};
 use serde::{Deserialize, Serialize};
 
+// Stage value types this module owns (see `engine::value`).
+crate::stage_type!(Material, "material");
+
 /// A material's parameters.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Material {
@@ -90,7 +93,7 @@ pub fn spec() -> NodeKindSpec {
                 params: &["model", "albedo", "specular", "roughness", "exponent", "anisotropy", "f0"],
                 stages: &[],
                 inputs: &[],
-                persist: false,
+                persist: None,
                 compute: material,
             },
             StageSpec {
@@ -99,7 +102,7 @@ pub fn spec() -> NodeKindSpec {
                 params: &[],
                 stages: &["material"],
                 inputs: &[],
-                persist: false,
+                persist: None,
                 compute: preview,
             },
             StageSpec {
@@ -108,7 +111,7 @@ pub fn spec() -> NodeKindSpec {
                 params: &[],
                 stages: &["material"],
                 inputs: &[],
-                persist: false,
+                persist: None,
                 compute: sh_lobe,
             },
             StageSpec {
@@ -117,7 +120,7 @@ pub fn spec() -> NodeKindSpec {
                 params: &[],
                 stages: &["material"],
                 inputs: &[],
-                persist: false,
+                persist: None,
                 compute: local_table,
             },
         ],
@@ -127,34 +130,28 @@ pub fn spec() -> NodeKindSpec {
 
 /// The lobe plot and directional albedos the node shows.
 fn preview(ctx: &StageContext) -> Result<StageValue, StageError> {
-    let StageValue::Material(m) = ctx.stage("material")? else {
-        return Err(StageError::Internal("material stage".into()));
-    };
-    Ok(StageValue::LobePreview(crate::brdf::LobePreview::of(&crate::brdf::Brdf::from_material(m))))
+    let m = ctx.stage::<Material>("material")?;
+    Ok(StageValue::new(crate::brdf::LobePreview::of(&crate::brdf::Brdf::from_material(m))))
 }
 
 /// The material's SH projection for the `sh_prt` mode: the zonal factors of its (equivalent)
 /// Phong lobe about the mirror direction, 16 bands (empty for Lambert).
 fn sh_lobe(ctx: &StageContext) -> Result<StageValue, StageError> {
-    let StageValue::Material(m) = ctx.stage("material")? else {
-        return Err(StageError::Internal("material stage".into()));
-    };
-    Ok(StageValue::ShLobe(crate::prt::glossy_lobe(m, crate::prt::LOBE_BANDS).unwrap_or_default()))
+    let m = ctx.stage::<Material>("material")?;
+    Ok(StageValue::new(crate::prt::glossy_lobe(m, crate::prt::LOBE_BANDS).unwrap_or_default()))
 }
 
 /// The material tabulated in the local frame on 320 icosahedral cells (Ma et al. §3.2; the
 /// renderer merges cells for 80).
 fn local_table(ctx: &StageContext) -> Result<StageValue, StageError> {
-    let StageValue::Material(m) = ctx.stage("material")? else {
-        return Err(StageError::Internal("material stage".into()));
-    };
+    let m = ctx.stage::<Material>("material")?;
     let grid = crate::triple_product::CellGrid::for_coefficients(320).map_err(StageError::Internal)?;
     let brdf = crate::brdf::Brdf::from_material(m);
-    Ok(StageValue::BrdfTable(crate::triple_product::tabulate_brdf(&brdf, grid, ctx.cancel_token())?))
+    Ok(StageValue::new(crate::triple_product::tabulate_brdf(&brdf, grid, ctx.cancel_token())?))
 }
 
 fn material(ctx: &StageContext) -> Result<StageValue, StageError> {
-    Ok(StageValue::Material(Material {
+    Ok(StageValue::new(Material {
         model: ctx.choice("model")?.to_string(),
         albedo: ctx.vec3("albedo")?,
         specular: ctx.vec3("specular")?,

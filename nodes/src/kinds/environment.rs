@@ -13,6 +13,10 @@ use crate::wavelet::cube_haar::CubeHaar;
 use glam::{DMat3, DVec3};
 use serde::{Deserialize, Serialize};
 
+// Stage value types this module owns (see `engine::value`).
+crate::stage_type!(WaveletLighting, "wavelet", |v| v.channels.iter().map(|c| c.len() * 16).sum());
+crate::stage_type!(DMat3, "rotation");
+
 /// Sparse Haar lighting per colour channel.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct WaveletLighting {
@@ -122,7 +126,7 @@ pub fn spec() -> NodeKindSpec {
                 params: &["source", "file", "sun_elevation", "sun_azimuth", "sun_intensity", "sun_size"],
                 stages: &[],
                 inputs: &[],
-                persist: false,
+                persist: None,
                 compute: source,
             },
             StageSpec {
@@ -131,7 +135,7 @@ pub fn spec() -> NodeKindSpec {
                 params: &["exposure", "tint", "resolution"],
                 stages: &["source"],
                 inputs: &[],
-                persist: false,
+                persist: None,
                 compute: radiance,
             },
             StageSpec {
@@ -140,7 +144,7 @@ pub fn spec() -> NodeKindSpec {
                 params: &["sh_bands"],
                 stages: &["radiance"],
                 inputs: &[],
-                persist: false,
+                persist: None,
                 compute: sh_unrotated,
             },
             StageSpec {
@@ -149,7 +153,7 @@ pub fn spec() -> NodeKindSpec {
                 params: &["rotation"],
                 stages: &[],
                 inputs: &[],
-                persist: false,
+                persist: None,
                 compute: rotation,
             },
             StageSpec {
@@ -158,7 +162,7 @@ pub fn spec() -> NodeKindSpec {
                 params: &["rotation"],
                 stages: &["radiance"],
                 inputs: &[],
-                persist: false,
+                persist: None,
                 compute: rotated_radiance,
             },
             StageSpec {
@@ -167,7 +171,7 @@ pub fn spec() -> NodeKindSpec {
                 params: &["rotation"],
                 stages: &["sh_unrotated"],
                 inputs: &[],
-                persist: false,
+                persist: None,
                 compute: sh_rotated,
             },
             StageSpec {
@@ -176,7 +180,7 @@ pub fn spec() -> NodeKindSpec {
                 params: &["wavelet_terms"],
                 stages: &["rotated_radiance"],
                 inputs: &[],
-                persist: false,
+                persist: None,
                 compute: haar,
             },
         ],
@@ -221,7 +225,7 @@ fn source(ctx: &StageContext) -> Result<StageValue, StageError> {
             if let Some(note) = note {
                 ctx.warn(note);
             }
-            Ok(StageValue::Image(image))
+            Ok(StageValue::new(image))
         }
         _ => {
             let (elevation, azimuth) =
@@ -234,13 +238,13 @@ fn source(ctx: &StageContext) -> Result<StageValue, StageError> {
                 sun_radiance: [intensity, intensity * 0.925, intensity * 0.8],
                 ..ProceduralSky::default()
             };
-            Ok(StageValue::Image(crate::cubemap::Equirect::from_fn(512, 256, 3, |d| sky.radiance(d))))
+            Ok(StageValue::new(crate::cubemap::Equirect::from_fn(512, 256, 3, |d| sky.radiance(d))))
         }
     }
 }
 
 fn radiance(ctx: &StageContext) -> Result<StageValue, StageError> {
-    let StageValue::Image(image) = ctx.stage("source")? else { return Err(wrong("source")) };
+    let image = ctx.stage::<crate::cubemap::Equirect>("source")?;
     let size: usize = ctx.choice("resolution")?.parse().map_err(|_| StageError::Internal("resolution".into()))?;
     let scale = 2f64.powf(ctx.float("exposure")?);
     let tint = ctx.vec3("tint")?;
@@ -250,51 +254,47 @@ fn radiance(ctx: &StageContext) -> Result<StageValue, StageError> {
             t[c] = (t[c] as f64 * scale * tint[c]) as f32;
         }
     }
-    Ok(StageValue::CubeMap(cube))
+    Ok(StageValue::new(cube))
 }
 
 fn sh_unrotated(ctx: &StageContext) -> Result<StageValue, StageError> {
-    let StageValue::CubeMap(cube) = ctx.stage("radiance")? else { return Err(wrong("radiance")) };
-    Ok(StageValue::Sh(sh::project_samples(ctx.int("sh_bands")? as usize, cube.samples())))
+    let cube = ctx.stage::<crate::cubemap::CubeMap>("radiance")?;
+    Ok(StageValue::new(sh::project_samples(ctx.int("sh_bands")? as usize, cube.samples())))
 }
 
 /// The rotation `R` (column-major): the rotated environment is `L'(d) = L(R⁻¹ d)`. Consumers
 /// that can rotate their query instead of the map (the wavelet modes' frame table) read it with
 /// the unrotated `radiance`, so a rotation rebuilds nothing.
 fn rotation(ctx: &StageContext) -> Result<StageValue, StageError> {
-    Ok(StageValue::Rotation(rotation_matrix(ctx.vec3("rotation")?).to_cols_array()))
+    Ok(StageValue::new(rotation_matrix(ctx.vec3("rotation")?)))
 }
 
 fn rotated_radiance(ctx: &StageContext) -> Result<StageValue, StageError> {
-    let StageValue::CubeMap(cube) = ctx.stage("radiance")? else { return Err(wrong("radiance")) };
+    let cube = ctx.stage::<crate::cubemap::CubeMap>("radiance")?;
     let rotation = ctx.vec3("rotation")?;
     if rotation == [0.0; 3] {
-        return Ok(StageValue::CubeMap(cube.clone()));
+        return Ok(StageValue::new(cube.clone()));
     }
     // L'(d) = L(R⁻¹ d), box-filtered.
     let inverse = rotation_matrix(rotation).transpose();
-    Ok(StageValue::CubeMap(CubeMap::from_fn(cube.size, 2, |d| cube.sample(inverse * d))))
+    Ok(StageValue::new(CubeMap::from_fn(cube.size, 2, |d| cube.sample(inverse * d))))
 }
 
 fn sh_rotated(ctx: &StageContext) -> Result<StageValue, StageError> {
-    let StageValue::Sh(sh) = ctx.stage("sh_unrotated")? else { return Err(wrong("sh_unrotated")) };
+    let sh = ctx.stage::<crate::sh::ShRgb>("sh_unrotated")?;
     let rotation = rotation_matrix(ctx.vec3("rotation")?);
-    Ok(StageValue::Sh(ShRotation::new(sh.bands, rotation).apply_rgb(sh)))
+    Ok(StageValue::new(ShRotation::new(sh.bands, rotation).apply_rgb(sh)))
 }
 
 fn haar(ctx: &StageContext) -> Result<StageValue, StageError> {
-    let StageValue::CubeMap(cube) = ctx.stage("rotated_radiance")? else { return Err(wrong("rotated_radiance")) };
+    let cube = ctx.stage::<crate::cubemap::CubeMap>("rotated_radiance")?;
     let keep = ctx.int("wavelet_terms")? as usize;
     let transform = CubeHaar::new(cube.size);
     let channels = [0, 1, 2].map(|c| {
         let values: Vec<f64> = cube.texels.iter().map(|t| t[c] as f64).collect();
         transform.approximate(&values, keep)
     });
-    Ok(StageValue::Wavelet(WaveletLighting { size: cube.size, channels }))
-}
-
-pub(crate) fn wrong(stage: &str) -> StageError {
-    StageError::Internal(format!("stage `{stage}` produced an unexpected value type"))
+    Ok(StageValue::new(WaveletLighting { size: cube.size, channels }))
 }
 
 #[cfg(test)]

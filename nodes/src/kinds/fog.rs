@@ -4,9 +4,12 @@
 //! number of phase terms, so changing β, the phase weights, a material or a light recomputes
 //! no table.
 
-use crate::engine::{StageContext, StageError, StageValue};
+use crate::engine::{Codec, StageContext, StageError, StageValue};
 use crate::graph::{Availability, NodeKindSpec, ParamKind, ParamSpec, PortSpec, PortType, StageSpec};
 use serde::{Deserialize, Serialize};
+
+// Stage value types this module owns (see `engine::value`).
+crate::stage_type!(Medium, "medium");
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Medium {
@@ -73,7 +76,7 @@ pub fn spec() -> NodeKindSpec {
                 params: &["beta", "phase", "phase_coefficients", "table_resolution", "environment_distance"],
                 stages: &[],
                 inputs: &[],
-                persist: false,
+                persist: None,
                 compute: medium,
             },
             StageSpec {
@@ -82,7 +85,7 @@ pub fn spec() -> NodeKindSpec {
                 params: &["phase", "table_resolution"],
                 stages: &[],
                 inputs: &[],
-                persist: true,
+                persist: Some(Codec::of::<Vec<crate::single_scattering::FTable>>()),
                 compute: f_tables,
             },
             StageSpec {
@@ -91,7 +94,7 @@ pub fn spec() -> NodeKindSpec {
                 params: &["table_resolution"],
                 stages: &[],
                 inputs: &[],
-                persist: true,
+                persist: Some(Codec::of::<crate::single_scattering::PhongGTables>()),
                 compute: g_tables,
             },
         ],
@@ -120,7 +123,7 @@ fn medium(ctx: &StageContext) -> Result<StageValue, StageError> {
             std::f64::consts::LN_2 / densest
         ));
     }
-    Ok(StageValue::Medium(Medium {
+    Ok(StageValue::new(Medium {
         beta,
         phase,
         phase_coefficients,
@@ -138,12 +141,12 @@ fn f_tables(ctx: &StageContext) -> Result<StageValue, StageError> {
         ctx.progress(k as f64 / terms as f64);
         tables.push(crate::single_scattering::FTable::new(k, resolution));
     }
-    Ok(StageValue::ScatteringF(tables))
+    Ok(StageValue::new(tables))
 }
 
 fn g_tables(ctx: &StageContext) -> Result<StageValue, StageError> {
     let resolution = (resolution(ctx)? / 4).max(32);
-    Ok(StageValue::ScatteringG(crate::single_scattering::PhongGTables::new(resolution)))
+    Ok(StageValue::new(crate::single_scattering::PhongGTables::new(resolution)))
 }
 
 #[cfg(test)]

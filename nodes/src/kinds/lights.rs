@@ -4,6 +4,9 @@ use crate::engine::{StageContext, StageError, StageValue};
 use crate::graph::{Availability, NodeKindSpec, ParamKind, ParamSpec, PortSpec, PortType, StageSpec};
 use serde::{Deserialize, Serialize};
 
+// Stage value types this module owns (see `engine::value`).
+crate::stage_type!(Vec<PointLight>, "lights", |v| v.len() * 48);
+
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct PointLight {
     pub position: [f64; 3],
@@ -41,7 +44,7 @@ pub fn point_light_spec() -> NodeKindSpec {
             params: &["position", "intensity"],
             stages: &[],
             inputs: &[("lights", "lights")],
-            persist: false,
+            persist: None,
             compute: lights,
         }],
         availability: Availability::Ready,
@@ -49,10 +52,7 @@ pub fn point_light_spec() -> NodeKindSpec {
 }
 
 fn lights(ctx: &StageContext) -> Result<StageValue, StageError> {
-    let mut list = match ctx.input("lights", "lights") {
-        Some(StageValue::Lights(upstream)) => upstream.clone(),
-        _ => Vec::new(),
-    };
+    let mut list = ctx.input::<Vec<PointLight>>("lights", "lights")?.cloned().unwrap_or_default();
     list.push(PointLight { position: ctx.vec3("position")?, intensity: ctx.vec3("intensity")? });
-    Ok(StageValue::Lights(list))
+    Ok(StageValue::new(list))
 }

@@ -1,10 +1,15 @@
 //! Output node: what the viewport and `lightloom render` draw, and how (relighting mode,
 //! exposure, tone mapping).
 
-use crate::engine::{Evaluation, Graph, GraphNode, Key, Request, StageContext, StageError, StageRef, StageValue};
+use crate::engine::{
+    Codec, Evaluation, Graph, GraphNode, Key, Request, StageContext, StageError, StageRef, StageValue,
+};
 use crate::graph::{Availability, NodeKindSpec, ParamKind, ParamSpec, ParamValue, PortSpec, PortType, StageSpec};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
+
+// Stage value types this module owns (see `engine::value`).
+crate::stage_type!(OutputSettings, "output settings");
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct OutputSettings {
@@ -146,7 +151,7 @@ pub fn spec() -> NodeKindSpec {
                 params: &["mode", "exposure", "tonemap", "background", "view", "reference_samples"],
                 stages: &[],
                 inputs: &[],
-                persist: false,
+                persist: None,
                 compute: settings,
             },
             StageSpec {
@@ -155,7 +160,7 @@ pub fn spec() -> NodeKindSpec {
                 params: &[],
                 stages: &[],
                 inputs: &[("scene", "transport_sh"), ("environment", "sh")],
-                persist: false,
+                persist: None,
                 compute: incident_sh,
             },
             StageSpec {
@@ -169,7 +174,7 @@ pub fn spec() -> NodeKindSpec {
                     ("environment", "radiance"),
                     ("environment", "rotation"),
                 ],
-                persist: true,
+                persist: Some(Codec::of::<crate::triple_product::LocalProducts>()),
                 compute: local_products,
             },
             StageSpec {
@@ -184,7 +189,7 @@ pub fn spec() -> NodeKindSpec {
                     ("environment", "radiance"),
                     ("environment", "rotation"),
                 ],
-                persist: true,
+                persist: Some(Codec::of::<crate::triple_product::TexelIrradiance>()),
                 compute: texel_irradiance,
             },
         ],
@@ -193,7 +198,7 @@ pub fn spec() -> NodeKindSpec {
 }
 
 fn settings(ctx: &StageContext) -> Result<StageValue, StageError> {
-    Ok(StageValue::Output(OutputSettings {
+    Ok(StageValue::new(OutputSettings {
         mode: ctx.option("mode")?,
         exposure: ctx.float("exposure")?,
         tonemap: ctx.option("tonemap")?,
@@ -206,13 +211,11 @@ fn settings(ctx: &StageContext) -> Result<StageValue, StageError> {
 /// Shadowed incident radiance `R = L·V` per receiver for the `sh_prt` mode (pulled only by it).
 /// Depends on lighting and transport only: BRDF and camera edits reuse it.
 fn incident_sh(ctx: &StageContext) -> Result<StageValue, StageError> {
-    let Some(StageValue::ShTransport(transport)) = ctx.input("scene", "transport_sh") else {
-        return Err(StageError::Internal("scene transport input".into()));
+    let transport = ctx.required_input::<crate::transport::ShTransport>("scene", "transport_sh")?;
+    let Some(light) = ctx.input::<crate::sh::ShRgb>("environment", "sh")? else {
+        return Ok(StageValue::new(crate::prt::IncidentSh::default()));
     };
-    let Some(StageValue::Sh(light)) = ctx.input("environment", "sh") else {
-        return Ok(StageValue::IncidentSh(Default::default()));
-    };
-    Ok(StageValue::IncidentSh(crate::prt::incident_radiance(light, transport, ctx.cancel_token())?))
+    Ok(StageValue::new(crate::prt::incident_radiance(light, transport, ctx.cancel_token())?))
 }
 
 /// Per-vertex `P_c = ΔΩ_c L^x_c V^x_c` for the wavelet modes (pulled only by them).
@@ -220,32 +223,22 @@ fn incident_sh(ctx: &StageContext) -> Result<StageValue, StageError> {
 fn local_products(ctx: &StageContext) -> Result<StageValue, StageError> {
     let terms: usize =
         ctx.choice("wavelet_terms")?.parse().map_err(|_| StageError::Internal("wavelet_terms".into()))?;
-    let (Some(StageValue::Receivers(receivers)), Some(StageValue::LocalTransport(transport))) =
-        (ctx.input("scene", "receivers"), ctx.input("scene", "transport_local"))
-    else {
-        return Err(StageError::Internal("scene inputs".into()));
-    };
+    let receivers = ctx.required_input::<crate::transport::Receivers>("scene", "receivers")?;
+    let transport = ctx.required_input::<crate::transport::SphericalTransport>("scene", "transport_local")?;
     let grid = crate::triple_product::CellGrid::for_coefficients(terms).map_err(StageError::Failed)?;
     let Some((environment, rotation)) = wavelet_lighting(ctx)? else {
-        return Ok(StageValue::LocalProducts(Default::default()));
+        return Ok(StageValue::new(crate::triple_product::LocalProducts::default()));
     };
     // Big meshes: the pre-rotated table, memoised on the environment's content, so rotating
     // the environment only re-reads it with rotated frames.
     let table = if receivers.len() > crate::triple_product::FRAME_TABLE_THRESHOLD {
         let key = environment_key(environment, terms);
-        let value =
-            ctx.memo(key, || Ok(StageValue::FrameTable(crate::triple_product::FrameTable::build(grid, environment))))?;
-        Some(value)
+        Some(ctx.memo(key, || Ok(crate::triple_product::FrameTable::build(grid, environment)))?)
     } else {
         None
     };
-    let table = match table.as_deref() {
-        Some(StageValue::FrameTable(t)) => Some(t),
-        Some(_) => return Err(StageError::Internal("memoised frame table".into())),
-        None => None,
-    };
-    let lighting = crate::triple_product::Lighting { environment, rotation, table };
-    Ok(StageValue::LocalProducts(crate::triple_product::local_products(
+    let lighting = crate::triple_product::Lighting { environment, rotation, table: table.as_deref() };
+    Ok(StageValue::new(crate::triple_product::local_products(
         grid,
         &lighting,
         receivers,
@@ -258,12 +251,12 @@ fn local_products(ctx: &StageContext) -> Result<StageValue, StageError> {
 fn wavelet_lighting<'a>(
     ctx: &'a StageContext,
 ) -> Result<Option<(&'a crate::cubemap::CubeMap, glam::DMat3)>, StageError> {
-    match (ctx.input("environment", "radiance"), ctx.input("environment", "rotation")) {
-        (Some(StageValue::CubeMap(cube)), Some(StageValue::Rotation(r))) => {
-            Ok(Some((cube, glam::DMat3::from_cols_array(r))))
-        }
-        (None, _) => Ok(None),
-        _ => Err(StageError::Internal("environment inputs".into())),
+    match (
+        ctx.input::<crate::cubemap::CubeMap>("environment", "radiance")?,
+        ctx.input::<glam::DMat3>("environment", "rotation")?,
+    ) {
+        (Some(cube), Some(rotation)) => Ok(Some((cube, *rotation))),
+        _ => Ok(None),
     }
 }
 
@@ -283,20 +276,15 @@ fn environment_key(cube: &crate::cubemap::CubeMap, cells: usize) -> crate::engin
 fn texel_irradiance(ctx: &StageContext) -> Result<StageValue, StageError> {
     let terms: usize =
         ctx.choice("wavelet_terms")?.parse().map_err(|_| StageError::Internal("wavelet_terms".into()))?;
-    let (
-        Some(StageValue::Meshes(meshes)),
-        Some(StageValue::TexelReceivers(texels)),
-        Some(StageValue::LocalTransport(t)),
-    ) = (ctx.input("scene", "geometry"), ctx.input("scene", "texel_receivers"), ctx.input("scene", "transport_texels"))
-    else {
-        return Err(StageError::Internal("scene inputs".into()));
-    };
+    let meshes = ctx.required_input::<crate::mesh::MeshSet>("scene", "geometry")?;
+    let texels = ctx.required_input::<crate::transport::TexelReceivers>("scene", "texel_receivers")?;
+    let t = ctx.required_input::<crate::transport::SphericalTransport>("scene", "transport_texels")?;
     let Some((environment, rotation)) = wavelet_lighting(ctx)? else {
-        return Ok(StageValue::TexelIrradiance(Default::default()));
+        return Ok(StageValue::new(crate::triple_product::TexelIrradiance::default()));
     };
     let grid = crate::triple_product::CellGrid::for_coefficients(terms).map_err(StageError::Failed)?;
     let lighting = crate::triple_product::Lighting { environment, rotation, table: None };
-    Ok(StageValue::TexelIrradiance(crate::triple_product::texel_irradiance(
+    Ok(StageValue::new(crate::triple_product::texel_irradiance(
         grid,
         &lighting,
         texels,
@@ -304,6 +292,11 @@ fn texel_irradiance(ctx: &StageContext) -> Result<StageValue, StageError> {
         meshes.meshes.len(),
         ctx.cancel_token(),
     )?))
+}
+
+/// A copy of a gathered stage's value as `T` (an error naming both types otherwise).
+fn typed<T: crate::engine::StageType + Clone>(keyed: &Keyed, stage: &str) -> Result<T, String> {
+    keyed.value.expect::<T>().cloned().map_err(|e| format!("stage `{stage}`: {e}"))
 }
 
 /// A stage value with its key (renderers re-upload only when the key changes).
@@ -362,7 +355,7 @@ pub struct FogFrame {
     pub environment_distance: f64,
     /// Normalised phase polynomial weights `W_k` (eq. 3.18), one per `F^k` table.
     pub phase: Vec<f64>,
-    /// `F^k` tables (`StageValue::ScatteringF`) and the `G_n` ladder (`ScatteringG`).
+    /// `F^k` tables (`Vec<FTable>`) and the `G_n` ladder (`PhongGTables`).
     pub f_tables: Keyed,
     pub g_tables: Keyed,
 }
@@ -482,16 +475,13 @@ impl FrameInputs {
         cancel: &crate::engine::CancelToken,
         progress: &(dyn Fn(f64) + Sync),
     ) -> Result<crate::reference::HdrImage, String> {
-        let Some(StageValue::RayScene(scene)) = self.ray_scene.as_ref().map(|r| r.value.as_ref()) else {
+        let Some(scene) = self.ray_scene.as_ref().and_then(|r| r.value.get::<crate::raycast::RayScene>()) else {
             return Err("the scene's ray_scene stage was not evaluated".into());
         };
-        let StageValue::Meshes(meshes) = self.meshes.value.as_ref() else {
-            return Err("scene geometry stage holds no meshes".into());
-        };
+        let meshes = self.meshes.value.expect::<crate::mesh::MeshSet>().map_err(|e| e.to_string())?;
         let black = crate::cubemap::CubeMap::new(1, vec![[0.0; 3]; 6]);
-        let environment = match self.radiance.as_ref().map(|r| r.value.as_ref()) {
-            Some(StageValue::CubeMap(cube)) => cube,
-            Some(_) => return Err("environment radiance stage holds no cube map".into()),
+        let environment = match &self.radiance {
+            Some(r) => r.value.expect::<crate::cubemap::CubeMap>().map_err(|e| e.to_string())?,
             None => &black,
         };
         let rs = crate::reference::ReferenceScene {
@@ -513,9 +503,10 @@ impl FrameInputs {
         (x, y): (f64, f64),
         (width, height): (usize, usize),
     ) -> Option<usize> {
-        let (Some(StageValue::RayScene(scene)), StageValue::Meshes(meshes)) =
-            (self.ray_scene.as_ref().map(|r| r.value.as_ref()), self.meshes.value.as_ref())
-        else {
+        let (Some(scene), Some(meshes)) = (
+            self.ray_scene.as_ref().and_then(|r| r.value.get::<crate::raycast::RayScene>()),
+            self.meshes.value.get::<crate::mesh::MeshSet>(),
+        ) else {
             return None;
         };
         let dir = camera.ray(x, y, width.max(1), height.max(1));
@@ -546,10 +537,7 @@ impl FrameInputs {
                 material_nodes.len()
             ));
         }
-        let settings = match keyed(output, "settings")?.value.as_ref() {
-            StageValue::Output(s) => s.clone(),
-            _ => return Err("settings stage produced an unexpected value".into()),
-        };
+        let settings: OutputSettings = typed(&keyed(output, "settings")?, "settings")?;
         // The best mode ready now: the requested one, or the unshadowed preview while the
         // requested mode's transport is still computing.
         let ready =
@@ -565,19 +553,10 @@ impl FrameInputs {
         let wavelets = mode.is_wavelet();
         let mut materials = Vec::new();
         for node in &material_nodes {
-            let material = match keyed(&node.id, "material")?.value.as_ref() {
-                StageValue::Material(m) => m.clone(),
-                _ => return Err("material stage produced an unexpected value".into()),
-            };
+            let material = typed(&keyed(&node.id, "material")?, "material")?;
             let table = if wavelets { Some(keyed(&node.id, "local_table")?) } else { None };
-            let sh_lobe = if mode == Mode::ShPrt {
-                match keyed(&node.id, "sh_lobe")?.value.as_ref() {
-                    StageValue::ShLobe(l) => Some(l.clone()),
-                    _ => return Err("sh_lobe stage produced an unexpected value".into()),
-                }
-            } else {
-                None
-            };
+            let sh_lobe =
+                if mode == Mode::ShPrt { Some(typed(&keyed(&node.id, "sh_lobe")?, "sh_lobe")?) } else { None };
             materials.push(FrameMaterial { node: node.id.clone(), material, sh_lobe, table });
         }
         if materials.is_empty() {
@@ -595,10 +574,7 @@ impl FrameInputs {
         let texel_irradiance = if mode == Mode::WaveletPixel { Some(keyed(output, "texel_irradiance")?) } else { None };
         let fog = match upstream("medium") {
             Some(node) => {
-                let medium = keyed(&node, "medium")?;
-                let StageValue::Medium(m) = medium.value.as_ref() else {
-                    return Err(format!("{node}.medium holds no medium"));
-                };
+                let m: crate::kinds::fog::Medium = typed(&keyed(&node, "medium")?, "medium")?;
                 let phase = if m.phase == "polynomial" {
                     crate::single_scattering::Phase::polynomial(&m.phase_coefficients)
                         .ok_or_else(|| format!("{node}: the phase polynomial is invalid"))?
@@ -616,10 +592,7 @@ impl FrameInputs {
             None => None,
         };
         let mut lights = match upstream("lights") {
-            Some(node) => match keyed(&node, "lights")?.value.as_ref() {
-                StageValue::Lights(list) => list.clone(),
-                _ => return Err(format!("{node}.lights holds no lights")),
-            },
+            Some(node) => typed::<Vec<crate::kinds::lights::PointLight>>(&keyed(&node, "lights")?, "lights")?,
             None => Vec::new(),
         };
         let mut ignored_inputs: Vec<String> = ["blockers", "square_lights"]
@@ -632,7 +605,7 @@ impl FrameInputs {
         }
         let mut mesh_materials = Vec::new();
         let mut unmatched: std::collections::BTreeMap<&str, usize> = Default::default();
-        if let StageValue::Meshes(set) = meshes.value.as_ref() {
+        if let Some(set) = meshes.value.get::<crate::mesh::MeshSet>() {
             for mesh in &set.meshes {
                 let found = materials.iter().position(|m| !mesh.material.is_empty() && m.node == mesh.material);
                 if found.is_none() && !mesh.material.is_empty() {

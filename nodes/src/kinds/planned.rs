@@ -52,7 +52,7 @@ pub fn area_light_painter_spec() -> NodeKindSpec {
             params: &["texture", "position", "size", "intensity"],
             stages: &[],
             inputs: &[],
-            persist: true,
+            persist: None,
             compute: not_yet,
         }],
         availability: Availability::Planned("the area-light painter issue"),
@@ -79,7 +79,7 @@ pub fn rsl_decomposer_spec() -> NodeKindSpec {
             params: &["light_count"],
             stages: &[],
             inputs: &[("environment", "radiance")],
-            persist: true,
+            persist: None,
             compute: not_yet,
         }],
         availability: Availability::Planned("the RSL decomposer issue"),
@@ -115,18 +115,20 @@ pub fn blocker_spheres_spec() -> NodeKindSpec {
             params: &["spheres", "sh_bands"],
             stages: &[],
             inputs: &[],
-            persist: false,
+            persist: None,
             compute: blocker_spheres,
         }],
         availability: Availability::Planned("the blocker sphere issue"),
     }
 }
 
+crate::stage_type!(Vec<([f64; 3], f64)>, "spheres", |v| v.len() * 32);
+
 fn blocker_spheres(ctx: &StageContext) -> Result<StageValue, StageError> {
     match ctx.value("spheres")? {
         crate::graph::ParamValue::Spheres(s) => {
             let _ = ctx.int("sh_bands")?;
-            Ok(StageValue::Spheres(s.clone()))
+            Ok(StageValue::new(s.clone()))
         }
         _ => Err(StageError::Internal("spheres".into())),
     }

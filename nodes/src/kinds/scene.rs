@@ -1,9 +1,8 @@
 //! Scene node: the objects lit by the graph (built-in shapes and a glTF file), their receiver
 //! points, the ray-tracing BVH, and the visibility transport every PRT technique reads.
 
-use crate::engine::{StageContext, StageError, StageValue};
+use crate::engine::{Codec, StageContext, StageError, StageValue};
 use crate::graph::{Availability, NodeKindSpec, ParamKind, ParamSpec, ParamValue, PortSpec, PortType, StageSpec};
-use crate::kinds::environment::wrong;
 use crate::mesh::{self, MeshSet};
 use crate::raycast::RayScene;
 use crate::transport::{self, Receivers};
@@ -265,7 +264,7 @@ pub fn spec() -> NodeKindSpec {
                 params: &["objects", "tessellation", "file"],
                 stages: &[],
                 inputs: &[],
-                persist: false,
+                persist: None,
                 compute: geometry,
             },
             StageSpec {
@@ -274,7 +273,7 @@ pub fn spec() -> NodeKindSpec {
                 params: &[],
                 stages: &["geometry"],
                 inputs: &[],
-                persist: false,
+                persist: None,
                 compute: receivers,
             },
             StageSpec {
@@ -283,7 +282,7 @@ pub fn spec() -> NodeKindSpec {
                 params: &[],
                 stages: &["geometry"],
                 inputs: &[],
-                persist: false,
+                persist: None,
                 compute: ray_scene,
             },
             StageSpec {
@@ -292,7 +291,7 @@ pub fn spec() -> NodeKindSpec {
                 params: &["visibility_texture_size"],
                 stages: &["geometry"],
                 inputs: &[],
-                persist: false,
+                persist: None,
                 compute: texel_receivers,
             },
             StageSpec {
@@ -301,7 +300,7 @@ pub fn spec() -> NodeKindSpec {
                 params: &["transport_bands", "transport_rays"],
                 stages: &["receivers", "ray_scene"],
                 inputs: &[],
-                persist: true,
+                persist: Some(Codec::of::<crate::transport::ShTransport>()),
                 compute: transport_sh,
             },
             StageSpec {
@@ -310,7 +309,7 @@ pub fn spec() -> NodeKindSpec {
                 params: &["objects", "tessellation", "file", "transport_bands", "transport_rays"],
                 stages: &[],
                 inputs: &[],
-                persist: true,
+                persist: Some(Codec::of::<Vec<crate::transport::ObjectTransport>>()),
                 compute: transport_objects,
             },
             StageSpec {
@@ -319,7 +318,7 @@ pub fn spec() -> NodeKindSpec {
                 params: &["haar_resolution", "haar_terms"],
                 stages: &["receivers", "ray_scene"],
                 inputs: &[],
-                persist: true,
+                persist: Some(Codec::of::<crate::transport::HaarTransport>()),
                 compute: transport_haar,
             },
             StageSpec {
@@ -328,7 +327,7 @@ pub fn spec() -> NodeKindSpec {
                 params: &["local_frame_depth", "local_frame_terms"],
                 stages: &["receivers", "ray_scene"],
                 inputs: &[],
-                persist: true,
+                persist: Some(Codec::of::<crate::transport::SphericalTransport>()),
                 compute: transport_local,
             },
             StageSpec {
@@ -337,7 +336,7 @@ pub fn spec() -> NodeKindSpec {
                 params: &["local_frame_depth", "local_frame_terms"],
                 stages: &["texel_receivers", "ray_scene"],
                 inputs: &[],
-                persist: true,
+                persist: Some(Codec::of::<crate::transport::SphericalTransport>()),
                 compute: transport_texels,
             },
         ],
@@ -346,18 +345,16 @@ pub fn spec() -> NodeKindSpec {
 }
 
 fn texel_receivers(ctx: &StageContext) -> Result<StageValue, StageError> {
-    let StageValue::Meshes(meshes) = ctx.stage("geometry")? else { return Err(wrong("geometry")) };
+    let meshes = ctx.stage::<crate::mesh::MeshSet>("geometry")?;
     let size: usize =
         ctx.choice("visibility_texture_size")?.parse().map_err(|_| StageError::Internal("size".into()))?;
-    Ok(StageValue::TexelReceivers(transport::TexelReceivers::rasterize(meshes, size)))
+    Ok(StageValue::new(transport::TexelReceivers::rasterize(meshes, size)))
 }
 
 fn transport_texels(ctx: &StageContext) -> Result<StageValue, StageError> {
     let (depth, keep) = (ctx.int("local_frame_depth")? as usize, ctx.int("local_frame_terms")? as usize);
     let (r, s) = transport_inputs(ctx, "texel_receivers")?;
-    Ok(StageValue::LocalTransport(transport::spherical_transport(s, r, depth, keep, ctx.cancel_token(), &|f| {
-        ctx.progress(f)
-    })?))
+    Ok(StageValue::new(transport::spherical_transport(s, r, depth, keep, ctx.cancel_token(), &|f| ctx.progress(f))?))
 }
 
 fn geometry(ctx: &StageContext) -> Result<StageValue, StageError> {
@@ -370,34 +367,33 @@ fn geometry(ctx: &StageContext) -> Result<StageValue, StageError> {
         let imported = crate::gltf_import::import(&path).map_err(StageError::Failed)?;
         meshes.extend(imported.meshes);
     }
-    Ok(StageValue::Meshes(MeshSet { meshes }))
+    Ok(StageValue::new(MeshSet { meshes }))
 }
 
 fn receivers(ctx: &StageContext) -> Result<StageValue, StageError> {
-    let StageValue::Meshes(meshes) = ctx.stage("geometry")? else { return Err(wrong("geometry")) };
-    Ok(StageValue::Receivers(Receivers::from_meshes(meshes)))
+    let meshes = ctx.stage::<crate::mesh::MeshSet>("geometry")?;
+    Ok(StageValue::new(Receivers::from_meshes(meshes)))
 }
 
 fn ray_scene(ctx: &StageContext) -> Result<StageValue, StageError> {
-    let StageValue::Meshes(meshes) = ctx.stage("geometry")? else { return Err(wrong("geometry")) };
-    Ok(StageValue::RayScene(std::sync::Arc::new(RayScene::build(meshes))))
+    let meshes = ctx.stage::<crate::mesh::MeshSet>("geometry")?;
+    Ok(StageValue::new(RayScene::build(meshes)))
 }
 
 /// The receivers (`receivers` or `texel_receivers`) and the ray scene.
 fn transport_inputs<'a>(ctx: &'a StageContext, receivers: &str) -> Result<(&'a Receivers, &'a RayScene), StageError> {
-    let r = match ctx.stage(receivers)? {
-        StageValue::Receivers(r) => r,
-        StageValue::TexelReceivers(t) => &t.receivers,
-        _ => return Err(wrong(receivers)),
+    let r = match receivers {
+        "texel_receivers" => &ctx.stage::<transport::TexelReceivers>(receivers)?.receivers,
+        _ => ctx.stage::<Receivers>(receivers)?,
     };
-    let StageValue::RayScene(s) = ctx.stage("ray_scene")? else { return Err(wrong("ray_scene")) };
+    let s = ctx.stage::<crate::raycast::RayScene>("ray_scene")?;
     Ok((r, s))
 }
 
 fn transport_sh(ctx: &StageContext) -> Result<StageValue, StageError> {
     let (bands, rays) = (ctx.int("transport_bands")? as usize, ctx.int("transport_rays")? as usize);
     let (r, s) = transport_inputs(ctx, "receivers")?;
-    Ok(StageValue::ShTransport(transport::sh_transport(s, r, bands, rays, ctx.cancel_token(), &|f| ctx.progress(f))?))
+    Ok(StageValue::new(transport::sh_transport(s, r, bands, rays, ctx.cancel_token(), &|f| ctx.progress(f))?))
 }
 
 /// Per-object self-shadowing SH transport, each object memoised on its object-space shape,
@@ -427,7 +423,7 @@ fn transport_objects(ctx: &StageContext) -> Result<StageValue, StageError> {
             Ok(crate::gltf_import::import(&path).map_err(StageError::Failed)?.meshes)
         })?);
     }
-    Ok(StageValue::ObjectTransport(out))
+    Ok(StageValue::new(out))
 }
 
 /// One object's self-shadowing SH transport, memoised under the hash of `key_bytes`
@@ -444,20 +440,12 @@ fn self_transport(
         let meshes = MeshSet { meshes: object_meshes()? };
         let scene = RayScene::build(&meshes);
         let receivers = Receivers::from_meshes(&meshes);
-        Ok(StageValue::ShTransport(transport::sh_transport(
-            &scene,
-            &receivers,
-            bands,
-            rays,
-            ctx.cancel_token(),
-            &|_| {},
-        )?))
+        transport::sh_transport(&scene, &receivers, bands, rays, ctx.cancel_token(), &|_| {})
     })?;
-    let StageValue::ShTransport(sh) = sh.as_ref() else { return Err(wrong("memoised transport")) };
     Ok(transport::ObjectTransport {
         name: name.to_string(),
         world_from_object: world_from_object.to_cols_array(),
-        sh: std::sync::Arc::new(sh.clone()),
+        sh: std::sync::Arc::new((*sh).clone()),
     })
 }
 
@@ -466,15 +454,11 @@ fn transport_haar(ctx: &StageContext) -> Result<StageValue, StageError> {
         ctx.choice("haar_resolution")?.parse().map_err(|_| StageError::Internal("haar_resolution".into()))?;
     let keep = ctx.int("haar_terms")? as usize;
     let (r, s) = transport_inputs(ctx, "receivers")?;
-    Ok(StageValue::HaarTransport(transport::haar_transport(s, r, size, keep, ctx.cancel_token(), &|f| {
-        ctx.progress(f)
-    })?))
+    Ok(StageValue::new(transport::haar_transport(s, r, size, keep, ctx.cancel_token(), &|f| ctx.progress(f))?))
 }
 
 fn transport_local(ctx: &StageContext) -> Result<StageValue, StageError> {
     let (depth, keep) = (ctx.int("local_frame_depth")? as usize, ctx.int("local_frame_terms")? as usize);
     let (r, s) = transport_inputs(ctx, "receivers")?;
-    Ok(StageValue::LocalTransport(transport::spherical_transport(s, r, depth, keep, ctx.cancel_token(), &|f| {
-        ctx.progress(f)
-    })?))
+    Ok(StageValue::new(transport::spherical_transport(s, r, depth, keep, ctx.cancel_token(), &|f| ctx.progress(f))?))
 }

@@ -22,6 +22,9 @@ pub use rotation::ShRotation;
 use glam::DVec3;
 use std::f64::consts::PI;
 
+// Stage value types this module owns (see `engine::value`).
+crate::stage_type!(ShRgb, "SH", |v| v.coeffs.len() * 24);
+
 /// Number of coefficients of an SH expansion with `bands` bands.
 pub const fn coeff_count(bands: usize) -> usize {
     bands * bands

@@ -184,12 +184,12 @@ fn synthetic_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
         incident: None,
         local_products: None,
         texel_irradiance: None,
-        materials: vec![lightloom_nodes::kinds::output::FrameMaterial {
-            node: "bench".into(),
-            material: material.clone(),
-            sh_lobe: lightloom_nodes::prt::glossy_lobe(&material, lightloom_nodes::prt::LOBE_BANDS),
-            table: None,
-        }],
+        materials: vec![lightloom_nodes::kinds::output::FrameMaterial::new(
+            "bench".into(),
+            material.clone(),
+            lightloom_nodes::prt::glossy_lobe(&material, lightloom_nodes::prt::LOBE_BANDS),
+            None,
+        )],
         mesh_materials: vec![0],
         settings: lightloom_nodes::kinds::output::OutputSettings { mode, ..base_settings.clone() },
         ignored_inputs: Vec::new(),

@@ -667,6 +667,26 @@ pub fn environment_scattering_bands(
     out
 }
 
+/// Bands of the environment light that fog is applied to (the shaders' uniform arrays).
+pub const MAX_ENVIRONMENT_FOG_BANDS: usize = 8;
+
+/// An environment's light through a medium, ready to draw: the factors, the fogged light the
+/// surfaces see (eq. 3.36) and the glow scattered towards the viewer.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FoggedEnvironment {
+    pub fog: EnvironmentFog,
+    pub fogged: crate::sh::ShRgb,
+    pub scattered: crate::sh::ShRgb,
+}
+
+impl FoggedEnvironment {
+    /// `light` (SH) through a medium, on at most [`MAX_ENVIRONMENT_FOG_BANDS`] bands.
+    pub fn new(beta: [f64; 3], distance: f64, phase: &Phase, tables: &[FTable], light: &crate::sh::ShRgb) -> Self {
+        let fog = EnvironmentFog::new(beta, distance, phase, tables, light.bands.min(MAX_ENVIRONMENT_FOG_BANDS));
+        Self { fogged: fog.fogged(light), scattered: fog.scattered(light), fog }
+    }
+}
+
 /// How fog changes the light of an environment at distance `D` (eqs. 3.35–3.37), per channel.
 #[derive(Clone, Debug, PartialEq)]
 pub struct EnvironmentFog {

@@ -9,7 +9,7 @@ use lightloom_nodes::engine::{Key, StageType};
 use lightloom_nodes::kinds::output::{FrameInputs, Keyed, MAX_LIGHTS, MAX_MATERIALS, Tonemap};
 use lightloom_nodes::project::Camera;
 use lightloom_nodes::sh::ShRgb;
-use lightloom_nodes::single_scattering::{EnvironmentFog, Phase};
+use lightloom_nodes::single_scattering::{FoggedEnvironment, MAX_ENVIRONMENT_FOG_BANDS};
 use wgpu::util::DeviceExt;
 
 const HDR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Float;
@@ -18,7 +18,6 @@ const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 /// Irradiance bands evaluated per pixel (`Â_l` is 0 for odd `l > 1` and `|Â_6| < 0.016 Â_0`).
 const MAX_SHADER_BANDS: usize = 5;
 /// SH bands of the environment's fog glow (the shader's `sh_basis` evaluates at most 8).
-const MAX_ENVIRONMENT_FOG_BANDS: usize = 8;
 /// Transport bands the `sh_prt` shader evaluates (higher bands of the transport are dropped).
 pub const MAX_PRT_BANDS: usize = 8;
 
@@ -156,7 +155,6 @@ pub struct ViewportRenderer {
     fog_params: wgpu::Buffer,
     fog_tables: FogTables,
     /// The environment's fog factors and what they were computed for (β, D, phase, tables).
-    environment_fog: Option<(Vec<u128>, EnvironmentFog)>,
     bind_group: wgpu::BindGroup,
     mesh: Option<MeshBuffers>,
     targets: Option<Targets>,
@@ -393,7 +391,6 @@ impl ViewportRenderer {
             environment: (black, None),
             fog_params,
             fog_tables,
-            environment_fog: None,
             bind_group,
             mesh: None,
             targets: None,
@@ -415,8 +412,8 @@ impl ViewportRenderer {
         }
         self.upload_meshes(ctx, frame)?;
         self.upload_environment(ctx, frame)?;
-        let environment_fog = self.environment_fog(frame)?;
-        self.upload_fog(ctx, frame, environment_fog.as_ref())?;
+        let environment_fog = frame.fog.as_ref().and_then(|f| f.environment.as_ref());
+        self.upload_fog(ctx, frame, environment_fog)?;
         self.ensure_targets(ctx, width, height);
         let bounds = self.mesh.as_ref().map_or(([0.0; 3], [0.0; 3]), |m| m.bounds);
         let view_proj = camera.view_proj(width as f32 / height as f32, bounds);
@@ -430,18 +427,15 @@ impl ViewportRenderer {
         };
         if let Some(sh) = &frame.sh {
             let radiance = stage_value::<ShRgb>(sh)?;
-            let irradiance = match &environment_fog {
-                Some(fog) => fog.fogged(radiance).irradiance(),
-                None => radiance.irradiance(),
-            };
+            let irradiance = environment_fog.map_or(radiance, |fog| &fog.fogged).irradiance();
             let bands = irradiance.bands.min(MAX_SHADER_BANDS);
             globals.flags[0] = bands as f32;
             for (dst, src) in globals.irradiance.iter_mut().zip(&irradiance.coeffs[..bands * bands]) {
                 *dst = [src[0] as f32, src[1] as f32, src[2] as f32, 0.0];
             }
         }
-        let use_prt = self.upload_prt(ctx, frame, environment_fog.as_ref())?;
-        let use_wavelet = self.upload_wavelet(ctx, frame, environment_fog.as_ref())?;
+        let use_prt = self.upload_prt(ctx, frame, environment_fog)?;
+        let use_wavelet = self.upload_wavelet(ctx, frame, environment_fog)?;
         ctx.queue.write_buffer(&self.globals, 0, bytemuck::bytes_of(&globals));
         let targets = self.targets.as_ref().unwrap();
         let mut encoder =
@@ -660,7 +654,7 @@ impl ViewportRenderer {
         &mut self,
         ctx: &GpuContext,
         frame: &FrameInputs,
-        fog: Option<&EnvironmentFog>,
+        fog: Option<&FoggedEnvironment>,
     ) -> Result<bool, RenderError> {
         let (Some(transport), Some(incident)) = (&frame.transport, &frame.incident) else {
             return Ok(false);
@@ -714,14 +708,13 @@ impl ViewportRenderer {
             // In fog the diffuse transfer sees the fogged environment (sec. 3.6.5); the glossy
             // lobes read per-vertex incident light computed without fog, so they get only its
             // attenuation.
-            let fogged = fog.map(|f| f.fogged(light));
-            let light = fogged.as_ref().unwrap_or(light);
+            let light = fog.map_or(light, |f| &f.fogged);
             for (dst, src) in params.light.iter_mut().zip(&light.coeffs).take(bands * bands) {
                 *dst = [src[0] as f32, src[1] as f32, src[2] as f32, 0.0];
             }
         }
         if let Some(fog) = fog {
-            attenuate(&mut params.specular, fog.attenuation);
+            attenuate(&mut params.specular, fog.fog.attenuation);
         }
         ctx.queue.write_buffer(&self.prt_params, 0, bytemuck::bytes_of(&params));
         Ok(true)
@@ -733,7 +726,7 @@ impl ViewportRenderer {
         &mut self,
         ctx: &GpuContext,
         frame: &FrameInputs,
-        fog: Option<&EnvironmentFog>,
+        fog: Option<&FoggedEnvironment>,
     ) -> Result<bool, RenderError> {
         let Some(products) = &frame.local_products else {
             return Ok(false);
@@ -849,8 +842,8 @@ impl ViewportRenderer {
         // the scattered part (band-limited, unshadowed).
         let mut albedo = material_array(frame, |m| m.albedo.map(|a| a as f32), 1.0);
         if let Some(fog) = fog {
-            attenuate(&mut albedo, fog.attenuation);
-            attenuate(&mut specular, fog.attenuation);
+            attenuate(&mut albedo, fog.fog.attenuation);
+            attenuate(&mut specular, fog.fog.attenuation);
         }
         let params = WaveletParams {
             counts: [
@@ -896,46 +889,19 @@ impl ViewportRenderer {
         );
     }
 
-    /// The environment's light through the frame's fog (sec. 3.6.4), recomputed only when the
-    /// medium, its distance or the tables change. `None` without fog or environment.
-    fn environment_fog(&mut self, frame: &FrameInputs) -> Result<Option<EnvironmentFog>, RenderError> {
-        let (Some(fog), Some(sh)) = (&frame.fog, &frame.sh) else {
-            return Ok(None);
-        };
-        let tables = stage_value::<Vec<lightloom_nodes::single_scattering::FTable>>(&fog.f_tables)?;
-        let light = stage_value::<ShRgb>(sh)?;
-        let bands = light.bands.min(MAX_ENVIRONMENT_FOG_BANDS);
-        let key: Vec<u128> = fog
-            .beta
-            .iter()
-            .chain(&fog.phase)
-            .chain([&fog.environment_distance])
-            .map(|v| u128::from(v.to_bits()))
-            .chain([fog.f_tables.key, bands as u128])
-            .collect();
-        if self.environment_fog.as_ref().is_none_or(|(k, _)| *k != key) {
-            let phase = Phase { weights: fog.phase.clone() };
-            let fogged = EnvironmentFog::new(fog.beta, fog.environment_distance, &phase, tables, bands);
-            self.environment_fog = Some((key, fogged));
-        }
-        Ok(self.environment_fog.as_ref().map(|(_, f)| f.clone()))
-    }
-
     /// Point lights and the medium: uniforms every frame, tables when their stages change.
     fn upload_fog(
         &mut self,
         ctx: &GpuContext,
         frame: &FrameInputs,
-        environment_fog: Option<&EnvironmentFog>,
+        environment_fog: Option<&FoggedEnvironment>,
     ) -> Result<(), RenderError> {
         let mut params: FogParams = bytemuck::Zeroable::zeroed();
         params.environment = [1.0, 1.0, 1.0, 0.0];
-        if let (Some(fog), Some(sh)) = (environment_fog, &frame.sh) {
-            let light = stage_value::<ShRgb>(sh)?;
-            let scattered: ShRgb = fog.scattered(light);
-            let a = fog.attenuation;
-            params.environment = [a[0] as f32, a[1] as f32, a[2] as f32, fog.scattered.len() as f32];
-            for (dst, src) in params.environment_scattered.iter_mut().zip(&scattered.coeffs) {
+        if let Some(fog) = environment_fog {
+            let a = fog.fog.attenuation;
+            params.environment = [a[0] as f32, a[1] as f32, a[2] as f32, fog.fog.scattered.len() as f32];
+            for (dst, src) in params.environment_scattered.iter_mut().zip(&fog.scattered.coeffs) {
                 *dst = [src[0] as f32, src[1] as f32, src[2] as f32, 0.0];
             }
             // The wavelet modes cannot convolve their all-frequency light: fog.wgsl adds the
@@ -948,10 +914,8 @@ impl ViewportRenderer {
             params.light_intensity[i] = [l.intensity[0] as f32, l.intensity[1] as f32, l.intensity[2] as f32, 0.0];
         }
         for (slot, m) in params.specular.iter_mut().zip(&frame.materials) {
-            let brdf = lightloom_nodes::brdf::Brdf::from_material(&m.material);
-            if let Some(exponent) = brdf.equivalent_phong_exponent() {
-                let weight = brdf.specular * brdf.f0;
-                *slot = [weight.x as f32, weight.y as f32, weight.z as f32, exponent.max(1.0) as f32];
+            if let Some((weight, exponent)) = m.phong_lobe {
+                *slot = [weight[0] as f32, weight[1] as f32, weight[2] as f32, exponent as f32];
             }
         }
         if let Some(fog) = &frame.fog {

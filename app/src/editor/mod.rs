@@ -145,6 +145,8 @@ struct ViewState {
     /// Project camera the orbit started from.
     camera_name: String,
     frame: Option<Arc<FrameInputs>>,
+    /// Counts the frames gathered, so a new frame always has a new draw signature.
+    frame_generation: u64,
     frame_error: Option<String>,
     /// Signature of what is on screen; redraw when it changes.
     drawn: u64,
@@ -305,6 +307,7 @@ impl EditorApp {
                 camera: OrbitCamera::from_camera(&camera),
                 camera_name: camera.name.clone(),
                 frame: None,
+                frame_generation: 0,
                 frame_error: None,
                 drawn: 0,
                 resolution_scale: if cpu { 0.5 } else { 1.0 },
@@ -575,6 +578,7 @@ impl EditorApp {
                     self.log_info(format!("output: {note}"));
                 }
                 self.view.frame = Some(Arc::new(frame));
+                self.view.frame_generation += 1;
                 self.view.frame_error = None;
             }
             Err(e) => self.view.frame_error = Some(e),

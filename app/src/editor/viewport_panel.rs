@@ -294,7 +294,7 @@ impl EditorApp {
         let camera = self.view.camera;
         let mut h = std::hash::DefaultHasher::new();
         use std::hash::{Hash, Hasher};
-        (Arc::as_ptr(&frame) as usize).hash(&mut h);
+        self.view.frame_generation.hash(&mut h);
         format!("{camera:?}").hash(&mut h);
         size.hash(&mut h);
         let signature = h.finish();

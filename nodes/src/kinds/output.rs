@@ -358,6 +358,8 @@ pub struct FogFrame {
     /// `F^k` tables (`Vec<FTable>`) and the `G_n` ladder (`PhongGTables`).
     pub f_tables: Keyed,
     pub g_tables: Keyed,
+    /// With an environment linked: its light through the medium (sec. 3.6.4).
+    pub environment: Option<crate::single_scattering::FoggedEnvironment>,
 }
 
 /// One material of a frame.
@@ -370,6 +372,22 @@ pub struct FrameMaterial {
     pub sh_lobe: Option<crate::prt::GlossyLobe>,
     /// Its local-frame table (wavelet modes only).
     pub table: Option<Keyed>,
+    /// Its Phong-equivalent lobe `(weight per channel, exponent)` for light scattered by fog
+    /// onto surfaces (eq. 3.28; `None` for Lambert).
+    pub phong_lobe: Option<([f64; 3], f64)>,
+}
+
+impl FrameMaterial {
+    pub fn new(
+        node: String,
+        material: crate::kinds::brdf::Material,
+        sh_lobe: Option<crate::prt::GlossyLobe>,
+        table: Option<Keyed>,
+    ) -> Self {
+        let brdf = crate::brdf::Brdf::from_material(&material);
+        let phong_lobe = brdf.equivalent_phong_exponent().map(|n| ((brdf.specular * brdf.f0).to_array(), n.max(1.0)));
+        Self { node, material, sh_lobe, table, phong_lobe }
+    }
 }
 
 impl FrameInputs {
@@ -557,18 +575,13 @@ impl FrameInputs {
             let table = if wavelets { Some(keyed(&node.id, "local_table")?) } else { None };
             let sh_lobe =
                 if mode == Mode::ShPrt { Some(typed(&keyed(&node.id, "sh_lobe")?, "sh_lobe")?) } else { None };
-            materials.push(FrameMaterial { node: node.id.clone(), material, sh_lobe, table });
+            materials.push(FrameMaterial::new(node.id.clone(), material, sh_lobe, table));
         }
         if materials.is_empty() {
             if wavelets {
                 return Err("the wavelet modes need a material: link a BRDF editor to the Output".into());
             }
-            materials.push(FrameMaterial {
-                node: String::new(),
-                material: Default::default(),
-                sh_lobe: None,
-                table: None,
-            });
+            materials.push(FrameMaterial::new(String::new(), Default::default(), None, None));
         }
         let local_products = if wavelets { Some(keyed(output, "local_products")?) } else { None };
         let texel_irradiance = if mode == Mode::WaveletPixel { Some(keyed(output, "texel_irradiance")?) } else { None };
@@ -581,12 +594,31 @@ impl FrameInputs {
                 } else {
                     crate::single_scattering::Phase::isotropic()
                 };
+                let f_tables = keyed(&node, "f_tables")?;
+                let environment = match &sh {
+                    Some(sh) => {
+                        let tables = f_tables
+                            .value
+                            .expect::<Vec<crate::single_scattering::FTable>>()
+                            .map_err(|e| e.to_string())?;
+                        let light = sh.value.expect::<crate::sh::ShRgb>().map_err(|e| e.to_string())?;
+                        Some(crate::single_scattering::FoggedEnvironment::new(
+                            m.beta,
+                            m.environment_distance,
+                            &phase,
+                            tables,
+                            light,
+                        ))
+                    }
+                    None => None,
+                };
                 Some(FogFrame {
                     beta: m.beta,
                     environment_distance: m.environment_distance,
                     phase: phase.weights,
-                    f_tables: keyed(&node, "f_tables")?,
+                    f_tables,
                     g_tables: keyed(&node, "g_tables")?,
+                    environment,
                 })
             }
             None => None,

@@ -21,6 +21,29 @@ const MAX_SHADER_BANDS: usize = 5;
 /// Transport bands the `sh_prt` shader evaluates (higher bands of the transport are dropped).
 pub const MAX_PRT_BANDS: usize = 8;
 
+/// The shared WGSL every scene pass includes, in order: the `Globals` uniform, the vertex
+/// layout and the SH basis (`common.wgsl`), then the fog model (`fog.wgsl`, which uses them).
+const SHADER_PRELUDE: [&str; 2] = [include_str!("../../shaders/common.wgsl"), include_str!("../../shaders/fog.wgsl")];
+
+/// The scene passes' own shaders: mesh (SH irradiance), PRT, wavelet, background.
+const SCENE_SHADERS: [(&str, &str); 4] = [
+    ("mesh.wgsl", include_str!("../../shaders/mesh.wgsl")),
+    ("mesh_prt.wgsl", include_str!("../../shaders/mesh_prt.wgsl")),
+    ("mesh_wavelet.wgsl", include_str!("../../shaders/mesh_wavelet.wgsl")),
+    ("background.wgsl", include_str!("../../shaders/background.wgsl")),
+];
+
+/// A scene pass's complete WGSL: the prelude, then the pass's source. WGSL has no includes;
+/// this is the one place modules are joined, and `shaders_compose_and_match_the_rust_uniforms`
+/// checks that every composed shader parses and validates and that each uniform struct has
+/// the Rust layout the renderer writes.
+fn compose(source: &str) -> String {
+    let mut out = SHADER_PRELUDE.join("\n");
+    out.push('\n');
+    out.push_str(source);
+    out
+}
+
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
 struct PrtParams {
@@ -257,18 +280,13 @@ impl ViewportRenderer {
                 uniform(1, Stages::FRAGMENT),
             ],
         });
-        let common = include_str!("../../shaders/common.wgsl");
-        let fog = include_str!("../../shaders/fog.wgsl");
-        let module = |label: &str, source: &str| {
+        let module = |(label, source): (&str, &str)| {
             device.create_shader_module(wgpu::ShaderModuleDescriptor {
                 label: Some(label),
-                source: wgpu::ShaderSource::Wgsl(format!("{common}\n{fog}\n{source}").into()),
+                source: wgpu::ShaderSource::Wgsl(compose(source).into()),
             })
         };
-        let mesh_module = module("mesh.wgsl", include_str!("../../shaders/mesh.wgsl"));
-        let prt_module = module("mesh_prt.wgsl", include_str!("../../shaders/mesh_prt.wgsl"));
-        let wavelet_module = module("mesh_wavelet.wgsl", include_str!("../../shaders/mesh_wavelet.wgsl"));
-        let background_module = module("background.wgsl", include_str!("../../shaders/background.wgsl"));
+        let [mesh_module, prt_module, wavelet_module, background_module] = SCENE_SHADERS.map(module);
         let tone_module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("tonemap.wgsl"),
             source: wgpu::ShaderSource::Wgsl(include_str!("../../shaders/tonemap.wgsl").into()),
@@ -1210,4 +1228,55 @@ fn storage_buffer<T: bytemuck::Pod + Default>(ctx: &GpuContext, label: &str, dat
 /// A gathered stage's value as `T`, or an error naming what it holds instead.
 fn stage_value<T: StageType>(keyed: &Keyed) -> Result<&T, RenderError> {
     keyed.value.expect::<T>().map_err(|e| RenderError::Invalid(e.to_string()))
+}
+
+#[cfg(test)]
+mod layout_tests {
+    use super::*;
+    use wgpu::naga;
+
+    /// The WGSL struct `name`: its size and `(member, offset)` list.
+    fn wgsl_struct(module: &naga::Module, name: &str) -> (u32, Vec<(String, u32)>) {
+        let ty = module.types.iter().find(|(_, t)| t.name.as_deref() == Some(name)).map(|(_, t)| t);
+        match ty.map(|t| &t.inner) {
+            Some(naga::TypeInner::Struct { members, span }) => {
+                (*span, members.iter().map(|m| (m.name.clone().unwrap_or_default(), m.offset)).collect())
+            }
+            _ => panic!("no struct {name} in the shader"),
+        }
+    }
+
+    #[test]
+    fn shaders_compose_and_match_the_rust_uniforms() {
+        use std::mem::{offset_of, size_of};
+        let mut modules = Vec::new();
+        for (label, source) in SCENE_SHADERS {
+            let module = naga::front::wgsl::parse_str(&compose(source))
+                .unwrap_or_else(|e| panic!("{label}: {}", e.emit_to_string(&compose(source))));
+            naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::all())
+                .validate(&module)
+                .unwrap_or_else(|e| panic!("{label} does not validate: {e:?}"));
+            modules.push((label, module));
+        }
+        // Each uniform struct, in the shader that declares it, against the Rust struct the
+        // renderer writes with bytemuck: the same size and every member at the same offset.
+        macro_rules! check {
+            ($module:expr, $wgsl:literal, $rust:ty, [$($field:ident),+ $(,)?]) => {{
+                let (span, members) = wgsl_struct($module, $wgsl);
+                assert_eq!(span as usize, size_of::<$rust>(), "{} size", $wgsl);
+                let rust: Vec<(String, u32)> = vec![$((stringify!($field).to_string(), offset_of!($rust, $field) as u32)),+];
+                assert_eq!(members, rust, "{} members and offsets", $wgsl);
+            }};
+        }
+        let (mesh, prt, wavelet) = (&modules[0].1, &modules[1].1, &modules[2].1);
+        check!(mesh, "Globals", Globals, [view_proj, inv_view_proj, camera_pos, flags, albedo, irradiance]);
+        check!(
+            mesh,
+            "Fog",
+            FogParams,
+            [beta, phase, counts, environment, environment_scattered, specular, light_position, light_intensity]
+        );
+        check!(prt, "PrtParams", PrtParams, [counts, albedo, specular, lobe, light]);
+        check!(wavelet, "WaveletParams", WaveletParams, [counts, albedo, specular, texels]);
+    }
 }

@@ -292,7 +292,7 @@ impl EditorApp {
             Some(options.cache_dir.clone().unwrap_or_else(lightloom_nodes::engine::cache::DiskCache::default_dir))
         };
         let engine = Arc::new(Engine::new(EngineConfig { disk_cache, ..Default::default() }));
-        let (host, host_error) = match ViewportHost::new(options.viewport_slow_down) {
+        let (host, host_error) = match ViewportHost::new(ctx, options.viewport_slow_down) {
             Ok(h) => (Some(h), None),
             Err(e) => (None, Some(e)),
         };
@@ -531,7 +531,9 @@ impl EditorApp {
 
     fn poll_jobs(&mut self, ctx: &egui::Context) {
         if let Some(evaluation) = self.evaluator.poll() {
-            self.on_evaluated(&evaluation);
+            // A preview tier's notes and failures come again with the final evaluation.
+            let log = !self.evaluator.is_running();
+            self.on_evaluated(&evaluation, log);
         }
         if let Some(job) = &mut self.view.reference
             && let Some(result) = job.poll()
@@ -551,16 +553,17 @@ impl EditorApp {
         }
     }
 
-    fn on_evaluated(&mut self, evaluation: &Evaluation) {
+    fn on_evaluated(&mut self, evaluation: &Evaluation, log: bool) {
         let Some((_, graph)) = self.evaluator.last.clone() else { return };
-        for note in &evaluation.report.notes {
+        let notes = if log { evaluation.report.notes.as_slice() } else { &[] };
+        for note in notes {
             self.log.push(LogLine { at: SystemTime::now(), error: false, text: note.clone() });
         }
         let failed: Vec<String> = evaluation
             .report
             .failed()
             .iter()
-            .filter(|s| s.error.is_some())
+            .filter(|s| log && s.error.is_some())
             .map(|s| format!("{}.{}: {}", s.node, s.stage, s.error.as_deref().unwrap_or("failed")))
             .collect();
         for f in failed {
@@ -574,7 +577,7 @@ impl EditorApp {
         let gathered = find_output(&graph, output).and_then(|o| FrameInputs::gather(evaluation, &graph, &o.id));
         match gathered {
             Ok(frame) => {
-                for note in &frame.ignored_inputs {
+                for note in frame.ignored_inputs.iter().filter(|_| log) {
                     self.log_info(format!("output: {note}"));
                 }
                 self.view.frame = Some(Arc::new(frame));

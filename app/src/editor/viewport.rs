@@ -54,15 +54,16 @@ pub struct ViewportHost {
 impl ViewportHost {
     /// Starts the render thread on its own device. `slow_down` delays every job (tests of a
     /// slow adapter).
-    pub fn new(slow_down: Duration) -> Result<Self, String> {
+    pub fn new(ctx: &egui::Context, slow_down: Duration) -> Result<Self, String> {
         let gpu = GpuContext::headless().map_err(|e| e.to_string())?;
         let description = gpu.describe();
         let cpu = gpu.adapter.get_info().device_type == eframe::wgpu::DeviceType::Cpu;
         let (jobs, job_rx) = std::sync::mpsc::channel::<(u64, Job)>();
         let (done_tx, finished) = std::sync::mpsc::channel();
+        let repaint = ctx.clone();
         let thread = std::thread::Builder::new()
             .name("lightloom-viewport".into())
-            .spawn(move || render_thread(gpu, job_rx, done_tx, slow_down))
+            .spawn(move || render_thread(gpu, job_rx, done_tx, &repaint, slow_down))
             .map_err(|e| format!("cannot start the viewport thread: {e}"))?;
         Ok(Self {
             jobs: Some(jobs),
@@ -114,7 +115,10 @@ impl ViewportHost {
                 Ok(result) => newest = Some(result),
                 Err(TryRecvError::Empty) => break,
                 Err(TryRecvError::Disconnected) => {
-                    return Some(Err("the viewport thread stopped".into()));
+                    // Reported once; afterwards nothing is requested or polled.
+                    self.jobs.take()?;
+                    self.requested = self.shown;
+                    return Some(Err("the viewport thread stopped; restart the editor to draw again".into()));
                 }
             }
         }
@@ -168,6 +172,7 @@ fn render_thread(
     gpu: GpuContext,
     jobs: Receiver<(u64, Job)>,
     done: Sender<Result<Finished, (u64, String)>>,
+    repaint: &egui::Context,
     slow_down: Duration,
 ) {
     let mut renderer = ViewportRenderer::new(&gpu);
@@ -189,6 +194,8 @@ fn render_thread(
         if done.send(result.map_err(|e| (signature, e))).is_err() {
             return;
         }
+        // The UI may be idle (no input, no evaluation): wake it to show the frame.
+        repaint.request_repaint();
     }
 }
 

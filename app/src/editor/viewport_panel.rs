@@ -45,8 +45,11 @@ impl EditorApp {
             );
         }
         if let Some(pending) = self.view.frame.as_ref().and_then(|f| f.pending.clone()) {
-            let progress = self.evaluator.progress.as_ref().map(|p| p.describe()).unwrap_or_default();
-            let text = if progress.is_empty() { pending } else { format!("{pending}\n{progress}") };
+            let text = match &self.evaluator.progress {
+                Some(p) => format!("{pending}\n{}", p.describe()),
+                // Cancelled, or the mode's stages failed (see Problems): no refinement is coming.
+                None => "unshadowed preview: evaluation stopped before the mode was ready (F5 re-evaluates)".into(),
+            };
             let galley = painter.layout_no_wrap(text, egui::FontId::proportional(13.0), Color32::WHITE);
             let at = egui::pos2(rect.left() + 8.0, rect.bottom() - 8.0 - galley.size().y);
             painter.rect_filled(

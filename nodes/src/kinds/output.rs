@@ -1,9 +1,7 @@
 //! Output node: what the viewport and `lightloom render` draw, and how (relighting mode,
 //! exposure, tone mapping).
 
-use crate::engine::{
-    Codec, Evaluation, Graph, GraphNode, Key, Request, StageContext, StageError, StageRef, StageValue,
-};
+use crate::engine::{Evaluation, Graph, GraphNode, Key, Request, StageContext, StageError, StageRef, StageValue};
 use crate::graph::{Availability, NodeKindSpec, ParamKind, ParamSpec, ParamValue, PortSpec, PortType, StageSpec};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
@@ -174,7 +172,7 @@ pub fn spec() -> NodeKindSpec {
                     ("environment", "radiance"),
                     ("environment", "rotation"),
                 ],
-                persist: Some(Codec::of::<crate::triple_product::LocalProducts>()),
+                persist: None,
                 compute: local_products,
             },
             StageSpec {
@@ -189,7 +187,7 @@ pub fn spec() -> NodeKindSpec {
                     ("environment", "radiance"),
                     ("environment", "rotation"),
                 ],
-                persist: Some(Codec::of::<crate::triple_product::TexelIrradiance>()),
+                persist: None,
                 compute: texel_irradiance,
             },
         ],

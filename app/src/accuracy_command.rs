@@ -64,10 +64,7 @@ pub struct Report {
 
 pub fn run(args: &AccuracyArgs) -> Result<()> {
     let (project, graph) = load(&args.project, &args.eval.overrides)?;
-    let output = find_output(&graph, Some(project.render.output.as_str()).filter(|s| !s.is_empty()))
-        .map_err(|e| anyhow!(e))?
-        .id
-        .clone();
+    let output = find_output(&graph, project.render.output_node()).map_err(|e| anyhow!(e))?.id.clone();
     let camera = project.camera(args.camera.as_deref()).map_err(|e| anyhow!(e))?;
     let engine = Arc::new(args.eval.engine());
     let size = (args.width, args.height);

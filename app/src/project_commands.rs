@@ -177,7 +177,7 @@ pub fn render_project(
     size: (Option<u32>, Option<u32>),
     quiet: bool,
 ) -> Result<Rendered> {
-    let output_name = output_node.or(Some(project.render.output.as_str()).filter(|s| !s.is_empty()));
+    let output_name = output_node.or(project.render.output_node());
     let output = find_output(graph, output_name).map_err(|e| anyhow!(e))?;
     let camera = project.camera(camera).map_err(|e| anyhow!(e))?;
     let start = Instant::now();
@@ -226,7 +226,7 @@ pub fn render_project(
     if settings.view == View::Reference {
         renderer.present(&gpu, &reference.pixels, (width, height), settings.exposure, settings.tonemap)?;
     } else {
-        let scale = error_map_scale(&reference.pixels);
+        let scale = reference::error_map_scale(&reference.pixels);
         let map = reference::error_heat_map(&approximation, &reference.pixels, Some(&mask), scale);
         renderer.present(&gpu, &map, (width, height), 0.0, Tonemap::Linear)?;
         if !quiet {
@@ -237,12 +237,6 @@ pub fn render_project(
         }
     }
     Ok(Rendered { frame: renderer.capture(&gpu)?, eval_ms, render_ms, error: Some((error, reference_ms)) })
-}
-
-/// Full scale of the error heat map: half the reference's mean radiance.
-fn error_map_scale(reference: &[[f32; 3]]) -> f64 {
-    let mean = reference.iter().map(|p| (p[0] + p[1] + p[2]) as f64 / 3.0).sum::<f64>() / reference.len().max(1) as f64;
-    (mean * 0.5).max(1e-6)
 }
 
 pub fn write_image(frame: &CapturedFrame, path: &Path) -> Result<()> {
@@ -418,7 +412,7 @@ pub fn info(args: &InfoArgs) -> Result<()> {
         let kind = lightloom_nodes::kinds::kind(&node.kind).expect("validated");
         let status = match kind.availability {
             Availability::Ready => String::new(),
-            Availability::Planned(when) => format!("  (technique not available yet: {when})"),
+            Availability::Planned(missing) => format!("  (technique not available: {missing})"),
         };
         println!("  {:<12} {:<18} {} parameter(s) set{status}", node.id, node.kind, node.params.len());
     }

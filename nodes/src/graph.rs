@@ -278,7 +278,7 @@ pub struct StageSpec {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Availability {
     Ready,
-    /// Parameters and ports are defined; the technique lands later (which issue).
+    /// Parameters and ports are defined; the technique is not implemented (what is missing).
     Planned(&'static str),
 }
 

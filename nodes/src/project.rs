@@ -56,6 +56,13 @@ pub struct RenderSettings {
     pub output: String,
 }
 
+impl RenderSettings {
+    /// The Output node chosen, if one is named.
+    pub fn output_node(&self) -> Option<&str> {
+        Some(self.output.as_str()).filter(|s| !s.is_empty())
+    }
+}
+
 impl Default for RenderSettings {
     fn default() -> Self {
         Self { width: 960, height: 540, camera: String::new(), output: String::new() }

@@ -354,6 +354,12 @@ pub fn compare(
     })
 }
 
+/// The heat map's default full scale: half the reference's mean radiance.
+pub fn error_map_scale(reference: &[[f32; 3]]) -> f64 {
+    let mean = reference.iter().map(|p| (p[0] + p[1] + p[2]) as f64 / 3.0).sum::<f64>() / reference.len().max(1) as f64;
+    (mean * 0.5).max(1e-6)
+}
+
 /// A heat map of per-pixel error: `|a - r|` (mean over channels) divided by `scale`, through a
 /// perceptually ordered colour ramp (black → purple → orange → yellow → white, like "inferno").
 /// Pixels outside `mask` are drawn dark grey.

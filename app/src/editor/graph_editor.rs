@@ -338,7 +338,7 @@ pub fn add_list(ui: &mut egui::Ui, query: &mut String, compatible: Option<(PortT
     for k in &matches {
         let label = match k.availability {
             Availability::Ready => k.label.to_string(),
-            Availability::Planned(issue) => format!("{} (planned: {issue})", k.label),
+            Availability::Planned(missing) => format!("{} (parameters only: {missing})", k.label),
         };
         if ui.button(label).on_hover_text(k.doc).clicked() {
             chosen = Some(k.name.to_string());
@@ -455,8 +455,8 @@ impl SnarlViewer<String> for Viewer<'_> {
                 _ => {}
             }
             if let Some(kind) = self.kind(&id) {
-                if let Availability::Planned(issue) = kind.availability {
-                    ui.weak(format!("technique lands with {issue}"));
+                if let Availability::Planned(missing) = kind.availability {
+                    ui.weak(format!("parameters only: {missing}"));
                 }
                 if let Some(evaluation) = self.evaluation {
                     self.previews.show(ui, &id, kind.name, evaluation);

@@ -508,11 +508,7 @@ impl EditorApp {
     /// What the editor needs evaluated: the Output's mode and view (with the BVH for picking),
     /// then the previews of nodes that show one.
     fn evaluation_request(&self, graph: &lightloom_nodes::engine::Graph) -> lightloom_nodes::engine::Request {
-        let output = if self.doc.project.render.output.is_empty() {
-            None
-        } else {
-            Some(self.doc.project.render.output.as_str())
-        };
+        let output = self.doc.project.render.output_node();
         let request = match find_output(graph, output) {
             Ok(o) => lightloom_nodes::kinds::output::frame_request(graph, &o.id, true),
             Err(_) => lightloom_nodes::engine::Request::default(),
@@ -569,11 +565,7 @@ impl EditorApp {
         for f in failed {
             self.log_error(f);
         }
-        let output = if self.doc.project.render.output.is_empty() {
-            None
-        } else {
-            Some(self.doc.project.render.output.as_str())
-        };
+        let output = self.doc.project.render.output_node();
         let gathered = find_output(&graph, output).and_then(|o| FrameInputs::gather(evaluation, &graph, &o.id));
         match gathered {
             Ok(frame) => {

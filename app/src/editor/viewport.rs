@@ -25,7 +25,7 @@ pub struct Finished {
     /// The caller's signature of the job.
     pub signature: u64,
     pub size: (u32, u32),
-    /// Tone-mapped sRGB bytes.
+    /// Tone-mapped sRGB bytes (moved into the host once shown).
     pub ldr: Vec<[u8; 4]>,
     /// For [`Job::Compare`]: the approximation's error against the reference.
     pub error: Option<ImageError>,
@@ -123,7 +123,7 @@ impl ViewportHost {
             }
         }
         match newest? {
-            Ok(done) => {
+            Ok(mut done) => {
                 let image = egui::ColorImage::from_rgba_unmultiplied(
                     [done.size.0 as usize, done.size.1 as usize],
                     done.ldr.as_flattened(),
@@ -135,7 +135,7 @@ impl ViewportHost {
                 self.shown = Some(done.signature);
                 self.size = done.size;
                 self.last_draw_ms = done.draw_ms;
-                self.last_ldr = done.ldr.clone();
+                self.last_ldr = std::mem::take(&mut done.ldr);
                 Some(Ok(done))
             }
             Err((signature, e)) => {
@@ -219,10 +219,8 @@ fn run(gpu: &GpuContext, renderer: &mut ViewportRenderer, job: Job) -> Result<Dr
             if view == View::Reference {
                 renderer.present(gpu, &reference.pixels, size, settings.exposure, settings.tonemap).map_err(text)?;
             } else {
-                let mean = reference.pixels.iter().map(|p| (p[0] + p[1] + p[2]) as f64 / 3.0).sum::<f64>()
-                    / reference.pixels.len().max(1) as f64;
-                let map =
-                    reference::error_heat_map(&approximation, &reference.pixels, Some(&mask), (mean * 0.5).max(1e-6));
+                let scale = reference::error_map_scale(&reference.pixels);
+                let map = reference::error_heat_map(&approximation, &reference.pixels, Some(&mask), scale);
                 renderer.present(gpu, &map, size, 0.0, Tonemap::Linear).map_err(text)?;
             }
             Ok((size, renderer.capture(gpu).map_err(text)?.ldr, error))

@@ -8,10 +8,12 @@
 pub mod cache;
 pub mod graph;
 pub mod key;
+pub mod request;
 pub mod value;
 
 pub use graph::{Graph, GraphError, GraphNode, Link};
 pub use key::Key;
+pub use request::{Request, StageRef, Tier};
 pub use value::{Codec, Persisted, StageType, StageValue};
 
 use crate::graph::{ParamValue, StageSpec};
@@ -84,85 +86,6 @@ pub enum EvalEvent {
         label: String,
     },
     Finished,
-}
-
-/// A stage of a node, named by node id and stage name.
-#[derive(Clone, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
-pub struct StageRef {
-    pub node: String,
-    pub stage: String,
-}
-
-impl StageRef {
-    pub fn new(node: impl Into<String>, stage: impl Into<String>) -> Self {
-        Self { node: node.into(), stage: stage.into() }
-    }
-}
-
-impl std::fmt::Display for StageRef {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "{}.{}", self.node, self.stage)
-    }
-}
-
-/// One tier of a [`Request`]: stages wanted together, with what they are for.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Tier {
-    /// What the tier is for ("preview: unshadowed", "output `output`: mode sh_prt"), shown in
-    /// reports.
-    pub label: String,
-    pub stages: Vec<StageRef>,
-}
-
-/// What an evaluation must produce. Only the requested stages and what they read run; the
-/// rest are reported as not needed. Tiers run in order: every stage a tier needs finishes
-/// before the next tier starts, so a cheap first tier (an unshadowed preview) is ready while
-/// expensive work (shadowed transport) is still computing.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct Request {
-    pub tiers: Vec<Tier>,
-}
-
-impl Request {
-    /// Every stage of every node (tests, benchmarks, `lightloom eval --all`).
-    pub fn everything(graph: &Graph) -> Self {
-        let stages = graph
-            .nodes
-            .iter()
-            .flat_map(|n| n.kind.stages.iter().map(|s| StageRef::new(n.id.clone(), s.name)))
-            .collect();
-        Self { tiers: vec![Tier { label: "every stage".into(), stages }] }
-    }
-
-    pub fn new(label: impl Into<String>, stages: Vec<StageRef>) -> Self {
-        Self { tiers: vec![Tier { label: label.into(), stages }] }
-    }
-
-    /// Adds a tier that runs after the ones before it.
-    pub fn then(mut self, label: impl Into<String>, stages: Vec<StageRef>) -> Self {
-        self.tiers.push(Tier { label: label.into(), stages });
-        self
-    }
-
-    /// Adds stages to the first tier (creating it if needed).
-    pub fn with_first(mut self, label: &str, stages: Vec<StageRef>) -> Self {
-        if stages.is_empty() {
-            return self;
-        }
-        match self.tiers.first_mut() {
-            Some(first) => {
-                first.label = format!("{}; {label}", first.label);
-                first.stages.extend(stages);
-            }
-            None => self.tiers.push(Tier { label: label.into(), stages }),
-        }
-        self
-    }
-
-    /// What every tier is for, in order.
-    pub fn describe(&self) -> String {
-        self.tiers.iter().map(|t| t.label.as_str()).collect::<Vec<_>>().join("; ")
-    }
 }
 
 /// What a stage's computation sees: only what it declared it reads.
@@ -486,6 +409,9 @@ struct Instance<'g> {
     components: Vec<(key::Component, u64)>,
 }
 
+/// `(node id, stage name)` → index of its instance in one evaluation.
+type StageIndex<'g> = HashMap<(&'g str, &'g str), usize>;
+
 /// A hash of `(node id, stage name)` identifying a stage across evaluations.
 fn stage_slot(node: &str, stage: &str) -> u64 {
     let mut h = xxhash_rust::xxh3::Xxh3::new();
@@ -541,9 +467,9 @@ impl Engine {
         on_tier: &dyn Fn(usize, Evaluation),
     ) -> Evaluation {
         let start = Instant::now();
-        let instances = self.schedule(graph);
+        let (instances, index) = self.schedule(graph);
         let mut notes = Vec::new();
-        let tier_of = needed_tiers(graph, &instances, request, &mut notes);
+        let tier_of = request::needed_tiers(graph, &instances, &index, request, &mut notes);
         if let Some(tx) = events {
             let _ = tx.send(EvalEvent::Started { stages: tier_of.iter().flatten().count() });
         }
@@ -663,7 +589,8 @@ impl Engine {
     }
 
     /// Builds stage instances in topological order and computes their keys.
-    fn schedule<'g>(&self, graph: &'g Graph) -> Vec<Instance<'g>> {
+    /// Also returns the `(node, stage)` → instance index it built.
+    fn schedule<'g>(&self, graph: &'g Graph) -> (Vec<Instance<'g>>, StageIndex<'g>) {
         let count: usize = graph.nodes.iter().map(|n| n.kind.stages.len()).sum();
         let mut instances: Vec<Instance<'g>> = Vec::with_capacity(count);
         let mut index: HashMap<(&str, &str), usize> = HashMap::with_capacity_and_hasher(count, Default::default());
@@ -697,7 +624,7 @@ impl Engine {
                 instances.push(Instance { node, spec, deps, key, components });
             }
         }
-        instances
+        (instances, index)
     }
 
     /// Canonical bytes of a parameter value; file paths also hash the file's content.
@@ -964,39 +891,6 @@ impl Scheduler {
     pub fn current(&self) -> Option<&EvalJob> {
         self.current.as_ref()
     }
-}
-
-/// For each instance, the first request tier that needs it (directly or through what it
-/// reads), or `None` when nothing requested reads it. Unknown stages become notes.
-fn needed_tiers(
-    graph: &Graph,
-    instances: &[Instance],
-    request: &Request,
-    notes: &mut Vec<String>,
-) -> Vec<Option<usize>> {
-    let index: HashMap<(&str, &str), usize> =
-        instances.iter().enumerate().map(|(i, inst)| ((inst.node.id.as_str(), inst.spec.name), i)).collect();
-    let mut tier_of: Vec<Option<usize>> = vec![None; instances.len()];
-    for (tier, spec) in request.tiers.iter().enumerate() {
-        let mut stack: Vec<usize> = Vec::new();
-        for target in &spec.stages {
-            match index.get(&(target.node.as_str(), target.stage.as_str())) {
-                Some(&i) => stack.push(i),
-                None if graph.node(&target.node).is_none() => {
-                    notes.push(format!("requested stage {target}: there is no node `{}`", target.node))
-                }
-                None => notes.push(format!("requested stage {target}: the node has no such stage")),
-            }
-        }
-        while let Some(i) = stack.pop() {
-            if tier_of[i].is_some() {
-                continue;
-            }
-            tier_of[i] = Some(tier);
-            stack.extend(instances[i].deps.iter().map(|(d, _)| *d));
-        }
-    }
-    tier_of
 }
 
 /// External files a `.gltf` refers to (buffers and images by relative URI), so editing a `.bin`

@@ -18,6 +18,11 @@ fn ran(report: &Report) -> BTreeSet<String> {
         .collect()
 }
 
+/// A stage's value from an evaluation, as `T`.
+fn value_of<T: StageType + Clone>(eval: &Evaluation, node: &str, stage: &str) -> T {
+    eval.value(node, stage).unwrap().expect::<T>().unwrap().clone()
+}
+
 fn set(names: &[&str]) -> BTreeSet<String> {
     names.iter().map(|s| s.to_string()).collect()
 }
@@ -200,8 +205,8 @@ fn rotated_sh_matches_projecting_the_rotated_cube_map() {
     graph.set_param("sky", "sun_size", ParamValue::Float(12.0)).unwrap();
     graph.set_param("sky", "resolution", ParamValue::Choice("128".into())).unwrap();
     let eval = engine.evaluate(&graph, &CancelToken::default(), None);
-    let rotated = eval.value("sky", "sh").unwrap().expect::<crate::sh::ShRgb>().unwrap().clone();
-    let cube = eval.value("sky", "rotated_radiance").unwrap().expect::<crate::cubemap::CubeMap>().unwrap().clone();
+    let rotated = value_of::<crate::sh::ShRgb>(&eval, "sky", "sh");
+    let cube = value_of::<crate::cubemap::CubeMap>(&eval, "sky", "rotated_radiance");
     let direct = crate::sh::project_samples(rotated.bands, cube.samples());
     let scale = direct.coeffs[0][0].abs();
     for (a, b) in rotated.coeffs.iter().zip(&direct.coeffs) {
@@ -620,8 +625,7 @@ fn planned_kinds_recompute_exactly_their_stages_too() {
     let first = engine.evaluate(&graph, &CancelToken::default(), None);
     let failed: BTreeSet<String> = first.report.failed().iter().map(|s| format!("{}.{}", s.node, s.stage)).collect();
     assert_eq!(failed, set(&["area.lights", "rsl.square_lights"]), "only the planned techniques fail");
-    let lights =
-        first.value("light2", "lights").unwrap().expect::<Vec<crate::kinds::lights::PointLight>>().unwrap().clone();
+    let lights = value_of::<Vec<crate::kinds::lights::PointLight>>(&first, "light2", "lights");
     assert_eq!(lights.len(), 2, "point lights chain");
     for (node, param, value, expected) in table {
         graph.set_param(node, param, value).unwrap();
@@ -715,16 +719,10 @@ fn scene_transport_stages_cover_every_receiver_and_follow_transforms() {
     graph.set_param("scene", "haar_resolution", ParamValue::Choice("4".into())).unwrap();
     let eval = engine.evaluate(&graph, &CancelToken::default(), None);
     assert!(eval.report.failed().is_empty(), "{:?}", eval.report.failed());
-    let r = eval.value("scene", "receivers").unwrap().expect::<crate::transport::Receivers>().unwrap().clone();
-    let sh = eval.value("scene", "transport_sh").unwrap().expect::<crate::transport::ShTransport>().unwrap().clone();
-    let haar =
-        eval.value("scene", "transport_haar").unwrap().expect::<crate::transport::HaarTransport>().unwrap().clone();
-    let local = eval
-        .value("scene", "transport_local")
-        .unwrap()
-        .expect::<crate::transport::SphericalTransport>()
-        .unwrap()
-        .clone();
+    let r = value_of::<crate::transport::Receivers>(&eval, "scene", "receivers");
+    let sh = value_of::<crate::transport::ShTransport>(&eval, "scene", "transport_sh");
+    let haar = value_of::<crate::transport::HaarTransport>(&eval, "scene", "transport_haar");
+    let local = value_of::<crate::transport::SphericalTransport>(&eval, "scene", "transport_local");
     assert_eq!(sh.visibility.len(), r.len() * 36);
     assert_eq!(haar.visibility.len(), r.len());
     assert_eq!(local.visibility.len(), r.len());
@@ -749,7 +747,7 @@ fn scene_transport_stages_cover_every_receiver_and_follow_transforms() {
     moved[1].translation = [1.0, 0.5, -0.5];
     graph.set_param("scene", "objects", ParamValue::Objects(moved)).unwrap();
     let eval2 = engine.evaluate(&graph, &CancelToken::default(), None);
-    let r2 = eval2.value("scene", "receivers").unwrap().expect::<crate::transport::Receivers>().unwrap().clone();
+    let r2 = value_of::<crate::transport::Receivers>(&eval2, "scene", "receivers");
     for i in r.mesh_offsets[1]..r.len() {
         let d = [0, 1, 2].map(|c| r2.positions[i][c] - r.positions[i][c]);
         assert!((d[0] - 1.0).abs() < 1e-5 && d[1].abs() < 1e-5 && (d[2] + 0.5).abs() < 1e-5, "{d:?}");
@@ -771,12 +769,7 @@ fn moving_a_rigid_object_reuses_every_per_object_transport() {
     let stage = |eval: &Evaluation| eval.report.stages.iter().find(|s| s.stage == "transport_objects").unwrap().clone();
     let first = engine.evaluate(&graph, &CancelToken::default(), None);
     assert!(stage(&first).reasons.iter().any(|r| r == "2 part(s) computed, 0 reused"), "{:?}", stage(&first).reasons);
-    let before = first
-        .value("scene", "transport_objects")
-        .unwrap()
-        .expect::<Vec<crate::transport::ObjectTransport>>()
-        .unwrap()
-        .clone();
+    let before = value_of::<Vec<crate::transport::ObjectTransport>>(&first, "scene", "transport_objects");
     // The torus self-shadows (its inner ring sees less sky than its outer rim); the ball does not.
     let v00 = |t: &crate::transport::ObjectTransport, i: usize| t.sh.receiver(i).0[0];
     let torus_min = (0..before[0].sh.visibility.len() / 36).map(|i| v00(&before[0], i)).fold(f32::MAX, f32::min);
@@ -788,12 +781,7 @@ fn moving_a_rigid_object_reuses_every_per_object_transport() {
     let moved = engine.evaluate(&graph, &CancelToken::default(), None);
     assert_eq!(stage(&moved).status, StageStatus::Computed);
     assert!(stage(&moved).reasons.iter().any(|r| r == "0 part(s) computed, 2 reused"), "{:?}", stage(&moved).reasons);
-    let after = moved
-        .value("scene", "transport_objects")
-        .unwrap()
-        .expect::<Vec<crate::transport::ObjectTransport>>()
-        .unwrap()
-        .clone();
+    let after = value_of::<Vec<crate::transport::ObjectTransport>>(&moved, "scene", "transport_objects");
     assert_eq!(after[1].sh, before[1].sh);
     assert_ne!(after[1].world_from_object, before[1].world_from_object);
     // Changing the ball's shape recomputes only the ball.
@@ -819,13 +807,8 @@ fn a_gltf_file_is_one_object_with_its_own_transport() {
     graph.set_param("scene", "transport_rays", ParamValue::Int(1024)).unwrap();
     let eval = engine.evaluate(&graph, &CancelToken::default(), None);
     assert!(eval.report.failed().is_empty(), "{:?}", eval.report.failed());
-    let meshes = eval.value("scene", "geometry").unwrap().expect::<crate::mesh::MeshSet>().unwrap().clone();
-    let objects = eval
-        .value("scene", "transport_objects")
-        .unwrap()
-        .expect::<Vec<crate::transport::ObjectTransport>>()
-        .unwrap()
-        .clone();
+    let meshes = value_of::<crate::mesh::MeshSet>(&eval, "scene", "geometry");
+    let objects = value_of::<Vec<crate::transport::ObjectTransport>>(&eval, "scene", "transport_objects");
     assert_eq!(objects.len(), 1);
     assert_eq!(objects[0].name, "BoxTextured.gltf");
     let vertices: usize = meshes.meshes.iter().map(|m| m.positions.len()).sum();

@@ -1,4 +1,4 @@
-//! Node kinds whose techniques land in later issues. Their parameters, ports and stage
+//! Node kinds whose techniques are not implemented: their parameters, ports and stage
 //! structure are defined now so projects, validation and the editor treat them like any other
 //! kind; their stages report that the technique is not available yet.
 
@@ -55,7 +55,7 @@ pub fn area_light_painter_spec() -> NodeKindSpec {
             persist: None,
             compute: not_yet,
         }],
-        availability: Availability::Planned("the area-light painter issue"),
+        availability: Availability::Planned("painted area lights are not computed or drawn"),
     }
 }
 
@@ -82,7 +82,7 @@ pub fn rsl_decomposer_spec() -> NodeKindSpec {
             persist: None,
             compute: not_yet,
         }],
-        availability: Availability::Planned("the RSL decomposer issue"),
+        availability: Availability::Planned("square lights are not fitted to the environment"),
     }
 }
 
@@ -118,7 +118,7 @@ pub fn blocker_spheres_spec() -> NodeKindSpec {
             persist: None,
             compute: blocker_spheres,
         }],
-        availability: Availability::Planned("the blocker sphere issue"),
+        availability: Availability::Planned("blocker spheres cast no shadows"),
     }
 }
 

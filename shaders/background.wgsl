@@ -1,7 +1,7 @@
 // Background pass: the environment's radiance cube map seen through the camera.
 
-@group(0) @binding(1) var environment: texture_cube<f32>;
-@group(0) @binding(2) var environment_sampler: sampler;
+@group(2) @binding(0) var environment: texture_cube<f32>;
+@group(2) @binding(1) var environment_sampler: sampler;
 
 struct VertexOut {
     @builtin(position) clip: vec4<f32>,

@@ -1,28 +1,24 @@
-// Shared uniforms of the viewport passes.
+// Shared by every scene pass: the camera (group 0, render/src/passes/camera.rs), the vertex
+// layout and the SH basis.
 
 struct Globals {
     view_proj: mat4x4<f32>,
     inv_view_proj: mat4x4<f32>,
     camera_pos: vec4<f32>,
-    // x: SH bands used (0 = no environment), y: draw background (0/1), z: unused, w: unused
+    // y: draw background (0/1); x, z, w unused
     flags: vec4<f32>,
-    // Diffuse albedo (rgb) of each material, indexed by the vertex's material.
-    albedo: array<vec4<f32>, 8>,
-    // Irradiance SH coefficients E_lm (rgb), index l*(l+1)+m, at most 5 bands.
-    irradiance: array<vec4<f32>, 25>,
 };
 
 @group(0) @binding(0) var<uniform> globals: Globals;
 
-// The viewport's vertex layout (render/src/viewport.rs `Vertex`); mesh passes take what they need.
+// The viewport's vertex layout (render/src/passes/geometry.rs `Vertex`); mesh passes take what they need.
 struct MeshVertex {
     @location(0) position: vec3<f32>,
     @location(1) normal: vec3<f32>,
     @location(2) color: vec3<f32>,
     @location(3) tangent: vec3<f32>,
     @location(4) uv: vec2<f32>,
-    @location(5) layer: f32,
-    @location(6) material: u32,
+    @location(5) material: u32,
 };
 
 const PI: f32 = 3.14159265358979;

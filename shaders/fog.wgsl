@@ -22,9 +22,9 @@ struct Fog {
     light_intensity: array<vec4<f32>, 8>,
 };
 
-@group(0) @binding(3) var<uniform> fog: Fog;
-@group(0) @binding(4) var f_tables: texture_2d_array<f32>;
-@group(0) @binding(5) var g_table: texture_2d_array<f32>;
+@group(1) @binding(0) var<uniform> fog: Fog;
+@group(1) @binding(1) var f_tables: texture_2d_array<f32>;
+@group(1) @binding(2) var g_table: texture_2d_array<f32>;
 
 const FOG_U_MAX: f32 = 64.0;
 const FOG_U_WARP: f32 = 4.0;

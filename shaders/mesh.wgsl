@@ -2,6 +2,17 @@
 // (Sun 2008 eq. 2.20: E(n) = sum_lm A_l L_lm Y_lm(n); radiance out = albedo * E / pi).
 // The coefficients E_lm arrive precomputed; this shader only evaluates the basis.
 
+struct Irradiance {
+    // x: SH bands (0 = no environment)
+    bands: vec4<u32>,
+    // Diffuse albedo (rgb) of each material, indexed by the vertex's material.
+    albedo: array<vec4<f32>, 8>,
+    // Irradiance SH coefficients E_lm (rgb), index l*(l+1)+m, at most 5 bands.
+    coeffs: array<vec4<f32>, 25>,
+};
+
+@group(2) @binding(0) var<uniform> sh: Irradiance;
+
 struct VertexOut {
     @builtin(position) clip: vec4<f32>,
     @location(0) normal: vec3<f32>,
@@ -26,7 +37,7 @@ fn sh_irradiance(n: vec3<f32>, bands: i32) -> vec3<f32> {
     let y = sh_basis(n, bands);
     var result = vec3<f32>(0.0);
     for (var k = 0; k < bands * bands; k = k + 1) {
-        result = result + globals.irradiance[k].rgb * y[k];
+        result = result + sh.coeffs[k].rgb * y[k];
     }
     return result;
 }
@@ -37,11 +48,11 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) ve
     if (!front) {
         n = -n;
     }
-    let bands = i32(globals.flags.x);
+    let bands = i32(sh.bands.x);
     var irradiance = vec3<f32>(0.0);
     if (bands > 0) {
         irradiance = max(sh_irradiance(n, bands), vec3<f32>(0.0));
     }
-    let kd = globals.albedo[in.material].rgb * in.color / PI;
+    let kd = sh.albedo[in.material].rgb * in.color / PI;
     return vec4<f32>(fog_shade(kd * irradiance, in.world, n, kd, in.material), 1.0);
 }

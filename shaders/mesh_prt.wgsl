@@ -18,9 +18,9 @@ struct PrtParams {
     light: array<vec4<f32>, 64>,
 };
 
-@group(1) @binding(0) var<uniform> prt: PrtParams;
-@group(1) @binding(1) var<storage, read> transfer: array<f32>;
-@group(1) @binding(2) var<storage, read> incident: array<f32>;
+@group(2) @binding(0) var<uniform> prt: PrtParams;
+@group(2) @binding(1) var<storage, read> transfer: array<f32>;
+@group(2) @binding(2) var<storage, read> incident: array<f32>;
 
 struct VertexOut {
     @builtin(position) clip: vec4<f32>,

@@ -19,15 +19,17 @@ struct WaveletParams {
     texels: vec4<u32>,
 };
 
-@group(1) @binding(0) var<uniform> wp: WaveletParams;
+@group(2) @binding(0) var<uniform> wp: WaveletParams;
 // P_c per vertex and cell, RGB9E5-packed (render/src/packing.rs).
-@group(1) @binding(1) var<storage, read> products: array<u32>;
-@group(1) @binding(2) var<storage, read> diffuse_table: array<f32>;
-@group(1) @binding(3) var<storage, read> specular_table: array<f32>;
-@group(1) @binding(4) var texel_diffuse: texture_2d_array<f32>;
-@group(1) @binding(5) var texel_sampler: sampler;
+@group(2) @binding(1) var<storage, read> products: array<u32>;
+@group(2) @binding(2) var<storage, read> diffuse_table: array<f32>;
+@group(2) @binding(3) var<storage, read> specular_table: array<f32>;
+@group(2) @binding(4) var texel_diffuse: texture_2d_array<f32>;
+@group(2) @binding(5) var texel_sampler: sampler;
 // P_c per texel (layer-major, rows at increasing v), RGB9E5-packed.
-@group(1) @binding(6) var<storage, read> texel_products: array<u32>;
+@group(2) @binding(6) var<storage, read> texel_products: array<u32>;
+// Per vertex: its mesh's layer in texel_diffuse, or -1.
+@group(2) @binding(7) var<storage, read> vertex_layers: array<i32>;
 
 fn rgb9e5(v: u32) -> vec3<f32> {
     let scale = exp2(f32(i32(v >> 27u) - 24));
@@ -108,7 +110,7 @@ fn vs_main(v: MeshVertex, @builtin(vertex_index) index: u32) -> VertexOut {
     out.normal = v.normal;
     out.tangent = v.tangent;
     out.uv = v.uv;
-    out.layer = i32(round(v.layer));
+    out.layer = vertex_layers[index];
     out.albedo = wp.albedo[m].rgb * v.color;
     out.specular = vec3<f32>(0.0);
     let cells = wp.counts.x;

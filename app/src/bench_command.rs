@@ -15,8 +15,12 @@ use crate::project_commands::{evaluate, fail_on_errors, output_request, upstream
 use anyhow::{Result, anyhow};
 use clap::Args;
 use lightloom_nodes::engine::{CancelToken, Engine, Graph, StageValue};
+use lightloom_nodes::frame::{
+    Background, FrameInputs, FrameMaterial, Geometry, IrradianceSurfaces, Keyed, MediumFrame, PrtSurfaces, Surfaces,
+    WaveletSurfaces,
+};
 use lightloom_nodes::graph::ParamValue;
-use lightloom_nodes::kinds::output::{FrameInputs, Keyed, Mode, Tonemap, View};
+use lightloom_nodes::kinds::output::{Mode, Tonemap, View};
 use lightloom_nodes::transport::{Receivers, ShTransport, SphericalTransport};
 use lightloom_nodes::wavelet::SparseVector;
 use lightloom_render::{CameraView, GpuContext, ViewportRenderer};
@@ -173,28 +177,19 @@ fn synthetic_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
     };
     let material =
         lightloom_nodes::kinds::brdf::Material { model: "phong".into(), exponent: 20.0, f0: 0.3, ..Default::default() };
-    let frame_with = |mode: Mode| FrameInputs {
-        meshes: keyed(1, StageValue::new(meshes.clone())),
+    let materials = vec![FrameMaterial { node: "bench".into(), material: material.clone() }];
+    let geometry = Geometry { meshes: keyed(1, StageValue::new(meshes.clone())), mesh_materials: vec![0] };
+    let frame_with = |mode: Mode, surfaces: Surfaces| FrameInputs {
+        geometry: geometry.clone(),
         ray_scene: None,
         mode,
         pending: None,
-        sh: Some(keyed(3, StageValue::new(light.clone()))),
-        radiance: Some(keyed(4, StageValue::new(environment.clone()))),
-        transport: None,
-        incident: None,
-        local_products: None,
-        texel_irradiance: None,
-        materials: vec![lightloom_nodes::kinds::output::FrameMaterial::new(
-            "bench".into(),
-            material.clone(),
-            lightloom_nodes::prt::glossy_lobe(&material, lightloom_nodes::prt::LOBE_BANDS),
-            None,
-        )],
-        mesh_materials: vec![0],
         settings: lightloom_nodes::kinds::output::OutputSettings { mode, ..base_settings.clone() },
         ignored_inputs: Vec::new(),
-        fog: None,
-        lights: Vec::new(),
+        materials: materials.clone(),
+        background: Background { radiance: Some(keyed(4, StageValue::new(environment.clone()))), visible: true },
+        surfaces,
+        medium: MediumFrame::new(Vec::new(), &materials, None),
     };
     let mut renderer = ViewportRenderer::new(gpu);
     let frame_times = |renderer: &mut ViewportRenderer, frame: &FrameInputs| -> Result<f64> {
@@ -203,7 +198,8 @@ fn synthetic_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
             (0..args.frames).map(|_| timed_frame(gpu, renderer, frame, &view, (1280, 720))).collect::<Result<_>>()?;
         Ok(median(times))
     };
-    let frame = frame_with(Mode::ShIrradiance);
+    let irradiance = IrradianceSurfaces::new(Some(&light), None, &materials);
+    let frame = frame_with(Mode::ShIrradiance, Surfaces::Irradiance(irradiance));
     println!("{:<24} {:>22} {:>14.1}", "sh_irradiance", "-", frame_times(&mut renderer, &frame)?);
     for bands in [6usize, 8] {
         let count = n * bands * bands;
@@ -213,9 +209,17 @@ fn synthetic_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
         let incident = lightloom_nodes::prt::incident_radiance(&light, &transport, &CancelToken::default())
             .map_err(|e| anyhow!("{e}"))?;
         let change_ms = start.elapsed().as_secs_f64() * 1e3;
-        let mut frame = frame_with(Mode::ShPrt);
-        frame.transport = Some(keyed(10 + bands as u128, StageValue::new(transport)));
-        frame.incident = Some(keyed(20 + bands as u128, StageValue::new(incident)));
+        let surfaces = PrtSurfaces::new(
+            keyed(10 + bands as u128, StageValue::new(transport)),
+            keyed(20 + bands as u128, StageValue::new(incident)),
+            Some(&light),
+            None,
+            &materials,
+            vec![lightloom_nodes::prt::glossy_lobe(&material, lightloom_nodes::prt::LOBE_BANDS)],
+            n,
+        )
+        .map_err(|e| anyhow!(e))?;
+        let frame = frame_with(Mode::ShPrt, Surfaces::Prt(surfaces));
         let ms = frame_times(&mut renderer, &frame)?;
         println!("{:<24} {:>22.1} {:>14.1}", format!("sh_prt {bands} bands"), change_ms, ms);
     }
@@ -274,9 +278,16 @@ fn synthetic_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
         )
         .map_err(|e| anyhow!("{e}"))?;
         let rotation_ms = start.elapsed().as_secs_f64() * 1e3;
-        let mut frame = frame_with(Mode::WaveletVertex);
-        frame.local_products = Some(keyed(30 + terms as u128, StageValue::new(products)));
-        frame.materials[0].table = Some(keyed(40, StageValue::new(table.clone())));
+        let surfaces = WaveletSurfaces::new(
+            keyed(30 + terms as u128, StageValue::new(products)),
+            &[keyed(40, StageValue::new(table.clone()))],
+            None,
+            None,
+            &geometry,
+            &materials,
+        )
+        .map_err(|e| anyhow!(e))?;
+        let frame = frame_with(Mode::WaveletVertex, Surfaces::Wavelet(surfaces));
         match frame_times(&mut renderer, &frame) {
             Ok(ms) => println!(
                 "{:<24} {:>22} {:>14.1}",

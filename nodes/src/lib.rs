@@ -13,6 +13,7 @@ pub mod brdf;
 pub mod cubemap;
 pub mod engine;
 pub mod envmap_io;
+pub mod frame;
 pub mod gltf_import;
 pub mod graph;
 pub mod kinds;

@@ -5,8 +5,10 @@
 pub mod capture;
 pub mod device;
 pub mod packing;
+mod passes;
 pub mod viewport;
 
 pub use capture::{CapturedFrame, write_exr, write_png};
 pub use device::{GpuContext, RenderError, device_descriptor};
+pub use passes::prt::MAX_PRT_BANDS;
 pub use viewport::{CameraView, ViewportRenderer};

@@ -164,7 +164,7 @@ impl EditorApp {
 
     pub(super) fn frame_all(&mut self) {
         if let Some(frame) = &self.view.frame
-            && let Some(m) = frame.meshes.value.get::<lightloom_nodes::mesh::MeshSet>()
+            && let Some(m) = frame.geometry.meshes.value.get::<lightloom_nodes::mesh::MeshSet>()
         {
             self.view.camera.frame(m.bounds());
         }
@@ -210,7 +210,7 @@ impl EditorApp {
             self.view.selected_object = None;
             return;
         };
-        let Some(meshes) = frame.meshes.value.get::<lightloom_nodes::mesh::MeshSet>() else { return };
+        let Some(meshes) = frame.geometry.meshes.value.get::<lightloom_nodes::mesh::MeshSet>() else { return };
         let name = meshes.meshes[mesh].name.split('/').next().unwrap_or_default().to_string();
         // The Scene node feeding the output, and the object with that name.
         let Some((_, graph)) = &self.evaluator.last else { return };
@@ -238,7 +238,7 @@ impl EditorApp {
             return;
         };
         let Some(object) = objects.get(index) else { return };
-        let Some(m) = frame.meshes.value.get::<lightloom_nodes::mesh::MeshSet>() else { return };
+        let Some(m) = frame.geometry.meshes.value.get::<lightloom_nodes::mesh::MeshSet>() else { return };
         let prefix = format!("{}/", object.name);
         let parts: Vec<_> = m.meshes.iter().filter(|x| x.name == object.name || x.name.starts_with(&prefix)).collect();
         if parts.is_empty() {

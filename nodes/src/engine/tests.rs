@@ -1035,9 +1035,10 @@ fn the_first_evaluation_shows_an_unshadowed_frame_before_the_transport_then_a_sh
     let preview = FrameInputs::gather(&partial, &graph, "output").unwrap();
     assert_eq!((preview.mode, preview.settings.mode), (Mode::ShIrradiance, Mode::WaveletPixel));
     assert!(preview.pending.as_deref().is_some_and(|p| p.contains("unshadowed")), "{:?}", preview.pending);
-    assert!(preview.local_products.is_none() && preview.texel_irradiance.is_none() && preview.ray_scene.is_some());
+    assert!(matches!(preview.surfaces, crate::frame::Surfaces::Irradiance(_)) && preview.ray_scene.is_some());
     let done = job.wait();
     let shadowed = FrameInputs::gather(&done, &graph, "output").unwrap();
     assert_eq!(shadowed.mode, Mode::WaveletPixel);
-    assert!(shadowed.pending.is_none() && shadowed.local_products.is_some() && shadowed.texel_irradiance.is_some());
+    let per_texel = matches!(&shadowed.surfaces, crate::frame::Surfaces::Wavelet(w) if w.texels.is_some());
+    assert!(shadowed.pending.is_none() && per_texel, "the shadowed frame draws per texel");
 }

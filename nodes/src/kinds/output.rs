@@ -1,10 +1,9 @@
 //! Output node: what the viewport and `lightloom render` draw, and how (relighting mode,
 //! exposure, tone mapping).
 
-use crate::engine::{Evaluation, Graph, GraphNode, Key, Request, StageContext, StageError, StageRef, StageValue};
+use crate::engine::{Evaluation, Graph, GraphNode, Request, StageContext, StageError, StageRef, StageValue};
 use crate::graph::{Availability, NodeKindSpec, ParamKind, ParamSpec, ParamValue, PortSpec, PortType, StageSpec};
 use serde::{Deserialize, Serialize};
-use std::sync::Arc;
 
 // Stage value types this module owns (see `engine::value`).
 crate::stage_type!(OutputSettings, "output settings");
@@ -297,103 +296,11 @@ fn typed<T: crate::engine::StageType + Clone>(keyed: &Keyed, stage: &str) -> Res
     keyed.value.expect::<T>().cloned().map_err(|e| format!("stage `{stage}`: {e}"))
 }
 
-/// A stage value with its key (renderers re-upload only when the key changes).
-#[derive(Clone, Debug)]
-pub struct Keyed {
-    pub key: Key,
-    pub value: Arc<StageValue>,
-}
-
-/// Everything the renderer needs for one frame, gathered from an evaluation.
-#[derive(Clone, Debug)]
-pub struct FrameInputs {
-    pub meshes: Keyed,
-    /// The scene's BVH (for the reference renderer and picking), when it was requested.
-    pub ray_scene: Option<Keyed>,
-    /// The mode drawn: the Output's mode, or [`Mode::ShIrradiance`] while that mode's transport
-    /// is still computing (then `pending` says so).
-    pub mode: Mode,
-    pub pending: Option<String>,
-    pub sh: Option<Keyed>,
-    pub radiance: Option<Keyed>,
-    /// `sh_prt` only: the scene's SH transport and the incident radiance per receiver.
-    pub transport: Option<Keyed>,
-    pub incident: Option<Keyed>,
-    /// Wavelet modes only: per-vertex lighting × visibility.
-    pub local_products: Option<Keyed>,
-    /// `wavelet_pixel` only: per-texel diffuse transfer of the visibility textures.
-    pub texel_irradiance: Option<Keyed>,
-    /// The materials linked to the Output, in link order (the default material when none is),
-    /// at most [`MAX_MATERIALS`].
-    pub materials: Vec<FrameMaterial>,
-    /// Per mesh of the scene: its index in `materials`.
-    pub mesh_materials: Vec<u32>,
-    pub settings: OutputSettings,
-    /// Connected inputs the renderer does not draw yet, and material names that matched
-    /// nothing, to tell the user.
-    pub ignored_inputs: Vec<String>,
-    /// The medium linked to the Output, if any.
-    pub fog: Option<FogFrame>,
-    /// Point lights linked to the Output (at most [`MAX_LIGHTS`]).
-    pub lights: Vec<crate::kinds::lights::PointLight>,
-}
-
-/// Materials one frame can shade with (the shaders' uniform arrays).
-pub const MAX_MATERIALS: usize = 8;
-
-/// Point lights one frame can shade with.
-pub const MAX_LIGHTS: usize = 8;
-
-/// A participating medium for one frame (Sun 2008 ch. 3): coefficients and its tables.
-#[derive(Clone, Debug)]
-pub struct FogFrame {
-    /// Scattering coefficient per channel, 1/m.
-    pub beta: [f64; 3],
-    /// Distance of the environment's light sources, m (sec. 3.6.4).
-    pub environment_distance: f64,
-    /// Normalised phase polynomial weights `W_k` (eq. 3.18), one per `F^k` table.
-    pub phase: Vec<f64>,
-    /// `F^k` tables (`Vec<FTable>`) and the `G_n` ladder (`PhongGTables`).
-    pub f_tables: Keyed,
-    pub g_tables: Keyed,
-    /// With an environment linked: its light through the medium (sec. 3.6.4).
-    pub environment: Option<crate::single_scattering::FoggedEnvironment>,
-}
-
-/// One material of a frame.
-#[derive(Clone, Debug)]
-pub struct FrameMaterial {
-    /// The BRDF editor node (empty for the default material).
-    pub node: String,
-    pub material: crate::kinds::brdf::Material,
-    /// Its SH lobe (`sh_prt` only; no factors for Lambert).
-    pub sh_lobe: Option<crate::prt::GlossyLobe>,
-    /// Its local-frame table (wavelet modes only).
-    pub table: Option<Keyed>,
-    /// Its Phong-equivalent lobe `(weight per channel, exponent)` for light scattered by fog
-    /// onto surfaces (eq. 3.28; `None` for Lambert).
-    pub phong_lobe: Option<([f64; 3], f64)>,
-}
-
-impl FrameMaterial {
-    pub fn new(
-        node: String,
-        material: crate::kinds::brdf::Material,
-        sh_lobe: Option<crate::prt::GlossyLobe>,
-        table: Option<Keyed>,
-    ) -> Self {
-        let brdf = crate::brdf::Brdf::from_material(&material);
-        let phong_lobe = brdf.equivalent_phong_exponent().map(|n| ((brdf.specular * brdf.f0).to_array(), n.max(1.0)));
-        Self { node, material, sh_lobe, table, phong_lobe }
-    }
-}
-
-impl FrameInputs {
-    /// The material of mesh `i`.
-    pub fn mesh_material(&self, i: usize) -> &crate::kinds::brdf::Material {
-        &self.materials[self.mesh_materials.get(i).copied().unwrap_or(0) as usize].material
-    }
-}
+use crate::frame::{
+    Background, FogFrame, FrameMaterial, Geometry, IrradianceSurfaces, MediumFrame, PrtSurfaces, Surfaces,
+    WaveletSurfaces,
+};
+pub use crate::frame::{FrameInputs, Keyed, MAX_LIGHTS, MAX_MATERIALS};
 
 /// Finds the output node (the one named, or the only one).
 pub fn find_output<'g>(graph: &'g Graph, name: Option<&str>) -> Result<&'g crate::engine::GraphNode, String> {
@@ -482,54 +389,6 @@ pub fn frame_request(graph: &Graph, output: &str, picking: bool) -> Request {
 }
 
 impl FrameInputs {
-    /// The Monte Carlo reference of this frame (see [`crate::reference`]).
-    pub fn render_reference(
-        &self,
-        camera: &crate::reference::PinholeCamera,
-        size: (usize, usize),
-        seed: u64,
-        cancel: &crate::engine::CancelToken,
-        progress: &(dyn Fn(f64) + Sync),
-    ) -> Result<crate::reference::HdrImage, String> {
-        let Some(scene) = self.ray_scene.as_ref().and_then(|r| r.value.get::<crate::raycast::RayScene>()) else {
-            return Err("the scene's ray_scene stage was not evaluated".into());
-        };
-        let meshes = self.meshes.value.expect::<crate::mesh::MeshSet>().map_err(|e| e.to_string())?;
-        let black = crate::cubemap::CubeMap::new(1, vec![[0.0; 3]; 6]);
-        let environment = match &self.radiance {
-            Some(r) => r.value.expect::<crate::cubemap::CubeMap>().map_err(|e| e.to_string())?,
-            None => &black,
-        };
-        let rs = crate::reference::ReferenceScene {
-            scene,
-            meshes,
-            brdfs: (0..meshes.meshes.len()).map(|i| crate::brdf::Brdf::from_material(self.mesh_material(i))).collect(),
-            environment,
-            background: self.settings.background,
-        };
-        crate::reference::render(&rs, camera, size, self.settings.reference_samples, seed, cancel, progress)
-            .map_err(|e| e.to_string())
-    }
-
-    /// The mesh seen through image point `(x, y)` (pixels, `y` down) of a `width × height` view:
-    /// its index in the scene's meshes, or `None` for the background.
-    pub fn pick(
-        &self,
-        camera: &crate::reference::PinholeCamera,
-        (x, y): (f64, f64),
-        (width, height): (usize, usize),
-    ) -> Option<usize> {
-        let (Some(scene), Some(meshes)) = (
-            self.ray_scene.as_ref().and_then(|r| r.value.get::<crate::raycast::RayScene>()),
-            self.meshes.value.get::<crate::mesh::MeshSet>(),
-        ) else {
-            return None;
-        };
-        let dir = camera.ray(x, y, width.max(1), height.max(1));
-        let (_, triangle) = scene.closest(camera.position.as_vec3a(), dir.as_vec3a())?;
-        meshes.mesh_of_triangle(triangle as usize)
-    }
-
     pub fn gather(evaluation: &Evaluation, graph: &Graph, output: &str) -> Result<Self, String> {
         let keyed = |node: &str, stage: &str| -> Result<Keyed, String> {
             let r = evaluation.get(node, stage).ok_or_else(|| format!("stage {node}.{stage} was not evaluated"))?;
@@ -561,65 +420,68 @@ impl FrameInputs {
         let mode = if ready { settings.mode } else { Mode::ShIrradiance };
         let pending =
             (!ready).then(|| format!("unshadowed preview: mode {} is still computing what it needs", settings.mode));
-        let (transport, incident) = if mode == Mode::ShPrt {
-            (Some(keyed(&scene, "transport_sh")?), Some(keyed(output, "incident_sh")?))
-        } else {
-            (None, None)
-        };
-        let wavelets = mode.is_wavelet();
         let mut materials = Vec::new();
+        let mut lobes = Vec::new();
+        let mut tables = Vec::new();
         for node in &material_nodes {
-            let material = typed(&keyed(&node.id, "material")?, "material")?;
-            let table = if wavelets { Some(keyed(&node.id, "local_table")?) } else { None };
-            let sh_lobe =
-                if mode == Mode::ShPrt { Some(typed(&keyed(&node.id, "sh_lobe")?, "sh_lobe")?) } else { None };
-            materials.push(FrameMaterial::new(node.id.clone(), material, sh_lobe, table));
+            materials.push(FrameMaterial {
+                node: node.id.clone(),
+                material: typed(&keyed(&node.id, "material")?, "material")?,
+            });
+            if mode == Mode::ShPrt {
+                lobes.push(Some(typed(&keyed(&node.id, "sh_lobe")?, "sh_lobe")?));
+            }
+            if mode.is_wavelet() {
+                tables.push(keyed(&node.id, "local_table")?);
+            }
         }
         if materials.is_empty() {
-            if wavelets {
+            if mode.is_wavelet() {
                 return Err("the wavelet modes need a material: link a BRDF editor to the Output".into());
             }
-            materials.push(FrameMaterial::new(String::new(), Default::default(), None, None));
+            materials.push(FrameMaterial { node: String::new(), material: Default::default() });
+            lobes.push(None);
         }
-        let local_products = if wavelets { Some(keyed(output, "local_products")?) } else { None };
-        let texel_irradiance = if mode == Mode::WaveletPixel { Some(keyed(output, "texel_irradiance")?) } else { None };
         let fog = match upstream("medium") {
-            Some(node) => {
-                let m: crate::kinds::fog::Medium = typed(&keyed(&node, "medium")?, "medium")?;
-                let phase = if m.phase == "polynomial" {
-                    crate::single_scattering::Phase::polynomial(&m.phase_coefficients)
-                        .ok_or_else(|| format!("{node}: the phase polynomial is invalid"))?
-                } else {
-                    crate::single_scattering::Phase::isotropic()
-                };
-                let f_tables = keyed(&node, "f_tables")?;
-                let environment = match &sh {
-                    Some(sh) => {
-                        let tables = f_tables
-                            .value
-                            .expect::<Vec<crate::single_scattering::FTable>>()
-                            .map_err(|e| e.to_string())?;
-                        let light = sh.value.expect::<crate::sh::ShRgb>().map_err(|e| e.to_string())?;
-                        Some(crate::single_scattering::FoggedEnvironment::new(
-                            m.beta,
-                            m.environment_distance,
-                            &phase,
-                            tables,
-                            light,
-                        ))
-                    }
-                    None => None,
-                };
-                Some(FogFrame {
-                    beta: m.beta,
-                    environment_distance: m.environment_distance,
-                    phase: phase.weights,
-                    f_tables,
-                    g_tables: keyed(&node, "g_tables")?,
-                    environment,
-                })
-            }
+            Some(node) => Some(fog_frame(&keyed, &node, sh.as_ref(), mode)?),
             None => None,
+        };
+        let fogged = fog.as_ref().and_then(|f| f.environment.as_ref());
+        let light =
+            sh.as_ref().map(|sh| sh.value.expect::<crate::sh::ShRgb>()).transpose().map_err(|e| e.to_string())?;
+        let mut mesh_materials = Vec::new();
+        let mut unmatched: std::collections::BTreeMap<String, usize> = Default::default();
+        if let Some(set) = meshes.value.get::<crate::mesh::MeshSet>() {
+            for mesh in &set.meshes {
+                let found = materials.iter().position(|m| !mesh.material.is_empty() && m.node == mesh.material);
+                if found.is_none() && !mesh.material.is_empty() {
+                    *unmatched.entry(mesh.material.clone()).or_default() += 1;
+                }
+                mesh_materials.push(found.unwrap_or(0) as u32);
+            }
+        }
+        let geometry = Geometry { meshes, mesh_materials };
+        let products = if mode.is_wavelet() { Some(keyed(output, "local_products")?) } else { None };
+        // Without an environment the products are empty: surfaces get no environment light.
+        let no_products = products
+            .as_ref()
+            .is_some_and(|p| p.value.get::<crate::triple_product::LocalProducts>().is_some_and(|p| p.cells == 0));
+        let surfaces = match mode {
+            Mode::ShPrt => Surfaces::Prt(PrtSurfaces::new(
+                keyed(&scene, "transport_sh")?,
+                keyed(output, "incident_sh")?,
+                light,
+                fogged,
+                &materials,
+                lobes,
+                geometry.vertex_count(),
+            )?),
+            Mode::WaveletVertex | Mode::WaveletPixel if !no_products => {
+                let texels = if mode == Mode::WaveletPixel { Some(keyed(output, "texel_irradiance")?) } else { None };
+                let products = products.ok_or("the wavelet products were not evaluated")?;
+                Surfaces::Wavelet(WaveletSurfaces::new(products, &tables, texels, fogged, &geometry, &materials)?)
+            }
+            _ => Surfaces::Irradiance(IrradianceSurfaces::new(light, fogged, &materials)),
         };
         let mut lights = match upstream("lights") {
             Some(node) => typed::<Vec<crate::kinds::lights::PointLight>>(&keyed(&node, "lights")?, "lights")?,
@@ -633,17 +495,6 @@ impl FrameInputs {
             ignored_inputs.push(format!("{} point lights are linked; the first {MAX_LIGHTS} are drawn", lights.len()));
             lights.truncate(MAX_LIGHTS);
         }
-        let mut mesh_materials = Vec::new();
-        let mut unmatched: std::collections::BTreeMap<&str, usize> = Default::default();
-        if let Some(set) = meshes.value.get::<crate::mesh::MeshSet>() {
-            for mesh in &set.meshes {
-                let found = materials.iter().position(|m| !mesh.material.is_empty() && m.node == mesh.material);
-                if found.is_none() && !mesh.material.is_empty() {
-                    *unmatched.entry(mesh.material.as_str()).or_default() += 1;
-                }
-                mesh_materials.push(found.unwrap_or(0) as u32);
-            }
-        }
         // With one material linked everything uses it by design; with several, say which
         // names matched nothing.
         if materials.len() > 1 && !unmatched.is_empty() {
@@ -654,23 +505,57 @@ impl FrameInputs {
                 materials[0].node
             ));
         }
+        let medium = MediumFrame::new(lights, &materials, fog);
         Ok(Self {
-            meshes,
+            geometry,
             ray_scene,
             mode,
             pending,
-            sh,
-            radiance,
-            transport,
-            incident,
-            local_products,
-            texel_irradiance,
-            materials,
-            mesh_materials,
+            background: Background { radiance, visible: settings.background },
             settings,
             ignored_inputs,
-            fog,
-            lights,
+            materials,
+            surfaces,
+            medium,
         })
     }
+}
+
+/// The medium linked to the Output as one frame's [`FogFrame`].
+fn fog_frame(
+    keyed: &dyn Fn(&str, &str) -> Result<Keyed, String>,
+    node: &str,
+    sh: Option<&Keyed>,
+    mode: Mode,
+) -> Result<FogFrame, String> {
+    let m: crate::kinds::fog::Medium = typed(&keyed(node, "medium")?, "medium")?;
+    let phase = if m.phase == "polynomial" {
+        crate::single_scattering::Phase::polynomial(&m.phase_coefficients)
+            .ok_or_else(|| format!("{node}: the phase polynomial is invalid"))?
+    } else {
+        crate::single_scattering::Phase::isotropic()
+    };
+    let f_tables = keyed(node, "f_tables")?;
+    let environment = match sh {
+        Some(sh) => {
+            let tables = f_tables.value.expect::<Vec<crate::single_scattering::FTable>>().map_err(|e| e.to_string())?;
+            let light = sh.value.expect::<crate::sh::ShRgb>().map_err(|e| e.to_string())?;
+            Some(crate::single_scattering::FoggedEnvironment::new(
+                m.beta,
+                m.environment_distance,
+                &phase,
+                tables,
+                light,
+            ))
+        }
+        None => None,
+    };
+    Ok(FogFrame {
+        beta: m.beta,
+        phase: phase.weights,
+        f_tables,
+        g_tables: keyed(node, "g_tables")?,
+        environment,
+        scatter_onto_surfaces: mode.is_wavelet(),
+    })
 }

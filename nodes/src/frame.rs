@@ -1,0 +1,357 @@
+//! What one frame draws, per feature: the background, the surfaces (one variant per relighting
+//! mode), and the medium and point lights. Gathered from an evaluation by
+//! [`crate::kinds::output::FrameInputs::gather`]; renderers upload it as it is. All lighting
+//! math (convolution to irradiance, light through fog, table coarsening) happens here, so a
+//! renderer only packs and draws.
+
+use crate::engine::{Key, StageValue};
+use crate::kinds::brdf::Material;
+use crate::kinds::lights::PointLight;
+use crate::kinds::output::{Mode, OutputSettings};
+use crate::sh::ShRgb;
+use crate::single_scattering::FoggedEnvironment;
+use std::sync::Arc;
+
+/// Materials one frame can shade with (the shaders' uniform arrays).
+pub const MAX_MATERIALS: usize = 8;
+
+/// Point lights one frame can shade with.
+pub const MAX_LIGHTS: usize = 8;
+
+/// Irradiance bands shaded per pixel: `Â_l` is 0 for odd `l > 1` and `|Â_6| < 0.016 Â_0`
+/// (Sun 2008 eq. 2.24), so bands above 4 add nothing visible.
+pub const IRRADIANCE_BANDS: usize = 5;
+
+/// A stage value with its key (renderers re-upload only when the key changes).
+#[derive(Clone, Debug)]
+pub struct Keyed {
+    pub key: Key,
+    pub value: Arc<StageValue>,
+}
+
+/// Everything one frame draws, per feature.
+#[derive(Clone, Debug)]
+pub struct FrameInputs {
+    pub geometry: Geometry,
+    /// The scene's BVH (for the reference renderer and picking), when it was requested.
+    pub ray_scene: Option<Keyed>,
+    /// The mode drawn: the Output's mode, or [`Mode::ShIrradiance`] while that mode's transport
+    /// is still computing (then `pending` says so).
+    pub mode: Mode,
+    pub pending: Option<String>,
+    pub settings: OutputSettings,
+    /// Connected inputs the renderer does not draw yet, and material names that matched
+    /// nothing, to tell the user.
+    pub ignored_inputs: Vec<String>,
+    /// The materials linked to the Output, in link order (the default material when none is),
+    /// at most [`MAX_MATERIALS`].
+    pub materials: Vec<FrameMaterial>,
+    pub background: Background,
+    pub surfaces: Surfaces,
+    pub medium: MediumFrame,
+}
+
+/// The scene's meshes and which material each uses.
+#[derive(Clone, Debug)]
+pub struct Geometry {
+    /// A [`crate::mesh::MeshSet`].
+    pub meshes: Keyed,
+    /// Per mesh: its index in the frame's materials.
+    pub mesh_materials: Vec<u32>,
+}
+
+impl Geometry {
+    pub fn vertex_count(&self) -> usize {
+        self.meshes.value.get::<crate::mesh::MeshSet>().map_or(0, |m| m.meshes.iter().map(|m| m.positions.len()).sum())
+    }
+}
+
+/// The environment seen behind the scene.
+#[derive(Clone, Debug)]
+pub struct Background {
+    /// The rotated radiance cube map ([`crate::cubemap::CubeMap`]), if an environment is linked.
+    pub radiance: Option<Keyed>,
+    pub visible: bool,
+}
+
+/// One material of a frame, as the reference renderer and the UI see it.
+#[derive(Clone, Debug)]
+pub struct FrameMaterial {
+    /// The BRDF editor node (empty for the default material).
+    pub node: String,
+    pub material: Material,
+}
+
+/// How surfaces are lit: one variant per relighting mode.
+#[derive(Clone, Debug)]
+pub enum Surfaces {
+    Irradiance(IrradianceSurfaces),
+    Prt(PrtSurfaces),
+    Wavelet(WaveletSurfaces),
+}
+
+/// `sh_irradiance`: unshadowed diffuse light per pixel (Sun 2008 eq. 2.20).
+#[derive(Clone, Debug)]
+pub struct IrradianceSurfaces {
+    /// `E_lm = Â_l L_lm` on at most [`IRRADIANCE_BANDS`] bands (none without an environment).
+    pub irradiance: Option<ShRgb>,
+    /// Per material: diffuse albedo.
+    pub albedo: Vec<[f64; 3]>,
+}
+
+impl IrradianceSurfaces {
+    /// `light` is the environment's SH radiance; in fog, surfaces see it through the medium.
+    pub fn new(light: Option<&ShRgb>, fog: Option<&FoggedEnvironment>, materials: &[FrameMaterial]) -> Self {
+        let irradiance = light.map(|light| {
+            let light = fog.map_or(light, |f| &f.fogged).irradiance();
+            let bands = light.bands.min(IRRADIANCE_BANDS);
+            ShRgb { bands, coeffs: light.coeffs[..bands * bands].to_vec() }
+        });
+        Self { irradiance, albedo: materials.iter().map(|m| m.material.albedo).collect() }
+    }
+}
+
+/// `sh_prt`: shadowed diffuse transfer and glossy lobes on shadowed incident light, per vertex.
+#[derive(Clone, Debug)]
+pub struct PrtSurfaces {
+    /// [`crate::transport::ShTransport`] and [`crate::prt::IncidentSh`] per vertex.
+    pub transport: Keyed,
+    pub incident: Keyed,
+    /// The light the diffuse transfer sees (through fog when there is one), if any.
+    pub light: Option<ShRgb>,
+    pub albedo: Vec<[f64; 3]>,
+    /// Per material: its glossy lobe, its weight scaled by what reaches surfaces through fog.
+    pub glossy: Vec<Option<crate::prt::GlossyLobe>>,
+}
+
+impl PrtSurfaces {
+    /// Checks that the transport covers the scene's `vertices`. In fog the diffuse transfer
+    /// sees the fogged environment (Sun 2008 sec. 3.6.5); the glossy lobes read per-vertex
+    /// incident light computed without fog, so they get only its attenuation.
+    pub fn new(
+        transport: Keyed,
+        incident: Keyed,
+        light: Option<&ShRgb>,
+        fog: Option<&FoggedEnvironment>,
+        materials: &[FrameMaterial],
+        lobes: Vec<Option<crate::prt::GlossyLobe>>,
+        vertices: usize,
+    ) -> Result<Self, String> {
+        let t = transport.value.expect::<crate::transport::ShTransport>().map_err(|e| e.to_string())?;
+        let r = incident.value.expect::<crate::prt::IncidentSh>().map_err(|e| e.to_string())?;
+        let n = t.bands * t.bands;
+        if t.transfer.len() != vertices * n || (!r.coeffs.is_empty() && r.coeffs.len() != vertices * n * 3) {
+            return Err(format!("the transport has {} receivers for {vertices} vertices", t.transfer.len() / n.max(1)));
+        }
+        let attenuation = fog.map_or([1.0; 3], |f| f.fog.attenuation);
+        let glossy = lobes
+            .into_iter()
+            .map(|lobe| {
+                lobe.filter(|l| !l.factors.is_empty()).map(|mut l| {
+                    l.weight = std::array::from_fn(|c| l.weight[c] * attenuation[c]);
+                    l
+                })
+            })
+            .collect();
+        Ok(Self {
+            transport,
+            incident,
+            light: light.map(|l| fog.map_or(l, |f| &f.fogged).clone()),
+            albedo: materials.iter().map(|m| m.material.albedo).collect(),
+            glossy,
+        })
+    }
+}
+
+/// The wavelet modes: the local-frame triple product `B = albedo Σ P_c D_c + specular Σ P_c
+/// S_c(ω_o)` per vertex, and per texel on meshes with a visibility texture (`wavelet_pixel`).
+#[derive(Clone, Debug)]
+pub struct WaveletSurfaces {
+    /// Changes whenever any buffer below does.
+    pub key: Key,
+    pub cells: usize,
+    /// [`crate::triple_product::LocalProducts`]: `P_c` per vertex.
+    pub products: Keyed,
+    /// `D_c`, shared by all materials.
+    pub diffuse_table: Arc<Vec<f32>>,
+    /// Every material's `S_c(ω_o)` table coarsened to `cells`, zeros without a lobe; each
+    /// [`Self::specular_stride`] long.
+    pub specular_tables: Arc<Vec<f32>>,
+    /// Per material: diffuse albedo and specular colour (`None` without a lobe), both scaled
+    /// by what reaches surfaces through fog (fog adds its scattered light separately).
+    pub albedo: Vec<[f64; 3]>,
+    pub specular: Vec<Option<[f64; 3]>>,
+    /// `wavelet_pixel`: [`crate::triple_product::TexelIrradiance`] when it matches `cells`.
+    pub texels: Option<Keyed>,
+    /// Per vertex: its mesh's texel layer, or -1.
+    pub vertex_layers: Arc<Vec<i32>>,
+}
+
+impl WaveletSurfaces {
+    /// `tables` are the materials' [`crate::triple_product::BrdfTable`]s, one per material.
+    pub fn new(
+        products: Keyed,
+        tables: &[Keyed],
+        texels: Option<Keyed>,
+        fog: Option<&FoggedEnvironment>,
+        geometry: &Geometry,
+        materials: &[FrameMaterial],
+    ) -> Result<Self, String> {
+        use crate::triple_product::{BrdfTable, LocalProducts, TexelIrradiance};
+        let p = products.value.expect::<LocalProducts>().map_err(|e| e.to_string())?;
+        let vertices = geometry.vertex_count();
+        if p.cells == 0 || p.values.len() != vertices * p.cells * 3 {
+            return Err(format!(
+                "the triple-product data covers {} receivers for {vertices} vertices",
+                p.values.len() / (p.cells * 3).max(1)
+            ));
+        }
+        let mut coarse = Vec::new();
+        let mut key = products.key ^ geometry.meshes.key.rotate_left(3);
+        for keyed in tables {
+            let table = keyed.value.expect::<BrdfTable>().map_err(|e| e.to_string())?;
+            coarse.push(table.coarsened(p.cells)?);
+            key = key.rotate_left(7) ^ keyed.key;
+        }
+        let Some(first) = coarse.first() else {
+            return Err("the wavelet modes need a material: link a BRDF editor to the Output".into());
+        };
+        let stride = Self::specular_stride(p.cells);
+        let mut specular_tables = vec![0.0f32; stride * coarse.len()];
+        for (i, t) in coarse.iter().enumerate() {
+            if !t.specular.is_empty() {
+                specular_tables[i * stride..(i + 1) * stride].copy_from_slice(&t.specular);
+            }
+        }
+        let texels = texels.filter(|t| t.value.get::<TexelIrradiance>().is_some_and(|t| t.cells == p.cells));
+        let mesh_layers = texels.as_ref().and_then(|t| t.value.get::<TexelIrradiance>()).map(|t| &t.mesh_layers);
+        let mut vertex_layers = Vec::with_capacity(vertices);
+        if let Some(set) = geometry.meshes.value.get::<crate::mesh::MeshSet>() {
+            for (m, mesh) in set.meshes.iter().enumerate() {
+                let layer = mesh_layers.and_then(|l| l.get(m)).copied().unwrap_or(-1);
+                vertex_layers.extend(std::iter::repeat_n(layer, mesh.positions.len()));
+            }
+        }
+        if let Some(t) = &texels {
+            key = key.rotate_left(11) ^ t.key;
+        }
+        let attenuation = fog.map_or([1.0; 3], |f| f.fog.attenuation);
+        let scale = |c: [f64; 3]| std::array::from_fn(|i| c[i] * attenuation[i]);
+        Ok(Self {
+            key,
+            cells: p.cells,
+            diffuse_table: Arc::new(first.diffuse.clone()),
+            specular_tables: Arc::new(specular_tables),
+            albedo: materials.iter().map(|m| scale(m.material.albedo)).collect(),
+            specular: coarse
+                .iter()
+                .map(|t| (!t.specular.is_empty()).then(|| scale(t.specular_color.map(f64::from))))
+                .collect(),
+            products,
+            texels,
+            vertex_layers: Arc::new(vertex_layers),
+        })
+    }
+
+    /// Floats of one material's specular table.
+    pub fn specular_stride(cells: usize) -> usize {
+        crate::triple_product::THETA_STEPS * crate::triple_product::PHI_STEPS * cells
+    }
+}
+
+/// Point lights and the participating medium (Sun 2008 ch. 3), shaded with every surface.
+#[derive(Clone, Debug, Default)]
+pub struct MediumFrame {
+    /// At most [`MAX_LIGHTS`].
+    pub lights: Vec<PointLight>,
+    /// Per material: its Phong-equivalent lobe `(weight per channel, exponent)` for point
+    /// lights and light scattered onto surfaces (eq. 3.28; `None` for Lambert).
+    pub surface_lobes: Vec<Option<([f64; 3], f64)>>,
+    pub fog: Option<FogFrame>,
+}
+
+impl MediumFrame {
+    pub fn new(lights: Vec<PointLight>, materials: &[FrameMaterial], fog: Option<FogFrame>) -> Self {
+        let surface_lobes = materials
+            .iter()
+            .map(|m| {
+                let brdf = crate::brdf::Brdf::from_material(&m.material);
+                brdf.equivalent_phong_exponent().map(|n| ((brdf.specular * brdf.f0).to_array(), n.max(1.0)))
+            })
+            .collect();
+        Self { lights, surface_lobes, fog }
+    }
+}
+
+/// A homogeneous medium for one frame: coefficients, tables, and the environment through it.
+#[derive(Clone, Debug)]
+pub struct FogFrame {
+    /// Scattering coefficient per channel, 1/m.
+    pub beta: [f64; 3],
+    /// Normalised phase polynomial weights `W_k` (eq. 3.18), one per `F^k` table.
+    pub phase: Vec<f64>,
+    /// `F^k` tables (`Vec<FTable>`) and the `G_n` ladder (`PhongGTables`).
+    pub f_tables: Keyed,
+    pub g_tables: Keyed,
+    /// With an environment linked: its light through the medium (sec. 3.6.4).
+    pub environment: Option<FoggedEnvironment>,
+    /// Whether surfaces get the environment's scattered irradiance from the medium pass: the
+    /// wavelet modes cannot convolve their all-frequency light, the SH modes already see it
+    /// in their fogged light.
+    pub scatter_onto_surfaces: bool,
+}
+
+impl FrameInputs {
+    /// The material of mesh `i`.
+    pub fn mesh_material(&self, i: usize) -> &Material {
+        &self.materials[self.geometry.mesh_materials.get(i).copied().unwrap_or(0) as usize].material
+    }
+
+    /// The Monte Carlo reference of this frame (see [`crate::reference`]).
+    pub fn render_reference(
+        &self,
+        camera: &crate::reference::PinholeCamera,
+        size: (usize, usize),
+        seed: u64,
+        cancel: &crate::engine::CancelToken,
+        progress: &(dyn Fn(f64) + Sync),
+    ) -> Result<crate::reference::HdrImage, String> {
+        let Some(scene) = self.ray_scene.as_ref().and_then(|r| r.value.get::<crate::raycast::RayScene>()) else {
+            return Err("the scene's ray_scene stage was not evaluated".into());
+        };
+        let meshes = self.geometry.meshes.value.expect::<crate::mesh::MeshSet>().map_err(|e| e.to_string())?;
+        let black = crate::cubemap::CubeMap::new(1, vec![[0.0; 3]; 6]);
+        let environment = match &self.background.radiance {
+            Some(r) => r.value.expect::<crate::cubemap::CubeMap>().map_err(|e| e.to_string())?,
+            None => &black,
+        };
+        let rs = crate::reference::ReferenceScene {
+            scene,
+            meshes,
+            brdfs: (0..meshes.meshes.len()).map(|i| crate::brdf::Brdf::from_material(self.mesh_material(i))).collect(),
+            environment,
+            background: self.settings.background,
+        };
+        crate::reference::render(&rs, camera, size, self.settings.reference_samples, seed, cancel, progress)
+            .map_err(|e| e.to_string())
+    }
+
+    /// The mesh seen through image point `(x, y)` (pixels, `y` down) of a `width × height` view:
+    /// its index in the scene's meshes, or `None` for the background.
+    pub fn pick(
+        &self,
+        camera: &crate::reference::PinholeCamera,
+        (x, y): (f64, f64),
+        (width, height): (usize, usize),
+    ) -> Option<usize> {
+        let (Some(scene), Some(meshes)) = (
+            self.ray_scene.as_ref().and_then(|r| r.value.get::<crate::raycast::RayScene>()),
+            self.geometry.meshes.value.get::<crate::mesh::MeshSet>(),
+        ) else {
+            return None;
+        };
+        let dir = camera.ray(x, y, width.max(1), height.max(1));
+        let (_, triangle) = scene.closest(camera.position.as_vec3a(), dir.as_vec3a())?;
+        meshes.mesh_of_triangle(triangle as usize)
+    }
+}

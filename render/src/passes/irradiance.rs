@@ -1,0 +1,70 @@
+//! `sh_irradiance`: unshadowed diffuse light per pixel from the irradiance SH (Sun 2008 eq.
+//! 2.20); the coefficients arrive convolved ([`IrradianceSurfaces`]).
+
+use super::geometry::GeometryBuffers;
+use super::{Draw, Pass, PassSetup, entry, uniform_buffer, vec4};
+use crate::{GpuContext, RenderError};
+use lightloom_nodes::frame::{IRRADIANCE_BANDS, IrradianceSurfaces, MAX_MATERIALS};
+
+pub(crate) const SHADER: (&str, &str) = ("mesh.wgsl", include_str!("../../../shaders/mesh.wgsl"));
+
+/// `mesh.wgsl` `Irradiance`.
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+pub(crate) struct IrradianceParams {
+    /// x: SH bands (0 without an environment).
+    pub(crate) bands: [u32; 4],
+    pub(crate) albedo: [[f32; 4]; MAX_MATERIALS],
+    pub(crate) coeffs: [[f32; 4]; IRRADIANCE_BANDS * IRRADIANCE_BANDS],
+}
+
+pub(crate) struct IrradiancePass {
+    pipeline: wgpu::RenderPipeline,
+    params: wgpu::Buffer,
+    bind_group: wgpu::BindGroup,
+}
+
+impl IrradiancePass {
+    pub fn new(setup: &PassSetup) -> Self {
+        let layout = setup.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("irradiance"),
+            entries: &[entry::uniform(0, wgpu::ShaderStages::FRAGMENT)],
+        });
+        let params = uniform_buffer::<IrradianceParams>(setup.device, "irradiance");
+        let bind_group = setup.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("irradiance"),
+            layout: &layout,
+            entries: &[wgpu::BindGroupEntry { binding: 0, resource: params.as_entire_binding() }],
+        });
+        Self { pipeline: setup.surface_pipeline(SHADER, &layout), params, bind_group }
+    }
+}
+
+impl Pass for IrradiancePass {
+    type Data = IrradianceSurfaces;
+
+    fn prepare(&mut self, gpu: &GpuContext, data: &IrradianceSurfaces) -> Result<(), RenderError> {
+        let mut params: IrradianceParams = bytemuck::Zeroable::zeroed();
+        for (dst, albedo) in params.albedo.iter_mut().zip(&data.albedo) {
+            *dst = vec4(*albedo, 1.0);
+        }
+        if let Some(irradiance) = &data.irradiance {
+            let bands = irradiance.bands.min(IRRADIANCE_BANDS);
+            params.bands[0] = bands as u32;
+            for (dst, src) in params.coeffs.iter_mut().zip(&irradiance.coeffs[..bands * bands]) {
+                *dst = vec4(*src, 0.0);
+            }
+        }
+        gpu.queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
+        Ok(())
+    }
+}
+
+impl Draw for IrradiancePass {
+    fn draw(&self, pass: &mut wgpu::RenderPass<'_>, geometry: Option<&GeometryBuffers>) {
+        let Some(geometry) = geometry else { return };
+        pass.set_pipeline(&self.pipeline);
+        pass.set_bind_group(2, &self.bind_group, &[]);
+        geometry.draw(pass);
+    }
+}

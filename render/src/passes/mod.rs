@@ -1,0 +1,360 @@
+//! The viewport's passes, one per feature. Each owns its pipeline, its bind group layout and
+//! uniforms, and reads only its feature's frame data ([`lightloom_nodes::frame`]); none does
+//! lighting math.
+//!
+//! Bind groups of the scene passes: 0 the camera ([`camera::CameraBinding`]), 1 the medium and
+//! point lights ([`medium::MediumPass`], shaded in the same fragment as every surface because
+//! they depend on its normal and material), 2 the pass's own. A new drawing feature adds one
+//! module here with its shader in `shaders/`.
+
+pub mod background;
+pub mod camera;
+pub mod geometry;
+pub mod irradiance;
+pub mod medium;
+pub mod prt;
+pub mod tonemap;
+pub mod wavelet;
+
+use crate::{GpuContext, RenderError};
+use geometry::GeometryBuffers;
+use lightloom_nodes::engine::StageType;
+use lightloom_nodes::frame::Keyed;
+use wgpu::util::DeviceExt;
+
+pub(crate) const HDR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Float;
+pub(crate) const LDR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
+pub(crate) const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+
+/// One feature's GPU side: uploads its frame data, then draws.
+pub(crate) trait Pass: Draw {
+    /// The frame data of the feature this pass draws.
+    type Data: ?Sized;
+    /// Uploads what changed since the last frame.
+    fn prepare(&mut self, gpu: &GpuContext, data: &Self::Data) -> Result<(), RenderError>;
+}
+
+pub(crate) trait Draw {
+    /// Records the pass's draws into the scene pass (groups 0 and 1 bound).
+    fn draw(&self, pass: &mut wgpu::RenderPass<'_>, geometry: Option<&GeometryBuffers>);
+}
+
+/// What every scene pass's pipeline shares: the device, the shared bind group layouts, the
+/// vertex layout and the target's sample count.
+pub(crate) struct PassSetup<'a> {
+    pub device: &'a wgpu::Device,
+    pub camera_layout: &'a wgpu::BindGroupLayout,
+    pub medium_layout: &'a wgpu::BindGroupLayout,
+    pub sample_count: u32,
+}
+
+impl PassSetup<'_> {
+    /// A pipeline drawing the scene's meshes with `shader` (composed with the prelude), its own
+    /// bind group `own` as group 2, depth-tested.
+    pub fn surface_pipeline(&self, shader: (&str, &str), own: &wgpu::BindGroupLayout) -> wgpu::RenderPipeline {
+        let attributes = geometry::VERTEX_ATTRIBUTES;
+        let buffers = [Some(wgpu::VertexBufferLayout {
+            array_stride: std::mem::size_of::<geometry::Vertex>() as u64,
+            step_mode: wgpu::VertexStepMode::Vertex,
+            attributes: &attributes,
+        })];
+        self.pipeline(shader, own, &buffers, true)
+    }
+
+    /// A pipeline drawing one screen-covering triangle behind everything.
+    pub fn fullscreen_pipeline(&self, shader: (&str, &str), own: &wgpu::BindGroupLayout) -> wgpu::RenderPipeline {
+        self.pipeline(shader, own, &[], false)
+    }
+
+    fn pipeline(
+        &self,
+        (label, source): (&str, &str),
+        own: &wgpu::BindGroupLayout,
+        buffers: &[Option<wgpu::VertexBufferLayout<'_>>],
+        depth_write: bool,
+    ) -> wgpu::RenderPipeline {
+        let module = self.device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some(label),
+            source: wgpu::ShaderSource::Wgsl(compose(source).into()),
+        });
+        let layout = self.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some(label),
+            bind_group_layouts: &[Some(self.camera_layout), Some(self.medium_layout), Some(own)],
+            immediate_size: 0,
+        });
+        let depth = wgpu::DepthStencilState {
+            format: DEPTH_FORMAT,
+            depth_write_enabled: Some(depth_write),
+            depth_compare: Some(if depth_write { wgpu::CompareFunction::Less } else { wgpu::CompareFunction::Always }),
+            stencil: Default::default(),
+            bias: Default::default(),
+        };
+        pipeline(
+            self.device,
+            label,
+            &layout,
+            &module,
+            buffers,
+            Some(depth),
+            wgpu::MultisampleState { count: self.sample_count, ..Default::default() },
+            HDR_FORMAT,
+        )
+    }
+}
+
+/// The shared WGSL every scene pass includes, in order: the camera uniform, the vertex layout
+/// and the SH basis (`common.wgsl`), then the medium and point lights (`fog.wgsl`).
+const SHADER_PRELUDE: [&str; 2] =
+    [include_str!("../../../shaders/common.wgsl"), include_str!("../../../shaders/fog.wgsl")];
+
+/// Every scene pass's shader (checked by `shaders_compose_and_match_the_rust_uniforms`).
+#[cfg(test)]
+const SCENE_SHADERS: [(&str, &str); 4] = [irradiance::SHADER, prt::SHADER, wavelet::SHADER, background::SHADER];
+
+/// A scene pass's complete WGSL: the prelude, then the pass's source. WGSL has no includes;
+/// this is the one place modules are joined, and `shaders_compose_and_match_the_rust_uniforms`
+/// checks that every composed shader parses and validates and that each uniform struct has
+/// the Rust layout its pass writes.
+pub(crate) fn compose(source: &str) -> String {
+    let mut out = SHADER_PRELUDE.join("\n");
+    out.push('\n');
+    out.push_str(source);
+    out
+}
+
+/// A render pipeline with `vs_main`/`fs_main` entry points and one colour target.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn pipeline(
+    device: &wgpu::Device,
+    label: &str,
+    layout: &wgpu::PipelineLayout,
+    module: &wgpu::ShaderModule,
+    buffers: &[Option<wgpu::VertexBufferLayout<'_>>],
+    depth_stencil: Option<wgpu::DepthStencilState>,
+    multisample: wgpu::MultisampleState,
+    target: wgpu::TextureFormat,
+) -> wgpu::RenderPipeline {
+    device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some(label),
+        layout: Some(layout),
+        vertex: wgpu::VertexState {
+            module,
+            entry_point: Some("vs_main"),
+            compilation_options: Default::default(),
+            buffers,
+        },
+        primitive: Default::default(),
+        depth_stencil,
+        multisample,
+        fragment: Some(wgpu::FragmentState {
+            module,
+            entry_point: Some("fs_main"),
+            compilation_options: Default::default(),
+            targets: &[Some(target.into())],
+        }),
+        multiview_mask: None,
+        cache: None,
+    })
+}
+
+/// Bind group layout entries.
+pub(crate) mod entry {
+    use wgpu::ShaderStages;
+
+    fn entry(binding: u32, visibility: ShaderStages, ty: wgpu::BindingType) -> wgpu::BindGroupLayoutEntry {
+        wgpu::BindGroupLayoutEntry { binding, visibility, ty, count: None }
+    }
+
+    pub fn uniform(binding: u32, visibility: ShaderStages) -> wgpu::BindGroupLayoutEntry {
+        let ty = wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Uniform,
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        };
+        entry(binding, visibility, ty)
+    }
+
+    pub fn storage(binding: u32, visibility: ShaderStages) -> wgpu::BindGroupLayoutEntry {
+        let ty = wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Storage { read_only: true },
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        };
+        entry(binding, visibility, ty)
+    }
+
+    /// A fragment-stage texture; `filterable: false` for tables read with `textureLoad`.
+    pub fn texture(
+        binding: u32,
+        view_dimension: wgpu::TextureViewDimension,
+        filterable: bool,
+    ) -> wgpu::BindGroupLayoutEntry {
+        let ty = wgpu::BindingType::Texture {
+            sample_type: wgpu::TextureSampleType::Float { filterable },
+            view_dimension,
+            multisampled: false,
+        };
+        entry(binding, ShaderStages::FRAGMENT, ty)
+    }
+
+    pub fn sampler(binding: u32) -> wgpu::BindGroupLayoutEntry {
+        entry(binding, ShaderStages::FRAGMENT, wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering))
+    }
+}
+
+pub(crate) fn uniform_buffer<T>(device: &wgpu::Device, label: &str) -> wgpu::Buffer {
+    device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: std::mem::size_of::<T>() as u64,
+        usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    })
+}
+
+pub(crate) fn linear_sampler(device: &wgpu::Device, label: &str) -> wgpu::Sampler {
+    device.create_sampler(&wgpu::SamplerDescriptor {
+        label: Some(label),
+        mag_filter: wgpu::FilterMode::Linear,
+        min_filter: wgpu::FilterMode::Linear,
+        ..Default::default()
+    })
+}
+
+/// A read-only storage buffer (never empty: bindings must have a size).
+pub(crate) fn storage_buffer<T: bytemuck::Pod + Default>(gpu: &GpuContext, label: &str, data: &[T]) -> wgpu::Buffer {
+    let fallback = [T::default()];
+    let data = if data.is_empty() { &fallback[..] } else { data };
+    gpu.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some(label),
+        contents: bytemuck::cast_slice(data),
+        usage: wgpu::BufferUsages::STORAGE,
+    })
+}
+
+/// Square R32Float tables, `values.len() / size²` layers, as a 2D array view.
+pub(crate) fn upload_tables(gpu: &GpuContext, label: &str, size: u32, values: &[f32]) -> wgpu::TextureView {
+    let layers = (values.len() / (size * size).max(1) as usize).max(1) as u32;
+    let texture = gpu.device.create_texture(&wgpu::TextureDescriptor {
+        label: Some(label),
+        size: wgpu::Extent3d { width: size, height: size, depth_or_array_layers: layers },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: wgpu::TextureFormat::R32Float,
+        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+        view_formats: &[],
+    });
+    gpu.queue.write_texture(
+        wgpu::TexelCopyTextureInfo {
+            texture: &texture,
+            mip_level: 0,
+            origin: wgpu::Origin3d::ZERO,
+            aspect: wgpu::TextureAspect::All,
+        },
+        bytemuck::cast_slice(values),
+        wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(size * 4), rows_per_image: Some(size) },
+        wgpu::Extent3d { width: size, height: size, depth_or_array_layers: layers },
+    );
+    texture.create_view(&wgpu::TextureViewDescriptor {
+        dimension: Some(wgpu::TextureViewDimension::D2Array),
+        ..Default::default()
+    })
+}
+
+/// Uploads linear RGB as `layers` half-float `size²` layers and views them as `dimension`.
+pub(crate) fn upload_layered(
+    gpu: &GpuContext,
+    label: &str,
+    size: u32,
+    layers: u32,
+    texels: &[[f32; 3]],
+    dimension: wgpu::TextureViewDimension,
+) -> wgpu::TextureView {
+    let texture = gpu.device.create_texture_with_data(
+        &gpu.queue,
+        &wgpu::TextureDescriptor {
+            label: Some(label),
+            size: wgpu::Extent3d { width: size, height: size, depth_or_array_layers: layers },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: HDR_FORMAT,
+            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+            view_formats: &[],
+        },
+        wgpu::util::TextureDataOrder::LayerMajor,
+        bytemuck::cast_slice(&to_rgba_f16(texels)),
+    );
+    texture.create_view(&wgpu::TextureViewDescriptor { dimension: Some(dimension), ..Default::default() })
+}
+
+/// Linear RGB to RGBA half floats, clamped to the finite non-negative half range.
+pub(crate) fn to_rgba_f16(pixels: &[[f32; 3]]) -> Vec<half::f16> {
+    pixels.iter().flat_map(|p| [p[0], p[1], p[2], 1.0]).map(|v| half::f16::from_f32(v.clamp(0.0, 65000.0))).collect()
+}
+
+/// `rgb` as a vec4 with `w`.
+pub(crate) fn vec4(rgb: [f64; 3], w: f32) -> [f32; 4] {
+    [rgb[0] as f32, rgb[1] as f32, rgb[2] as f32, w]
+}
+
+/// A gathered stage's value as `T`, or an error naming what it holds instead.
+pub(crate) fn stage_value<T: StageType>(keyed: &Keyed) -> Result<&T, RenderError> {
+    keyed.value.expect::<T>().map_err(|e| RenderError::Invalid(e.to_string()))
+}
+
+#[cfg(test)]
+mod layout_tests {
+    use super::*;
+    use wgpu::naga;
+
+    /// The WGSL struct `name`: its size and `(member, offset)` list.
+    fn wgsl_struct(module: &naga::Module, name: &str) -> (u32, Vec<(String, u32)>) {
+        let ty = module.types.iter().find(|(_, t)| t.name.as_deref() == Some(name)).map(|(_, t)| t);
+        match ty.map(|t| &t.inner) {
+            Some(naga::TypeInner::Struct { members, span }) => {
+                (*span, members.iter().map(|m| (m.name.clone().unwrap_or_default(), m.offset)).collect())
+            }
+            _ => panic!("no struct {name} in the shader"),
+        }
+    }
+
+    #[test]
+    fn shaders_compose_and_match_the_rust_uniforms() {
+        use std::mem::{offset_of, size_of};
+        let mut modules = Vec::new();
+        let tonemap = tonemap::SHADER;
+        for (label, source) in
+            SCENE_SHADERS.into_iter().map(|(l, s)| (l, compose(s))).chain([(tonemap.0, tonemap.1.into())])
+        {
+            let module = naga::front::wgsl::parse_str(&source)
+                .unwrap_or_else(|e| panic!("{label}: {}", e.emit_to_string(&source)));
+            naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::all())
+                .validate(&module)
+                .unwrap_or_else(|e| panic!("{label} does not validate: {e:?}"));
+            modules.push((label, module));
+        }
+        // Each uniform struct, in the shader that declares it, against the Rust struct its pass
+        // writes with bytemuck: the same size and every member at the same offset.
+        macro_rules! check {
+            ($module:expr, $wgsl:literal, $rust:ty, [$($field:ident),+ $(,)?]) => {{
+                let (span, members) = wgsl_struct($module, $wgsl);
+                assert_eq!(span as usize, size_of::<$rust>(), "{} size", $wgsl);
+                let rust: Vec<(String, u32)> = vec![$((stringify!($field).to_string(), offset_of!($rust, $field) as u32)),+];
+                assert_eq!(members, rust, "{} members and offsets", $wgsl);
+            }};
+        }
+        let [irr, prt, wavelet, _background, tone] = [0, 1, 2, 3, 4].map(|i| &modules[i].1);
+        check!(irr, "Globals", camera::Globals, [view_proj, inv_view_proj, camera_pos, flags]);
+        check!(irr, "Irradiance", irradiance::IrradianceParams, [bands, albedo, coeffs]);
+        check!(
+            irr,
+            "Fog",
+            medium::FogParams,
+            [beta, phase, counts, environment, environment_scattered, specular, light_position, light_intensity]
+        );
+        check!(prt, "PrtParams", prt::PrtParams, [counts, albedo, specular, lobe, light]);
+        check!(wavelet, "WaveletParams", wavelet::WaveletParams, [counts, albedo, specular, texels]);
+        check!(tone, "ToneParams", tonemap::ToneParams, [params]);
+    }
+}

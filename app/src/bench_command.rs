@@ -19,8 +19,8 @@ use lightloom_nodes::frame::{
     Background, FrameInputs, FrameMaterial, Geometry, IrradianceSurfaces, Keyed, MediumFrame, PrtSurfaces, Surfaces,
     WaveletSurfaces,
 };
-use lightloom_nodes::graph::ParamValue;
 use lightloom_nodes::kinds::output::{Mode, Tonemap, View};
+use lightloom_nodes::node_kind::ParamValue;
 use lightloom_nodes::transport::{Receivers, ShTransport, SphericalTransport};
 use lightloom_nodes::wavelet::SparseVector;
 use lightloom_render::{CameraView, GpuContext, ViewportRenderer};

@@ -6,7 +6,7 @@ use lightloom_nodes::engine::graph::NodeInput;
 use lightloom_nodes::engine::{
     CancelToken, Engine, Graph, Link, Request, StageContext, StageError, StageRef, StageValue,
 };
-use lightloom_nodes::graph::{
+use lightloom_nodes::node_kind::{
     Availability, NodeKindSpec, ParamKind, ParamSpec, ParamValue, PortSpec, PortType, StageSpec,
 };
 use std::collections::BTreeMap;
@@ -44,6 +44,7 @@ fn registry() -> &'static [NodeKindSpec] {
             doc: "",
         }],
         stages: vec![stage("a", &[], &[("in", "medium")]), stage("b", &["a"], &[]), stage("medium", &["b"], &[])],
+        previews: Vec::new(),
         availability: Availability::Ready,
     }]))
 }

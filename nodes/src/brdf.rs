@@ -11,8 +11,8 @@
 //! (no Fresnel), and `specular colour × F_Schlick(f0)` for GGX.
 
 use crate::kinds::brdf::Material;
+pub use crate::picture::LobePreview;
 use glam::DVec3;
-use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
 
 // Stage value types this module owns (see `engine::value`).
@@ -227,19 +227,6 @@ impl Brdf {
             (exponent + 2.0) / (2.0 * PI) * c.max(0.0).powf(exponent)
         })
     }
-}
-
-/// What the BRDF editor's node shows: the lobe `f(ω_i, ω_o)·cos θ_i` in the plane of
-/// incidence for a few outgoing angles, and the directional albedo at each.
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-pub struct LobePreview {
-    /// Outgoing polar angles (degrees) of the curves.
-    pub theta_out_deg: Vec<f64>,
-    /// Per curve: luminance of `f·cos θ_i` at incoming angles `-90..=90°` in 1° steps
-    /// (negative angles on the mirror side of the normal).
-    pub curves: Vec<Vec<f32>>,
-    /// Per curve: `∫ f cos θ_i dω_i` (luminance), by quadrature.
-    pub directional_albedo: Vec<f64>,
 }
 
 impl LobePreview {

@@ -1,17 +1,12 @@
-//! Small display images for node previews in the editor: environment thumbnails and SH
-//! lighting spheres. The lighting math stays here; the editor only shows the pixels.
+//! Node previews in the editor: each kind declares its [`PreviewSpec`]s (what stages they
+//! read, how the picture is made), and this module makes the pictures: environment
+//! thumbnails, SH lighting spheres, fog glows. The lighting math stays here; the editor only
+//! shows the pixels (or plots a BRDF lobe's curves).
 
 use crate::cubemap::{CubeMap, equirect_uv_to_dir};
+pub use crate::picture::{Preview, PreviewImage};
 use crate::sh::{ShBasis, ShRgb};
 use glam::DVec3;
-
-/// An 8-bit sRGB image with alpha (row 0 at the top).
-#[derive(Clone, Debug, PartialEq)]
-pub struct PreviewImage {
-    pub width: usize,
-    pub height: usize,
-    pub rgba: Vec<[u8; 4]>,
-}
 
 fn luminance(c: [f64; 3]) -> f64 {
     0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]

@@ -3,7 +3,7 @@
 //! See `projects/README.md` for the schema with an example.
 
 use crate::engine::{Graph, GraphError, Link, graph::NodeInput};
-use crate::graph::ParamValue;
+use crate::node_kind::ParamValue;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::io::Write;

@@ -8,8 +8,8 @@ use eframe::egui::{self, Color32, RichText};
 use egui_snarl::ui::{AnyPins, PinInfo, SnarlStyle, SnarlViewer, SnarlWidget};
 use egui_snarl::{InPin, InPinId, NodeId, OutPin, OutPinId, Snarl};
 use lightloom_nodes::engine::Evaluation;
-use lightloom_nodes::graph::{Availability, PortType};
 use lightloom_nodes::kinds;
+use lightloom_nodes::node_kind::{Availability, PortType};
 use lightloom_nodes::project::Project;
 use std::collections::{HashMap, HashSet};
 
@@ -363,7 +363,7 @@ struct Viewer<'a> {
 }
 
 impl Viewer<'_> {
-    fn kind(&self, id: &str) -> Option<&'static lightloom_nodes::graph::NodeKindSpec> {
+    fn kind(&self, id: &str) -> Option<&'static lightloom_nodes::node_kind::NodeKindSpec> {
         super::edits::kind_of(self.project, id)
     }
 
@@ -437,7 +437,7 @@ impl SnarlViewer<String> for Viewer<'_> {
 
     fn has_body(&mut self, node: &String) -> bool {
         matches!(self.status.get(node), Some(NodeStatus::Error(_) | NodeStatus::Running(..)))
-            || self.kind(node).is_some_and(|k| super::previews::has_preview(k.name))
+            || self.kind(node).is_some_and(super::previews::has_preview)
             || self.kind(node).is_some_and(|k| k.availability != Availability::Ready)
     }
 
@@ -459,7 +459,7 @@ impl SnarlViewer<String> for Viewer<'_> {
                     ui.weak(format!("parameters only: {missing}"));
                 }
                 if let Some(evaluation) = self.evaluation {
-                    self.previews.show(ui, &id, kind.name, evaluation);
+                    self.previews.show(ui, &id, kind, evaluation);
                 }
             }
         });

@@ -7,8 +7,8 @@ use super::edits;
 use super::jobs::NodeStatus;
 use eframe::egui::{self, Color32, RichText};
 use lightloom_nodes::engine::Report;
-use lightloom_nodes::graph::{ParamKind, ParamSpec, ParamValue};
 use lightloom_nodes::kinds::scene::{SceneObject, Shape};
+use lightloom_nodes::node_kind::{ParamKind, ParamSpec, ParamValue};
 use lightloom_nodes::project::Project;
 
 /// Something the inspector wants from the editor.
@@ -137,7 +137,7 @@ impl Inspector<'_> {
         }
     }
 
-    fn inputs_section(&mut self, ui: &mut egui::Ui, id: &str, kind: &'static lightloom_nodes::graph::NodeKindSpec) {
+    fn inputs_section(&mut self, ui: &mut egui::Ui, id: &str, kind: &'static lightloom_nodes::node_kind::NodeKindSpec) {
         if kind.inputs.is_empty() {
             return;
         }

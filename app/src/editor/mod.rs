@@ -25,8 +25,8 @@ use eframe::egui::{self, Color32};
 use graph_editor::{GraphAction, GraphEditor, PendingLink};
 use jobs::{Evaluator, NodeStatus, ReferenceJob};
 use lightloom_nodes::engine::{Engine, EngineConfig, Evaluation};
-use lightloom_nodes::graph::ParamValue;
 use lightloom_nodes::kinds::output::{FrameInputs, View, find_output};
+use lightloom_nodes::node_kind::ParamValue;
 use lightloom_nodes::project::{Project, default_project};
 use lightloom_nodes::reference::{HdrImage, ImageError};
 use orbit::OrbitCamera;
@@ -517,9 +517,7 @@ impl EditorApp {
             .nodes
             .iter()
             .flat_map(|n| {
-                previews::preview_stages(n.kind.name)
-                    .iter()
-                    .map(|s| lightloom_nodes::engine::StageRef::new(n.id.clone(), *s))
+                previews::preview_stages(n.kind).map(|s| lightloom_nodes::engine::StageRef::new(n.id.clone(), s))
             })
             .collect();
         request.with_first("node previews", previews)

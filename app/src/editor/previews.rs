@@ -1,130 +1,85 @@
-//! Node previews: environment thumbnail and SH lighting sphere (images made by
-//! `lightloom_nodes::preview`), the BRDF lobe plot (drawn from the BRDF editor's `preview`
-//! stage). Textures are cached by stage key, so they are rebuilt only when the stage changes.
+//! Node previews: the pictures each kind declares ([`PreviewSpec`]), made by
+//! `lightloom_nodes::preview` from the node's stages and shown here. They are cached by the
+//! stages' keys, so they are rebuilt only when a stage changes.
 
 use eframe::egui::{self, Color32, Stroke};
 use lightloom_nodes::brdf::LobePreview;
-use lightloom_nodes::cubemap::CubeMap;
-use lightloom_nodes::engine::{Evaluation, StageValue, key::Key};
-use lightloom_nodes::kinds::fog::Medium;
-use lightloom_nodes::preview::{self, PreviewImage};
-use lightloom_nodes::sh::ShRgb;
-use lightloom_nodes::single_scattering::FTable;
+use lightloom_nodes::engine::{Evaluation, key::Key};
+use lightloom_nodes::node_kind::{NodeKindSpec, PreviewSpec};
+use lightloom_nodes::picture::Preview;
 use std::collections::HashMap;
 
 /// Kinds that show a preview.
-pub fn has_preview(kind: &str) -> bool {
-    !preview_stages(kind).is_empty()
+pub fn has_preview(kind: &NodeKindSpec) -> bool {
+    !kind.previews.is_empty()
 }
 
-/// The stages a kind's preview reads (requested from the engine while the preview shows).
-pub fn preview_stages(kind: &str) -> &'static [&'static str] {
-    match kind {
-        "EnvironmentMap" => &["rotated_radiance", "sh"],
-        "BrdfEditor" => &["preview"],
-        "FogMedium" => &["medium", "f_tables"],
-        _ => &[],
-    }
+/// The stages a kind's previews read (requested from the engine while they show).
+pub fn preview_stages(kind: &NodeKindSpec) -> impl Iterator<Item = &'static str> + '_ {
+    kind.previews.iter().flat_map(|p| p.stages.iter().copied())
+}
+
+/// A preview as shown: an uploaded image, or the curves to plot.
+enum Shown {
+    Texture(egui::TextureHandle),
+    Lobe(LobePreview),
 }
 
 #[derive(Default)]
 pub struct Previews {
-    textures: HashMap<(String, &'static str), (Key, egui::TextureHandle)>,
+    /// Per node and preview index: the stages' combined key and what it made.
+    shown: HashMap<(String, usize), (Key, Option<Shown>)>,
 }
 
 impl Previews {
-    fn texture(
-        &mut self,
-        ctx: &egui::Context,
-        evaluation: &Evaluation,
-        node: &str,
-        stage: &'static str,
-        make: impl FnOnce(&StageValue) -> Option<PreviewImage>,
-    ) -> Option<egui::TextureHandle> {
-        let result = evaluation.get(node, stage)?;
-        let value = result.value.as_ref().ok()?;
-        self.keyed_texture(ctx, node, stage, result.key, || make(value))
+    /// Draws the node's previews whose stages have values.
+    pub fn show(&mut self, ui: &mut egui::Ui, node: &str, kind: &NodeKindSpec, evaluation: &Evaluation) {
+        ui.horizontal(|ui| {
+            for (index, spec) in kind.previews.iter().enumerate() {
+                self.show_one(ui, node, index, spec, evaluation);
+            }
+        });
     }
 
-    /// A texture made by `make`, rebuilt only when `key` changes.
-    fn keyed_texture(
-        &mut self,
-        ctx: &egui::Context,
-        node: &str,
-        stage: &'static str,
-        key: Key,
-        make: impl FnOnce() -> Option<PreviewImage>,
-    ) -> Option<egui::TextureHandle> {
-        let slot = (node.to_string(), stage);
-        if let Some((cached, handle)) = self.textures.get(&slot)
-            && *cached == key
-        {
-            return Some(handle.clone());
+    fn show_one(&mut self, ui: &mut egui::Ui, node: &str, index: usize, spec: &PreviewSpec, evaluation: &Evaluation) {
+        let mut key: Key = 0;
+        let mut values = Vec::new();
+        for stage in spec.stages {
+            let Some(Ok(value)) = evaluation.get(node, stage).map(|r| {
+                key = key.rotate_left(13) ^ r.key;
+                &r.value
+            }) else {
+                return;
+            };
+            values.push(value.as_ref());
         }
-        let image = make()?;
-        let color = egui::ColorImage::from_rgba_unmultiplied([image.width, image.height], image.rgba.as_flattened());
-        let handle = ctx.load_texture(format!("preview-{node}-{stage}"), color, egui::TextureOptions::LINEAR);
-        self.textures.insert(slot, (key, handle.clone()));
-        Some(handle)
-    }
-
-    /// Draws the node's preview (if its kind has one and its stage has a value).
-    pub fn show(&mut self, ui: &mut egui::Ui, node: &str, kind: &str, evaluation: &Evaluation) {
-        match kind {
-            "EnvironmentMap" => {
-                ui.horizontal(|ui| {
-                    let thumb = self.texture(ui.ctx(), evaluation, node, "rotated_radiance", |v| {
-                        v.get::<CubeMap>().map(|c| preview::environment_thumbnail(c, 192, 96))
-                    });
-                    if let Some(t) = thumb {
-                        ui.image((t.id(), egui::vec2(128.0, 64.0))).on_hover_text("environment (auto-exposed)");
-                    }
-                    let sphere = self.texture(ui.ctx(), evaluation, node, "sh", |v| {
-                        v.get::<ShRgb>().map(|sh| preview::sh_lighting_sphere(sh, 96))
-                    });
-                    if let Some(t) = sphere {
-                        ui.image((t.id(), egui::vec2(64.0, 64.0)))
-                            .on_hover_text("SH lighting on a white diffuse sphere (auto-exposed)");
-                    }
-                });
-            }
-            "FogMedium" => {
-                let (Some(medium), Some(tables)) = (evaluation.get(node, "medium"), evaluation.get(node, "f_tables"))
-                else {
-                    return;
-                };
-                let (Ok(m), Ok(t)) = (&medium.value, &tables.value) else { return };
-                let (Some(m), Some(t)) = (m.get::<Medium>(), t.get::<Vec<FTable>>()) else { return };
-                let key = medium.key ^ tables.key.rotate_left(1);
-                let glow = self.keyed_texture(ui.ctx(), node, "glow", key, || {
-                    let phase = if m.phase == "polynomial" {
-                        lightloom_nodes::single_scattering::Phase::polynomial(&m.phase_coefficients)?
-                    } else {
-                        lightloom_nodes::single_scattering::Phase::isotropic()
-                    };
-                    Some(preview::fog_glow(m.beta, &phase, t, 64))
-                });
-                if let Some(t) = glow {
-                    ui.image((t.id(), egui::vec2(80.0, 80.0)))
-                        .on_hover_text("a point light 10 m away seen through this fog (airlight, eq. 3.16)");
+        let slot = (node.to_string(), index);
+        if self.shown.get(&slot).is_none_or(|(cached, _)| *cached != key) {
+            let shown = (spec.make)(&values).map(|preview| match preview {
+                Preview::Image(image) => {
+                    let size = [image.width, image.height];
+                    let color = egui::ColorImage::from_rgba_unmultiplied(size, image.rgba.as_flattened());
+                    let name = format!("preview-{node}-{index}");
+                    Shown::Texture(ui.ctx().load_texture(name, color, egui::TextureOptions::LINEAR))
                 }
+                Preview::Lobe(lobe) => Shown::Lobe(lobe),
+            });
+            self.shown.insert(slot.clone(), (key, shown));
+        }
+        let size = egui::vec2(spec.size[0], spec.size[1]);
+        match &self.shown[&slot].1 {
+            Some(Shown::Texture(t)) => {
+                ui.image((t.id(), size)).on_hover_text(spec.caption);
             }
-            "BrdfEditor" => {
-                if let Some(Ok(value)) = evaluation.get(node, "preview").map(|r| &r.value)
-                    && let Some(lobe) = value.get::<LobePreview>()
-                {
-                    lobe_plot(ui, lobe);
-                }
-            }
-            _ => {}
+            Some(Shown::Lobe(lobe)) => lobe_plot(ui, lobe, size, spec.caption),
+            None => {}
         }
     }
 }
 
 /// Polar plot of `f·cos θ_i` in the plane of incidence, one curve per outgoing angle,
 /// each normalised to its own peak; the legend gives the directional albedos.
-fn lobe_plot(ui: &mut egui::Ui, lobe: &lightloom_nodes::brdf::LobePreview) {
-    let size = egui::vec2(200.0, 104.0);
+fn lobe_plot(ui: &mut egui::Ui, lobe: &LobePreview, size: egui::Vec2, caption: &str) {
     let (rect, response) = ui.allocate_exact_size(size, egui::Sense::hover());
     let painter = ui.painter_at(rect);
     let origin = egui::pos2(rect.center().x, rect.bottom() - 4.0);
@@ -159,8 +114,5 @@ fn lobe_plot(ui: &mut egui::Ui, lobe: &lightloom_nodes::brdf::LobePreview) {
         .zip(&lobe.directional_albedo)
         .map(|(t, a)| format!("θo = {t:.0}°: albedo {a:.3}"))
         .collect();
-    response.on_hover_text(format!(
-        "f·cos θi in the plane of incidence (each curve scaled to its peak)\n{}",
-        legend.join("\n")
-    ));
+    response.on_hover_text(format!("{caption}\n{}", legend.join("\n")));
 }

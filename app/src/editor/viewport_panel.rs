@@ -93,7 +93,8 @@ impl EditorApp {
         ui.horizontal_wrapped(|ui| {
             for (name, label) in [("view", "View"), ("mode", "Mode"), ("tonemap", "Tone map")] {
                 let ParamValue::Choice(current) = value(&self.doc, name) else { continue };
-                let lightloom_nodes::graph::ParamKind::Choice { options, .. } = &spec.param(name).expect("param").kind
+                let lightloom_nodes::node_kind::ParamKind::Choice { options, .. } =
+                    &spec.param(name).expect("param").kind
                 else {
                     continue;
                 };

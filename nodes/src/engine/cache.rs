@@ -6,6 +6,7 @@ use super::value::{Codec, StageValue};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
 
 /// In-memory cache bounded by an approximate byte budget; least recently used entries go
 /// first (the `lru` crate keeps the order, so eviction is O(1) per entry).
@@ -70,15 +71,71 @@ pub enum DiskLookup {
 
 /// Content-addressed files `dir/ab/<key>.bin`: magic, key, the value's type name and encoding
 /// version, payload length, xxh3-64 checksum, payload. Writes are atomic (temporary file +
-/// rename).
+/// rename). Bounded by a byte budget: a hit marks its entry used (its modification time), and
+/// [`Self::prune`] removes the least recently used entries beyond the budget. It runs when the
+/// cache opens and again after every eighth of the budget written.
 #[derive(Clone, Debug)]
 pub struct DiskCache {
     dir: PathBuf,
+    budget_bytes: u64,
+    /// Bytes written since the last prune (shared by clones).
+    written: Arc<AtomicU64>,
 }
+
+/// What [`DiskCache::prune`] did.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PruneReport {
+    pub kept_bytes: u64,
+    pub removed_entries: usize,
+    pub removed_bytes: u64,
+}
+
+/// Disk cache budget unless configured: 8 GiB.
+pub const DEFAULT_DISK_BUDGET_BYTES: u64 = 8 << 30;
 
 impl DiskCache {
     pub fn new(dir: impl Into<PathBuf>) -> Self {
-        Self { dir: dir.into() }
+        Self::with_budget(dir, DEFAULT_DISK_BUDGET_BYTES)
+    }
+
+    /// A cache in `dir` kept under `budget_bytes` (pruned now).
+    pub fn with_budget(dir: impl Into<PathBuf>, budget_bytes: u64) -> Self {
+        let cache = Self { dir: dir.into(), budget_bytes, written: Arc::new(AtomicU64::new(0)) };
+        let _ = cache.prune();
+        cache
+    }
+
+    /// Removes the least recently used entries until the rest fit the budget.
+    pub fn prune(&self) -> std::io::Result<PruneReport> {
+        self.written.store(0, Ordering::Relaxed);
+        let mut entries = Vec::new();
+        let Ok(shards) = std::fs::read_dir(&self.dir) else { return Ok(PruneReport::default()) };
+        for shard in shards.flatten() {
+            let Ok(files) = std::fs::read_dir(shard.path()) else { continue };
+            for file in files.flatten() {
+                let path = file.path();
+                if path.extension().is_none_or(|e| e != "bin") {
+                    continue;
+                }
+                if let Ok(meta) = file.metadata() {
+                    let used = meta.modified().unwrap_or(std::time::UNIX_EPOCH);
+                    entries.push((used, meta.len(), path));
+                }
+            }
+        }
+        let mut report = PruneReport { kept_bytes: entries.iter().map(|e| e.1).sum(), ..Default::default() };
+        entries.sort();
+        for (_, size, path) in entries {
+            if report.kept_bytes <= self.budget_bytes {
+                break;
+            }
+            if std::fs::remove_file(&path).is_ok() {
+                report.kept_bytes -= size;
+                report.removed_bytes += size;
+                report.removed_entries += 1;
+            }
+        }
+        Ok(report)
     }
 
     /// `$XDG_CACHE_HOME/lightloom`, else `~/.cache/lightloom`, else a temporary directory.
@@ -109,7 +166,13 @@ impl DiskCache {
             Err(_) => return DiskLookup::Miss,
         };
         match decode(&bytes, key, codec) {
-            Ok(value) => DiskLookup::Hit(value),
+            Ok(value) => {
+                // Mark it used, so pruning removes it last.
+                if let Ok(file) = std::fs::OpenOptions::new().append(true).open(&path) {
+                    let _ = file.set_modified(std::time::SystemTime::now());
+                }
+                DiskLookup::Hit(value)
+            }
             Err(why) => {
                 let _ = std::fs::remove_file(&path);
                 DiskLookup::Corrupt(format!("{}: {why}", path.display()))
@@ -133,7 +196,12 @@ impl DiskCache {
         file.write_all(&xxhash_rust::xxh3::xxh3_64(&payload).to_le_bytes())?;
         file.write_all(&payload)?;
         file.as_file().sync_all()?;
-        file.persist(&path).map(|_| ()).map_err(|e| e.error)
+        file.persist(&path).map_err(|e| e.error)?;
+        let entry_bytes = payload.len() as u64 + 64;
+        if self.written.fetch_add(entry_bytes, Ordering::Relaxed) + entry_bytes > self.budget_bytes / 8 {
+            self.prune()?;
+        }
+        Ok(())
     }
 }
 

@@ -16,7 +16,7 @@ pub use key::Key;
 pub use request::{Request, StageRef, Tier};
 pub use value::{Codec, Persisted, StageType, StageValue};
 
-use crate::graph::{ParamValue, StageSpec};
+use crate::node_kind::{ParamValue, StageSpec};
 use cache::{DiskCache, DiskLookup, MemoryCache};
 use rustc_hash::FxHashMap as HashMap;
 use serde::{Deserialize, Serialize};
@@ -372,11 +372,17 @@ pub struct EngineConfig {
     pub memory_budget_bytes: usize,
     /// `None` disables the disk cache.
     pub disk_cache: Option<PathBuf>,
+    /// The disk cache's least recently used entries beyond this are removed.
+    pub disk_budget_bytes: u64,
 }
 
 impl Default for EngineConfig {
     fn default() -> Self {
-        Self { memory_budget_bytes: 2 << 30, disk_cache: Some(DiskCache::default_dir()) }
+        Self {
+            memory_budget_bytes: 2 << 30,
+            disk_cache: Some(DiskCache::default_dir()),
+            disk_budget_bytes: cache::DEFAULT_DISK_BUDGET_BYTES,
+        }
     }
 }
 
@@ -434,7 +440,7 @@ impl Engine {
     pub fn new(config: EngineConfig) -> Self {
         Self {
             memory: Mutex::new(MemoryCache::new(config.memory_budget_bytes)),
-            disk: config.disk_cache.map(DiskCache::new),
+            disk: config.disk_cache.map(|dir| DiskCache::with_budget(dir, config.disk_budget_bytes)),
             last: Mutex::new(HashMap::default()),
             failures: Mutex::new(HashMap::default()),
             file_hashes: Mutex::new(HashMap::default()),

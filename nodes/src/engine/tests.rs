@@ -1,5 +1,5 @@
 use super::*;
-use crate::graph::{Availability, NodeKindSpec, ParamKind, ParamSpec, PortSpec, PortType, StageSpec};
+use crate::node_kind::{Availability, NodeKindSpec, ParamKind, ParamSpec, PortSpec, PortType, StageSpec};
 use crate::project::{Project, ProjectLink, ProjectNode, default_project};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeSet;
@@ -287,11 +287,12 @@ fn test_kind(name: &'static str, compute: StageFn, persist: bool) -> NodeKindSpe
             persist: persist.then(Codec::of::<Number>),
             compute,
         }],
+        previews: Vec::new(),
         availability: Availability::Ready,
     }
 }
 
-use crate::graph::StageFn;
+use crate::node_kind::StageFn;
 
 fn test_registry() -> &'static [NodeKindSpec] {
     static REGISTRY: std::sync::OnceLock<Vec<NodeKindSpec>> = std::sync::OnceLock::new();
@@ -338,7 +339,7 @@ fn temp_dir(name: &str) -> PathBuf {
 #[test]
 fn disk_cache_serves_fresh_engines_and_recomputes_corrupt_entries() {
     let dir = temp_dir("disk");
-    let config = || EngineConfig { memory_budget_bytes: 1 << 20, disk_cache: Some(dir.clone()) };
+    let config = || EngineConfig { memory_budget_bytes: 1 << 20, disk_cache: Some(dir.clone()), ..Default::default() };
     let mut graph = test_graph(&[("e", "Counted")], &[]);
     graph.set_param("e", "x", ParamValue::Float(21.0)).unwrap();
     let before = COUNTED_RUNS.load(Ordering::SeqCst);
@@ -675,6 +676,36 @@ impl StageType for NumberV2 {
 }
 impl Persisted for NumberV2 {
     const ENCODING: u32 = 2;
+}
+
+#[test]
+fn the_disk_cache_stays_within_its_budget_and_drops_the_least_recently_used_first() {
+    let dir = temp_dir("prune");
+    let entry = |n: f64| StageValue::new(NumberV2(n, n));
+    let codec = Codec::of::<NumberV2>();
+    // Ten entries, written one second apart in the past (oldest first).
+    let unbounded = cache::DiskCache::new(&dir);
+    let start = std::time::SystemTime::now() - std::time::Duration::from_secs(100);
+    for k in 0..10u128 {
+        unbounded.store(k, &entry(k as f64), &codec).unwrap();
+        let file = std::fs::OpenOptions::new().append(true).open(unbounded.path_for(k)).unwrap();
+        file.set_modified(start + std::time::Duration::from_secs(k as u64)).unwrap();
+    }
+    let size = std::fs::metadata(unbounded.path_for(0)).unwrap().len();
+    // Reading entry 1 makes it the most recently used.
+    assert!(matches!(unbounded.load(1, &codec), cache::DiskLookup::Hit(_)));
+    // Opening the cache with room for four entries keeps the four most recently used.
+    let bounded = cache::DiskCache::with_budget(&dir, 4 * size + size / 2);
+    let kept: Vec<u128> = (0..10).filter(|k| bounded.path_for(*k).exists()).collect();
+    assert_eq!(kept, vec![1, 7, 8, 9]);
+    let report = bounded.prune().unwrap();
+    assert_eq!(report, cache::PruneReport { kept_bytes: 4 * size, removed_entries: 0, removed_bytes: 0 });
+    // Writing past an eighth of the budget prunes again: the total never grows past it.
+    for k in 10..40u128 {
+        bounded.store(k, &entry(k as f64), &codec).unwrap();
+        let total: u64 = (0..=k).filter_map(|k| std::fs::metadata(bounded.path_for(k)).ok()).map(|m| m.len()).sum();
+        assert!(total <= 4 * size + size / 2 + size, "{total} bytes after writing entry {k}");
+    }
 }
 
 #[test]
@@ -1041,4 +1072,24 @@ fn the_first_evaluation_shows_an_unshadowed_frame_before_the_transport_then_a_sh
     assert_eq!(shadowed.mode, Mode::WaveletPixel);
     let per_texel = matches!(&shadowed.surfaces, crate::frame::Surfaces::Wavelet(w) if w.texels.is_some());
     assert!(shadowed.pending.is_none() && per_texel, "the shadowed frame draws per texel");
+}
+
+/// The engine and the graph model name no technique: a new technique never edits them, and
+/// no module cycle runs through them (doc comments may still link to techniques).
+#[test]
+fn the_engine_and_graph_model_import_no_technique() {
+    let allowed = ["engine", "node_kind", "scene_object", "picture", "choice_enum", "stage_type"];
+    let files = ["engine/mod.rs", "engine/cache.rs", "engine/graph.rs", "engine/key.rs", "engine/request.rs"];
+    let files = files.into_iter().chain(["engine/value.rs", "node_kind.rs", "scene_object.rs", "picture.rs"]);
+    for file in files {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("src").join(file);
+        let source = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{file}: {e}"));
+        for (n, line) in source.lines().enumerate().filter(|(_, l)| !l.trim_start().starts_with("//")) {
+            for (at, _) in line.match_indices("crate::") {
+                let module: String =
+                    line[at + 7..].chars().take_while(|c| c.is_ascii_alphanumeric() || *c == '_').collect();
+                assert!(allowed.contains(&module.as_str()), "{file}:{}: imports `crate::{module}`", n + 1);
+            }
+        }
+    }
 }

@@ -3,7 +3,9 @@
 //! triple product modes (Ma et al. §3.2; `triple_product::tabulate_brdf`).
 
 use crate::engine::{StageContext, StageError, StageValue};
-use crate::graph::{Availability, NodeKindSpec, ParamKind, ParamSpec, PortSpec, PortType, StageSpec};
+use crate::node_kind::PreviewSpec;
+use crate::node_kind::{Availability, NodeKindSpec, ParamKind, ParamSpec, PortSpec, PortType, StageSpec};
+use crate::picture::Preview;
 use serde::{Deserialize, Serialize};
 
 // Stage value types this module owns (see `engine::value`).
@@ -124,6 +126,12 @@ pub fn spec() -> NodeKindSpec {
                 compute: local_table,
             },
         ],
+        previews: vec![PreviewSpec {
+            stages: &["preview"],
+            make: |v| Some(Preview::Lobe(v[0].get::<crate::brdf::LobePreview>()?.clone())),
+            size: [200.0, 104.0],
+            caption: "f·cos θi in the plane of incidence (each curve scaled to its peak)",
+        }],
         availability: Availability::Ready,
     }
 }

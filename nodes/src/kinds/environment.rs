@@ -5,7 +5,9 @@
 
 use crate::cubemap::{CubeMap, Equirect};
 use crate::engine::{StageContext, StageError, StageValue};
-use crate::graph::{Availability, NodeKindSpec, ParamKind, ParamSpec, PortSpec, PortType, StageSpec};
+use crate::node_kind::PreviewSpec;
+use crate::node_kind::{Availability, NodeKindSpec, ParamKind, ParamSpec, PortSpec, PortType, StageSpec};
+use crate::preview::{self, Preview};
 use crate::sh::{self, ShRotation};
 use crate::sky::ProceduralSky;
 use crate::wavelet::SparseVector;
@@ -182,6 +184,20 @@ pub fn spec() -> NodeKindSpec {
                 inputs: &[],
                 persist: None,
                 compute: haar,
+            },
+        ],
+        previews: vec![
+            PreviewSpec {
+                stages: &["rotated_radiance"],
+                make: |v| Some(Preview::Image(preview::environment_thumbnail(v[0].get()?, 192, 96))),
+                size: [128.0, 64.0],
+                caption: "environment (auto-exposed)",
+            },
+            PreviewSpec {
+                stages: &["sh"],
+                make: |v| Some(Preview::Image(preview::sh_lighting_sphere(v[0].get()?, 96))),
+                size: [64.0, 64.0],
+                caption: "SH lighting on a white diffuse sphere (auto-exposed)",
             },
         ],
         availability: Availability::Ready,

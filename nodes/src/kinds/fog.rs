@@ -5,7 +5,9 @@
 //! no table.
 
 use crate::engine::{Codec, StageContext, StageError, StageValue};
-use crate::graph::{Availability, NodeKindSpec, ParamKind, ParamSpec, PortSpec, PortType, StageSpec};
+use crate::node_kind::PreviewSpec;
+use crate::node_kind::{Availability, NodeKindSpec, ParamKind, ParamSpec, PortSpec, PortType, StageSpec};
+use crate::picture::Preview;
 use serde::{Deserialize, Serialize};
 
 // Stage value types this module owns (see `engine::value`).
@@ -98,6 +100,20 @@ pub fn spec() -> NodeKindSpec {
                 compute: g_tables,
             },
         ],
+        previews: vec![PreviewSpec {
+            stages: &["medium", "f_tables"],
+            make: |v| {
+                let (m, tables) = (v[0].get::<Medium>()?, v[1].get::<Vec<crate::single_scattering::FTable>>()?);
+                let phase = if m.phase == "polynomial" {
+                    crate::single_scattering::Phase::polynomial(&m.phase_coefficients)?
+                } else {
+                    crate::single_scattering::Phase::isotropic()
+                };
+                Some(Preview::Image(crate::preview::fog_glow(m.beta, &phase, tables, 64)))
+            },
+            size: [80.0, 80.0],
+            caption: "a point light 10 m away seen through this fog (airlight, eq. 3.16)",
+        }],
         availability: Availability::Ready,
     }
 }
@@ -152,7 +168,7 @@ fn g_tables(ctx: &StageContext) -> Result<StageValue, StageError> {
 #[cfg(test)]
 mod tests {
     use crate::engine::{CancelToken, Engine};
-    use crate::graph::ParamValue;
+    use crate::node_kind::ParamValue;
     use crate::project::{Project, ProjectNode};
     use std::collections::BTreeMap;
     use std::path::Path;

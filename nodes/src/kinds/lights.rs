@@ -1,7 +1,7 @@
 //! Point light node: isotropic point lights, chained into a light list.
 
 use crate::engine::{StageContext, StageError, StageValue};
-use crate::graph::{Availability, NodeKindSpec, ParamKind, ParamSpec, PortSpec, PortType, StageSpec};
+use crate::node_kind::{Availability, NodeKindSpec, ParamKind, ParamSpec, PortSpec, PortType, StageSpec};
 use serde::{Deserialize, Serialize};
 
 // Stage value types this module owns (see `engine::value`).
@@ -47,6 +47,7 @@ pub fn point_light_spec() -> NodeKindSpec {
             persist: None,
             compute: lights,
         }],
+        previews: Vec::new(),
         availability: Availability::Ready,
     }
 }

@@ -9,7 +9,7 @@ pub mod output;
 pub mod planned;
 pub mod scene;
 
-use crate::graph::NodeKindSpec;
+use crate::node_kind::NodeKindSpec;
 use std::sync::OnceLock;
 
 /// All node kinds, in menu order.

@@ -2,7 +2,7 @@
 //! exposure, tone mapping).
 
 use crate::engine::{Evaluation, Graph, GraphNode, Request, StageContext, StageError, StageRef, StageValue};
-use crate::graph::{Availability, NodeKindSpec, ParamKind, ParamSpec, ParamValue, PortSpec, PortType, StageSpec};
+use crate::node_kind::{Availability, NodeKindSpec, ParamKind, ParamSpec, ParamValue, PortSpec, PortType, StageSpec};
 use serde::{Deserialize, Serialize};
 
 // Stage value types this module owns (see `engine::value`).
@@ -190,6 +190,7 @@ pub fn spec() -> NodeKindSpec {
                 compute: texel_irradiance,
             },
         ],
+        previews: Vec::new(),
         availability: Availability::Ready,
     }
 }

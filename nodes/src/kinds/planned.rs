@@ -3,7 +3,7 @@
 //! kind; their stages report that the technique is not available yet.
 
 use crate::engine::{StageContext, StageError, StageValue};
-use crate::graph::{Availability, NodeKindSpec, ParamKind, ParamSpec, PortSpec, PortType, StageSpec};
+use crate::node_kind::{Availability, NodeKindSpec, ParamKind, ParamSpec, PortSpec, PortType, StageSpec};
 
 fn not_yet(ctx: &StageContext) -> Result<StageValue, StageError> {
     Err(StageError::Failed(format!("node `{}`: this technique is not available yet", ctx.node_id)))
@@ -55,6 +55,7 @@ pub fn area_light_painter_spec() -> NodeKindSpec {
             persist: None,
             compute: not_yet,
         }],
+        previews: Vec::new(),
         availability: Availability::Planned("painted area lights are not computed or drawn"),
     }
 }
@@ -82,6 +83,7 @@ pub fn rsl_decomposer_spec() -> NodeKindSpec {
             persist: None,
             compute: not_yet,
         }],
+        previews: Vec::new(),
         availability: Availability::Planned("square lights are not fitted to the environment"),
     }
 }
@@ -118,6 +120,7 @@ pub fn blocker_spheres_spec() -> NodeKindSpec {
             persist: None,
             compute: blocker_spheres,
         }],
+        previews: Vec::new(),
         availability: Availability::Planned("blocker spheres cast no shadows"),
     }
 }
@@ -126,7 +129,7 @@ crate::stage_type!(Vec<([f64; 3], f64)>, "spheres", |v| v.len() * 32);
 
 fn blocker_spheres(ctx: &StageContext) -> Result<StageValue, StageError> {
     match ctx.value("spheres")? {
-        crate::graph::ParamValue::Spheres(s) => {
+        crate::node_kind::ParamValue::Spheres(s) => {
             let _ = ctx.int("sh_bands")?;
             Ok(StageValue::new(s.clone()))
         }

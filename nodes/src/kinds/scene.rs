@@ -2,68 +2,12 @@
 //! points, the ray-tracing BVH, and the visibility transport every PRT technique reads.
 
 use crate::engine::{Codec, StageContext, StageError, StageValue};
-use crate::graph::{Availability, NodeKindSpec, ParamKind, ParamSpec, ParamValue, PortSpec, PortType, StageSpec};
 use crate::mesh::{self, MeshSet};
+use crate::node_kind::{Availability, NodeKindSpec, ParamKind, ParamSpec, ParamValue, PortSpec, PortType, StageSpec};
 use crate::raycast::RayScene;
+pub use crate::scene_object::{SceneObject, Shape};
 use crate::transport::{self, Receivers};
 use glam::{DMat4, DQuat, DVec3};
-use serde::{Deserialize, Serialize};
-
-/// A built-in shape, in object space (sizes in metres).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub enum Shape {
-    /// Square in the XZ plane, normal +Y.
-    Plane {
-        size: f64,
-    },
-    Sphere {
-        radius: f64,
-    },
-    Box {
-        size: [f64; 3],
-    },
-    /// Around +Y.
-    Torus {
-        major: f64,
-        minor: f64,
-    },
-    /// Open towards +Z, floor at y = 0, red left and green right walls.
-    CornellBox {
-        size: f64,
-    },
-}
-
-/// One object of a scene: a shape, its transform and colour.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct SceneObject {
-    pub name: String,
-    pub shape: Shape,
-    #[serde(default)]
-    pub translation: [f64; 3],
-    /// Euler angles in degrees, applied as Ry(y) Rx(x) Rz(z).
-    #[serde(default)]
-    pub rotation_deg: [f64; 3],
-    #[serde(default = "unit_scale")]
-    pub scale: [f64; 3],
-    #[serde(default = "grey")]
-    pub color: [f64; 3],
-    /// Precompute a per-texel visibility texture over the object's UVs (Ma et al. §3.4), so a
-    /// coarse mesh such as a floor quad still receives sharp shadows.
-    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
-    pub visibility_texture: bool,
-    /// Id of the BRDF editor node (linked to the Output's `material` input) that shades this
-    /// object; empty for the first linked material.
-    #[serde(default, skip_serializing_if = "String::is_empty")]
-    pub material: String,
-}
-
-fn unit_scale() -> [f64; 3] {
-    [1.0; 3]
-}
-
-fn grey() -> [f64; 3] {
-    [0.8; 3]
-}
 
 impl SceneObject {
     pub fn new(name: &str, shape: Shape) -> Self {
@@ -73,7 +17,7 @@ impl SceneObject {
             translation: [0.0; 3],
             rotation_deg: [0.0; 3],
             scale: [1.0; 3],
-            color: grey(),
+            color: crate::scene_object::grey(),
             visibility_texture: false,
             material: String::new(),
         }
@@ -340,6 +284,7 @@ pub fn spec() -> NodeKindSpec {
                 compute: transport_texels,
             },
         ],
+        previews: Vec::new(),
         availability: Availability::Ready,
     }
 }

@@ -20,7 +20,7 @@ pub enum ParamValue {
     /// A file path, relative to the project file (or absolute). Empty means none.
     Path(String),
     /// Scene objects (the Scene node's object list).
-    Objects(Vec<crate::kinds::scene::SceneObject>),
+    Objects(Vec<crate::scene_object::SceneObject>),
     /// Spheres `(centre, radius)` (blocker sphere sets).
     Spheres(Vec<([f64; 3], f64)>),
 }
@@ -95,7 +95,7 @@ pub enum ParamKind {
     Color { max: f64, default: [f64; 3] },
     Choice { options: &'static [&'static str], default: &'static str },
     Path { extensions: &'static [&'static str] },
-    Objects { default: Vec<crate::kinds::scene::SceneObject> },
+    Objects { default: Vec<crate::scene_object::SceneObject> },
     Spheres { default: Vec<([f64; 3], f64)> },
 }
 
@@ -292,6 +292,8 @@ pub struct NodeKindSpec {
     pub outputs: Vec<PortSpec>,
     pub params: Vec<ParamSpec>,
     pub stages: Vec<StageSpec>,
+    /// Pictures the graph editor shows in the node (none for most kinds).
+    pub previews: Vec<PreviewSpec>,
     pub availability: Availability,
 }
 
@@ -362,4 +364,17 @@ macro_rules! choice_enum {
             }
         }
     };
+}
+
+/// A picture a node shows in the graph editor, made from some of its stages.
+#[derive(Clone, Debug)]
+pub struct PreviewSpec {
+    /// The stages it reads, requested from the engine while the node is on screen.
+    pub stages: &'static [&'static str],
+    /// The picture from those stages' values, in order (`None` when one has another type).
+    pub make: fn(&[&crate::engine::StageValue]) -> Option<crate::picture::Preview>,
+    /// Display size in points.
+    pub size: [f32; 2],
+    /// What the picture shows (hover text).
+    pub caption: &'static str,
 }

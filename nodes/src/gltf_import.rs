@@ -24,28 +24,18 @@ const MAX_DEPTH: usize = 256;
 
 pub fn import(path: &Path) -> Result<ImportedScene, String> {
     let name = path.display().to_string();
-    let gltf = gltf::Gltf::open(path).map_err(|e| format!("{name}: not a valid glTF 2.0 file: {e}"))?;
-    let base = path.parent();
-    let buffers = gltf::import_buffers(&gltf.document, base, gltf.blob.clone()).map_err(|e| {
-        let missing: Vec<String> = gltf
-            .document
-            .buffers()
-            .filter_map(|b| match b.source() {
-                gltf::buffer::Source::Uri(uri)
-                    if !uri.starts_with("data:") && !base.unwrap_or(Path::new(".")).join(uri).is_file() =>
-                {
-                    Some(uri.to_string())
-                }
-                _ => None,
-            })
-            .collect();
-        if missing.is_empty() {
-            format!("{name}: cannot load the glTF's buffers: {e}")
-        } else {
-            format!("{name}: cannot load the glTF's buffers: missing file(s) {} next to it", missing.join(", "))
-        }
-    })?;
-    let document = &gltf.document;
+    let bytes = crate::limits::read_regular_file(path, crate::limits::MAX_FILE_BYTES)?;
+    let invalid = |e: gltf::Error| format!("{name}: not a valid glTF 2.0 file: {e}");
+    let gltf = gltf::Gltf::from_slice_without_validation(&bytes).map_err(invalid)?;
+    drop(bytes);
+    // The gltf crate's validation and accessors index without checking: every index is
+    // checked here first.
+    check_indices(gltf.document.as_json()).map_err(|e| format!("{name}: {e}"))?;
+    let blob = gltf.blob;
+    let document = gltf::Document::from_json(gltf.document.into_json()).map_err(invalid)?;
+    let buffers = load_buffers(&document, path.parent().unwrap_or(Path::new(".")), blob)
+        .map_err(|e| format!("{name}: cannot load the glTF's buffers: {e}"))?;
+    let document = &document;
     let roots: Vec<gltf::Node> = match document.default_scene().or_else(|| document.scenes().next()) {
         Some(scene) => scene.nodes().collect(),
         None => {
@@ -56,6 +46,7 @@ pub fn import(path: &Path) -> Result<ImportedScene, String> {
         }
     };
     let mut out = ImportedScene::default();
+    let (mut visits, mut instances, mut triangles) = (0usize, 0usize, 0usize);
     let mut stack: Vec<(gltf::Node, DMat4, usize, Vec<usize>)> =
         roots.into_iter().map(|n| (n, DMat4::IDENTITY, 0, Vec::new())).collect();
     while let Some((node, parent, depth, mut path_nodes)) = stack.pop() {
@@ -65,6 +56,13 @@ pub fn import(path: &Path) -> Result<ImportedScene, String> {
         if depth > MAX_DEPTH {
             return Err(format!("{name}: node hierarchy deeper than {MAX_DEPTH} levels"));
         }
+        visits += 1;
+        if visits > crate::limits::MAX_GLTF_NODE_VISITS {
+            return Err(format!(
+                "{name}: the node hierarchy expands to more than {} nodes (nodes listed more than once multiply)",
+                crate::limits::MAX_GLTF_NODE_VISITS
+            ));
+        }
         path_nodes.push(node.index());
         let local = DMat4::from_cols_array_2d(&node.transform().matrix().map(|c| c.map(f64::from)));
         let world = parent * local;
@@ -72,6 +70,14 @@ pub fn import(path: &Path) -> Result<ImportedScene, String> {
             return Err(format!("{name}: node {} has a non-finite transform", node.index()));
         }
         if let Some(mesh) = node.mesh() {
+            instances += 1;
+            if instances > crate::limits::MAX_GLTF_INSTANCES {
+                return Err(format!(
+                    "{name}: the node hierarchy places more than {} mesh instances (nodes listed more than once \
+                     multiply); the limit keeps memory bounded",
+                    crate::limits::MAX_GLTF_INSTANCES
+                ));
+            }
             for (p, primitive) in mesh.primitives().enumerate() {
                 let label =
                     format!("{name}: mesh {} ({}) primitive {p}", mesh.index(), mesh.name().unwrap_or("unnamed"));
@@ -83,6 +89,13 @@ pub fn import(path: &Path) -> Result<ImportedScene, String> {
                     continue;
                 }
                 let m = read_primitive(&primitive, &buffers, &label, &mut out.warnings)?;
+                triangles += m.triangle_count();
+                if triangles > crate::limits::MAX_TRIANGLES {
+                    return Err(format!(
+                        "{name}: more than {} triangles in the scene (the limit)",
+                        crate::limits::MAX_TRIANGLES
+                    ));
+                }
                 if !m.indices.is_empty() {
                     let mut m = m.transformed(world);
                     m.name = mesh.name().map(str::to_string).unwrap_or_else(|| format!("mesh{}", mesh.index()));
@@ -96,6 +109,129 @@ pub fn import(path: &Path) -> Result<ImportedScene, String> {
     }
     if out.meshes.is_empty() {
         out.warnings.push(format!("{name}: no triangle geometry found"));
+    }
+    Ok(out)
+}
+
+/// Checks every index the document holds (accessors, views, buffers, meshes, nodes), and each
+/// view's stride, so the gltf crate's unchecked lookups cannot panic.
+fn check_indices(root: &gltf::json::Root) -> Result<(), String> {
+    let check = |what: &str, index: usize, len: usize| {
+        if index < len { Ok(()) } else { Err(format!("{what} refers to item {index}, but there are only {len}")) }
+    };
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (p, primitive) in mesh.primitives.iter().enumerate() {
+            let what = format!("mesh {m} primitive {p}");
+            for index in primitive.attributes.values() {
+                check(&format!("{what}: an attribute"), index.value(), root.accessors.len())?;
+            }
+            if let Some(index) = &primitive.indices {
+                check(&format!("{what}: indices"), index.value(), root.accessors.len())?;
+            }
+            for target in primitive.targets.iter().flatten() {
+                for index in [&target.positions, &target.normals, &target.tangents].into_iter().flatten() {
+                    check(&format!("{what}: a morph target"), index.value(), root.accessors.len())?;
+                }
+            }
+            if let Some(index) = &primitive.material {
+                check(&format!("{what}: material"), index.value(), root.materials.len())?;
+            }
+        }
+    }
+    for (a, accessor) in root.accessors.iter().enumerate() {
+        if let Some(view) = &accessor.buffer_view {
+            check(&format!("accessor {a}: bufferView"), view.value(), root.buffer_views.len())?;
+        }
+        if let Some(sparse) = &accessor.sparse {
+            check(
+                &format!("accessor {a}: sparse indices"),
+                sparse.indices.buffer_view.value(),
+                root.buffer_views.len(),
+            )?;
+            check(&format!("accessor {a}: sparse values"), sparse.values.buffer_view.value(), root.buffer_views.len())?;
+        }
+    }
+    for (v, view) in root.buffer_views.iter().enumerate() {
+        check(&format!("bufferView {v}: buffer"), view.buffer.value(), root.buffers.len())?;
+        if let Some(stride) = view.byte_stride
+            && !(4..=252).contains(&stride.0)
+        {
+            return Err(format!("bufferView {v}: byteStride {} is outside 4..=252", stride.0));
+        }
+    }
+    for (n, node) in root.nodes.iter().enumerate() {
+        if let Some(mesh) = &node.mesh {
+            check(&format!("node {n}: mesh"), mesh.value(), root.meshes.len())?;
+        }
+        for child in node.children.iter().flatten() {
+            check(&format!("node {n}: a child"), child.value(), root.nodes.len())?;
+        }
+        if let Some(camera) = &node.camera {
+            check(&format!("node {n}: camera"), camera.value(), root.cameras.len())?;
+        }
+        if let Some(skin) = &node.skin {
+            check(&format!("node {n}: skin"), skin.value(), root.skins.len())?;
+        }
+    }
+    for (s, scene) in root.scenes.iter().enumerate() {
+        for node in &scene.nodes {
+            check(&format!("scene {s}: a node"), node.value(), root.nodes.len())?;
+        }
+    }
+    if let Some(scene) = &root.scene {
+        check("the default scene", scene.value(), root.scenes.len())?;
+    }
+    Ok(())
+}
+
+/// The document's buffers: the GLB chunk, `data:` URIs, or regular files next to the glTF
+/// (never special files, never more than [`crate::limits::MAX_FILE_BYTES`]).
+fn load_buffers(
+    document: &gltf::Document,
+    base: &Path,
+    mut blob: Option<Vec<u8>>,
+) -> Result<Vec<gltf::buffer::Data>, String> {
+    let mut out = Vec::new();
+    for buffer in document.buffers() {
+        let declared = buffer.length();
+        if declared as u64 > crate::limits::MAX_FILE_BYTES {
+            return Err(format!("buffer {} declares {} MiB", buffer.index(), declared >> 20));
+        }
+        let mut data = match buffer.source() {
+            gltf::buffer::Source::Bin => {
+                blob.take().ok_or_else(|| format!("buffer {} refers to a GLB chunk the file lacks", buffer.index()))?
+            }
+            gltf::buffer::Source::Uri(uri) if uri.starts_with("data:") => {
+                let (_, payload) = uri
+                    .split_once(";base64,")
+                    .ok_or_else(|| format!("buffer {}: only base64 data URIs are supported", buffer.index()))?;
+                if payload.len() / 4 * 3 > declared + 3 {
+                    return Err(format!("buffer {}: the data URI is longer than its byteLength", buffer.index()));
+                }
+                base64::decode(payload).map_err(|e| format!("buffer {}: bad base64 data: {e}", buffer.index()))?
+            }
+            gltf::buffer::Source::Uri(uri) => {
+                let relative = uri.strip_prefix("file://").unwrap_or(uri);
+                if relative.contains(':') {
+                    return Err(format!("buffer {}: unsupported URI `{uri}`", buffer.index()));
+                }
+                let decoded = urlencoding::decode(relative).map_err(|e| format!("buffer URI `{uri}`: {e}"))?;
+                let path = base.join(decoded.as_ref());
+                if !path.exists() {
+                    return Err(format!("missing file(s) {uri} next to it"));
+                }
+                // A file may carry a little padding past byteLength, never much more.
+                let limit = (declared as u64 + (1 << 20)).min(crate::limits::MAX_FILE_BYTES);
+                crate::limits::read_regular_file(&path, limit)?
+            }
+        };
+        if data.len() < declared {
+            return Err(format!("buffer {} holds {} bytes; the glTF declares {declared}", buffer.index(), data.len()));
+        }
+        while data.len() % 4 != 0 {
+            data.push(0);
+        }
+        out.push(gltf::buffer::Data(data));
     }
     Ok(out)
 }
@@ -127,6 +263,12 @@ fn check_accessor(
         .ok_or_else(|| format!("{what} accessor {}: buffer {} is missing", accessor.index(), view.buffer().index()))?;
     let element = accessor.size();
     let stride = view.stride().unwrap_or(element);
+    if stride < element {
+        return Err(format!(
+            "{what} accessor {}: its view's byteStride {stride} is smaller than one element ({element} bytes)",
+            accessor.index()
+        ));
+    }
     let needed = if accessor.count() == 0 { 0 } else { accessor.offset() + stride * (accessor.count() - 1) + element };
     if view.offset() + view.length() > buffer.len() || needed > view.length() {
         return Err(format!(
@@ -192,17 +334,20 @@ fn read_primitive(
     if !indices.len().is_multiple_of(3) {
         return Err(err(format!("{} indices do not form whole triangles", indices.len())));
     }
-    // Repair: drop triangles touching non-finite vertices.
-    let finite = |i: u32| positions[i as usize].iter().all(|v| v.is_finite());
+    // Repair: drop triangles touching non-finite or absurdly distant vertices.
+    let sane = |p: &[f32; 3]| p.iter().all(|v| v.is_finite() && v.abs() <= crate::limits::MAX_COORDINATE);
+    let finite = |i: u32| sane(&positions[i as usize]);
     let before = indices.len() / 3;
     let indices: Vec<u32> =
         indices.chunks_exact(3).filter(|t| t.iter().all(|i| finite(*i))).flatten().copied().collect();
     if indices.len() / 3 < before {
-        warnings
-            .push(format!("{label}: {} triangle(s) with non-finite vertices were dropped", before - indices.len() / 3));
+        warnings.push(format!(
+            "{label}: {} triangle(s) with non-finite vertices (or beyond {} m) were dropped",
+            before - indices.len() / 3,
+            crate::limits::MAX_COORDINATE
+        ));
     }
-    let positions: Vec<[f32; 3]> =
-        positions.into_iter().map(|p| if p.iter().all(|v| v.is_finite()) { p } else { [0.0; 3] }).collect();
+    let positions: Vec<[f32; 3]> = positions.into_iter().map(|p| if sane(&p) { p } else { [0.0; 3] }).collect();
     let uvs: Vec<[f32; 2]> =
         if uvs_ok { reader.read_tex_coords(0).map(|t| t.into_f32().collect()).unwrap_or_default() } else { Vec::new() };
     let mut normals: Vec<[f32; 3]> =
@@ -328,6 +473,84 @@ mod tests {
                 .iter()
                 .all(|m| m.normals.iter().all(|n| (DVec3::from(n.map(f64::from)).length() - 1.0).abs() < 1e-4))
         );
+    }
+
+    /// Writes `json` as a .gltf in a fresh folder and imports it.
+    fn import_json(name: &str, json: &str) -> Result<ImportedScene, String> {
+        let dir = std::env::temp_dir().join(format!("lightloom-gltf-{name}-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join(format!("{name}.gltf"));
+        std::fs::write(&path, json).unwrap();
+        import(&path)
+    }
+
+    /// A base64 data URI of three vec3 positions (one triangle).
+    fn triangle_buffer(positions: [[f32; 3]; 3]) -> String {
+        let bytes: Vec<u8> = positions.iter().flatten().flat_map(|v| v.to_le_bytes()).collect();
+        format!(r#"{{"byteLength":36,"uri":"data:application/octet-stream;base64,{}"}}"#, base64::encode(bytes))
+    }
+
+    #[test]
+    fn an_attribute_pointing_at_a_missing_accessor_is_an_error() {
+        let json = r#"{"asset":{"version":"2.0"},"meshes":[{"primitives":[{"attributes":{"POSITION":0}}]}],"nodes":[{"mesh":0}],"scenes":[{"nodes":[0]}],"scene":0}"#;
+        let e = import_json("missing-accessor", json).unwrap_err();
+        assert!(e.contains("missing-accessor.gltf") && e.contains("refers to item 0, but there are only 0"), "{e}");
+    }
+
+    #[test]
+    fn a_stride_smaller_than_an_element_is_an_error() {
+        let buffer = triangle_buffer([[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]);
+        let json = format!(
+            r#"{{"asset":{{"version":"2.0"}},"buffers":[{buffer}],
+            "bufferViews":[{{"buffer":0,"byteLength":36,"byteStride":4}}],
+            "accessors":[{{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3","min":[0,0,0],"max":[1,1,0]}}],
+            "meshes":[{{"primitives":[{{"attributes":{{"POSITION":0}}}}]}}],"nodes":[{{"mesh":0}}],"scenes":[{{"nodes":[0]}}],"scene":0}}"#
+        );
+        let e = import_json("small-stride", &json).unwrap_err();
+        assert!(e.contains("byteStride 4 is smaller than one element (12 bytes)"), "{e}");
+    }
+
+    #[test]
+    fn node_hierarchies_that_multiply_are_capped() {
+        // Each node lists the next one twice: 2^40 paths in a few hundred bytes.
+        let buffer = triangle_buffer([[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]);
+        let mut nodes: Vec<String> = (0..40).map(|i| format!(r#"{{"children":[{},{}]}}"#, i + 1, i + 1)).collect();
+        nodes.push(r#"{"mesh":0}"#.into());
+        let json = format!(
+            r#"{{"asset":{{"version":"2.0"}},"buffers":[{buffer}],"bufferViews":[{{"buffer":0,"byteLength":36}}],
+            "accessors":[{{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3","min":[0,0,0],"max":[1,1,0]}}],
+            "meshes":[{{"primitives":[{{"attributes":{{"POSITION":0}}}}]}}],"nodes":[{}],"scenes":[{{"nodes":[0]}}],"scene":0}}"#,
+            nodes.join(",")
+        );
+        let e = import_json("dag", &json).unwrap_err();
+        assert!(e.contains("mesh instances") || e.contains("expands to more than"), "{e}");
+        // The same mesh listed as a root 200000 times.
+        let roots = vec!["0"; 200_000].join(",");
+        let json = json.replace(r#""scenes":[{"nodes":[0]}]"#, &format!(r#""scenes":[{{"nodes":[{roots}]}}]"#));
+        let json = json.replacen(r#""nodes":[{"children":[1,1]}"#, r#""nodes":[{"mesh":0},{"children":[1,1]}"#, 1);
+        let e = import_json("roots", &json).unwrap_err();
+        assert!(e.contains("mesh instances"), "{e}");
+    }
+
+    #[test]
+    fn special_files_as_buffers_are_refused() {
+        for uri in ["/dev/zero", "file:///dev/urandom"] {
+            let json = format!(
+                r#"{{"asset":{{"version":"2.0"}},"buffers":[{{"byteLength":36,"uri":"{uri}"}}],"meshes":[],"nodes":[]}}"#
+            );
+            let e = import_json("special", &json).unwrap_err();
+            assert!(e.contains("not a regular file") || e.contains("unsupported URI"), "{uri}: {e}");
+        }
+        let dir = std::env::temp_dir().join(format!("lightloom-gltf-fifo-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let fifo = dir.join("buffer.bin");
+        let _ = std::fs::remove_file(&fifo);
+        if std::process::Command::new("mkfifo").arg(&fifo).status().is_ok_and(|s| s.success()) {
+            let json = r#"{"asset":{"version":"2.0"},"buffers":[{"byteLength":36,"uri":"buffer.bin"}]}"#;
+            std::fs::write(dir.join("fifo.gltf"), json).unwrap();
+            let e = import(&dir.join("fifo.gltf")).unwrap_err();
+            assert!(e.contains("not a regular file"), "{e}");
+        }
     }
 
     /// Prints what happens to each asset (run with `--ignored --nocapture`).

@@ -16,6 +16,7 @@ pub mod envmap_io;
 pub mod frame;
 pub mod gltf_import;
 pub mod kinds;
+pub mod limits;
 pub mod mesh;
 pub mod node_kind;
 pub mod picture;

@@ -38,8 +38,9 @@ impl std::fmt::Debug for RayScene {
 }
 
 impl RayScene {
-    /// Builds from every triangle of a mesh set (degenerate and non-finite triangles are
-    /// skipped: they can occlude nothing).
+    /// Builds from every triangle of a mesh set (degenerate triangles, and those with a
+    /// coordinate that is not finite or beyond [`crate::limits::MAX_COORDINATE`], are skipped:
+    /// they occlude nothing, and garbage extents break the BVH builder).
     pub fn build(meshes: &MeshSet) -> Self {
         let mut triangles = Vec::new();
         let mut original = Vec::new();
@@ -48,7 +49,8 @@ impl RayScene {
             for t in mesh.indices.chunks_exact(3) {
                 let v = |i: u32| Vec3A::from_array(mesh.positions[i as usize]);
                 let tri = Triangle { v0: v(t[0]), v1: v(t[1]), v2: v(t[2]) };
-                let finite = tri.v0.is_finite() && tri.v1.is_finite() && tri.v2.is_finite();
+                let sane = |v: Vec3A| v.is_finite() && v.abs().max_element() <= crate::limits::MAX_COORDINATE;
+                let finite = sane(tri.v0) && sane(tri.v1) && sane(tri.v2);
                 if finite && (tri.v1 - tri.v0).cross(tri.v2 - tri.v0).length_squared() > 0.0 {
                     triangles.push(tri);
                     original.push(index);
@@ -124,6 +126,26 @@ mod tests {
     use super::*;
     use crate::mesh::{self, MeshSet};
     use crate::sampling::{random_unit_vector, test_rng};
+
+    /// Garbage geometry (a corrupted buffer offset reads floats up to 3e38) once recursed
+    /// until the stack overflowed while the BVH was built: such triangles are dropped.
+    #[test]
+    fn absurd_coordinates_build_a_bvh_without_them() {
+        use rand::Rng;
+        let mut rng = test_rng(3);
+        let mut positions = Vec::new();
+        for i in 0..30_000 {
+            let scale = if i % 3 == 0 { 1.0 } else { 10f32.powi(rng.random_range(-30..=38)) };
+            positions.push([0, 1, 2].map(|_| rng.random_range(-3.0..3.0f32) * scale));
+        }
+        positions.extend([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]);
+        let indices = (0..positions.len() as u32).collect();
+        let mesh = mesh::Mesh { positions, indices, ..Default::default() };
+        let scene = RayScene::build(&MeshSet { meshes: vec![mesh] });
+        assert!(scene.triangles.len() < 10_001, "{} triangles kept", scene.triangles.len());
+        let hit = scene.closest(Vec3A::new(0.2, 0.2, 1.0), Vec3A::new(0.0, 0.0, -1.0));
+        assert!(hit.is_some(), "the sane triangle is still hit");
+    }
 
     #[test]
     fn occlusion_matches_analytic_sphere_hits() {

@@ -99,10 +99,11 @@ impl Graph {
             if input.id.is_empty() || input.id.contains(['.', ' ']) {
                 errors.push(GraphError::node(input.id, "node ids must be non-empty and contain no dots or spaces"));
             }
-            if ids.insert(input.id, built.len()).is_some() {
-                errors.push(GraphError::node(input.id, "duplicate node id"));
+            if ids.contains_key(input.id) {
+                errors.push(GraphError::node(input.id, "duplicate node id: each node needs its own id"));
                 continue;
             }
+            ids.insert(input.id, built.len());
             let Some(kind) = registry.iter().find(|k| k.name == input.kind) else {
                 let known: Vec<&str> = registry.iter().map(|k| k.name).collect();
                 errors.push(GraphError::node(

@@ -152,6 +152,7 @@ fn malformed_projects_fail_with_clear_errors_and_exit_code_two() {
         ("future_version.ron", "version 99 is newer"),
         ("unknown_field.ron", "Unexpected field named `colour`"),
         ("missing_output_input.ron", "node `out` port `scene`: required Scene input is not connected"),
+        ("duplicate_ids.ron", "node `o`: duplicate node id"),
     ];
     let dir = workspace().join("tests/malformed");
     let listed: Vec<&str> = corpus.iter().map(|c| c.0).collect();
@@ -660,4 +661,22 @@ fn fog_render_matches_the_cpu_model_and_the_numerical_reference() {
     assert!(model_error < 0.005, "GPU fog vs CPU model: relative RMSE {:.2}%", model_error * 100.0);
     assert!(reference_error < 0.01, "GPU fog vs numerical reference: relative RMSE {:.2}%", reference_error * 100.0);
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A render size within the project format's range but beyond what the GPU memory budget
+/// allows is a clear error before anything is allocated (10000² once ran out of memory).
+#[test]
+fn render_sizes_beyond_the_gpu_budget_are_refused() {
+    let out_png = tempdir("huge-render").join("x.png");
+    let project = workspace().join("projects/default.ron");
+    let out = lightloom()
+        .args(["render"])
+        .arg(&project)
+        .args(["-o", out_png.to_str().unwrap(), "--width", "10000", "--height", "10000", "--no-disk-cache"])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("render size 10000x10000 needs about") && !stderr.contains("panicked"), "{stderr}");
+    assert!(!out_png.exists());
 }

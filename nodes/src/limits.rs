@@ -23,9 +23,9 @@ pub const MAX_COORDINATE: f32 = 1e7;
 /// Largest render target, in bytes of GPU memory (colour, depth, MSAA and readback).
 pub const MAX_RENDER_TARGET_BYTES: u64 = 3 << 30;
 
-/// Reads a regular file of at most `limit` bytes: special files (FIFOs, devices such as
-/// `/dev/zero`) and larger files are refused before anything is read.
-pub fn read_regular_file(path: &Path, limit: u64) -> Result<Vec<u8>, String> {
+/// Checks that `path` is a regular file of at most `limit` bytes (before a decoder opens it:
+/// a FIFO would hang it, `/dev/zero` would never end); returns its size.
+pub fn check_regular_file(path: &Path, limit: u64) -> Result<u64, String> {
     let name = path.display();
     let meta = std::fs::metadata(path).map_err(|e| format!("cannot read {name}: {e}"))?;
     if !meta.is_file() {
@@ -34,8 +34,16 @@ pub fn read_regular_file(path: &Path, limit: u64) -> Result<Vec<u8>, String> {
     if meta.len() > limit {
         return Err(format!("{name} is {} MiB; the limit is {} MiB", meta.len() >> 20, limit >> 20));
     }
+    Ok(meta.len())
+}
+
+/// Reads a regular file of at most `limit` bytes: special files (FIFOs, devices such as
+/// `/dev/zero`) and larger files are refused before anything is read.
+pub fn read_regular_file(path: &Path, limit: u64) -> Result<Vec<u8>, String> {
+    let name = path.display();
+    let size = check_regular_file(path, limit)?;
     let file = std::fs::File::open(path).map_err(|e| format!("cannot read {name}: {e}"))?;
-    let mut bytes = Vec::with_capacity(meta.len() as usize);
+    let mut bytes = Vec::with_capacity(size as usize);
     // `take`: a file that grows while being read stops at the limit.
     file.take(limit + 1).read_to_end(&mut bytes).map_err(|e| format!("cannot read {name}: {e}"))?;
     if bytes.len() as u64 > limit {

@@ -112,9 +112,7 @@ impl ViewportRenderer {
         width: u32,
         height: u32,
     ) -> Result<(), RenderError> {
-        if width == 0 || height == 0 || width > 16384 || height > 16384 {
-            return Err(RenderError::Invalid(format!("render size {width}x{height} must be within 1..=16384")));
-        }
+        self.check_size(gpu, width, height)?;
         GeometryBuffers::prepare(&mut self.geometry, gpu, &frame.geometry)?;
         self.medium.prepare(gpu, &frame.medium)?;
         self.background.prepare(gpu, &frame.background)?;
@@ -183,6 +181,7 @@ impl ViewportRenderer {
         if pixels.len() != width as usize * height as usize || width == 0 || height == 0 {
             return Err(RenderError::Invalid(format!("{} pixels do not make a {width}x{height} image", pixels.len())));
         }
+        self.check_size(gpu, width, height)?;
         self.ensure_targets(gpu, width, height);
         let data = to_rgba_f16(pixels);
         let targets = self.targets.as_ref().unwrap();
@@ -198,6 +197,31 @@ impl ViewportRenderer {
             wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
         );
         self.tone_map(gpu, exposure, tonemap);
+        Ok(())
+    }
+
+    /// Refuses sizes the adapter cannot hold or that would need more than
+    /// [`lightloom_nodes::limits::MAX_RENDER_TARGET_BYTES`] for targets and readback.
+    fn check_size(&self, gpu: &GpuContext, width: u32, height: u32) -> Result<(), RenderError> {
+        let max = gpu.device.limits().max_texture_dimension_2d;
+        if width == 0 || height == 0 || width > max || height > max {
+            return Err(RenderError::Invalid(format!(
+                "render size {width}x{height}: this GPU draws 1 to {max} pixels per side"
+            )));
+        }
+        // Per pixel: MSAA colour and depth, resolved HDR, LDR, their readback and CPU copies.
+        let per_pixel = 12 * self.sample_count as u64 + 8 + 4 + 12 + 20;
+        let bytes = width as u64 * height as u64 * per_pixel;
+        let limit = lightloom_nodes::limits::MAX_RENDER_TARGET_BYTES;
+        if bytes > limit {
+            return Err(RenderError::Invalid(format!(
+                "render size {width}x{height} needs about {} MiB for its targets; the limit is {} MiB \
+                 (about {} megapixels)",
+                bytes >> 20,
+                limit >> 20,
+                limit / per_pixel / 1_000_000
+            )));
+        }
         Ok(())
     }
 

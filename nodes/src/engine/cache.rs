@@ -161,11 +161,14 @@ impl DiskCache {
     /// The entry for `key`, decoded with `codec` (whose type and encoding it must record).
     pub fn load(&self, key: Key, codec: &Codec) -> DiskLookup {
         let path = self.path_for(key);
-        let bytes = match std::fs::read(&path) {
-            Ok(b) => b,
-            Err(_) => return DiskLookup::Miss,
-        };
-        match decode(&bytes, key, codec) {
+        // Only regular files: opening a FIFO would block.
+        if !std::fs::metadata(&path).is_ok_and(|m| m.is_file()) {
+            return DiskLookup::Miss;
+        }
+        let Ok(mut file) = std::fs::File::open(&path) else { return DiskLookup::Miss };
+        let read = read_entry(&mut file, key, codec);
+        drop(file);
+        match read {
             Ok(value) => {
                 // Mark it used, so pruning removes it last.
                 if let Ok(file) = std::fs::OpenOptions::new().append(true).open(&path) {
@@ -223,8 +226,17 @@ impl<'a> Reader<'a> {
     }
 }
 
-fn decode(bytes: &[u8], key: Key, codec: &Codec) -> Result<StageValue, String> {
-    let mut r = Reader(bytes);
+/// The longest header: magic, key, name length and name, encoding, length, checksum.
+const MAX_HEADER_BYTES: u64 = 8 + 16 + 1 + 255 + 4 + 8 + 8;
+
+/// Reads and checks one entry. The header is read first and its declared payload length must
+/// match the file's size, so a huge or foreign file is rejected without being read whole.
+fn read_entry(file: &mut std::fs::File, key: Key, codec: &Codec) -> Result<StageValue, String> {
+    use std::io::Read;
+    let size = file.metadata().map_err(|e| e.to_string())?.len();
+    let mut bytes = Vec::new();
+    (&mut *file).take(MAX_HEADER_BYTES).read_to_end(&mut bytes).map_err(|e| e.to_string())?;
+    let mut r = Reader(&bytes);
     if r.take(8).ok() != Some(MAGIC.as_slice()) {
         return Err("not a Lightloom cache entry (or an older cache format)".into());
     }
@@ -241,10 +253,15 @@ fn decode(bytes: &[u8], key: Key, codec: &Codec) -> Result<StageValue, String> {
             codec.type_name, codec.encoding
         ));
     }
-    let len = r.u64()? as usize;
+    let len = r.u64()?;
     let checksum = r.u64()?;
-    let payload = r.0;
-    if payload.len() != len {
+    let header = (bytes.len() - r.0.len()) as u64;
+    if header.checked_add(len) != Some(size) {
+        return Err(format!("the file is {size} bytes but its header declares {}", header.saturating_add(len)));
+    }
+    file.read_to_end(&mut bytes).map_err(|e| e.to_string())?;
+    let payload = &bytes[header as usize..];
+    if payload.len() as u64 != len {
         return Err(format!("truncated: {} of {len} payload bytes", payload.len()));
     }
     if xxhash_rust::xxh3::xxh3_64(payload) != checksum {

@@ -709,6 +709,25 @@ fn the_disk_cache_stays_within_its_budget_and_drops_the_least_recently_used_firs
 }
 
 #[test]
+fn a_huge_file_in_place_of_an_entry_is_rejected_without_reading_it() {
+    let dir = temp_dir("huge-entry");
+    let disk = cache::DiskCache::new(&dir);
+    let codec = Codec::of::<Number>();
+    disk.store(5, &StageValue::new(Number(2.0)), &codec).unwrap();
+    let path = disk.path_for(5);
+    // A valid header followed by 5 GB (sparse: it takes no disk space).
+    let file = std::fs::OpenOptions::new().write(true).open(&path).unwrap();
+    file.set_len(5 << 30).unwrap();
+    drop(file);
+    // The size check comes before the payload is read (which would need 5 GB of memory).
+    match disk.load(5, &codec) {
+        cache::DiskLookup::Corrupt(why) => assert!(why.contains("bytes but its header declares"), "{why}"),
+        _ => panic!("a 5 GB entry was accepted"),
+    }
+    assert!(!path.exists(), "the bad entry is removed");
+}
+
+#[test]
 fn disk_entries_of_another_type_or_encoding_are_recomputed_not_misread() {
     let dir = temp_dir("encoding");
     let disk = cache::DiskCache::new(&dir);

@@ -680,3 +680,34 @@ fn render_sizes_beyond_the_gpu_budget_are_refused() {
     assert!(stderr.contains("render size 10000x10000 needs about") && !stderr.contains("panicked"), "{stderr}");
     assert!(!out_png.exists());
 }
+
+/// A camera looking straight down once rendered a uniform image (no up direction); cameras
+/// at absurd coordinates are refused with the camera's name.
+#[test]
+fn a_camera_looking_straight_down_sees_the_scene_and_absurd_cameras_are_refused() {
+    let dir = tempdir("straight-down");
+    let default = std::fs::read_to_string(workspace().join("projects/default.ron")).unwrap();
+    let down = default.replace("position: (0.0, 2.2, 5.5)", "position: (0.0, 6.0, 0.0)");
+    assert_ne!(down, default, "the default camera moved; update this test");
+    let project = dir.join("down.ron");
+    std::fs::write(&project, down).unwrap();
+    let png = dir.join("down.png");
+    let out = lightloom()
+        .arg("render")
+        .arg(&project)
+        .args(["-o", png.to_str().unwrap(), "--width", "96", "--height", "64", "--no-disk-cache"])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let image = image::open(&png).unwrap().into_rgb8();
+    let luma: Vec<f64> = image.pixels().map(|p| p.0.iter().map(|c| *c as f64).sum::<f64>() / 3.0).collect();
+    let mean = luma.iter().sum::<f64>() / luma.len() as f64;
+    let spread = (luma.iter().map(|l| (l - mean).powi(2)).sum::<f64>() / luma.len() as f64).sqrt();
+    assert!(spread > 10.0, "a uniform image (std dev {spread:.2} of 255) from a camera looking down");
+    let far = default.replace("position: (0.0, 2.2, 5.5)", "position: (0.0, 2.2, 1e30)");
+    std::fs::write(&project, far).unwrap();
+    let out = lightloom().arg("info").arg(&project).output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("camera 0 (`main`): needs coordinates within"), "{stderr}");
+}

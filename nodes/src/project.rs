@@ -223,16 +223,20 @@ impl Project {
         let mut errors = Vec::new();
         for (i, c) in self.cameras.iter().enumerate() {
             let numbers = c.position.iter().chain(&c.target).chain(std::iter::once(&c.fov_y_deg));
-            if numbers.clone().any(|v| !v.is_finite())
+            let limit = f64::from(crate::limits::MAX_COORDINATE);
+            let distance = glam::DVec3::from(c.position).distance(glam::DVec3::from(c.target));
+            if numbers.clone().any(|v| !v.is_finite() || v.abs() > limit)
                 || !(1.0..=170.0).contains(&c.fov_y_deg)
-                || c.position == c.target
+                || distance.is_nan()
+                || distance < 1e-6
             {
                 errors.push(GraphError {
                     node: None,
                     port: None,
                     param: None,
                     message: format!(
-                        "camera {i} (`{}`): needs finite numbers, fov_y_deg in 1..=170, position != target",
+                        "camera {i} (`{}`): needs coordinates within ±{limit:e} m, fov_y_deg in 1..=170, and a \
+                         target apart from its position",
                         c.name
                     ),
                 });

@@ -25,13 +25,19 @@ pub struct PinholeCamera {
     pub fov_y_deg: f64,
 }
 
+/// The camera frame `(right, up)` for a view direction: up is world +Y where it can be; looking
+/// straight up or down, right is +X. The viewport and the reference share it.
+pub fn camera_basis(forward: DVec3) -> (DVec3, DVec3) {
+    let right = forward.cross(DVec3::Y).try_normalize().unwrap_or(DVec3::X);
+    (right, right.cross(forward))
+}
+
 impl PinholeCamera {
     /// Direction through image point `(x, y)` in pixels (`y` down), matching the viewport's
     /// right-handed perspective.
     pub fn ray(&self, x: f64, y: f64, width: usize, height: usize) -> DVec3 {
         let forward = (self.target - self.position).normalize();
-        let right = forward.cross(DVec3::Y).try_normalize().unwrap_or(DVec3::X);
-        let up = right.cross(forward);
+        let (right, up) = camera_basis(forward);
         let tan = (self.fov_y_deg.to_radians() / 2.0).tan();
         let aspect = width as f64 / height as f64;
         let ndc_x = 2.0 * x / width as f64 - 1.0;

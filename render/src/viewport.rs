@@ -45,7 +45,10 @@ impl CameraView {
         let near = (far / 5000.0).max(0.001);
         // wgpu clip space: right-handed view, depth in [0, 1], NDC y up (the "directx" form).
         let proj = glam::camera::rh::proj::directx::perspective(self.fov_y_deg.to_radians(), aspect, near, far);
-        proj * glam::camera::rh::view::look_at_mat4(self.position, self.target, Vec3::Y)
+        // The reference's frame, so looking straight down still has an up direction.
+        let forward = (self.target - self.position).as_dvec3().normalize_or(glam::DVec3::NEG_Z);
+        let (_, up) = lightloom_nodes::reference::camera_basis(forward);
+        proj * glam::camera::rh::view::look_at_mat4(self.position, self.target, up.as_vec3())
     }
 }
 

@@ -66,8 +66,7 @@ impl OrbitCamera {
     /// Moves the target so the scene follows a drag of `(dx, dy)` pixels.
     pub fn pan(&mut self, (dx, dy): (f64, f64), viewport_height: f64) {
         let forward = (self.target - self.position()).normalize();
-        let right = forward.cross(DVec3::Y).try_normalize().unwrap_or(DVec3::X);
-        let up = right.cross(forward);
+        let (right, up) = lightloom_nodes::reference::camera_basis(forward);
         let world_per_pixel =
             2.0 * self.distance * (self.fov_y_deg.to_radians() / 2.0).tan() / viewport_height.max(1.0);
         self.target += (-right * dx + up * dy) * world_per_pixel;

@@ -153,6 +153,7 @@ fn malformed_projects_fail_with_clear_errors_and_exit_code_two() {
         ("unknown_field.ron", "Unexpected field named `colour`"),
         ("missing_output_input.ron", "node `out` port `scene`: required Scene input is not connected"),
         ("duplicate_ids.ron", "node `o`: duplicate node id"),
+        ("no_output.ron", "no_output.ron: the project has no Output node"),
     ];
     let dir = workspace().join("tests/malformed");
     let listed: Vec<&str> = corpus.iter().map(|c| c.0).collect();

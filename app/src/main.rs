@@ -70,6 +70,15 @@ enum Command {
 /// Exit codes: 0 success, 1 replay regression, 2 bad input or failure.
 fn main() {
     let cli = Cli::parse();
+    // Errors name the project they concern, even those raised far from where it was read.
+    let project = match &cli.command {
+        Some(Command::Render(a)) => Some(a.project.clone()),
+        Some(Command::Eval(a)) => Some(a.project.clone()),
+        Some(Command::Info(a)) => Some(a.project.clone()),
+        Some(Command::Accuracy(a)) => Some(a.project.clone()),
+        None => cli.editor.project.clone(),
+        _ => None,
+    };
     let result: Result<bool> = match cli.command {
         Some(Command::Render(args)) => project_commands::render(&args).map(|_| true),
         Some(Command::Eval(args)) => project_commands::eval(&args).map(|_| true),
@@ -84,7 +93,11 @@ fn main() {
         Ok(true) => {}
         Ok(false) => std::process::exit(1),
         Err(error) => {
-            eprintln!("error: {error:#}");
+            let message = format!("{error:#}");
+            match project.map(|p| p.display().to_string()) {
+                Some(path) if !message.contains(&path) => eprintln!("error: {path}: {message}"),
+                _ => eprintln!("error: {message}"),
+            }
             std::process::exit(2);
         }
     }

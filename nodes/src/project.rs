@@ -178,6 +178,9 @@ impl Project {
     /// Loads a project, applies `node.param=value` overrides, then validates it. Validation
     /// errors carry the line where the offending node is declared.
     pub fn load_with_overrides(path: &Path, overrides: &[String]) -> Result<(Self, Graph), ProjectError> {
+        remove_stale_temp_files(path);
+        crate::limits::check_regular_file(path, MAX_PROJECT_BYTES)
+            .map_err(|e| ProjectError::Io { path: path.into(), cause: std::io::Error::other(e) })?;
         let text = std::fs::read_to_string(path).map_err(|source| match source.kind() {
             std::io::ErrorKind::InvalidData => ProjectError::Syntax {
                 path: path.into(),
@@ -313,6 +316,7 @@ impl Project {
     }
 
     fn write_atomically(&self, path: &Path, backup: bool) -> Result<(), ProjectError> {
+        remove_stale_temp_files(path);
         let save_err = |cause| ProjectError::Save { path: path.into(), cause };
         let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
         let file_name =
@@ -509,5 +513,78 @@ pub fn default_project() -> Project {
             link("scene", "scene", "output", "scene"),
             link("material", "material", "output", "material"),
         ],
+    }
+}
+
+/// Largest project file read.
+pub const MAX_PROJECT_BYTES: u64 = 64 << 20;
+
+/// Removes temporary files an interrupted atomic write of `path` left next to it (a save or
+/// image write killed before its rename): `.NAME.XXXXXX[.ext]` and `.NAME.bak.XXXXXX`, the
+/// names `tempfile` gives them here. Runs before each save and load of `path`.
+pub fn remove_stale_temp_files(path: &Path) {
+    let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let (Some(name), Ok(entries)) = (path.file_name(), std::fs::read_dir(dir)) else { return };
+    let prefix = format!(".{}.", name.to_string_lossy());
+    let ext = path.extension().map(|e| format!(".{}", e.to_string_lossy())).unwrap_or_default();
+    for entry in entries.flatten() {
+        let file = entry.file_name().to_string_lossy().to_string();
+        let Some(rest) = file.strip_prefix(&prefix) else { continue };
+        let rest = rest.strip_prefix("bak.").unwrap_or(rest);
+        let random = rest.strip_suffix(ext.as_str()).filter(|r| r.len() == 6).unwrap_or(rest);
+        if random.len() == 6 && random.chars().all(|c| c.is_ascii_alphanumeric()) && entry.path().is_file() {
+            let _ = std::fs::remove_file(entry.path());
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// What a save killed at each step leaves behind, then the next start: the project reads
+    /// whole (old or new), and no temporary file is left.
+    #[test]
+    fn a_save_killed_at_any_step_leaves_a_readable_project_and_no_temp_files() {
+        let dir = std::env::temp_dir().join(format!("lightloom-killed-save-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("scene.ron");
+        let old = default_project();
+        old.save(&path).unwrap();
+        let mut new = default_project();
+        new.cameras[0].fov_y_deg = 55.0;
+        let new_text = new.to_ron();
+        let half = &new_text[..new_text.len() / 2];
+        // (temporary files present, whether the rename happened)
+        let steps: [(&[(&str, &str)], bool); 4] = [
+            (&[(".scene.ron.a1B2c3", half)], false),
+            (&[(".scene.ron.a1B2c3", &new_text)], false),
+            (&[(".scene.ron.a1B2c3", &new_text), (".scene.ron.bak.Zz9Yy8", half)], false),
+            (&[(".scene.ron.bak.Zz9Yy8", &new_text)], true),
+        ];
+        std::fs::write(dir.join(".scene.ron.notes"), "not ours").unwrap();
+        for (leftovers, renamed) in steps {
+            old.save(&path).unwrap();
+            if renamed {
+                std::fs::write(&path, &new_text).unwrap();
+            }
+            for (name, text) in leftovers {
+                std::fs::write(dir.join(name), text).unwrap();
+            }
+            let (loaded, _) = Project::load(&path).expect("the project reads whole");
+            let fov = loaded.cameras[0].fov_y_deg;
+            assert_eq!(fov, if renamed { 55.0 } else { old.cameras[0].fov_y_deg });
+            let mut names: Vec<String> =
+                std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into()).collect();
+            names.sort();
+            assert_eq!(names, [".scene.ron.notes", "scene.ron", "scene.ron.bak"], "after {leftovers:?}");
+        }
+    }
+
+    #[test]
+    fn special_and_huge_files_are_not_read_as_projects() {
+        let e = Project::load(Path::new("/dev/zero")).unwrap_err().to_string();
+        assert!(e.contains("/dev/zero") && e.contains("not a regular file"), "{e}");
     }
 }

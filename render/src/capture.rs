@@ -91,6 +91,7 @@ fn write_atomically(path: &Path, write: impl FnOnce(&Path) -> Result<(), String>
     let name = path.file_name().ok_or_else(|| format!("{} is not a file path", path.display()))?.to_string_lossy();
     let ext = path.extension().map(|e| format!(".{}", e.to_string_lossy())).unwrap_or_default();
     let cannot = |e: &dyn std::fmt::Display| format!("cannot write {}: {e}", path.display());
+    lightloom_nodes::project::remove_stale_temp_files(path);
     // The temporary file keeps the extension: the image writers pick the format from it.
     let tmp =
         tempfile::Builder::new().prefix(&format!(".{name}.")).suffix(&ext).tempfile_in(dir).map_err(|e| cannot(&e))?;

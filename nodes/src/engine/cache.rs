@@ -115,6 +115,13 @@ impl DiskCache {
             for file in files.flatten() {
                 let path = file.path();
                 if path.extension().is_none_or(|e| e != "bin") {
+                    // A write killed before its rename leaves `.tmpXXXXXX`: gone after an hour.
+                    let stale = file.metadata().and_then(|m| m.modified()).ok().and_then(|t| t.elapsed().ok());
+                    if file.file_name().to_string_lossy().starts_with(".tmp")
+                        && stale.is_some_and(|age| age.as_secs() > 3600)
+                    {
+                        let _ = std::fs::remove_file(&path);
+                    }
                     continue;
                 }
                 if let Ok(meta) = file.metadata() {

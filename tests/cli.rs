@@ -712,3 +712,46 @@ fn a_camera_looking_straight_down_sees_the_scene_and_absurd_cameras_are_refused(
     assert_eq!(out.status.code(), Some(2), "{stderr}");
     assert!(stderr.contains("camera 0 (`main`): needs coordinates within"), "{stderr}");
 }
+
+/// `info` says "valid" only when every file the project names loads: a broken glTF or
+/// environment map is reported with its node and file, exit code 2.
+#[test]
+fn info_loads_every_asset_before_calling_a_project_valid() {
+    let dir = tempdir("info-assets");
+    let gltf = shared_assets().join("gltf/assimp-glTF2/IndexOutOfRange/IndexOutOfRange.gltf");
+    let truncated_hdr = dir.join("truncated.hdr");
+    let hdr = std::fs::read(shared_assets().join("envmaps/courtyard.hdr")).unwrap();
+    std::fs::write(&truncated_hdr, &hdr[..hdr.len() / 3]).unwrap();
+    let project = |scene_file: &Path, sky_file: &Path| {
+        format!(
+            r#"(version: 3, nodes: [
+                (id: "scene", kind: "Scene", params: {{"file": Path("{}")}}),
+                (id: "sky", kind: "EnvironmentMap", params: {{"source": Choice("file"), "file": Path("{}")}}),
+                (id: "out", kind: "Output"),
+            ], links: [
+                (from: ("scene", "scene"), to: ("out", "scene")),
+                (from: ("sky", "environment"), to: ("out", "environment")),
+            ])"#,
+            scene_file.display(),
+            sky_file.display()
+        )
+    };
+    let good_gltf = shared_assets().join("gltf/assimp-glTF2/BoxTextured-glTF/BoxTextured.gltf");
+    let good_hdr = shared_assets().join("envmaps/courtyard.hdr");
+    for (scene_file, sky_file, needle) in [
+        (&gltf, &good_hdr, "IndexOutOfRange.gltf"),
+        (&good_gltf, &truncated_hdr, "truncated.hdr"),
+        (&good_gltf, &good_hdr, ""),
+    ] {
+        let path = dir.join("p.ron");
+        std::fs::write(&path, project(scene_file, sky_file)).unwrap();
+        let out = lightloom().arg("info").arg(&path).env("XDG_CACHE_HOME", dir.join("cache")).output().unwrap();
+        let (stdout, stderr) = (String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+        if needle.is_empty() {
+            assert!(out.status.success() && stdout.contains("valid: every asset loads"), "{stdout}{stderr}");
+        } else {
+            assert_eq!(out.status.code(), Some(2), "{needle}: {stdout}{stderr}");
+            assert!(stderr.contains(needle) && !stdout.contains("valid"), "{needle}: {stderr}");
+        }
+    }
+}

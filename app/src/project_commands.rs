@@ -427,6 +427,21 @@ pub fn info(args: &InfoArgs) -> Result<()> {
         }
     }
     find_output(&graph, None).map_err(|e| anyhow!(e))?;
-    println!("valid");
+    // Valid means renderable: every file a parameter names is loaded.
+    let request = Request::assets(&graph);
+    let loads: Vec<String> =
+        request.tiers.iter().flat_map(|t| &t.stages).map(|s| format!("{}.{}", s.node, s.stage)).collect();
+    let evaluation = evaluate(Arc::new(EvalOptions::default().engine()), &graph, request, true);
+    let failed = evaluation.report.failed();
+    if let Some(s) = failed.first() {
+        bail!("{}.{}: {}", s.node, s.stage, s.error.as_deref().unwrap_or("failed"));
+    }
+    for s in evaluation.report.stages.iter().filter(|s| !s.warnings.is_empty()) {
+        for w in &s.warnings {
+            println!("warning: {}.{}: {w}", s.node, s.stage);
+        }
+    }
+    println!("assets: {} loaded ({})", loads.len(), if loads.is_empty() { "none".into() } else { loads.join(", ") });
+    println!("valid: every asset loads");
     Ok(())
 }

@@ -50,6 +50,22 @@ impl Request {
         Self { tiers: vec![Tier { label: "every stage".into(), stages }] }
     }
 
+    /// The stages that read a file named by a parameter (so loading every asset means
+    /// evaluating these; `lightloom info` does).
+    pub fn assets(graph: &Graph) -> Self {
+        let mut stages = Vec::new();
+        for node in &graph.nodes {
+            let names_file = |param: &&str| {
+                matches!(node.kind.param(param).map(|p| &p.kind), Some(crate::node_kind::ParamKind::Path { .. }))
+                    && matches!(node.params.get(*param), Some(crate::node_kind::ParamValue::Path(p)) if !p.is_empty())
+            };
+            for stage in node.kind.stages.iter().filter(|s| s.params.iter().any(names_file)) {
+                stages.push(StageRef::new(&node.id, stage.name));
+            }
+        }
+        Self::new("assets", stages)
+    }
+
     pub fn new(label: impl Into<String>, stages: Vec<StageRef>) -> Self {
         Self { tiers: vec![Tier { label: label.into(), stages }] }
     }

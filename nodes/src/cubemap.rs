@@ -15,8 +15,18 @@ use rayon::prelude::*;
 use std::f64::consts::PI;
 
 // Stage value types this module owns (see `engine::value`).
-crate::stage_type!(Equirect, "image", |v| v.pixels.len() * 12);
-crate::stage_type!(CubeMap, "cube map", |v| v.texels.len() * 12);
+crate::stage_type!(
+    Equirect,
+    "image",
+    |v| v.pixels.len() * 12,
+    numbers = |v| v.pixels.iter().flatten().map(|x| f64::from(*x))
+);
+crate::stage_type!(
+    CubeMap,
+    "cube map",
+    |v| v.texels.len() * 12,
+    numbers = |v| v.texels.iter().flatten().map(|x| f64::from(*x))
+);
 
 /// Number of cube faces.
 pub const FACES: usize = 6;

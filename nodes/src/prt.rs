@@ -20,7 +20,12 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 // Stage value types this module owns (see `engine::value`).
-crate::stage_type!(IncidentSh, "incident radiance SH", |v| v.coeffs.len() * 4);
+crate::stage_type!(
+    IncidentSh,
+    "incident radiance SH",
+    |v| v.coeffs.len() * 4,
+    numbers = |v| v.coeffs.iter().map(|x| f64::from(*x))
+);
 crate::stage_type!(GlossyLobe, "SH lobe", |v| v.factors.len() * 8 + 32);
 
 /// Per-receiver incident radiance `R = L·V` in SH, RGB interleaved: `(receiver·n² + k)·3 + c`.

@@ -25,7 +25,13 @@ use std::f64::consts::PI;
 
 // Stage value types this module owns (see `engine::value`).
 crate::stage_type!(Receivers, "receivers", |v| v.len() * 36);
-crate::stage_type!(ShTransport, "SH transport", encoding = 1, |v| (v.visibility.len() + v.transfer.len()) * 4);
+crate::stage_type!(
+    ShTransport,
+    "SH transport",
+    encoding = 1,
+    |v| (v.visibility.len() + v.transfer.len()) * 4,
+    numbers = |v| v.visibility.iter().chain(&v.transfer).map(|x| f64::from(*x))
+);
 crate::stage_type!(HaarTransport, "Haar transport", encoding = 1, |v| v
     .visibility
     .iter()

@@ -25,10 +25,26 @@ use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
 
 // Stage value types this module owns (see `engine::value`).
-crate::stage_type!(BrdfTable, "local-frame BRDF table", |v| (v.diffuse.len() + v.specular.len()) * 4);
-crate::stage_type!(LocalProducts, "local-frame lighting × visibility", encoding = 1, |v| v.values.len() * 4);
-crate::stage_type!(TexelIrradiance, "per-texel diffuse transfer", encoding = 1, |v| v.texels.len() * 12
-    + v.products.len() * 4);
+crate::stage_type!(
+    BrdfTable,
+    "local-frame BRDF table",
+    |v| (v.diffuse.len() + v.specular.len()) * 4,
+    numbers = |v| v.diffuse.iter().chain(&v.specular).map(|x| f64::from(*x))
+);
+crate::stage_type!(
+    LocalProducts,
+    "local-frame lighting × visibility",
+    encoding = 1,
+    |v| v.values.len() * 4,
+    numbers = |v| v.values.iter().map(|x| f64::from(*x))
+);
+crate::stage_type!(
+    TexelIrradiance,
+    "per-texel diffuse transfer",
+    encoding = 1,
+    |v| v.texels.len() * 12 + v.products.len() * 4,
+    numbers = |v| v.texels.iter().flatten().chain(&v.products).map(|x| f64::from(*x))
+);
 crate::stage_type!(FrameTable, "pre-rotated lighting table", encoding = 1, |v| v.approx_bytes());
 
 /// Sub-cell levels below a cell used to average functions over it (16 samples per cell).

@@ -754,7 +754,17 @@ impl Engine {
             }
         }
         let outcome = (inst.spec.compute)(&ctx);
-        let warnings = ctx.warnings.into_inner().unwrap();
+        let mut warnings = ctx.warnings.into_inner().unwrap();
+        if let Ok(value) = &outcome {
+            let absurd = value.absurd_numbers();
+            if absurd > 0 {
+                warnings.push(format!(
+                    "{absurd} value(s) of its {} are NaN, infinite or beyond ±1e30: check this node's inputs and \
+                     parameters",
+                    value.type_name()
+                ));
+            }
+        }
         if outcome.is_ok() && !warnings.is_empty() {
             self.stage_warnings.lock().unwrap().insert(inst.key, warnings);
         }

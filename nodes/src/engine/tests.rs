@@ -294,6 +294,24 @@ fn test_kind(name: &'static str, compute: StageFn, persist: bool) -> NodeKindSpe
 
 use crate::node_kind::StageFn;
 
+/// SH with a NaN, an infinity and 1e38 among finite coefficients.
+fn absurd(_: &StageContext) -> Result<StageValue, StageError> {
+    Ok(StageValue::new(crate::sh::ShRgb {
+        bands: 2,
+        coeffs: vec![[1.0, f64::NAN, 2.0], [f64::INFINITY, 1e38, 0.5], [0.0; 3], [1e29; 3]],
+    }))
+}
+
+#[test]
+fn absurd_numbers_in_a_stage_output_are_reported_with_the_node() {
+    let graph = test_graph(&[("broken", "Absurd"), ("down", "Sum")], &[("broken", "down")]);
+    let eval = Engine::in_memory().evaluate(&graph, &CancelToken::default(), None);
+    let stage = eval.report.stages.iter().find(|s| s.node == "broken").unwrap();
+    assert_eq!(stage.warnings.len(), 1, "{:?}", stage.warnings);
+    assert!(stage.warnings[0].starts_with("3 value(s) of its SH are NaN, infinite or beyond"), "{:?}", stage.warnings);
+    assert!(eval.report.notes.iter().any(|n| n.starts_with("broken.value: 3 value(s)")), "{:?}", eval.report.notes);
+}
+
 fn test_registry() -> &'static [NodeKindSpec] {
     static REGISTRY: std::sync::OnceLock<Vec<NodeKindSpec>> = std::sync::OnceLock::new();
     REGISTRY.get_or_init(|| {
@@ -304,6 +322,7 @@ fn test_registry() -> &'static [NodeKindSpec] {
             test_kind("Meet", meet, false),
             test_kind("Fails", fails, false),
             test_kind("Sum", sum, false),
+            test_kind("Absurd", absurd, false),
         ];
         for k in &mut kinds {
             // The test stages read their upstream stage as `value`.

@@ -19,6 +19,17 @@ pub trait StageType: Any + Send + Sync + fmt::Debug {
     fn approx_bytes(&self) -> usize {
         std::mem::size_of_val(self)
     }
+
+    /// How many of its numbers are NaN, infinite or beyond ±1e30 (the engine warns, naming
+    /// the stage that produced them). Numeric types say; others have none.
+    fn absurd_numbers(&self) -> usize {
+        0
+    }
+}
+
+/// Counts NaN, infinite and beyond-±1e30 numbers (for [`StageType::absurd_numbers`]).
+pub fn count_absurd(numbers: impl Iterator<Item = f64>) -> usize {
+    numbers.filter(|x| x.is_nan() || x.abs() > 1e30).count()
 }
 
 /// A stage type with an encoding for the disk cache. `ENCODING` is bumped whenever the
@@ -31,6 +42,7 @@ pub trait Persisted: StageType + Serialize + DeserializeOwned {
 trait Erased: Any + Send + Sync + fmt::Debug {
     fn type_name(&self) -> &'static str;
     fn approx_bytes(&self) -> usize;
+    fn absurd_numbers(&self) -> usize;
     fn as_any(&self) -> &dyn Any;
 }
 
@@ -41,6 +53,10 @@ impl<T: StageType> Erased for T {
 
     fn approx_bytes(&self) -> usize {
         StageType::approx_bytes(self)
+    }
+
+    fn absurd_numbers(&self) -> usize {
+        StageType::absurd_numbers(self)
     }
 
     fn as_any(&self) -> &dyn Any {
@@ -73,6 +89,11 @@ impl StageValue {
     /// Approximate heap size, for the memory budget.
     pub fn approx_bytes(&self) -> usize {
         64 + self.0.approx_bytes()
+    }
+
+    /// NaN, infinite and beyond-±1e30 numbers in the value.
+    pub fn absurd_numbers(&self) -> usize {
+        self.0.absurd_numbers()
     }
 }
 
@@ -113,16 +134,23 @@ impl Codec {
     }
 }
 
-/// Implements [`StageType`] (and, with `encoding = N`, [`Persisted`]) for a technique's type:
-/// `stage_type!(ShRgb, "SH", encoding = 1, |v| v.coeffs.len() * 24);`
+/// Implements [`StageType`] (and, with `encoding = N`, [`Persisted`]) for a technique's type,
+/// with its approximate size and, with `numbers = |v| …`, an iterator over its `f64` numbers
+/// for the engine's check of absurd values:
+/// `stage_type!(ShRgb, "SH", encoding = 1, |v| v.coeffs.len() * 24, numbers = |v| v.coeffs.iter().flatten().copied());`
 #[macro_export]
 macro_rules! stage_type {
-    ($ty:ty, $name:literal $(, encoding = $enc:literal)? $(, |$v:ident| $bytes:expr)? $(,)?) => {
+    ($ty:ty, $name:literal $(, encoding = $enc:literal)? $(, |$v:ident| $bytes:expr)?
+        $(, numbers = |$n:ident| $numbers:expr)? $(,)?) => {
         impl $crate::engine::StageType for $ty {
             const NAME: &'static str = $name;
             $(fn approx_bytes(&self) -> usize {
                 let $v = self;
                 $bytes
+            })?
+            $(fn absurd_numbers(&self) -> usize {
+                let $n = self;
+                $crate::engine::value::count_absurd($numbers)
             })?
         }
         $(impl $crate::engine::Persisted for $ty {

@@ -23,7 +23,7 @@ use glam::DVec3;
 use std::f64::consts::PI;
 
 // Stage value types this module owns (see `engine::value`).
-crate::stage_type!(ShRgb, "SH", |v| v.coeffs.len() * 24);
+crate::stage_type!(ShRgb, "SH", |v| v.coeffs.len() * 24, numbers = |v| v.coeffs.iter().flatten().copied());
 
 /// Number of coefficients of an SH expansion with `bands` bands.
 pub const fn coeff_count(bands: usize) -> usize {

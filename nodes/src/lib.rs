@@ -14,6 +14,8 @@ pub mod cubemap;
 pub mod engine;
 pub mod envmap_io;
 pub mod frame;
+#[doc(hidden)]
+pub mod fuzzing;
 pub mod gltf_import;
 pub mod kinds;
 pub mod limits;

@@ -1,0 +1,4 @@
+#![no_main]
+//! Fuzz target: see `lightloom_nodes::fuzzing::disk_entry`.
+
+libfuzzer_sys::fuzz_target!(|data: &[u8]| lightloom_nodes::fuzzing::disk_entry(data));

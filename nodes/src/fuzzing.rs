@@ -1,0 +1,72 @@
+//! Entry points shared by the fuzz targets (`fuzz/fuzz_targets/`) and the regression corpus
+//! replayed by `cargo test` (`fuzz_corpus_replays_without_panics`): each takes arbitrary bytes
+//! through one loader as the program would, and must return (an error is fine) without
+//! panicking, hanging or allocating without bound.
+
+use std::path::{Path, PathBuf};
+
+/// A project file: RON parsing, migration and graph building.
+pub fn project(bytes: &[u8]) {
+    let path = Path::new("fuzz.ron");
+    let Ok(text) = std::str::from_utf8(bytes) else { return };
+    if let Ok(project) = crate::project::Project::from_ron(text, path) {
+        let _ = project.graph(path);
+        let _ = project.to_ron();
+    }
+}
+
+/// An environment map: the first byte picks the format (EXR or Radiance HDR); the rest is
+/// the file, loaded and projected to SH.
+pub fn envmap(bytes: &[u8]) {
+    let Some((format, file)) = bytes.split_first() else { return };
+    let name = if format % 2 == 0 { "map.exr" } else { "map.hdr" };
+    let path = scratch_file(name, file);
+    if let Ok(loaded) = crate::envmap_io::load_equirect(&path) {
+        let sh = crate::sh::project_samples(3, loaded.image.samples());
+        assert!(sh.coeffs.iter().flatten().all(|c| c.is_finite()), "a loaded map projects to non-finite SH");
+    }
+}
+
+/// A glTF (JSON or binary) imported and built into the ray-tracing BVH.
+pub fn gltf(bytes: &[u8]) {
+    let name = if bytes.starts_with(b"glTF") { "model.glb" } else { "model.gltf" };
+    let path = scratch_file(name, bytes);
+    if let Ok(scene) = crate::gltf_import::import(&path) {
+        let meshes = crate::mesh::MeshSet { meshes: scene.meshes };
+        let _ = crate::raycast::RayScene::build(&meshes);
+    }
+}
+
+/// A disk-cache entry decoded as each persisted type the first byte picks.
+pub fn disk_entry(bytes: &[u8]) {
+    use crate::engine::Codec;
+    let Some((pick, entry)) = bytes.split_first() else { return };
+    let codecs = [
+        Codec::of::<crate::transport::ShTransport>(),
+        Codec::of::<crate::transport::SphericalTransport>(),
+        Codec::of::<crate::triple_product::LocalProducts>(),
+        Codec::of::<Vec<crate::single_scattering::FTable>>(),
+    ];
+    let codec = &codecs[*pick as usize % codecs.len()];
+    let dir = scratch_dir().join("cache");
+    let cache = crate::engine::cache::DiskCache::with_budget(&dir, 1 << 30);
+    let key = 0x5eed;
+    let path = cache.path_for(key);
+    std::fs::create_dir_all(path.parent().expect("entries live in a folder")).expect("scratch folder");
+    std::fs::write(&path, entry).expect("scratch file");
+    let _ = cache.load(key, codec);
+}
+
+/// A per-process scratch folder (on tmpfs where there is one).
+fn scratch_dir() -> PathBuf {
+    let base = if Path::new("/dev/shm").is_dir() { PathBuf::from("/dev/shm") } else { std::env::temp_dir() };
+    let dir = base.join(format!("lightloom-fuzz-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("scratch folder");
+    dir
+}
+
+fn scratch_file(name: &str, bytes: &[u8]) -> PathBuf {
+    let path = scratch_dir().join(name);
+    std::fs::write(&path, bytes).expect("scratch file");
+    path
+}

@@ -10,6 +10,8 @@ use lightloom_nodes::node_kind::Availability;
 use lightloom_nodes::project::Project;
 use lightloom_nodes::reference::{self, ImageError, PinholeCamera};
 use lightloom_render::{CameraView, CapturedFrame, GpuContext, ViewportRenderer};
+use std::collections::HashMap;
+use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Instant;
@@ -119,17 +121,49 @@ pub(crate) fn evaluate(engine: Arc<Engine>, graph: &Graph, request: Request, qui
             .unwrap()
             .progress_chars("=> "),
     );
+    // Long stages report their progress and an estimate of the time left: on the bar in a
+    // terminal, as a line every tenth of the way otherwise (logs, CI).
+    let lines = !quiet && !std::io::stderr().is_terminal();
+    let mut started: HashMap<(String, String), (std::time::Instant, u32)> = HashMap::new();
     for event in job.events.iter() {
         match event {
             EvalEvent::Started { stages } => bar.set_length(stages as u64),
-            EvalEvent::StageStarted { node, stage } => bar.set_message(format!("{node}.{stage}")),
+            EvalEvent::StageStarted { node, stage } => {
+                bar.set_message(format!("{node}.{stage}"));
+                started.insert((node, stage), (std::time::Instant::now(), 0));
+            }
             EvalEvent::StageFinished { .. } => bar.inc(1),
             EvalEvent::Finished => break,
-            EvalEvent::StageProgress { .. } | EvalEvent::TierReady { .. } => bar.tick(),
+            EvalEvent::StageProgress { node, stage, fraction } => {
+                let Some((start, tenths)) = started.get_mut(&(node.clone(), stage.clone())) else { continue };
+                let elapsed = start.elapsed().as_secs_f64();
+                if fraction <= 0.01 || fraction >= 1.0 || elapsed < 2.0 {
+                    bar.tick();
+                    continue;
+                }
+                let left = elapsed * (1.0 - fraction) / fraction;
+                let message = format!("{node}.{stage} {:.0}% (about {} left)", fraction * 100.0, duration_text(left));
+                bar.set_message(message.clone());
+                let tenth = (fraction * 10.0) as u32;
+                if lines && tenth > *tenths && (*tenths > 0 || tenth == 1 || elapsed > 5.0) {
+                    *tenths = tenth;
+                    eprintln!("evaluating {message}");
+                }
+            }
+            EvalEvent::TierReady { .. } => bar.tick(),
         }
     }
     bar.finish_and_clear();
     job.wait()
+}
+
+/// "40 s", "3 min", "2 h".
+fn duration_text(seconds: f64) -> String {
+    match seconds {
+        s if s < 90.0 => format!("{s:.0} s"),
+        s if s < 5400.0 => format!("{:.0} min", s / 60.0),
+        s => format!("{:.1} h", s / 3600.0),
+    }
 }
 
 pub(crate) fn fail_on_errors(evaluation: &Evaluation, needed: &[String]) -> Result<()> {
@@ -294,8 +328,9 @@ pub fn eval(args: &EvalArgs) -> Result<()> {
         let output = find_output(graph, None).map_err(|e| anyhow!("{e} (or pass --all)"))?;
         Ok(output_request(graph, &output.id))
     };
-    let initial = evaluate(engine.clone(), &base, request(&base)?, true);
-    let after = evaluate(engine, &changed, request(&changed)?, true);
+    let quiet = args.eval.quiet || args.report == "json";
+    let initial = evaluate(engine.clone(), &base, request(&base)?, quiet);
+    let after = evaluate(engine, &changed, request(&changed)?, quiet);
     if args.report == "json" {
         let json = serde_json::json!({
             "project": args.project.display().to_string(),

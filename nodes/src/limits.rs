@@ -18,6 +18,9 @@ pub const MAX_GLTF_INSTANCES: usize = 100_000;
 pub const MAX_GLTF_NODE_VISITS: usize = 1_000_000;
 /// Most triangles a scene may hold in total.
 pub const MAX_TRIANGLES: usize = 20_000_000;
+/// Most visibility rays one transport precompute may cast (receivers × rays per receiver):
+/// about an hour on a 2-core machine. Higher settings are refused with the estimate.
+pub const MAX_TOTAL_RAYS: u64 = 4_000_000_000;
 /// Largest world coordinate, in metres: beyond it f32 geometry loses all precision.
 pub const MAX_COORDINATE: f32 = 1e7;
 /// Largest render target, in bytes of GPU memory (colour, depth, MSAA and readback).

@@ -1131,3 +1131,20 @@ fn the_engine_and_graph_model_import_no_technique() {
         }
     }
 }
+
+/// Transport parameters at their documented maxima once ran for minutes and took gigabytes;
+/// beyond the rays budget the precompute is refused at once, with the estimate and what to
+/// lower.
+#[test]
+fn transport_beyond_the_rays_budget_is_refused_with_its_estimate() {
+    let mut graph = default_graph();
+    // About 70k receivers: enough to exceed the budget at 65536 rays, cheap to mesh.
+    graph.set_param("scene", "tessellation", ParamValue::Int(200)).unwrap();
+    graph.set_param("scene", "transport_rays", ParamValue::Int(65536)).unwrap();
+    let request = Request::new("sh transport", vec![StageRef::new("scene", "transport_sh")]);
+    let eval = Engine::in_memory().evaluate_request(&graph, &request, &CancelToken::default(), None, &|_, _| {});
+    let failed = eval.report.failed();
+    let stage = failed.iter().find(|s| s.stage == "transport_sh").expect("transport_sh is refused");
+    let error = stage.error.as_deref().unwrap_or_default();
+    assert!(error.contains("visibility rays") && error.contains("lower transport_rays or tessellation"), "{error}");
+}

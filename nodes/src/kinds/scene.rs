@@ -299,6 +299,7 @@ fn texel_receivers(ctx: &StageContext) -> Result<StageValue, StageError> {
 fn transport_texels(ctx: &StageContext) -> Result<StageValue, StageError> {
     let (depth, keep) = (ctx.int("local_frame_depth")? as usize, ctx.int("local_frame_terms")? as usize);
     let (r, s) = transport_inputs(ctx, "texel_receivers")?;
+    check_ray_budget(r.len(), 20 << (2 * depth.min(20)), "visibility_texture_size or local_frame_depth")?;
     Ok(StageValue::new(transport::spherical_transport(s, r, depth, keep, ctx.cancel_token(), &|f| ctx.progress(f))?))
 }
 
@@ -311,6 +312,13 @@ fn geometry(ctx: &StageContext) -> Result<StageValue, StageError> {
     if let Some(path) = ctx.path("file")? {
         let imported = crate::gltf_import::import(&path).map_err(StageError::Failed)?;
         meshes.extend(imported.meshes);
+    }
+    let triangles: usize = meshes.iter().map(|m| m.triangle_count()).sum();
+    if triangles > crate::limits::MAX_TRIANGLES {
+        return Err(StageError::Failed(format!(
+            "the scene has {triangles} triangles; the limit is {}: lower tessellation",
+            crate::limits::MAX_TRIANGLES
+        )));
     }
     Ok(StageValue::new(MeshSet { meshes }))
 }
@@ -335,9 +343,25 @@ fn transport_inputs<'a>(ctx: &'a StageContext, receivers: &str) -> Result<(&'a R
     Ok((r, s))
 }
 
+/// Refuses a precompute of more than [`crate::limits::MAX_TOTAL_RAYS`] rays, saying which
+/// parameters to lower.
+fn check_ray_budget(receivers: usize, per_receiver: usize, lower: &str) -> Result<(), StageError> {
+    let total = receivers as u64 * per_receiver as u64;
+    if total > crate::limits::MAX_TOTAL_RAYS {
+        return Err(StageError::Failed(format!(
+            "this would cast {:.1e} visibility rays ({receivers} receivers × {per_receiver}); the limit is {:.0e}: \
+             lower {lower}",
+            total as f64,
+            crate::limits::MAX_TOTAL_RAYS as f64
+        )));
+    }
+    Ok(())
+}
+
 fn transport_sh(ctx: &StageContext) -> Result<StageValue, StageError> {
     let (bands, rays) = (ctx.int("transport_bands")? as usize, ctx.int("transport_rays")? as usize);
     let (r, s) = transport_inputs(ctx, "receivers")?;
+    check_ray_budget(r.len(), rays, "transport_rays or tessellation")?;
     Ok(StageValue::new(transport::sh_transport(s, r, bands, rays, ctx.cancel_token(), &|f| ctx.progress(f))?))
 }
 
@@ -385,6 +409,7 @@ fn self_transport(
         let meshes = MeshSet { meshes: object_meshes()? };
         let scene = RayScene::build(&meshes);
         let receivers = Receivers::from_meshes(&meshes);
+        check_ray_budget(receivers.len(), rays, "transport_rays or tessellation")?;
         transport::sh_transport(&scene, &receivers, bands, rays, ctx.cancel_token(), &|_| {})
     })?;
     Ok(transport::ObjectTransport {
@@ -399,11 +424,13 @@ fn transport_haar(ctx: &StageContext) -> Result<StageValue, StageError> {
         ctx.choice("haar_resolution")?.parse().map_err(|_| StageError::Internal("haar_resolution".into()))?;
     let keep = ctx.int("haar_terms")? as usize;
     let (r, s) = transport_inputs(ctx, "receivers")?;
+    check_ray_budget(r.len(), 6 * size * size, "haar_resolution or tessellation")?;
     Ok(StageValue::new(transport::haar_transport(s, r, size, keep, ctx.cancel_token(), &|f| ctx.progress(f))?))
 }
 
 fn transport_local(ctx: &StageContext) -> Result<StageValue, StageError> {
     let (depth, keep) = (ctx.int("local_frame_depth")? as usize, ctx.int("local_frame_terms")? as usize);
     let (r, s) = transport_inputs(ctx, "receivers")?;
+    check_ray_budget(r.len(), 20 << (2 * depth.min(20)), "local_frame_depth or tessellation")?;
     Ok(StageValue::new(transport::spherical_transport(s, r, depth, keep, ctx.cancel_token(), &|f| ctx.progress(f))?))
 }

@@ -21,6 +21,7 @@ impl EditorApp {
         match self.doc.save_as(path) {
             Ok(()) => {
                 document::remember_recent(path);
+                self.action_errors.clear();
                 self.log_info(format!("saved {}", path.display()));
             }
             Err(e) => self.log_error(format!("{e:#}")),
@@ -56,6 +57,7 @@ impl EditorApp {
             Ok(doc) => {
                 self.doc.discard_recovery();
                 document::remember_recent(path);
+                self.action_errors.clear();
                 self.log_info(format!("opened {}", path.display()));
                 self.replace_document(doc);
                 if let Some((p, at)) = document::pending_recovery(self.doc.path.as_deref()) {

@@ -233,7 +233,8 @@ impl EditorApp {
     }
 
     pub(super) fn problems(&self) -> Vec<String> {
-        let mut out = self.graph_errors.clone();
+        let mut out = self.action_errors.clone();
+        out.extend(self.graph_errors.iter().cloned());
         if let Some(e) = &self.host_error {
             out.push(format!("viewport: {e}"));
         }

@@ -175,6 +175,9 @@ pub struct EditorApp {
     checked_revision: Option<(u64, PathBuf)>,
     built_graph: Option<lightloom_nodes::engine::Graph>,
     log: Vec<LogLine>,
+    /// Errors of the user's own actions (a failed save or open), listed with the problems
+    /// until the next successful save or open.
+    action_errors: Vec<String>,
     bottom_tab: BottomTab,
     clipboard: Option<edits::Clipboard>,
     file_dialog: egui_file_dialog::FileDialog,
@@ -323,6 +326,7 @@ impl EditorApp {
             checked_revision: None,
             built_graph: None,
             log: Vec::new(),
+            action_errors: Vec::new(),
             bottom_tab: BottomTab::Problems,
             clipboard: None,
             file_dialog: egui_file_dialog::FileDialog::new()
@@ -377,7 +381,12 @@ impl EditorApp {
     }
 
     fn log_error(&mut self, text: impl Into<String>) {
-        self.log.push(LogLine { at: SystemTime::now(), error: true, text: text.into() });
+        let text = text.into();
+        self.action_errors.push(text.clone());
+        if self.action_errors.len() > 5 {
+            self.action_errors.remove(0);
+        }
+        self.log.push(LogLine { at: SystemTime::now(), error: true, text });
         self.bottom_tab = BottomTab::Problems;
     }
 

@@ -298,3 +298,27 @@ fn the_ui_stays_responsive_while_a_slow_viewport_frame_renders() {
         assert!(start.elapsed() < Duration::from_secs(60), "the slow frame never arrived");
     }
 }
+
+/// A save that fails (here: the folder is a file; in life, a full disk or a lost network
+/// share) shows an error in the Problems panel and keeps the work unsaved, so nothing is lost.
+#[test]
+fn a_failed_save_is_shown_and_keeps_the_work_unsaved() {
+    let mut harness = harness(None);
+    settle(&mut harness);
+    let blocker = state_dir().join("not-a-folder");
+    std::fs::write(&blocker, "a file where a folder should be").unwrap();
+    harness
+        .state_mut()
+        .doc
+        .edit("test edit", None, |p| {
+            p.cameras[0].fov_y_deg = 50.0;
+            Ok(())
+        })
+        .unwrap();
+    harness.state_mut().doc.path = Some(blocker.join("project.ron"));
+    harness.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::S);
+    harness.run_steps(3);
+    assert!(harness.state().doc.is_dirty(), "the work stays marked unsaved");
+    harness.get_by_label_contains("not-a-folder/project.ron");
+    assert!(!blocker.join("project.ron").exists());
+}

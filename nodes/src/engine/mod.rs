@@ -129,12 +129,18 @@ impl StageContext<'_> {
         }
         if self.persist.is_some()
             && let Some(disk) = &self.engine.disk
-            && let DiskLookup::Hit(v) = disk.load(key, &codec)
         {
-            let v = Arc::new(v);
-            self.engine.memory.lock().unwrap().insert(key, v.clone());
-            self.memo_hits.fetch_add(1, Relaxed);
-            return Ok(Memo::new(v));
+            match disk.load(key, &codec) {
+                DiskLookup::Hit(v) => {
+                    let v = Arc::new(v);
+                    self.engine.memory.lock().unwrap().insert(key, v.clone());
+                    self.memo_hits.fetch_add(1, Relaxed);
+                    return Ok(Memo::new(v));
+                }
+                // Reported, then recomputed and written again below.
+                DiskLookup::Corrupt(why) => self.warn(format!("disk cache entry of a part was bad ({why}); recomputed")),
+                DiskLookup::Miss => {}
+            }
         }
         let v = Arc::new(StageValue::new(compute()?));
         self.cancel.check()?;

@@ -1148,3 +1148,39 @@ fn transport_beyond_the_rays_budget_is_refused_with_its_estimate() {
     let error = stage.error.as_deref().unwrap_or_default();
     assert!(error.contains("visibility rays") && error.contains("lower transport_rays or tessellation"), "{error}");
 }
+
+/// A corrupt memoised part (here every disk entry is damaged) is reported by the stage that
+/// reads it, recomputed, and written again.
+#[test]
+fn corrupt_memo_entries_are_reported_and_replaced() {
+    let dir = temp_dir("memo-corrupt");
+    let config = || EngineConfig { memory_budget_bytes: 1 << 30, disk_cache: Some(dir.clone()), ..Default::default() };
+    let graph = small_default_graph();
+    let request = Request::new("objects", vec![StageRef::new("scene", "transport_objects")]);
+    let run = || Engine::new(config()).evaluate_request(&graph, &request, &CancelToken::default(), None, &|_, _| {});
+    assert!(run().report.failed().is_empty());
+    let entries: Vec<PathBuf> = std::fs::read_dir(&dir)
+        .unwrap()
+        .flatten()
+        .flat_map(|shard| std::fs::read_dir(shard.path()).unwrap().flatten().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|e| e == "bin"))
+        .collect();
+    assert!(entries.len() >= 2, "the stage and its parts are on disk: {entries:?}");
+    for path in &entries {
+        let mut bytes = std::fs::read(path).unwrap();
+        let last = bytes.len() - 1;
+        bytes[last] ^= 0xff;
+        std::fs::write(path, bytes).unwrap();
+    }
+    let eval = run();
+    let stage = eval.report.stages.iter().find(|s| s.stage == "transport_objects").unwrap();
+    assert!(
+        stage.warnings.iter().any(|w| w.contains("disk cache entry of a part was bad") && w.contains("checksum")),
+        "{:?}",
+        stage.warnings
+    );
+    // Written again: a third engine reads every part without a warning.
+    let eval = run();
+    let stage = eval.report.stages.iter().find(|s| s.stage == "transport_objects").unwrap();
+    assert!(stage.warnings.is_empty(), "{:?}", stage.warnings);
+}

@@ -582,6 +582,54 @@ mod tests {
         }
     }
 
+    /// A disk that fills up during a save: the save fails with an error naming the file, the
+    /// previous project stays whole, and no temporary file is left. The write limit is set in a
+    /// child process (this test binary again), so other tests are not affected.
+    #[test]
+    fn a_full_disk_during_a_save_keeps_the_previous_project() {
+        let child = std::env::var_os("LIGHTLOOM_FULL_DISK_CHILD");
+        let dir = match &child {
+            Some(d) => PathBuf::from(d),
+            None => {
+                let dir = std::env::temp_dir().join(format!("lightloom-full-disk-{}", std::process::id()));
+                let _ = std::fs::remove_dir_all(&dir);
+                std::fs::create_dir_all(&dir).unwrap();
+                dir
+            }
+        };
+        let path = dir.join("scene.ron");
+        let mut big = default_project();
+        for i in 0..200 {
+            let mut node = big.nodes[0].clone();
+            node.id = format!("extra{i}");
+            big.nodes.push(node);
+        }
+        if child.is_none() {
+            default_project().save(&path).unwrap();
+            let out = std::process::Command::new(std::env::current_exe().unwrap())
+                .args(["--exact", "project::tests::a_full_disk_during_a_save_keeps_the_previous_project"])
+                .env("LIGHTLOOM_FULL_DISK_CHILD", &dir)
+                .output()
+                .unwrap();
+            assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stdout));
+            let (loaded, _) = Project::load(&path).expect("the previous project reads whole");
+            assert_eq!(loaded, default_project());
+            let names: Vec<String> =
+                std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into()).collect();
+            assert_eq!(names, ["scene.ron"], "no temporary file is left");
+            return;
+        }
+        // In the child: files may not grow past 8 KiB (as on a full disk), then save.
+        unsafe {
+            libc::signal(libc::SIGXFSZ, libc::SIG_IGN);
+            let limit = libc::rlimit { rlim_cur: 8192, rlim_max: 8192 };
+            assert_eq!(libc::setrlimit(libc::RLIMIT_FSIZE, &limit), 0);
+        }
+        assert!(big.to_ron().len() > 8192);
+        let e = big.save_without_backup(&path).unwrap_err().to_string();
+        assert!(e.contains("cannot save project") && e.contains("scene.ron"), "{e}");
+    }
+
     #[test]
     fn special_and_huge_files_are_not_read_as_projects() {
         let e = Project::load(Path::new("/dev/zero")).unwrap_err().to_string();

@@ -138,7 +138,9 @@ impl StageContext<'_> {
                     return Ok(Memo::new(v));
                 }
                 // Reported, then recomputed and written again below.
-                DiskLookup::Corrupt(why) => self.warn(format!("disk cache entry of a part was bad ({why}); recomputed")),
+                DiskLookup::Corrupt(why) => {
+                    self.warn(format!("disk cache entry of a part was bad ({why}); recomputed"))
+                }
                 DiskLookup::Miss => {}
             }
         }

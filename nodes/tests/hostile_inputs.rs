@@ -22,17 +22,16 @@ fn shared_assets() -> PathBuf {
 
 /// Runs `target` on every input; panics are collected and reported with the input's name.
 fn replay(target: fn(&[u8]), inputs: impl IntoIterator<Item = (String, Vec<u8>)>) -> usize {
+    // Panics print as they happen (the panic hook is process-wide: tests running beside this
+    // one must keep theirs).
     let mut panics = Vec::new();
     let mut count = 0;
-    let hook = std::panic::take_hook();
-    std::panic::set_hook(Box::new(|_| {}));
     for (name, bytes) in inputs {
         count += 1;
         if std::panic::catch_unwind(|| target(&bytes)).is_err() {
             panics.push(name);
         }
     }
-    std::panic::set_hook(hook);
     assert!(panics.is_empty(), "{} of {count} inputs panicked: {:?}", panics.len(), &panics[..panics.len().min(20)]);
     count
 }

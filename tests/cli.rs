@@ -755,3 +755,28 @@ fn info_loads_every_asset_before_calling_a_project_valid() {
         }
     }
 }
+
+/// A node that feeds no output (here an RSL decomposer without its environment) does not
+/// block a render: the CLI renders what the editor shows and warns about the node.
+#[test]
+fn an_unlinked_node_with_a_missing_input_is_a_warning_not_an_error() {
+    let dir = tempdir("unlinked");
+    let project = dir.join("p.ron");
+    std::fs::write(
+        &project,
+        r#"(version: 3, nodes: [(id: "scene", kind: "Scene"), (id: "rsl", kind: "RslDecomposer"), (id: "out", kind: "Output")],
+            links: [(from: ("scene", "scene"), to: ("out", "scene"))])"#,
+    )
+    .unwrap();
+    let png = dir.join("p.png");
+    let out = lightloom()
+        .arg("render")
+        .arg(&project)
+        .args(["-o", png.to_str().unwrap(), "--width", "32", "--height", "24", "--no-disk-cache"])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(stderr.contains("warning:") && stderr.contains("node `rsl` port `environment`"), "{stderr}");
+    assert!(png.exists());
+}

@@ -99,9 +99,17 @@ pub struct InfoArgs {
 
 pub(crate) fn load(path: &Path, overrides: &[String]) -> Result<(Project, Graph)> {
     let (project, graph) = Project::load_with_overrides(path, overrides)?;
-    let missing = project.missing_assets(&graph);
-    if let Some((node, param, file)) = missing.first() {
-        bail!("{}: node `{node}` parameter `{param}`: asset {} does not exist", path.display(), file.display());
+    for warning in &graph.warnings {
+        eprintln!("warning: {}: {warning}", path.display());
+    }
+    // A missing file blocks only what needs it.
+    for (node, param, file) in project.missing_assets(&graph) {
+        let message =
+            format!("{}: node `{node}` parameter `{param}`: asset {} does not exist", path.display(), file.display());
+        if graph.feeds_sink(&node) {
+            bail!(message);
+        }
+        eprintln!("warning: {message} (the node feeds no output)");
     }
     Ok((project, graph))
 }

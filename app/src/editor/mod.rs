@@ -497,7 +497,7 @@ impl EditorApp {
         let scratch = dir.join("project.ron");
         match self.doc.project.graph(&scratch) {
             Ok(graph) => {
-                self.graph_errors.clear();
+                self.graph_errors = graph.warnings.iter().map(|w| format!("warning: {w}")).collect();
                 self.built_graph = Some(graph.clone());
                 let request = self.evaluation_request(&graph);
                 self.evaluator.submit(graph, request, self.doc.revision());

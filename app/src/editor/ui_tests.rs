@@ -322,3 +322,29 @@ fn a_failed_save_is_shown_and_keeps_the_work_unsaved() {
     harness.get_by_label_contains("not-a-folder/project.ron");
     assert!(!blocker.join("project.ron").exists());
 }
+
+/// A node that feeds no output never blocks the rest: a saved project with an unlinked RSL
+/// decomposer (its required environment input unconnected) reopens and renders, and the
+/// unconnected input is listed as a warning, not a silent spinner.
+#[test]
+fn an_unlinked_node_with_a_missing_input_does_not_block_rendering() {
+    let mut project = lightloom_nodes::project::default_project();
+    project.nodes.push(lightloom_nodes::project::ProjectNode {
+        id: "rsl".into(),
+        kind: "RslDecomposer".into(),
+        label: String::new(),
+        position: [40.0, 400.0],
+        params: Default::default(),
+    });
+    let path = state_dir().join("unlinked.ron");
+    project.save(&path).unwrap();
+    let mut harness = harness(Some(path));
+    settle(&mut harness);
+    let problems = harness.state().problems();
+    assert!(
+        problems.iter().any(|p| p.starts_with("warning:") && p.contains("rsl") && p.contains("not connected")),
+        "{problems:?}"
+    );
+    assert!(harness.state().evaluator.last.is_some(), "the project evaluated");
+    assert!(viewport_mean(&mut harness) > 20.0, "the scene is drawn");
+}

@@ -70,8 +70,9 @@ pub struct NodeInput<'a> {
     pub params: &'a BTreeMap<String, ParamValue>,
 }
 
-/// A validated graph: acyclic, well-typed, every required input connected, every parameter in
-/// range.
+/// A validated graph: acyclic, well-typed, every parameter in range, and every required input
+/// connected on the nodes that feed a sink (a kind with no outputs: what is drawn or baked).
+/// A node that feeds no sink never blocks the rest: its unconnected inputs are `warnings`.
 #[derive(Clone, Debug)]
 pub struct Graph {
     pub nodes: Vec<GraphNode>,
@@ -82,6 +83,10 @@ pub struct Graph {
     /// `(node, input port)` → index of the node feeding it.
     /// Upstream nodes of each connected input, in project order.
     feeds: HashMap<(String, String), Vec<usize>>,
+    /// Problems that block nothing (nodes that feed no sink, with an unconnected input).
+    pub warnings: Vec<GraphError>,
+    /// Per node (same order as `nodes`): whether it is a sink or feeds one.
+    feeds_sink: Vec<bool>,
 }
 
 impl Graph {
@@ -179,14 +184,32 @@ impl Graph {
                 }
             }
         }
+        // Nodes that are sinks or feed one, by walking links upstream from the sinks.
+        let mut feeds_sink: std::collections::HashSet<&str> =
+            built.iter().filter(|n| n.kind.outputs.is_empty()).map(|n| n.id.as_str()).collect();
+        loop {
+            let before = feeds_sink.len();
+            for link in &valid_links {
+                if feeds_sink.contains(link.to_node.as_str()) {
+                    feeds_sink.insert(link.from_node.as_str());
+                }
+            }
+            if feeds_sink.len() == before {
+                break;
+            }
+        }
+        let sink_feeders: Vec<bool> = built.iter().map(|n| feeds_sink.contains(n.id.as_str())).collect();
+        let mut warnings = Vec::new();
         for node in &built {
             for port in &node.kind.inputs {
                 if port.required && !connected.contains_key(&(node.id.as_str(), port.name)) {
-                    errors.push(GraphError::port(
-                        &node.id,
-                        port.name,
-                        format!("required {} input is not connected", port.ty),
-                    ));
+                    let message = format!("required {} input is not connected", port.ty);
+                    if feeds_sink.contains(node.id.as_str()) {
+                        errors.push(GraphError::port(&node.id, port.name, message));
+                    } else {
+                        let message = format!("{message} (the node feeds no output, so nothing waits for it)");
+                        warnings.push(GraphError::port(&node.id, port.name, message));
+                    }
                 }
             }
         }
@@ -207,7 +230,12 @@ impl Graph {
         for l in &links {
             feeds.entry((l.to_node.clone(), l.to_port.clone())).or_default().push(ids[l.from_node.as_str()]);
         }
-        Ok(Self { nodes: built, links, project_dir, order, feeds })
+        Ok(Self { nodes: built, links, project_dir, order, feeds, warnings, feeds_sink: sink_feeders })
+    }
+
+    /// Whether `id` is a sink (a kind with no outputs) or feeds one: what evaluation can need.
+    pub fn feeds_sink(&self, id: &str) -> bool {
+        self.nodes.iter().position(|n| n.id == id).is_some_and(|i| self.feeds_sink[i])
     }
 
     pub fn node(&self, id: &str) -> Option<&GraphNode> {

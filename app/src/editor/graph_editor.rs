@@ -112,6 +112,13 @@ impl Default for GraphEditor {
 }
 
 impl GraphEditor {
+    /// Moves a node in the widget as a pointer drag does (UI tests).
+    #[cfg(test)]
+    pub fn move_in_widget(&mut self, id: &str, to: [f32; 2]) {
+        let nid = self.snarl.node_ids().find(|(_, n)| n.as_str() == id).map(|(nid, _)| nid).expect("node in widget");
+        self.snarl.get_node_info_mut(nid).expect("node info").pos = egui::pos2(to[0], to[1]);
+    }
+
     /// Makes the widget's graph match the project: nodes, positions and wires. Nodes that
     /// stay keep their widget ids (and selection).
     pub fn sync(&mut self, project: &Project) {

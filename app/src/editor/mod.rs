@@ -178,6 +178,9 @@ pub struct EditorApp {
     /// Errors of the user's own actions (a failed save or open), listed with the problems
     /// until the next successful save or open.
     action_errors: Vec<String>,
+    /// The document revision the graph widget last matched (an undo must reach the widget
+    /// before it reads node positions back, or it would redo the move it shows).
+    graph_revision: u64,
     bottom_tab: BottomTab,
     clipboard: Option<edits::Clipboard>,
     file_dialog: egui_file_dialog::FileDialog,
@@ -327,6 +330,7 @@ impl EditorApp {
             built_graph: None,
             log: Vec::new(),
             action_errors: Vec::new(),
+            graph_revision: u64::MAX,
             bottom_tab: BottomTab::Problems,
             clipboard: None,
             file_dialog: egui_file_dialog::FileDialog::new()
@@ -417,6 +421,7 @@ impl EditorApp {
         }
         if self.doc.revision() != revision {
             self.graph.sync(&self.doc.project);
+            self.graph_revision = self.doc.revision();
         }
         self.handle_close(&ctx);
         self.autosave();
@@ -592,6 +597,10 @@ impl EditorApp {
 
     fn graph_panel(&mut self, ui: &mut egui::Ui) {
         self.graph_rect = ui.max_rect();
+        if self.graph_revision != self.doc.revision() {
+            self.graph.sync(&self.doc.project);
+            self.graph_revision = self.doc.revision();
+        }
         let evaluation = self.evaluator.last.as_ref().map(|(e, _)| e.clone());
         let actions =
             self.graph.show(ui, &self.doc.project, &self.evaluator.status, evaluation.as_deref(), &mut self.previews);

@@ -348,3 +348,23 @@ fn an_unlinked_node_with_a_missing_input_does_not_block_rendering() {
     assert!(harness.state().evaluator.last.is_some(), "the project evaluated");
     assert!(viewport_mean(&mut harness) > 20.0, "the scene is drawn");
 }
+
+/// Undo after moving nodes restores the old positions and offers Redo; it used to redo the
+/// move at once (the widget still showed the moved node and wrote it back as a new move).
+#[test]
+fn undo_after_moving_a_node_sticks() {
+    let mut harness = harness(None);
+    settle(&mut harness);
+    let position =
+        |h: &Harness<'_, EditorApp>| h.state().doc.project.nodes.iter().find(|n| n.id == "sky").unwrap().position;
+    let before = position(&harness);
+    harness.state_mut().graph.move_in_widget("sky", [before[0] + 120.0, before[1] + 40.0]);
+    harness.run_steps(2);
+    assert_eq!(position(&harness), [before[0] + 120.0, before[1] + 40.0]);
+    assert_eq!(harness.state().doc.undo_label(), Some("Move nodes"));
+    harness.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
+    harness.run_steps(4);
+    assert_eq!(position(&harness), before, "undo restores the position and it stays");
+    assert_eq!(harness.state().doc.undo_label(), None);
+    assert_eq!(harness.state().doc.redo_label(), Some("Move nodes"));
+}

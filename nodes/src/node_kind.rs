@@ -88,15 +88,44 @@ impl fmt::Display for ParamValue {
 /// The type, range and default of a parameter.
 #[derive(Clone, Debug, PartialEq)]
 pub enum ParamKind {
-    Float { min: f64, max: f64, default: f64 },
-    Int { min: i64, max: i64, default: i64 },
-    Bool { default: bool },
-    Vec3 { min: f64, max: f64, default: [f64; 3] },
-    Color { max: f64, default: [f64; 3] },
-    Choice { options: &'static [&'static str], default: &'static str },
-    Path { extensions: &'static [&'static str] },
-    Objects { default: Vec<crate::scene_object::SceneObject> },
-    Spheres { default: Vec<([f64; 3], f64)> },
+    Float {
+        min: f64,
+        max: f64,
+        default: f64,
+    },
+    Int {
+        min: i64,
+        max: i64,
+        default: i64,
+    },
+    Bool {
+        default: bool,
+    },
+    Vec3 {
+        min: f64,
+        max: f64,
+        default: [f64; 3],
+    },
+    Color {
+        max: f64,
+        default: [f64; 3],
+    },
+    Choice {
+        options: &'static [&'static str],
+        default: &'static str,
+    },
+    Path {
+        extensions: &'static [&'static str],
+        /// Choosing a file also sets this choice parameter to this option (`("source", "file")`):
+        /// picking a file means using it.
+        selects: Option<(&'static str, &'static str)>,
+    },
+    Objects {
+        default: Vec<crate::scene_object::SceneObject>,
+    },
+    Spheres {
+        default: Vec<([f64; 3], f64)>,
+    },
 }
 
 /// A parameter of a node kind.

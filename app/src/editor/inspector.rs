@@ -24,8 +24,18 @@ pub fn set_param(doc: &mut Document, node: &str, name: &str, value: ParamValue) 
         let kind = edits::kind_of(p, node).ok_or_else(|| format!("no node `{node}`"))?;
         let spec = kind.param(name).ok_or_else(|| format!("{} has no parameter `{name}`", kind.label))?;
         spec.check(&value).map_err(|e| format!("{key}: {e}"))?;
+        // Picking a file means using it: the parameter it selects changes in the same step.
+        let selects = match (&spec.kind, &value) {
+            (ParamKind::Path { selects: Some((choice, option)), .. }, ParamValue::Path(v)) if !v.is_empty() => {
+                Some((choice.to_string(), ParamValue::Choice(option.to_string())))
+            }
+            _ => None,
+        };
         let n = p.nodes.iter_mut().find(|n| n.id == node).expect("node exists");
         n.params.insert(name.to_string(), value);
+        if let Some((choice, option)) = selects {
+            n.params.insert(choice, option);
+        }
         Ok(())
     })
 }
@@ -229,7 +239,7 @@ impl Inspector<'_> {
                 }
                 r.response
             }
-            (ParamKind::Path { extensions }, ParamValue::Path(v)) => {
+            (ParamKind::Path { extensions, .. }, ParamValue::Path(v)) => {
                 let r = ui
                     .horizontal(|ui| {
                         let r = ui.add(egui::TextEdit::singleline(v).desired_width(150.0).hint_text("(none)"));

@@ -368,3 +368,26 @@ fn undo_after_moving_a_node_sticks() {
     assert_eq!(harness.state().doc.undo_label(), None);
     assert_eq!(harness.state().doc.redo_label(), Some("Move nodes"));
 }
+
+/// Choosing an environment file uses it: the node's source switches to `file` in the same
+/// undo step (it stayed on the procedural sky, so nothing changed on screen).
+#[test]
+fn choosing_an_environment_file_uses_it() {
+    let hdr = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/assets/envmaps/courtyard.hdr");
+    let mut harness = harness(None);
+    settle(&mut harness);
+    harness.state_mut().selection = Selection::Node("sky".into());
+    harness.run_steps(2);
+    let field = harness.get_by_role_and_label(Role::TextInput, "File");
+    field.click();
+    harness.run_steps(1);
+    harness.get_by_role_and_label(Role::TextInput, "File").type_text(&hdr.display().to_string());
+    harness.key_press(egui::Key::Enter);
+    harness.run_steps(2);
+    let sky = harness.state().doc.project.nodes.iter().find(|n| n.id == "sky").unwrap().clone();
+    assert_eq!(sky.params.get("source"), Some(&ParamValue::Choice("file".into())), "{:?}", sky.params);
+    assert_eq!(sky.params.get("file"), Some(&ParamValue::Path(hdr.display().to_string())));
+    harness.state_mut().undo();
+    let sky = harness.state().doc.project.nodes.iter().find(|n| n.id == "sky").unwrap().clone();
+    assert_ne!(sky.params.get("source"), Some(&ParamValue::Choice("file".into())), "one undo step takes both back");
+}

@@ -47,7 +47,7 @@ pub fn spec() -> NodeKindSpec {
                 name: "file",
                 label: "File",
                 unit: "",
-                kind: ParamKind::Path { extensions: &["exr", "hdr"] },
+                kind: ParamKind::Path { extensions: &["exr", "hdr"], selects: Some(("source", "file")) },
                 doc: "Equirectangular image, relative to the project.",
             },
             ParamSpec {

@@ -21,7 +21,7 @@ pub fn area_light_painter_spec() -> NodeKindSpec {
                 name: "texture",
                 label: "Texture",
                 unit: "",
-                kind: ParamKind::Path { extensions: &["png", "exr", "hdr"] },
+                kind: ParamKind::Path { extensions: &["png", "exr", "hdr"], selects: None },
                 doc: "Painted emission.",
             },
             ParamSpec {

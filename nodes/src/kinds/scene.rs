@@ -148,7 +148,7 @@ pub fn spec() -> NodeKindSpec {
                 name: "file",
                 label: "glTF file",
                 unit: "",
-                kind: ParamKind::Path { extensions: &["gltf", "glb"] },
+                kind: ParamKind::Path { extensions: &["gltf", "glb"], selects: None },
                 doc: "A glTF 2.0 scene added to the objects (its own node transforms apply).",
             },
             ParamSpec {

@@ -376,6 +376,8 @@ fn choosing_an_environment_file_uses_it() {
     let hdr = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/assets/envmaps/courtyard.hdr");
     let mut harness = harness(None);
     settle(&mut harness);
+    // Tests beside this one may leave autosaves behind: no recovery question in the way.
+    harness.state_mut().pending = None;
     harness.state_mut().selection = Selection::Node("sky".into());
     harness.run_steps(2);
     let field = harness.get_by_role_and_label(Role::TextInput, "File");

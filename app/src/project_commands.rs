@@ -165,9 +165,11 @@ pub(crate) fn evaluate(engine: Arc<Engine>, graph: &Graph, request: Request, qui
     job.wait()
 }
 
-/// "40 s", "3 min", "2 h".
-fn duration_text(seconds: f64) -> String {
+/// "180 ms", "4.2 s", "40 s", "3 min", "2.0 h".
+pub(crate) fn duration_text(seconds: f64) -> String {
     match seconds {
+        s if s < 1.0 => format!("{:.0} ms", s * 1e3),
+        s if s < 10.0 => format!("{s:.1} s"),
         s if s < 90.0 => format!("{s:.0} s"),
         s if s < 5400.0 => format!("{:.0} min", s / 60.0),
         s => format!("{:.1} h", s / 3600.0),

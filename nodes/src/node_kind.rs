@@ -113,6 +113,9 @@ pub enum ParamKind {
     Choice {
         options: &'static [&'static str],
         default: &'static str,
+        /// Per option, in the same order: a plain-language label and what it does and costs
+        /// (shown in menus and tooltips); empty when the names say enough.
+        labels: &'static [(&'static str, &'static str)],
     },
     Path {
         extensions: &'static [&'static str],

@@ -40,6 +40,41 @@ pub fn set_param(doc: &mut Document, node: &str, name: &str, value: ParamValue) 
     })
 }
 
+/// A menu of a choice parameter's options: each option's plain-language label (with its
+/// name) and a tooltip saying what it does and costs, where the kind gives them.
+pub fn choice_combo(
+    ui: &mut egui::Ui,
+    id_salt: impl std::hash::Hash + std::fmt::Debug,
+    options: &[&str],
+    labels: &[(&str, &str)],
+    value: &mut String,
+) -> egui::Response {
+    let text = |option: &str| match options.iter().position(|o| *o == option).and_then(|i| labels.get(i)) {
+        Some((label, _)) => format!("{label} ({option})"),
+        None => option.to_string(),
+    };
+    let selected = text(value);
+    let mut r = egui::ComboBox::from_id_salt(id_salt).selected_text(selected).show_ui(ui, |ui| {
+        let mut changed = false;
+        for (i, o) in options.iter().enumerate() {
+            let mut item = ui.selectable_value(value, o.to_string(), text(o));
+            if let Some((_, help)) = labels.get(i) {
+                item = item.on_hover_text(*help);
+            }
+            changed |= item.changed();
+        }
+        changed
+    });
+    if r.inner == Some(true) {
+        r.response.mark_changed();
+    }
+    let current = options.iter().position(|o| *o == value.as_str()).and_then(|i| labels.get(i));
+    match current {
+        Some((_, help)) => r.response.on_hover_text(*help),
+        None => r.response,
+    }
+}
+
 /// The value a node's parameter has (its default when the project does not set it).
 pub fn param_value(project: &Project, node: &str, spec: &ParamSpec) -> ParamValue {
     edits::node(project, node).and_then(|n| n.params.get(spec.name).cloned()).unwrap_or_else(|| spec.default_value())
@@ -226,18 +261,8 @@ impl Inspector<'_> {
             (ParamKind::Bool { .. }, ParamValue::Bool(v)) => ui.checkbox(v, ""),
             (ParamKind::Vec3 { min, max, .. }, ParamValue::Vec3(v)) => vec3_widget(ui, v, *min, *max, &suffix),
             (ParamKind::Color { max, .. }, ParamValue::Color(v)) => color_widget(ui, v, *max),
-            (ParamKind::Choice { options, .. }, ParamValue::Choice(v)) => {
-                let mut r = egui::ComboBox::from_id_salt((id, spec.name)).selected_text(v.as_str()).show_ui(ui, |ui| {
-                    let mut changed = false;
-                    for o in options.iter() {
-                        changed |= ui.selectable_value(v, o.to_string(), *o).changed();
-                    }
-                    changed
-                });
-                if r.inner == Some(true) {
-                    r.response.mark_changed();
-                }
-                r.response
+            (ParamKind::Choice { options, labels, .. }, ParamValue::Choice(v)) => {
+                choice_combo(ui, (id, spec.name), options, labels, v)
             }
             (ParamKind::Path { extensions, .. }, ParamValue::Path(v)) => {
                 let r = ui

@@ -161,20 +161,21 @@ impl EditorApp {
         ui.horizontal(|ui| {
             if let Some(p) = &self.evaluator.progress {
                 let fraction = if p.total > 0 { p.done as f32 / p.total as f32 } else { 0.0 };
-                ui.add(egui::ProgressBar::new(fraction).desired_width(260.0).text(format!(
-                    "evaluating {}/{} {}",
-                    p.done,
-                    p.total,
-                    p.describe()
-                )));
-                ui.label(format!("{:.1} s", p.started.elapsed().as_secs_f64()));
+                let text = if p.total == 0 {
+                    "evaluating: scheduling".to_string()
+                } else {
+                    format!("evaluating {}/{} {}", p.done, p.total, p.describe())
+                };
+                ui.add(egui::ProgressBar::new(fraction).desired_width(260.0).text(text));
+                ui.label(crate::project_commands::duration_text(p.started.elapsed().as_secs_f64()));
                 if ui.button("Cancel").clicked() {
                     self.evaluator.cancel();
                 }
             } else if self.evaluator.cancelled_revision.is_some() {
                 ui.label("evaluation cancelled — F5 re-evaluates");
             } else if let Some((evaluation, _)) = &self.evaluator.last {
-                ui.label(format!("evaluated in {:.0} ms", evaluation.report.total_ms));
+                let took = crate::project_commands::duration_text(evaluation.report.total_ms / 1e3);
+                ui.label(format!("evaluated in {took}"));
             }
             if let Some(job) = &self.view.reference {
                 ui.separator();

@@ -93,22 +93,14 @@ impl EditorApp {
         ui.horizontal_wrapped(|ui| {
             for (name, label) in [("view", "View"), ("mode", "Mode"), ("tonemap", "Tone map")] {
                 let ParamValue::Choice(current) = value(&self.doc, name) else { continue };
-                let lightloom_nodes::node_kind::ParamKind::Choice { options, .. } =
+                let lightloom_nodes::node_kind::ParamKind::Choice { options, labels, .. } =
                     &spec.param(name).expect("param").kind
                 else {
                     continue;
                 };
                 let l = ui.label(label);
                 let mut chosen = current.clone();
-                egui::ComboBox::from_id_salt(("viewport", name))
-                    .selected_text(current.as_str())
-                    .show_ui(ui, |ui| {
-                        for o in options.iter() {
-                            ui.selectable_value(&mut chosen, o.to_string(), *o);
-                        }
-                    })
-                    .response
-                    .labelled_by(l.id);
+                inspector::choice_combo(ui, ("viewport", name), options, labels, &mut chosen).labelled_by(l.id);
                 if chosen != current {
                     changes.push((name, ParamValue::Choice(chosen)));
                 }

@@ -58,7 +58,7 @@ pub fn spec() -> NodeKindSpec {
                 name: "model",
                 label: "Model",
                 unit: "",
-                kind: ParamKind::Choice { options: MODELS, default: "lambert" },
+                kind: ParamKind::Choice { options: MODELS, default: "lambert", labels: &[] },
                 doc: "BRDF model.",
             },
             ParamSpec {

@@ -40,7 +40,11 @@ pub fn spec() -> NodeKindSpec {
                 name: "source",
                 label: "Source",
                 unit: "",
-                kind: ParamKind::Choice { options: &["procedural_sky", "file"], default: "procedural_sky" },
+                kind: ParamKind::Choice {
+                    options: &["procedural_sky", "file"],
+                    default: "procedural_sky",
+                    labels: &[],
+                },
                 doc: "Built-in sky with sun, or an image file.",
             },
             ParamSpec {
@@ -103,7 +107,7 @@ pub fn spec() -> NodeKindSpec {
                 name: "resolution",
                 label: "Cube face size",
                 unit: "px",
-                kind: ParamKind::Choice { options: RESOLUTIONS, default: "64" },
+                kind: ParamKind::Choice { options: RESOLUTIONS, default: "64", labels: &[] },
                 doc: "Resolution of the radiance cube map (and its wavelets).",
             },
             ParamSpec {

@@ -44,7 +44,7 @@ pub fn spec() -> NodeKindSpec {
                 name: "phase",
                 label: "Phase function",
                 unit: "",
-                kind: ParamKind::Choice { options: &["isotropic", "polynomial"], default: "isotropic" },
+                kind: ParamKind::Choice { options: &["isotropic", "polynomial"], default: "isotropic", labels: &[] },
                 doc: "Isotropic, or a polynomial in cos α (eq. 3.18).",
             },
             ParamSpec {
@@ -66,7 +66,7 @@ pub fn spec() -> NodeKindSpec {
                 name: "table_resolution",
                 label: "Table resolution",
                 unit: "",
-                kind: ParamKind::Choice { options: &["32", "64", "128", "256", "512"], default: "512" },
+                kind: ParamKind::Choice { options: &["32", "64", "128", "256", "512"], default: "512", labels: &[] },
                 doc: "Resolution of the F tables (G tables use a quarter, at least 32). 512 keeps the \
                       airlight within 0.3% of numerical integration (bilinear lookups).",
             },

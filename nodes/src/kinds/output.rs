@@ -64,6 +64,31 @@ crate::choice_enum! {
 
 pub const WAVELET_TERMS: &[&str] = &["80", "320"];
 
+/// Each mode in plain language, with what it shows and what it costs (in `Mode::NAMES` order).
+pub const MODE_LABELS: &[(&str, &str)] = &[
+    (
+        "Soft light, no shadows",
+        "Unshadowed diffuse light from the environment's low-frequency SH, per pixel. Updates instantly; \
+         no shadows and no gloss.",
+    ),
+    (
+        "Soft shadows and gloss",
+        "Shadowed SH transfer per vertex, glossy lobes on the shadowed light (Sloan-style PRT). Relights \
+         fast; shadows and highlights are low-frequency (blurred). Precomputes once per scene.",
+    ),
+    (
+        "Sharp shadows, per vertex",
+        "All-frequency lighting (wavelet triple product) per vertex: sharp sun shadows and highlights \
+         on finely tessellated meshes. Each lighting change recomputes per-vertex products (about a second \
+         here).",
+    ),
+    (
+        "Sharp shadows, per pixel",
+        "As per vertex, plus per-texel visibility on objects with a visibility texture, so even a \
+         coarse floor gets sharp shadows. Most accurate, slowest to precompute.",
+    ),
+];
+
 pub fn spec() -> NodeKindSpec {
     let input = |name, ty, required| PortSpec { name, ty, required, many: false };
     NodeKindSpec {
@@ -87,7 +112,7 @@ pub fn spec() -> NodeKindSpec {
                 name: "mode",
                 label: "Relighting mode",
                 unit: "",
-                kind: ParamKind::Choice { options: Mode::NAMES, default: "sh_prt" },
+                kind: ParamKind::Choice { options: Mode::NAMES, default: "sh_prt", labels: MODE_LABELS },
                 doc: "sh_irradiance: unshadowed diffuse lighting from the environment's SH, per pixel (Sun 2008 \
                       eq. 2.20). sh_prt: shadowed diffuse transfer plus glossy lobes on the shadowed incident \
                       radiance, per vertex. wavelet_vertex: all-frequency triple \
@@ -101,7 +126,7 @@ pub fn spec() -> NodeKindSpec {
                 name: "wavelet_terms",
                 label: "Wavelet coefficients",
                 unit: "",
-                kind: ParamKind::Choice { options: WAVELET_TERMS, default: "320" },
+                kind: ParamKind::Choice { options: WAVELET_TERMS, default: "320", labels: &[] },
                 doc: "Top-only spherical Haar coefficients per function in the wavelet mode (Ma et al.'s 80 or 320).",
             },
             ParamSpec {
@@ -115,7 +140,7 @@ pub fn spec() -> NodeKindSpec {
                 name: "tonemap",
                 label: "Tone mapping",
                 unit: "",
-                kind: ParamKind::Choice { options: Tonemap::NAMES, default: "aces" },
+                kind: ParamKind::Choice { options: Tonemap::NAMES, default: "aces", labels: &[] },
                 doc: "Applied to PNG output and the viewport; EXR output stays linear.",
             },
             ParamSpec {
@@ -129,7 +154,7 @@ pub fn spec() -> NodeKindSpec {
                 name: "view",
                 label: "View",
                 unit: "",
-                kind: ParamKind::Choice { options: View::NAMES, default: "approximation" },
+                kind: ParamKind::Choice { options: View::NAMES, default: "approximation", labels: &[] },
                 doc: "approximation: the relighting mode; reference: Monte Carlo ground truth (same scene, BRDF, \
                       environment and camera); error: heat map of |approximation - reference| with its RMSE.",
             },

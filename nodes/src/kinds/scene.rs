@@ -155,7 +155,7 @@ pub fn spec() -> NodeKindSpec {
                 name: "visibility_texture_size",
                 label: "Visibility texture size",
                 unit: "px",
-                kind: ParamKind::Choice { options: &["16", "32", "64", "128", "256"], default: "64" },
+                kind: ParamKind::Choice { options: &["16", "32", "64", "128", "256"], default: "64", labels: &[] },
                 doc: "Texels per side of the visibility textures of objects that ask for one.",
             },
             ParamSpec {
@@ -176,7 +176,7 @@ pub fn spec() -> NodeKindSpec {
                 name: "haar_resolution",
                 label: "Haar cube face size",
                 unit: "px",
-                kind: ParamKind::Choice { options: &["4", "8", "16", "32", "64"], default: "16" },
+                kind: ParamKind::Choice { options: &["4", "8", "16", "32", "64"], default: "16", labels: &[] },
                 doc: "Visibility cube map per receiver (one ray per texel).",
             },
             ParamSpec {

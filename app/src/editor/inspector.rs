@@ -41,19 +41,21 @@ pub fn set_param(doc: &mut Document, node: &str, name: &str, value: ParamValue) 
 }
 
 /// A menu of a choice parameter's options: each option's plain-language label (with its
-/// name) and a tooltip saying what it does and costs, where the kind gives them.
+/// name) and a tooltip saying what it does and costs, where the kind gives them. `compact`
+/// shows only the option's name when closed (toolbars).
 pub fn choice_combo(
     ui: &mut egui::Ui,
     id_salt: impl std::hash::Hash + std::fmt::Debug,
     options: &[&str],
     labels: &[(&str, &str)],
     value: &mut String,
+    compact: bool,
 ) -> egui::Response {
     let text = |option: &str| match options.iter().position(|o| *o == option).and_then(|i| labels.get(i)) {
         Some((label, _)) => format!("{label} ({option})"),
         None => option.to_string(),
     };
-    let selected = text(value);
+    let selected = if compact { value.clone() } else { text(value) };
     let mut r = egui::ComboBox::from_id_salt(id_salt).selected_text(selected).show_ui(ui, |ui| {
         let mut changed = false;
         for (i, o) in options.iter().enumerate() {
@@ -262,7 +264,7 @@ impl Inspector<'_> {
             (ParamKind::Vec3 { min, max, .. }, ParamValue::Vec3(v)) => vec3_widget(ui, v, *min, *max, &suffix),
             (ParamKind::Color { max, .. }, ParamValue::Color(v)) => color_widget(ui, v, *max),
             (ParamKind::Choice { options, labels, .. }, ParamValue::Choice(v)) => {
-                choice_combo(ui, (id, spec.name), options, labels, v)
+                choice_combo(ui, (id, spec.name), options, labels, v, false)
             }
             (ParamKind::Path { extensions, .. }, ParamValue::Path(v)) => {
                 let r = ui

@@ -100,7 +100,7 @@ impl EditorApp {
                 };
                 let l = ui.label(label);
                 let mut chosen = current.clone();
-                inspector::choice_combo(ui, ("viewport", name), options, labels, &mut chosen).labelled_by(l.id);
+                inspector::choice_combo(ui, ("viewport", name), options, labels, &mut chosen, true).labelled_by(l.id);
                 if chosen != current {
                     changes.push((name, ParamValue::Choice(chosen)));
                 }

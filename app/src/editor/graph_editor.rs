@@ -68,6 +68,9 @@ pub struct GraphEditor {
     query: String,
     /// Nodes selected in the widget, by id.
     pub selected: Vec<String>,
+    /// Whether `selected` changed this frame (a click in the graph; the inspector follows it
+    /// only then, so a node chosen elsewhere stays chosen).
+    pub selection_changed: bool,
     /// Fit the view to the nodes on the next frame (new document, Home).
     fit_pending: bool,
     /// A refused link or failed edit, shown over the graph for a few seconds.
@@ -103,6 +106,7 @@ impl Default for GraphEditor {
             widget: SnarlWidget::new().id(egui::Id::new("lightloom-graph")).style(style),
             add_menu: None,
             to_global: Default::default(),
+            selection_changed: false,
             query: String::new(),
             selected: Vec::new(),
             fit_pending: true,
@@ -112,6 +116,23 @@ impl Default for GraphEditor {
 }
 
 impl GraphEditor {
+    /// Where a node added from the menu bar goes: the middle of the visible graph (`view`, in
+    /// screen space), moved down until it overlaps no node.
+    pub fn free_spot(&self, view: egui::Rect, project: &Project) -> [f32; 2] {
+        let (w, h) = (190.0, 110.0);
+        let centre = self.to_global.inverse() * view.center();
+        let mut spot = egui::pos2(centre.x - w / 2.0, centre.y - h / 2.0);
+        for _ in 0..64 {
+            let taken =
+                project.nodes.iter().any(|n| (n.position[0] - spot.x).abs() < w && (n.position[1] - spot.y).abs() < h);
+            if !taken {
+                break;
+            }
+            spot.y += h / 2.0;
+        }
+        [spot.x, spot.y]
+    }
+
     /// Moves a node in the widget as a pointer drag does (UI tests).
     #[cfg(test)]
     pub fn move_in_widget(&mut self, id: &str, to: [f32; 2]) {
@@ -220,6 +241,7 @@ impl GraphEditor {
             .into_iter()
             .filter_map(|nid| self.snarl.get_node(nid).cloned())
             .collect();
+        self.selection_changed = selected != self.selected;
         self.selected = selected;
 
         // Moves: positions that differ from the project's.

@@ -135,12 +135,8 @@ impl EditorApp {
             ui.menu_button("Add", |ui| {
                 let mut query = String::new();
                 if let Some(kind) = graph_editor::add_list(ui, &mut query, None) {
-                    let n = self.doc.project.nodes.len() as f32;
-                    self.apply(vec![GraphAction::Add {
-                        kind,
-                        position: [40.0 + 20.0 * n, 40.0 + 20.0 * n],
-                        link: None,
-                    }]);
+                    let position = self.graph.free_spot(self.graph_rect, &self.doc.project);
+                    self.apply(vec![GraphAction::Add { kind, position, link: None }]);
                     ui.close();
                 }
             });

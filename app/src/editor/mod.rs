@@ -604,7 +604,8 @@ impl EditorApp {
         let evaluation = self.evaluator.last.as_ref().map(|(e, _)| e.clone());
         let actions =
             self.graph.show(ui, &self.doc.project, &self.evaluator.status, evaluation.as_deref(), &mut self.previews);
-        if let [id] = self.graph.selected.as_slice()
+        if self.graph.selection_changed
+            && let [id] = self.graph.selected.as_slice()
             && self.selection != Selection::Node(id.clone())
         {
             self.selection = Selection::Node(id.clone());

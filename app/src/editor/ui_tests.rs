@@ -419,3 +419,30 @@ fn modes_are_explained_in_plain_language() {
     harness.run_steps(1);
     harness.get_by_label_contains(&format!("evaluated in {shown}"));
 }
+
+/// A node added from the Add menu lands in view without covering another node, and is the
+/// node the inspector shows (it landed on the Output node, and the inspector kept showing the
+/// node selected in the graph before).
+#[test]
+fn a_node_from_the_add_menu_lands_in_view_and_is_selected() {
+    let mut harness = harness(None);
+    settle(&mut harness);
+    harness.state_mut().pending = None;
+    harness.run_steps(1);
+    let before: Vec<String> = harness.state().doc.project.nodes.iter().map(|n| n.id.clone()).collect();
+    harness.get_by_label("Add").click();
+    harness.run_steps(2);
+    harness.get_by_label_contains("Point light").click();
+    harness.run_steps(4);
+    let project = &harness.state().doc.project;
+    let added = project.nodes.iter().find(|n| !before.contains(&n.id)).expect("a node was added").clone();
+    for other in project.nodes.iter().filter(|n| n.id != added.id) {
+        let apart = (other.position[0] - added.position[0]).abs() >= 190.0
+            || (other.position[1] - added.position[1]).abs() >= 110.0;
+        assert!(apart, "{} at {:?} covers {} at {:?}", added.id, added.position, other.id, other.position);
+    }
+    assert_eq!(harness.state().selection, Selection::Node(added.id.clone()));
+    let header = harness.get_by_label_contains(&format!("{} · Point light", added.id)).rect();
+    let graph = harness.state().graph_rect;
+    assert!(graph.contains(header.center()), "the new node at {header:?} is outside the graph view {graph:?}");
+}

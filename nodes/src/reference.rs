@@ -375,8 +375,6 @@ pub fn error_heat_map(
     mask: Option<&[bool]>,
     scale: f64,
 ) -> Vec<[f32; 3]> {
-    const RAMP: [[f64; 3]; 5] =
-        [[0.0, 0.0, 0.015], [0.34, 0.06, 0.43], [0.87, 0.32, 0.23], [0.99, 0.77, 0.18], [0.99, 1.0, 0.92]];
     approximation
         .iter()
         .zip(reference)
@@ -386,13 +384,20 @@ pub fn error_heat_map(
                 return [0.02; 3];
             }
             let e = (0..3).map(|c| (a[c] - r[c]).abs() as f64).sum::<f64>() / 3.0;
-            let t = (e / scale.max(1e-30)).clamp(0.0, 1.0) * (RAMP.len() - 1) as f64;
-            let (i, f) = ((t.floor() as usize).min(RAMP.len() - 2), t - t.floor().min((RAMP.len() - 2) as f64));
             // The ramp is in display (sRGB) values; return linear so the tone mapper's sRGB
             // encoding (with linear tone mapping) shows the ramp as designed.
-            [0, 1, 2].map(|c| srgb_to_linear(RAMP[i][c] * (1.0 - f) + RAMP[i + 1][c] * f) as f32)
+            error_ramp(e / scale.max(1e-30)).map(|c| srgb_to_linear(c) as f32)
         })
         .collect()
+}
+
+/// The heat map's colour at `t` (0 no error, 1 the scale or more), in display (sRGB) values.
+pub fn error_ramp(t: f64) -> [f64; 3] {
+    const RAMP: [[f64; 3]; 5] =
+        [[0.0, 0.0, 0.015], [0.34, 0.06, 0.43], [0.87, 0.32, 0.23], [0.99, 0.77, 0.18], [0.99, 1.0, 0.92]];
+    let t = t.clamp(0.0, 1.0) * (RAMP.len() - 1) as f64;
+    let (i, f) = ((t.floor() as usize).min(RAMP.len() - 2), t - t.floor().min((RAMP.len() - 2) as f64));
+    [0, 1, 2].map(|c| RAMP[i][c] * (1.0 - f) + RAMP[i + 1][c] * f)
 }
 
 fn srgb_to_linear(c: f64) -> f64 {

@@ -155,6 +155,8 @@ struct ViewState {
     /// The finished reference for a signature, and the approximation's error against it.
     reference_image: Option<(u64, Arc<HdrImage>)>,
     error: Option<ImageError>,
+    /// The error view's scale (the radiance difference of its top colour).
+    error_scale: Option<f64>,
     selected_object: Option<usize>,
 }
 
@@ -320,6 +322,7 @@ impl EditorApp {
                 reference: None,
                 reference_image: None,
                 error: None,
+                error_scale: None,
                 selected_object: None,
             },
             host,

@@ -446,3 +446,27 @@ fn a_node_from_the_add_menu_lands_in_view_and_is_selected() {
     let graph = harness.state().graph_rect;
     assert!(graph.contains(header.center()), "the new node at {header:?} is outside the graph view {graph:?}");
 }
+
+/// The error view carries its colour scale, in linear radiance, and its numbers sit on a
+/// backing (white text on a bright sky was unreadable).
+#[test]
+fn the_error_view_has_a_colour_scale() {
+    let mut harness = harness(None);
+    settle(&mut harness);
+    harness.state_mut().pending = None;
+    for (param, value) in [("reference_samples", ParamValue::Int(4)), ("view", ParamValue::Choice("error".into()))] {
+        inspector::set_param(&mut harness.state_mut().doc, "output", param, value).unwrap();
+    }
+    let start = Instant::now();
+    while harness.state().view.error_scale.is_none() {
+        assert!(start.elapsed().as_secs() < 240, "the error view never finished");
+        harness.step();
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    harness.run_steps(3);
+    let scale = harness.state().view.error_scale.unwrap();
+    assert!(scale > 0.0 && scale.is_finite(), "{scale}");
+    if let Ok(dir) = std::env::var("LIGHTLOOM_SCREENSHOTS") {
+        harness.render().unwrap().save(Path::new(&dir).join("error-view.png")).unwrap();
+    }
+}

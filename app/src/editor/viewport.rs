@@ -29,6 +29,8 @@ pub struct Finished {
     pub ldr: Vec<[u8; 4]>,
     /// For [`Job::Compare`]: the approximation's error against the reference.
     pub error: Option<ImageError>,
+    /// For the error view: the radiance difference the heat map's top colour stands for.
+    pub error_scale: Option<f64>,
     pub draw_ms: f64,
 }
 
@@ -184,11 +186,12 @@ fn render_thread(
         let (signature, job) = job;
         let start = Instant::now();
         std::thread::sleep(slow_down);
-        let result = run(&gpu, &mut renderer, job).map(|(size, ldr, error)| Finished {
+        let result = run(&gpu, &mut renderer, job).map(|(size, ldr, error, error_scale)| Finished {
             signature,
             size,
             ldr,
             error,
+            error_scale,
             draw_ms: start.elapsed().as_secs_f64() * 1e3,
         });
         if done.send(result.map_err(|e| (signature, e))).is_err() {
@@ -199,14 +202,14 @@ fn render_thread(
     }
 }
 
-type Drawn = ((u32, u32), Vec<[u8; 4]>, Option<ImageError>);
+type Drawn = ((u32, u32), Vec<[u8; 4]>, Option<ImageError>, Option<f64>);
 
 fn run(gpu: &GpuContext, renderer: &mut ViewportRenderer, job: Job) -> Result<Drawn, String> {
     let text = |e: lightloom_render::RenderError| e.to_string();
     match job {
         Job::Render { frame, camera, size } => {
             renderer.render(gpu, &frame, &camera, size.0, size.1).map_err(|e| format!("render failed: {e}"))?;
-            Ok((size, renderer.capture(gpu).map_err(text)?.ldr, None))
+            Ok((size, renderer.capture(gpu).map_err(text)?.ldr, None, None))
         }
         Job::Compare { frame, camera, size, reference, view } => {
             // The approximation at the reference's size, read back for the comparison.
@@ -216,14 +219,16 @@ fn run(gpu: &GpuContext, renderer: &mut ViewportRenderer, job: Job) -> Result<Dr
             let mask = reference.surface_mask();
             let error = reference::compare(&approximation, &reference.pixels, Some(&mask)).ok();
             let settings = &frame.settings;
+            let mut error_scale = None;
             if view == View::Reference {
                 renderer.present(gpu, &reference.pixels, size, settings.exposure, settings.tonemap).map_err(text)?;
             } else {
                 let scale = reference::error_map_scale(&reference.pixels);
                 let map = reference::error_heat_map(&approximation, &reference.pixels, Some(&mask), scale);
                 renderer.present(gpu, &map, size, 0.0, Tonemap::Linear).map_err(text)?;
+                error_scale = Some(scale);
             }
-            Ok((size, renderer.capture(gpu).map_err(text)?.ldr, error))
+            Ok((size, renderer.capture(gpu).map_err(text)?.ldr, error, error_scale))
         }
     }
 }

@@ -60,18 +60,23 @@ impl EditorApp {
             painter.galley(at, galley, Color32::WHITE);
         }
         if let Some(error) = &self.view.error {
-            painter.text(
-                rect.left_top() + egui::vec2(8.0, 8.0),
-                egui::Align2::LEFT_TOP,
-                format!(
-                    "error vs reference: RMSE {:.4}, relative {:.1}%, PSNR {:.1} dB",
-                    error.rmse,
-                    error.relative_rmse * 100.0,
-                    error.psnr_db
-                ),
-                egui::FontId::monospace(12.0),
-                Color32::WHITE,
+            let text = format!(
+                "error vs reference: RMSE {:.4}, relative {:.1}%, PSNR {:.1} dB",
+                error.rmse,
+                error.relative_rmse * 100.0,
+                error.psnr_db
             );
+            let galley = painter.layout_no_wrap(text, egui::FontId::monospace(12.0), Color32::WHITE);
+            let at = rect.left_top() + egui::vec2(8.0, 8.0);
+            painter.rect_filled(
+                egui::Rect::from_min_size(at, galley.size()).expand(4.0),
+                3.0,
+                Color32::from_black_alpha(170),
+            );
+            painter.galley(at, galley, Color32::WHITE);
+        }
+        if let Some(scale) = self.view.error_scale {
+            error_legend(&painter, rect, scale);
         }
         if response.clicked()
             && let Some(pos) = response.interact_pointer_pos()
@@ -275,6 +280,7 @@ impl EditorApp {
                 if done.error.is_some() {
                     self.view.error = done.error;
                 }
+                self.view.error_scale = done.error_scale;
             }
             Some(Err(e)) => {
                 self.view.frame_error = Some(e);
@@ -339,5 +345,46 @@ impl EditorApp {
                 self.view.drawn = view_signature;
             }
         }
+    }
+}
+
+/// The error view's colour scale: the heat map's ramp from no difference to `scale` (and
+/// above), in linear radiance, on a dark backing at the viewport's bottom left.
+fn error_legend(painter: &egui::Painter, rect: egui::Rect, scale: f64) {
+    let (width, height) = (250.0, 12.0);
+    let origin = rect.left_bottom() + egui::vec2(12.0, -44.0);
+    let backing = egui::Rect::from_min_size(origin - egui::vec2(6.0, 20.0), egui::vec2(width + 12.0, 56.0));
+    painter.rect_filled(backing, 4.0, Color32::from_black_alpha(190));
+    painter.text(
+        origin - egui::vec2(0.0, 4.0),
+        egui::Align2::LEFT_BOTTOM,
+        "|approx − reference|, linear radiance (RGB mean)",
+        egui::FontId::proportional(11.0),
+        Color32::WHITE,
+    );
+    let steps = 64;
+    for i in 0..steps {
+        let t = i as f64 / (steps - 1) as f64;
+        let [r, g, b] = lightloom_nodes::reference::error_ramp(t).map(|c| (c * 255.0).round() as u8);
+        let x = origin.x + width * i as f32 / steps as f32;
+        let cell = egui::Rect::from_min_size(egui::pos2(x, origin.y), egui::vec2(width / steps as f32 + 0.5, height));
+        painter.rect_filled(cell, 0.0, Color32::from_rgb(r, g, b));
+    }
+    for (t, label) in [(0.0, "0".to_string()), (0.5, format!("{:.3}", scale / 2.0)), (1.0, format!("≥ {scale:.3}"))] {
+        let x = origin.x + width * t;
+        let align = if t == 0.0 {
+            egui::Align2::LEFT_TOP
+        } else if t == 1.0 {
+            egui::Align2::RIGHT_TOP
+        } else {
+            egui::Align2::CENTER_TOP
+        };
+        painter.text(
+            egui::pos2(x, origin.y + height + 2.0),
+            align,
+            label,
+            egui::FontId::monospace(11.0),
+            Color32::WHITE,
+        );
     }
 }

@@ -208,9 +208,8 @@ impl Project {
     pub fn missing_assets(&self, graph: &Graph) -> Vec<(String, String, PathBuf)> {
         let mut missing = Vec::new();
         for node in &graph.nodes {
-            for (name, value) in &node.params {
-                if let ParamValue::Path(p) = value
-                    && !p.is_empty()
+            for name in node.params.keys() {
+                if let Some(p) = node.file_param(name)
                     && !graph.project_dir.join(p).is_file()
                 {
                     missing.push((node.id.clone(), name.clone(), graph.project_dir.join(p)));

@@ -80,7 +80,7 @@ impl EditorApp {
         }
         self.request_evaluation();
         self.graph = GraphEditor::default();
-        self.graph.sync(&self.doc.project);
+        self.graph_revision = u64::MAX;
     }
 
     pub(super) fn dialogs(&mut self, ctx: &egui::Context) {

@@ -180,8 +180,9 @@ pub struct EditorApp {
     /// Errors of the user's own actions (a failed save or open), listed with the problems
     /// until the next successful save or open.
     action_errors: Vec<String>,
-    /// The document revision the graph widget last matched (an undo must reach the widget
-    /// before it reads node positions back, or it would redo the move it shows).
+    /// The document revision the graph widget last matched: it is brought up to date just
+    /// before it is shown (an undo must reach the widget before it reads node positions back,
+    /// or it would redo the move it shows). `u64::MAX` forces a sync.
     graph_revision: u64,
     bottom_tab: BottomTab,
     clipboard: Option<edits::Clipboard>,
@@ -378,7 +379,6 @@ impl EditorApp {
         if let Some(p) = app.doc.path.clone() {
             document::remember_recent(&p);
         }
-        app.graph.sync(&app.doc.project);
         ctx.request_repaint();
         Ok(app)
     }
@@ -401,7 +401,6 @@ impl EditorApp {
     pub fn frame(&mut self, ui: &mut egui::Ui) {
         let start = Instant::now();
         let ctx = ui.ctx().clone();
-        let revision = self.doc.revision();
         self.shortcuts(&ctx);
         self.poll_jobs(&ctx);
         self.submit_if_changed();
@@ -421,10 +420,6 @@ impl EditorApp {
         self.dialogs(&ctx);
         if !ctx.input(|i| i.pointer.any_down()) {
             self.doc.seal();
-        }
-        if self.doc.revision() != revision {
-            self.graph.sync(&self.doc.project);
-            self.graph_revision = self.doc.revision();
         }
         self.handle_close(&ctx);
         self.autosave();

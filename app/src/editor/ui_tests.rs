@@ -12,6 +12,16 @@ fn state_dir() -> PathBuf {
     document::test_state_dir()
 }
 
+/// The default project evaluated and drawn, with no recovery question in the way (tests
+/// running beside this one may leave autosaves behind).
+fn default_harness() -> Harness<'static, EditorApp> {
+    let mut harness = harness(None);
+    settle(&mut harness);
+    harness.state_mut().pending = None;
+    harness.run_steps(1);
+    harness
+}
+
 fn harness(project: Option<PathBuf>) -> Harness<'static, EditorApp> {
     harness_with_options(EditorOptions { project, no_disk_cache: true, ..Default::default() })
 }
@@ -374,10 +384,7 @@ fn undo_after_moving_a_node_sticks() {
 #[test]
 fn choosing_an_environment_file_uses_it() {
     let hdr = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/assets/envmaps/courtyard.hdr");
-    let mut harness = harness(None);
-    settle(&mut harness);
-    // Tests beside this one may leave autosaves behind: no recovery question in the way.
-    harness.state_mut().pending = None;
+    let mut harness = default_harness();
     harness.state_mut().selection = Selection::Node("sky".into());
     harness.run_steps(2);
     let field = harness.get_by_role_and_label(Role::TextInput, "File");
@@ -398,10 +405,7 @@ fn choosing_an_environment_file_uses_it() {
 /// the status bar reads durations as a person would.
 #[test]
 fn modes_are_explained_in_plain_language() {
-    let mut harness = harness(None);
-    settle(&mut harness);
-    harness.state_mut().pending = None;
-    harness.run_steps(1);
+    let mut harness = default_harness();
     harness.get_by_role_and_label(Role::ComboBox, "Mode").click();
     harness.run_steps(2);
     for label in [
@@ -425,10 +429,7 @@ fn modes_are_explained_in_plain_language() {
 /// node selected in the graph before).
 #[test]
 fn a_node_from_the_add_menu_lands_in_view_and_is_selected() {
-    let mut harness = harness(None);
-    settle(&mut harness);
-    harness.state_mut().pending = None;
-    harness.run_steps(1);
+    let mut harness = default_harness();
     let before: Vec<String> = harness.state().doc.project.nodes.iter().map(|n| n.id.clone()).collect();
     harness.get_by_label("Add").click();
     harness.run_steps(2);
@@ -451,9 +452,7 @@ fn a_node_from_the_add_menu_lands_in_view_and_is_selected() {
 /// backing (white text on a bright sky was unreadable).
 #[test]
 fn the_error_view_has_a_colour_scale() {
-    let mut harness = harness(None);
-    settle(&mut harness);
-    harness.state_mut().pending = None;
+    let mut harness = default_harness();
     for (param, value) in [("reference_samples", ParamValue::Int(4)), ("view", ParamValue::Choice("error".into()))] {
         inspector::set_param(&mut harness.state_mut().doc, "output", param, value).unwrap();
     }

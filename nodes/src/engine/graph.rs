@@ -13,6 +13,16 @@ pub struct GraphNode {
     pub params: BTreeMap<String, ParamValue>,
 }
 
+impl GraphNode {
+    /// The file parameter `name` names (relative to the project), if it names one.
+    pub fn file_param(&self, name: &str) -> Option<&str> {
+        match self.params.get(name) {
+            Some(ParamValue::Path(p)) if !p.is_empty() => Some(p),
+            _ => None,
+        }
+    }
+}
+
 /// A link from an output port to an input port.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Link {

@@ -55,11 +55,8 @@ impl Request {
     pub fn assets(graph: &Graph) -> Self {
         let mut stages = Vec::new();
         for node in &graph.nodes {
-            let names_file = |param: &&str| {
-                matches!(node.kind.param(param).map(|p| &p.kind), Some(crate::node_kind::ParamKind::Path { .. }))
-                    && matches!(node.params.get(*param), Some(crate::node_kind::ParamValue::Path(p)) if !p.is_empty())
-            };
-            for stage in node.kind.stages.iter().filter(|s| s.params.iter().any(names_file)) {
+            let reads_file = |s: &&crate::node_kind::StageSpec| s.params.iter().any(|p| node.file_param(p).is_some());
+            for stage in node.kind.stages.iter().filter(reads_file) {
                 stages.push(StageRef::new(&node.id, stage.name));
             }
         }

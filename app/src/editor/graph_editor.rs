@@ -75,6 +75,10 @@ pub struct GraphEditor {
     fit_pending: bool,
     /// A refused link or failed edit, shown over the graph for a few seconds.
     pub notice: Option<(String, std::time::Instant)>,
+    /// Each node's rectangle on screen in the last frame.
+    node_rects: HashMap<String, egui::Rect>,
+    /// Whether the primary button went down on empty graph space (a box selection).
+    press_on_background: bool,
 }
 
 pub fn port_color(ty: PortType) -> Color32 {
@@ -111,6 +115,8 @@ impl Default for GraphEditor {
             selected: Vec::new(),
             fit_pending: true,
             notice: None,
+            node_rects: HashMap::new(),
+            press_on_background: false,
         }
     }
 }
@@ -138,6 +144,52 @@ impl GraphEditor {
     pub fn move_in_widget(&mut self, id: &str, to: [f32; 2]) {
         let nid = self.snarl.node_ids().find(|(_, n)| n.as_str() == id).map(|(nid, _)| nid).expect("node in widget");
         self.snarl.get_node_info_mut(nid).expect("node info").pos = egui::pos2(to[0], to[1]);
+    }
+
+    /// A node's rectangle on screen in the last frame (UI tests).
+    #[cfg(test)]
+    pub fn node_rect(&self, id: &str) -> Option<egui::Rect> {
+        self.node_rects.get(id).copied()
+    }
+
+    /// Blender's pointer bindings on top of egui-snarl's, whose are fixed: snarl selects on
+    /// Shift+click, box-selects on Shift+drag and pans on any drag of empty space. Here a
+    /// click selects one node (Shift+click adds, as in snarl), a click on empty space clears
+    /// the selection, a left drag on empty space box-selects and a middle drag pans. This
+    /// sets the modifiers snarl reads for this frame; the caller restores the real ones.
+    /// Returns the real modifiers when it changed them, and the pan to apply.
+    fn blender_gestures(&mut self, ctx: &egui::Context, graph: egui::Rect) -> (Option<egui::Modifiers>, egui::Vec2) {
+        let (pos, modifiers, pointer) = ctx.input(|i| (i.pointer.hover_pos(), i.modifiers, i.pointer.clone()));
+        let over_node = pos.is_some_and(|p| self.node_rects.values().any(|r| r.contains(p)));
+        let in_graph = pos.is_some_and(|p| {
+            graph.contains(p) && ctx.layer_id_at(p).is_none_or(|layer| layer.order < egui::Order::Foreground)
+        });
+        if pointer.primary_pressed() {
+            self.press_on_background = in_graph && !over_node;
+        }
+        let middle = pointer.button_down(egui::PointerButton::Middle);
+        let pan = if middle && in_graph { pointer.delta() } else { egui::Vec2::ZERO };
+        if modifiers.any() || !in_graph || middle || pointer.button_down(egui::PointerButton::Secondary) {
+            return (None, pan);
+        }
+        let shift = egui::Modifiers::SHIFT;
+        let injected = if pointer.primary_clicked() && over_node {
+            // Snarl: Shift+Ctrl+click on a node selects only it.
+            Some(shift | egui::Modifiers::COMMAND)
+        } else if pointer.primary_released() {
+            // A box selection ends without Shift: it replaces the selection (a click on empty
+            // space is an empty box, which clears it).
+            None
+        } else if pointer.primary_down() {
+            self.press_on_background.then_some(shift)
+        } else {
+            // Hovering empty space: snarl must already listen for a box selection when the
+            // button goes down (egui picks the dragged widget from the previous frame).
+            (!over_node).then_some(shift)
+        };
+        let Some(injected) = injected else { return (None, pan) };
+        ctx.input_mut(|i| i.modifiers = injected);
+        (Some(modifiers), pan)
     }
 
     /// Makes the widget's graph match the project: nodes, positions and wires. Nodes that
@@ -205,6 +257,7 @@ impl GraphEditor {
         }
         let fit = self.fit_pending.then(|| fit_transform(project, rect));
         self.fit_pending = false;
+        let (real_modifiers, pan) = self.blender_gestures(ui.ctx(), rect);
         let mut viewer = Viewer {
             project,
             status,
@@ -214,8 +267,17 @@ impl GraphEditor {
             to_global: self.to_global,
             query: &mut self.query,
             fit,
+            pan,
+            node_rects: HashMap::new(),
         };
+        // Titles and port names are not selectable text: a drag on them moves the node.
+        ui.style_mut().interaction.selectable_labels = false;
         let response = self.widget.show(&mut self.snarl, &mut viewer, ui);
+        if let Some(modifiers) = real_modifiers {
+            ui.ctx().input_mut(|i| i.modifiers = modifiers);
+        }
+        self.node_rects =
+            viewer.node_rects.iter().map(|(id, r)| (id.clone(), viewer.to_global * r.expand(6.0))).collect();
         if let Some((text, at)) = &self.notice {
             if at.elapsed().as_secs_f32() < 6.0 {
                 let pos = egui::pos2(rect.left() + 8.0, rect.bottom() - 8.0);
@@ -389,11 +451,20 @@ struct Viewer<'a> {
     query: &'a mut String,
     /// A transform to impose this frame (fit to view).
     fit: Option<egui::emath::TSTransform>,
+    /// Screen-space pan to apply this frame (middle drag), unless snarl panned itself.
+    pan: egui::Vec2,
+    /// Each node's extent in graph space, gathered as its parts are drawn.
+    node_rects: HashMap<String, egui::Rect>,
 }
 
 impl Viewer<'_> {
     fn kind(&self, id: &str) -> Option<&'static lightloom_nodes::node_kind::NodeKindSpec> {
         super::edits::kind_of(self.project, id)
+    }
+
+    fn record_extent(&mut self, id: &str, rect: egui::Rect) {
+        let extent = self.node_rects.entry(id.to_string()).or_insert(rect);
+        *extent = extent.union(rect);
     }
 
     fn out_ref(&self, snarl: &Snarl<String>, pin: OutPinId) -> Option<(String, String)> {
@@ -432,6 +503,7 @@ impl SnarlViewer<String> for Viewer<'_> {
             response.on_hover_text(hover);
             ui.label(RichText::new(self.title(&id)).strong());
         });
+        self.record_extent(&id, ui.min_rect());
     }
 
     fn inputs(&mut self, node: &String) -> usize {
@@ -444,8 +516,8 @@ impl SnarlViewer<String> for Viewer<'_> {
 
     #[allow(refining_impl_trait)]
     fn show_input(&mut self, pin: &InPin, ui: &mut egui::Ui, snarl: &mut Snarl<String>) -> PinInfo {
-        let id = &snarl[pin.id.node];
-        let Some(spec) = self.kind(id).and_then(|k| k.inputs.get(pin.id.input)) else { return PinInfo::circle() };
+        let id = snarl[pin.id.node].clone();
+        let Some(spec) = self.kind(&id).and_then(|k| k.inputs.get(pin.id.input)) else { return PinInfo::circle() };
         let text = if spec.many { format!("{} (many)", spec.name) } else { spec.name.to_string() };
         if spec.required && pin.remotes.is_empty() {
             ui.label(RichText::new(text).color(Color32::from_rgb(235, 90, 80)))
@@ -453,14 +525,16 @@ impl SnarlViewer<String> for Viewer<'_> {
         } else {
             ui.label(text).on_hover_text(spec.ty.to_string());
         }
+        self.record_extent(&id, ui.min_rect());
         PinInfo::circle().with_fill(port_color(spec.ty))
     }
 
     #[allow(refining_impl_trait)]
     fn show_output(&mut self, pin: &OutPin, ui: &mut egui::Ui, snarl: &mut Snarl<String>) -> PinInfo {
-        let id = &snarl[pin.id.node];
-        let Some(spec) = self.kind(id).and_then(|k| k.outputs.get(pin.id.output)) else { return PinInfo::circle() };
+        let id = snarl[pin.id.node].clone();
+        let Some(spec) = self.kind(&id).and_then(|k| k.outputs.get(pin.id.output)) else { return PinInfo::circle() };
         ui.label(spec.name).on_hover_text(spec.ty.to_string());
+        self.record_extent(&id, ui.min_rect());
         PinInfo::circle().with_fill(port_color(spec.ty))
     }
 
@@ -492,6 +566,7 @@ impl SnarlViewer<String> for Viewer<'_> {
                 }
             }
         });
+        self.record_extent(&id, ui.min_rect());
     }
 
     fn has_node_menu(&mut self, _: &String) -> bool {
@@ -592,6 +667,8 @@ impl SnarlViewer<String> for Viewer<'_> {
     fn current_transform(&mut self, to_global: &mut egui::emath::TSTransform, _: &mut Snarl<String>) {
         if let Some(fit) = self.fit.take() {
             *to_global = fit;
+        } else if *to_global == self.to_global {
+            to_global.translation += self.pan;
         }
         self.to_global = *to_global;
     }

@@ -476,3 +476,93 @@ fn the_error_view_has_a_colour_scale() {
         harness.render().unwrap().save(Path::new(&dir).join("error-view.png")).unwrap();
     }
 }
+
+/// Presses a pointer button at `from`, moves to `to` in steps and releases there.
+fn pointer_drag(harness: &mut Harness<'_, EditorApp>, button: egui::PointerButton, from: egui::Pos2, to: egui::Pos2) {
+    let press = |pos, pressed| egui::Event::PointerButton { pos, button, pressed, modifiers: egui::Modifiers::NONE };
+    harness.hover_at(from);
+    harness.step();
+    harness.event(press(from, true));
+    harness.step();
+    for i in 1..=6 {
+        harness.hover_at(from + (to - from) * (i as f32 / 6.0));
+        harness.step();
+    }
+    harness.event(press(to, false));
+    harness.step();
+    harness.step();
+}
+
+/// A quick click (egui counts a press held longer than 0.8 s as no click).
+fn pointer_click(harness: &mut Harness<'_, EditorApp>, at: egui::Pos2) {
+    let press = |pressed| egui::Event::PointerButton {
+        pos: at,
+        button: egui::PointerButton::Primary,
+        pressed,
+        modifiers: egui::Modifiers::NONE,
+    };
+    harness.hover_at(at);
+    harness.step();
+    harness.event(press(true));
+    harness.step();
+    harness.event(press(false));
+    harness.step();
+    harness.step();
+}
+
+/// The graph takes Blender's pointer bindings: a click selects one node and the inspector
+/// follows; dragging the header moves the node (the title is not selected as text); a left
+/// drag on empty space box-selects; a click on empty space clears; a middle drag pans.
+#[test]
+fn graph_nodes_select_on_click_move_by_header_and_box_select() {
+    let mut harness = default_harness();
+    let rect = |h: &Harness<'_, EditorApp>, id: &str| h.state().graph.node_rect(id).expect("node drawn");
+    let position = |h: &Harness<'_, EditorApp>, id: &str| {
+        h.state().doc.project.nodes.iter().find(|n| n.id == id).unwrap().position
+    };
+
+    // Click on a node's header: it alone is selected and the inspector shows it.
+    let sky = rect(&harness, "sky");
+    pointer_click(&mut harness, sky.center_top() + egui::vec2(0.0, 14.0));
+    assert_eq!(harness.state().graph.selected, vec!["sky".to_string()]);
+    assert_eq!(harness.state().selection, Selection::Node("sky".into()));
+    let material = rect(&harness, "material");
+    pointer_click(&mut harness, material.center());
+    assert_eq!(harness.state().graph.selected, vec!["material".to_string()], "a plain click replaces the selection");
+    assert_eq!(harness.state().selection, Selection::Node("material".into()));
+
+    // Drag the header: the node moves by the drag (in graph units) as one undo step.
+    let before = position(&harness, "output");
+    let grab = rect(&harness, "output").center_top() + egui::vec2(0.0, 12.0);
+    pointer_drag(&mut harness, egui::PointerButton::Primary, grab, grab + egui::vec2(60.0, 30.0));
+    let after = position(&harness, "output");
+    assert!(after[0] > before[0] + 20.0 && after[1] > before[1] + 10.0, "header drag moves: {before:?} → {after:?}");
+    assert_eq!(harness.state().doc.undo_label(), Some("Move nodes"));
+
+    // Box select: a left drag on empty space around two nodes selects both.
+    let (sky, scene) = (rect(&harness, "sky"), rect(&harness, "scene"));
+    let around = sky.union(scene).expand(12.0);
+    let others: Vec<_> = ["material", "output"].iter().filter_map(|id| harness.state().graph.node_rect(id)).collect();
+    assert!(others.iter().all(|r| !r.intersects(around)), "the default layout leaves room for the box");
+    let positions_before = harness.state().doc.project.nodes.clone();
+    pointer_drag(&mut harness, egui::PointerButton::Primary, around.left_top(), around.right_bottom());
+    let mut selected = harness.state().graph.selected.clone();
+    selected.sort();
+    assert_eq!(selected, vec!["scene".to_string(), "sky".to_string()]);
+    assert_eq!(harness.state().doc.project.nodes, positions_before, "a box selection moves nothing");
+
+    // A click on empty space clears the selection.
+    let empty = harness.state().graph_rect.right_bottom() - egui::vec2(40.0, 40.0);
+    assert!(harness.state().doc.project.nodes.iter().all(|n| !rect(&harness, &n.id).contains(empty)));
+    pointer_click(&mut harness, empty);
+    assert!(harness.state().graph.selected.is_empty());
+
+    // A middle drag pans the view: every node moves on screen, none in the project.
+    let sky_before = rect(&harness, "sky");
+    pointer_drag(&mut harness, egui::PointerButton::Middle, empty, empty - egui::vec2(40.0, 25.0));
+    let sky_after = rect(&harness, "sky");
+    assert!((sky_after.min - sky_before.min + egui::vec2(40.0, 25.0)).length() < 3.0, "{sky_before:?} → {sky_after:?}");
+    assert_eq!(harness.state().doc.project.nodes, positions_before);
+    let path = state_dir().join("graph-gestures.png");
+    harness.render().unwrap().save(&path).unwrap();
+}

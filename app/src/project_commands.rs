@@ -97,7 +97,7 @@ pub struct InfoArgs {
     pub project: PathBuf,
 }
 
-pub(crate) fn load(path: &Path, overrides: &[String]) -> Result<(Project, Graph)> {
+pub fn load(path: &Path, overrides: &[String]) -> Result<(Project, Graph)> {
     let (project, graph) = Project::load_with_overrides(path, overrides)?;
     for warning in &graph.warnings {
         eprintln!("warning: {}: {warning}", path.display());

@@ -23,9 +23,28 @@ pub struct Project {
     pub cameras: Vec<Camera>,
     #[serde(default)]
     pub render: RenderSettings,
+    /// The editor's view when the project was saved: the editor reopens on it, and
+    /// `lightloom render` renders it unless a camera is named.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub view: Option<Camera>,
     pub nodes: Vec<ProjectNode>,
     #[serde(default)]
     pub links: Vec<ProjectLink>,
+}
+
+/// `a/b/../c` → `a/c` (lexically; the file need not exist).
+fn normalize(path: &Path) -> PathBuf {
+    let mut out = PathBuf::new();
+    for c in path.components() {
+        match c {
+            std::path::Component::CurDir => {}
+            std::path::Component::ParentDir if out.file_name().is_some() => {
+                out.pop();
+            }
+            c => out.push(c),
+        }
+    }
+    out
 }
 
 /// A perspective camera looking from `position` at `target`, +Y up.
@@ -275,8 +294,15 @@ impl Project {
         }
     }
 
-    /// The camera to render with (by name, or the first; a default view when there is none).
+    /// The camera to render with: the one named, else the editor's saved view (what the
+    /// editor showed when the project was saved), else the render settings' camera, else the
+    /// first camera, else a default view.
     pub fn camera(&self, name: Option<&str>) -> Result<Camera, String> {
+        if name.is_none()
+            && let Some(view) = &self.view
+        {
+            return Ok(view.clone());
+        }
         let name = name.or(Some(self.render.camera.as_str()).filter(|n| !n.is_empty()));
         match name {
             Some(n) => self.cameras.iter().find(|c| c.name == n).cloned().ok_or_else(|| {
@@ -292,6 +318,26 @@ impl Project {
                 target: [0.0, 0.5, 0.0],
                 fov_y_deg: 45.0,
             })),
+        }
+    }
+
+    /// Rewrites file parameters for a project file moving from `from_dir` to `to_dir`: each
+    /// names the same file as before, relative to `to_dir` where that is short (at most
+    /// three `..`), absolute otherwise.
+    pub fn rebase_paths(&mut self, from_dir: &Path, to_dir: &Path) {
+        let absolute = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
+        let (from_dir, to_dir) = (absolute(from_dir), absolute(to_dir));
+        for node in &mut self.nodes {
+            for value in node.params.values_mut() {
+                let ParamValue::Path(text) = value else { continue };
+                if text.is_empty() {
+                    continue;
+                }
+                let file = normalize(&from_dir.join(&*text));
+                let relative = pathdiff::diff_paths(&file, &to_dir)
+                    .filter(|r| r.components().filter(|c| matches!(c, std::path::Component::ParentDir)).count() <= 3);
+                *text = relative.unwrap_or(file).to_string_lossy().into_owned();
+            }
         }
     }
 
@@ -445,6 +491,7 @@ mod v1 {
                     .map(|c| Camera { name: "main".into(), position: c.eye, target: c.look_at, fov_y_deg: c.fov })
                     .collect(),
                 render: RenderSettings::default(),
+                view: None,
                 nodes: self
                     .nodes
                     .into_iter()
@@ -498,6 +545,7 @@ pub fn default_project() -> Project {
             fov_y_deg: 40.0,
         }],
         render: RenderSettings::default(),
+        view: None,
         nodes: vec![
             node("sky", "EnvironmentMap", 0.0, 0.0),
             node("scene", "Scene", 0.0, 200.0),
@@ -539,6 +587,30 @@ pub fn remove_stale_temp_files(path: &Path) {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn saving_elsewhere_keeps_file_parameters_naming_the_same_files() {
+        let mut project = super::default_project();
+        let set = |p: &mut super::Project, v: &str| {
+            p.nodes[0].params.insert("file".into(), super::ParamValue::Path(v.into()));
+        };
+        let get = |p: &super::Project| match p.nodes[0].params.get("file") {
+            Some(super::ParamValue::Path(v)) => v.clone(),
+            _ => panic!("no file parameter"),
+        };
+        // From /a/projects to /a/projects/renders: one level down.
+        set(&mut project, "../assets/sky.hdr");
+        project.rebase_paths(std::path::Path::new("/a/projects"), std::path::Path::new("/a/projects/renders"));
+        assert_eq!(get(&project), "../../assets/sky.hdr");
+        // An absolute path inside the new folder becomes relative.
+        set(&mut project, "/a/projects/renders/maps/sky.hdr");
+        project.rebase_paths(std::path::Path::new("/x"), std::path::Path::new("/a/projects/renders"));
+        assert_eq!(get(&project), "maps/sky.hdr");
+        // Far away stays absolute (more than three `..`).
+        set(&mut project, "/opt/library/hdri/sky.hdr");
+        project.rebase_paths(std::path::Path::new("/"), std::path::Path::new("/home/me/work/shots/a"));
+        assert_eq!(get(&project), "/opt/library/hdri/sky.hdr");
+    }
+
     use super::*;
 
     /// What a save killed at each step leaves behind, then the next start: the project reads

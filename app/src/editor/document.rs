@@ -145,10 +145,15 @@ impl Document {
     }
 
     /// Saves atomically to `path` (keeping the previous file as `.bak`), makes it the document's
-    /// path and clears its recovery file.
+    /// path and clears its recovery file. File parameters keep naming the same files, relative
+    /// to the new folder where that is short.
     pub fn save_as(&mut self, path: &Path) -> Result<()> {
         let old_recovery = recovery_path(self.path.as_deref());
-        self.project.save(path)?;
+        let mut project = self.project.clone();
+        let new_dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+        project.rebase_paths(&self.project_dir(), new_dir);
+        project.save(path)?;
+        self.project = project;
         self.path = Some(path.to_path_buf());
         self.saved = self.project.clone();
         let _ = std::fs::remove_file(&old_recovery);

@@ -3,6 +3,13 @@
 
 use super::*;
 
+/// A render of the view to an image file, on its own thread.
+pub(super) struct ImageRender {
+    pub path: PathBuf,
+    pub started: std::time::Instant,
+    result: std::sync::mpsc::Receiver<Result<(u32, u32), String>>,
+}
+
 impl EditorApp {
     pub(super) fn save(&mut self) {
         match self.doc.path.clone() {
@@ -16,8 +23,9 @@ impl EditorApp {
         self.file_dialog.save_file();
     }
 
-    /// Saves to `path` (atomic, with a `.bak` of the previous file).
+    /// Saves to `path` (atomic, with a `.bak` of the previous file), with the view on screen.
     pub fn save_to(&mut self, path: &std::path::Path) {
+        self.doc.project.view = Some(self.view.camera.to_camera("view"));
         match self.doc.save_as(path) {
             Ok(()) => {
                 document::remember_recent(path);
@@ -68,22 +76,85 @@ impl EditorApp {
         }
     }
 
+    pub(super) fn render_image_dialog(&mut self) {
+        let mut dialog = egui_file_dialog::FileDialog::new()
+            .add_save_extension("PNG image (tone-mapped)", "png")
+            .add_save_extension("OpenEXR image (linear radiance)", "exr")
+            .default_save_extension("PNG image (tone-mapped)")
+            .default_file_name("render.png")
+            .initial_directory(std::path::absolute(self.doc.project_dir()).unwrap_or_default());
+        dialog.save_file();
+        self.image_dialog = Some(dialog);
+    }
+
+    /// Renders what the viewport's render frame shows (the view, at the project's render
+    /// size) to `path` as `lightloom render` does, on its own thread, sharing the editor's
+    /// engine and its caches.
+    pub fn render_image_to(&mut self, path: PathBuf) {
+        let mut project = self.doc.project.clone();
+        project.view = Some(self.view.camera.to_camera("view"));
+        let graph = match project.graph(&self.doc.project_dir()) {
+            Ok(graph) => graph,
+            Err(errors) => {
+                let text: Vec<String> = errors.iter().map(ToString::to_string).collect();
+                self.log_error(format!("cannot render {}: {}", path.display(), text.join("; ")));
+                return;
+            }
+        };
+        let engine = self.evaluator.engine.clone();
+        let (send, result) = std::sync::mpsc::channel();
+        let target = path.clone();
+        let spawned = std::thread::Builder::new().name("lightloom-render-image".into()).spawn(move || {
+            let rendered =
+                crate::project_commands::render_project(&project, &graph, engine, None, None, (None, None), true)
+                    .and_then(|r| {
+                        crate::project_commands::write_image(&r.frame, &target)
+                            .map(|()| (r.frame.width, r.frame.height))
+                    })
+                    .map_err(|e| format!("{e:#}"));
+            let _ = send.send(rendered);
+        });
+        match spawned {
+            Ok(_) => self.image_render = Some(ImageRender { path, started: std::time::Instant::now(), result }),
+            Err(e) => self.log_error(format!("cannot start rendering {}: {e}", path.display())),
+        }
+    }
+
+    pub(super) fn poll_image_render(&mut self, ctx: &egui::Context) {
+        let Some(job) = &self.image_render else { return };
+        let outcome = match job.result.try_recv() {
+            Ok(outcome) => outcome,
+            Err(std::sync::mpsc::TryRecvError::Empty) => {
+                ctx.request_repaint_after(std::time::Duration::from_millis(200));
+                return;
+            }
+            Err(std::sync::mpsc::TryRecvError::Disconnected) => Err("the render stopped unexpectedly".into()),
+        };
+        let job = self.image_render.take().expect("checked above");
+        let took = crate::project_commands::duration_text(job.started.elapsed().as_secs_f64());
+        match outcome {
+            Ok((w, h)) => self.log_info(format!("rendered {} ({w}×{h}) in {took}", job.path.display())),
+            Err(e) => self.log_error(format!("render to {} failed: {e}", job.path.display())),
+        }
+    }
+
     pub(super) fn replace_document(&mut self, doc: Document) {
         self.doc = doc;
         self.selection = Selection::None;
         self.view.selected_object = None;
         self.view.frame = None;
         self.view.reference_image = None;
-        if let Ok(c) = self.doc.project.camera(None) {
-            self.view.camera = OrbitCamera::from_camera(&c);
-            self.view.camera_name = c.name;
-        }
+        (self.view.camera, self.view.camera_name) = initial_view(&self.doc.project);
         self.request_evaluation();
         self.graph = GraphEditor::default();
         self.graph_revision = u64::MAX;
     }
 
     pub(super) fn dialogs(&mut self, ctx: &egui::Context) {
+        if let Some(path) = self.image_dialog.as_mut().and_then(|d| d.update(ctx).picked().map(PathBuf::from)) {
+            self.image_dialog = None;
+            self.render_image_to(path);
+        }
         self.file_dialog.update(ctx);
         let asset = self.asset_dialog.as_mut().and_then(|d| d.update(ctx).picked().map(PathBuf::from));
         if let Some(path) = self.file_dialog.take_picked().or(asset) {

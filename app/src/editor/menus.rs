@@ -24,6 +24,9 @@ impl EditorApp {
         if pressed(Modifiers::COMMAND, Key::N) {
             self.request(Pending::New);
         }
+        if pressed(Modifiers::NONE, Key::F12) && self.image_render.is_none() {
+            self.render_image_dialog();
+        }
         if !typing && pressed(Modifiers::NONE, Key::F5) {
             self.request_evaluation();
         }
@@ -83,6 +86,16 @@ impl EditorApp {
                 }
                 if ui.button("Save As…  (Ctrl+Shift+S)").clicked() {
                     self.save_as_dialog(false);
+                    ui.close();
+                }
+                ui.separator();
+                let render = ui
+                    .add_enabled(self.image_render.is_none(), egui::Button::new("Render image…  (F12)"))
+                    .on_hover_text(
+                        "render what the viewport's frame shows, at the project's render size, to PNG or EXR",
+                    );
+                if render.clicked() {
+                    self.render_image_dialog();
                     ui.close();
                 }
                 ui.separator();
@@ -172,6 +185,12 @@ impl EditorApp {
             } else if let Some((evaluation, _)) = &self.evaluator.last {
                 let took = crate::project_commands::duration_text(evaluation.report.total_ms / 1e3);
                 ui.label(format!("evaluated in {took}"));
+            }
+            if let Some(job) = &self.image_render {
+                ui.separator();
+                ui.spinner();
+                let took = crate::project_commands::duration_text(job.started.elapsed().as_secs_f64());
+                ui.label(format!("rendering {} ({took})", job.path.display()));
             }
             if let Some(job) = &self.view.reference {
                 ui.separator();

@@ -139,6 +139,17 @@ impl FrameStats {
     }
 }
 
+/// Where the viewport starts on a project: its saved view (else its render camera), and the
+/// name of the camera "Save view to camera" writes.
+fn initial_view(project: &Project) -> (OrbitCamera, String) {
+    let camera = project.camera(None).unwrap_or_else(|_| default_project().cameras[0].clone());
+    let name = Some(project.render.camera.clone())
+        .filter(|n| !n.is_empty())
+        .or_else(|| project.cameras.first().map(|c| c.name.clone()))
+        .unwrap_or_else(|| "main".into());
+    (OrbitCamera::from_camera(&camera), name)
+}
+
 /// The viewport's view of the output: what it last drew and what it needs.
 struct ViewState {
     camera: OrbitCamera,
@@ -189,6 +200,10 @@ pub struct EditorApp {
     file_dialog: egui_file_dialog::FileDialog,
     /// The Browse… dialog of a file parameter, while open.
     asset_dialog: Option<egui_file_dialog::FileDialog>,
+    /// The Render image… dialog, while open.
+    image_dialog: Option<egui_file_dialog::FileDialog>,
+    /// A render of the view to an image file, while it runs.
+    image_render: Option<files::ImageRender>,
     file_action: Option<FileAction>,
     pending: Option<Pending>,
     close_confirmed: bool,
@@ -306,15 +321,15 @@ impl EditorApp {
             Err(e) => (None, Some(e)),
         };
         let cpu = host.as_ref().is_some_and(ViewportHost::is_cpu);
-        let camera = doc.project.camera(None).unwrap_or_else(|_| default_project().cameras[0].clone());
+        let (camera, camera_name) = initial_view(&doc.project);
         let mut app = Self {
             evaluator: Evaluator::new(engine),
             graph: GraphEditor::default(),
             selection: Selection::None,
             previews: Previews::default(),
             view: ViewState {
-                camera: OrbitCamera::from_camera(&camera),
-                camera_name: camera.name.clone(),
+                camera,
+                camera_name,
                 frame: None,
                 frame_generation: 0,
                 frame_error: None,
@@ -343,6 +358,8 @@ impl EditorApp {
                 .add_save_extension("Lightloom project", "ron")
                 .default_save_extension("Lightloom project"),
             asset_dialog: None,
+            image_dialog: None,
+            image_render: None,
             file_action: None,
             pending: None,
             close_confirmed: false,
@@ -418,6 +435,7 @@ impl EditorApp {
         egui::CentralPanel::default().show(ui, |ui| self.viewport_panel(ui));
 
         self.dialogs(&ctx);
+        self.poll_image_render(&ctx);
         if !ctx.input(|i| i.pointer.any_down()) {
             self.doc.seal();
         }

@@ -56,6 +56,14 @@ impl OrbitCamera {
         PinholeCamera { position: self.position(), target: self.target, fov_y_deg: self.fov_y_deg }
     }
 
+    /// The same view with a field of view `factor` times as tall (in tangent): a viewport
+    /// `factor` times taller than the render frame shows the frame at the camera's field of view.
+    pub fn widened(mut self, factor: f64) -> Self {
+        let tan = (self.fov_y_deg.to_radians() / 2.0).tan() * factor;
+        self.fov_y_deg = (2.0 * tan.atan()).to_degrees();
+        self
+    }
+
     /// Turns by a drag of `(dx, dy)` pixels (a full viewport height ≈ half a turn).
     pub fn orbit(&mut self, (dx, dy): (f64, f64), viewport_height: f64) {
         let speed = std::f64::consts::PI / viewport_height.max(1.0);

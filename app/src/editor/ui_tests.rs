@@ -64,9 +64,9 @@ fn settle(harness: &mut Harness<'_, EditorApp>) {
     harness.step();
 }
 
-/// Mean sRGB value of the viewport image in a screenshot.
+/// Mean sRGB value of the viewport's render frame in a screenshot.
 fn viewport_mean(harness: &mut Harness<'_, EditorApp>) -> f64 {
-    let rect = harness.state().viewport_rect;
+    let rect = harness.state().render_frame(harness.state().viewport_rect).shrink(1.0);
     let image = harness.render().expect("the UI renders through wgpu");
     let ppp = harness.ctx.pixels_per_point();
     let (x0, y0) = ((rect.left() * ppp) as u32, (rect.top() * ppp) as u32);
@@ -98,8 +98,23 @@ fn add_link_edit_undo_save_and_reopen() {
     assert!(lit > 20.0, "the viewport shows a lit scene (mean sRGB {lit:.1})");
     // What the window shows is what the renderer wrote (no colour-space slip on the way).
     let written = harness.state().host.as_ref().unwrap().capture_ldr().unwrap();
-    let written = written.iter().map(|p| f64::from(p[0]) + f64::from(p[1]) + f64::from(p[2])).sum::<f64>()
-        / (3 * written.len()) as f64;
+    let (w, h) = harness.state().host.as_ref().unwrap().size;
+    let (panel, frame) = (harness.state().viewport_rect, harness.state().render_frame(harness.state().viewport_rect));
+    let inside = frame.shrink(1.0);
+    let mut sum = 0.0;
+    let mut n = 0.0;
+    for y in 0..h {
+        for x in 0..w {
+            let at = panel.min
+                + egui::vec2((x as f32 + 0.5) / w as f32 * panel.width(), (y as f32 + 0.5) / h as f32 * panel.height());
+            if inside.contains(at) {
+                let p = written[(y * w + x) as usize];
+                sum += f64::from(p[0]) + f64::from(p[1]) + f64::from(p[2]);
+                n += 3.0;
+            }
+        }
+    }
+    let written = sum / n;
     assert!((written - lit).abs() < 3.0, "the viewport shows {lit:.1}, the renderer wrote {written:.1} (mean sRGB)");
     let nodes_before = harness.state().doc.project.nodes.len();
 
@@ -565,4 +580,96 @@ fn graph_nodes_select_on_click_move_by_header_and_box_select() {
     assert_eq!(harness.state().doc.project.nodes, positions_before);
     let path = state_dir().join("graph-gestures.png");
     harness.render().unwrap().save(&path).unwrap();
+}
+
+/// Mean of `image` over the cells of a `cols`×`rows` grid laid on `rect` (sRGB, 0..255 per
+/// channel).
+fn cell_means(sample: impl Fn(f32, f32) -> [u8; 4], rect: egui::Rect, cols: usize, rows: usize) -> Vec<[f64; 3]> {
+    let mut cells = vec![[0.0; 3]; cols * rows];
+    let per_cell = 6;
+    for (i, cell) in cells.iter_mut().enumerate() {
+        let (cx, cy) = (i % cols, i / cols);
+        for sy in 0..per_cell {
+            for sx in 0..per_cell {
+                let u = (cx as f32 + (sx as f32 + 0.5) / per_cell as f32) / cols as f32;
+                let v = (cy as f32 + (sy as f32 + 0.5) / per_cell as f32) / rows as f32;
+                let p = sample(rect.left() + u * rect.width(), rect.top() + v * rect.height());
+                for c in 0..3 {
+                    cell[c] += f64::from(p[c]) / (per_cell * per_cell) as f64;
+                }
+            }
+        }
+    }
+    cells
+}
+
+/// The view the user framed is saved with the project, the editor reopens on it, and the
+/// CLI render of the saved file matches what the viewport showed inside its render frame.
+#[test]
+fn the_saved_view_is_what_the_cli_renders() {
+    let mut editor = default_harness();
+    // Orbit and dolly away from the project's camera, as a user framing a shot would.
+    editor.state_mut().view.camera.orbit((90.0, -30.0), 600.0);
+    editor.state_mut().view.camera.zoom(0.8);
+    editor.step();
+    settle(&mut editor);
+    let framed = editor.state().view.camera;
+    let frame = editor.state().render_frame(editor.state().viewport_rect);
+    let screenshot = editor.render().unwrap();
+    let ppp = editor.ctx.pixels_per_point();
+    let shown = cell_means(|x, y| screenshot.get_pixel((x * ppp) as u32, (y * ppp) as u32).0, frame.shrink(1.0), 16, 9);
+
+    // "Render what I see": File → Render image… renders the same picture.
+    let png = state_dir().join("framed-render.png");
+    editor.state_mut().render_image_to(png.clone());
+    let start = Instant::now();
+    while editor.state().image_render.is_some() {
+        assert!(start.elapsed() < Duration::from_secs(240), "the image render finished");
+        editor.step();
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let written = image::open(&png).expect("the render wrote a PNG").to_rgba8();
+    let written_cells = cell_means(
+        |x, y| written.get_pixel((x as u32).min(written.width() - 1), (y as u32).min(written.height() - 1)).0,
+        egui::Rect::from_min_size(egui::Pos2::ZERO, egui::vec2(written.width() as f32, written.height() as f32)),
+        16,
+        9,
+    );
+
+    let path = state_dir().join("framed.ron");
+    editor.state_mut().doc.path = Some(path.clone());
+    editor.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::S);
+    editor.step();
+    drop(editor);
+
+    // The CLI's path: load the file, evaluate, render at the project's render size.
+    let (project, graph) = crate::project_commands::load(&path, &[]).unwrap();
+    let engine = Arc::new(Engine::new(EngineConfig { disk_cache: None, ..Default::default() }));
+    let rendered =
+        crate::project_commands::render_project(&project, &graph, engine, None, None, (None, None), true).unwrap();
+    let image = &rendered.frame;
+    let rendered_cells = cell_means(
+        |x, y| {
+            image.ldr[(y as usize).min(image.height as usize - 1) * image.width as usize
+                + (x as usize).min(image.width as usize - 1)]
+        },
+        egui::Rect::from_min_size(egui::Pos2::ZERO, egui::vec2(image.width as f32, image.height as f32)),
+        16,
+        9,
+    );
+    for (what, cells) in [("CLI render", &rendered_cells), ("Render image…", &written_cells)] {
+        let differences: Vec<f64> =
+            shown.iter().zip(cells).flat_map(|(a, b)| (0..3).map(move |c| (a[c] - b[c]).abs())).collect();
+        let mean = differences.iter().sum::<f64>() / differences.len() as f64;
+        let worst = differences.iter().cloned().fold(0.0, f64::max);
+        assert!(
+            mean < 3.0 && worst < 24.0,
+            "viewport vs {what}: mean cell difference {mean:.2}, worst {worst:.1} (sRGB)"
+        );
+    }
+
+    // The editor reopens on the framed view.
+    let reopened = harness(Some(path));
+    let view = reopened.state().view.camera;
+    assert!((view.position() - framed.position()).length() < 1e-9 && (view.target - framed.target).length() < 1e-9);
 }

@@ -26,6 +26,7 @@ impl EditorApp {
             );
         }
         self.selection_overlay(&painter, rect);
+        render_frame_overlay(&painter, rect, self.render_frame(rect), &self.doc.project.render);
         let message = if let Some(e) = &self.host_error {
             Some(format!("viewport unavailable: {e}"))
         } else if let Some(e) = &self.view.frame_error {
@@ -160,6 +161,27 @@ impl EditorApp {
         }
     }
 
+    /// The part of the viewport that `lightloom render` renders (as Blender's camera frame):
+    /// the render size's aspect, as large as fits with a margin.
+    pub(super) fn render_frame(&self, rect: egui::Rect) -> egui::Rect {
+        let render = &self.doc.project.render;
+        let aspect = render.width.max(1) as f32 / render.height.max(1) as f32;
+        let inner = rect.shrink(rect.width().min(rect.height()) * 0.04);
+        let size = if inner.width() > inner.height() * aspect {
+            egui::vec2(inner.height() * aspect, inner.height())
+        } else {
+            egui::vec2(inner.width(), inner.width() / aspect)
+        };
+        egui::Rect::from_center_size(inner.center(), size)
+    }
+
+    /// The camera the viewport draws with: the view, widened so that the render frame shows
+    /// exactly the camera's field of view.
+    pub(super) fn viewport_camera(&self, rect: egui::Rect) -> OrbitCamera {
+        let frame = self.render_frame(rect);
+        self.view.camera.widened(f64::from(rect.height() / frame.height().max(1.0)))
+    }
+
     pub(super) fn frame_all(&mut self) {
         if let Some(frame) = &self.view.frame
             && let Some(m) = frame.geometry.meshes.value.get::<lightloom_nodes::mesh::MeshSet>()
@@ -175,7 +197,8 @@ impl EditorApp {
         let (delta, shift, ctrl, alt) =
             ui.input(|i| (i.pointer.delta(), i.modifiers.shift, i.modifiers.command, i.modifiers.alt));
         let delta = (f64::from(delta.x), f64::from(delta.y));
-        let height = f64::from(rect.height());
+        // The camera's field of view spans the render frame's height.
+        let height = f64::from(self.render_frame(rect).height());
         let middle = response.dragged_by(egui::PointerButton::Middle);
         let left_alt = response.dragged_by(egui::PointerButton::Primary) && alt;
         let right = response.dragged_by(egui::PointerButton::Secondary);
@@ -203,7 +226,7 @@ impl EditorApp {
         let Some(frame) = &self.view.frame else { return };
         let local = pos - rect.min;
         let size = (rect.width().max(1.0) as usize, rect.height().max(1.0) as usize);
-        let camera = self.view.camera.pinhole();
+        let camera = self.viewport_camera(rect).pinhole();
         let Some(mesh) = frame.pick(&camera, (f64::from(local.x), f64::from(local.y)), size) else {
             self.view.selected_object = None;
             return;
@@ -244,7 +267,7 @@ impl EditorApp {
         }
         let (lo, hi) = lightloom_nodes::mesh::union_bounds(parts);
         let all = m.bounds();
-        let view_proj = self.view.camera.view().view_proj(rect.width() / rect.height().max(1.0), all);
+        let view_proj = self.viewport_camera(rect).view().view_proj(rect.width() / rect.height().max(1.0), all);
         let corner = |i: usize| {
             glam::Vec3::new(
                 if i & 1 == 0 { lo[0] } else { hi[0] },
@@ -273,6 +296,7 @@ impl EditorApp {
     /// camera, size or view changed; starts or shows reference renders. Never waits for the
     /// GPU: the last finished frame stays on screen while the next one renders.
     pub(super) fn draw_viewport(&mut self, ctx: &egui::Context, size: (u32, u32)) {
+        let camera = self.viewport_camera(self.viewport_rect);
         let Some(host) = self.host.as_mut() else { return };
         match host.poll(ctx) {
             Some(Ok(done)) => {
@@ -293,7 +317,6 @@ impl EditorApp {
         }
         let Some(frame) = self.view.frame.clone() else { return };
         let settings = &frame.settings;
-        let camera = self.view.camera;
         let mut h = std::hash::DefaultHasher::new();
         use std::hash::{Hash, Hasher};
         self.view.frame_generation.hash(&mut h);
@@ -387,4 +410,27 @@ fn error_legend(painter: &egui::Painter, rect: egui::Rect, scale: f64) {
             Color32::WHITE,
         );
     }
+}
+
+/// Dims the viewport outside the render frame and names the render size.
+fn render_frame_overlay(
+    painter: &egui::Painter,
+    rect: egui::Rect,
+    frame: egui::Rect,
+    render: &lightloom_nodes::project::RenderSettings,
+) {
+    let dim = Color32::from_black_alpha(110);
+    painter.rect_filled(egui::Rect::from_min_max(rect.min, egui::pos2(rect.right(), frame.top())), 0.0, dim);
+    painter.rect_filled(egui::Rect::from_min_max(egui::pos2(rect.left(), frame.bottom()), rect.max), 0.0, dim);
+    let middle = |l: f32, r: f32| egui::Rect::from_min_max(egui::pos2(l, frame.top()), egui::pos2(r, frame.bottom()));
+    painter.rect_filled(middle(rect.left(), frame.left()), 0.0, dim);
+    painter.rect_filled(middle(frame.right(), rect.right()), 0.0, dim);
+    painter.rect_stroke(frame, 0.0, egui::Stroke::new(1.0, Color32::from_gray(150)), egui::StrokeKind::Outside);
+    painter.text(
+        frame.right_bottom() + egui::vec2(0.0, 3.0),
+        egui::Align2::RIGHT_TOP,
+        format!("render {}×{}", render.width, render.height),
+        egui::FontId::proportional(11.0),
+        Color32::from_gray(170),
+    );
 }

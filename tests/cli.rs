@@ -724,8 +724,8 @@ fn info_loads_every_asset_before_calling_a_project_valid() {
     std::fs::write(&truncated_hdr, &hdr[..hdr.len() / 3]).unwrap();
     let project = |scene_file: &Path, sky_file: &Path| {
         format!(
-            r#"(version: 3, nodes: [
-                (id: "scene", kind: "Scene", params: {{"file": Path("{}")}}),
+            r#"(version: 4, nodes: [
+                (id: "scene", kind: "Scene", params: {{"objects": Objects([(name: "model", shape: Gltf(file: "{}"))])}}),
                 (id: "sky", kind: "EnvironmentMap", params: {{"source": Choice("file"), "file": Path("{}")}}),
                 (id: "out", kind: "Output"),
             ], links: [

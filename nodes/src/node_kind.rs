@@ -26,6 +26,25 @@ pub enum ParamValue {
 }
 
 impl ParamValue {
+    /// The files the value names (relative to the project): a file path's, or the models of
+    /// an object list.
+    pub fn files(&self) -> Vec<&str> {
+        match self {
+            ParamValue::Path(p) if !p.is_empty() => vec![p.as_str()],
+            ParamValue::Objects(objects) => objects.iter().filter_map(|o| o.file()).collect(),
+            _ => Vec::new(),
+        }
+    }
+
+    /// Mutable access to every file name in the value.
+    pub fn files_mut(&mut self) -> Vec<&mut String> {
+        match self {
+            ParamValue::Path(p) if !p.is_empty() => vec![p],
+            ParamValue::Objects(objects) => objects.iter_mut().filter_map(|o| o.file_mut()).collect(),
+            _ => Vec::new(),
+        }
+    }
+
     pub fn type_name(&self) -> &'static str {
         match self {
             ParamValue::Float(_) => "Float",

@@ -10,7 +10,7 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 /// The version this build writes.
-pub const CURRENT_VERSION: u32 = 3;
+pub const CURRENT_VERSION: u32 = 4;
 
 /// A project: cameras, render settings, nodes and links.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -163,10 +163,11 @@ impl Project {
         let probe: VersionProbe = options.from_str(text).map_err(syntax)?;
         match probe.version {
             CURRENT_VERSION => options.from_str(text).map_err(syntax),
-            2 => options.from_str::<Project>(text).map_err(syntax).map(migrate_v2),
+            3 => options.from_str::<Project>(text).map_err(syntax).map(migrate_v3),
+            2 => options.from_str::<Project>(text).map_err(syntax).map(migrate_v2).map(migrate_v3),
             1 => {
                 let v1: v1::ProjectV1 = options.from_str(text).map_err(syntax)?;
-                v1.migrate().map(migrate_v2).map_err(|message| ProjectError::Syntax {
+                v1.migrate().map(migrate_v2).map(migrate_v3).map_err(|message| ProjectError::Syntax {
                     path: path.into(),
                     line: 1,
                     column: 1,
@@ -177,7 +178,7 @@ impl Project {
                 path: path.into(),
                 line: 1,
                 column: 1,
-                message: "missing `version` field (a Lightloom project starts with `(version: 3, ...`)".into(),
+                message: "missing `version` field (a Lightloom project starts with `(version: 4, ...`)".into(),
             }),
             found if found > CURRENT_VERSION => Err(ProjectError::TooNew { path: path.into(), found }),
             found => Err(ProjectError::Syntax {
@@ -228,10 +229,10 @@ impl Project {
         let mut missing = Vec::new();
         for node in &graph.nodes {
             for name in node.params.keys() {
-                if let Some(p) = node.file_param(name)
-                    && !graph.project_dir.join(p).is_file()
-                {
-                    missing.push((node.id.clone(), name.clone(), graph.project_dir.join(p)));
+                for p in node.files(name) {
+                    if !graph.project_dir.join(p).is_file() {
+                        missing.push((node.id.clone(), name.clone(), graph.project_dir.join(p)));
+                    }
                 }
             }
         }
@@ -328,11 +329,7 @@ impl Project {
         let absolute = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
         let (from_dir, to_dir) = (absolute(from_dir), absolute(to_dir));
         for node in &mut self.nodes {
-            for value in node.params.values_mut() {
-                let ParamValue::Path(text) = value else { continue };
-                if text.is_empty() {
-                    continue;
-                }
+            for text in node.params.values_mut().flat_map(ParamValue::files_mut) {
                 let file = normalize(&from_dir.join(&*text));
                 let relative = pathdiff::diff_paths(&file, &to_dir)
                     .filter(|r| r.components().filter(|c| matches!(c, std::path::Component::ParentDir)).count() <= 3);
@@ -425,6 +422,29 @@ fn migrate_v2(mut project: Project) -> Project {
                 node.params.entry("mode".into()).or_insert_with(|| ParamValue::Choice("sh_irradiance".into()));
             }
             _ => {}
+        }
+    }
+    project.version = 3;
+    project
+}
+
+/// Version 3 → 4: a glTF model became a scene object (with a transform, colour and material)
+/// instead of the Scene's `file` parameter; the model keeps its place.
+fn migrate_v3(mut project: Project) -> Project {
+    for node in project.nodes.iter_mut().filter(|n| n.kind == "Scene") {
+        let Some(ParamValue::Path(file)) = node.params.remove("file") else { continue };
+        if file.is_empty() {
+            continue;
+        }
+        let stem = Path::new(&file).file_stem().map_or("model".into(), |s| s.to_string_lossy().into_owned());
+        let model = crate::scene_object::SceneObject::new(&stem, crate::scene_object::Shape::Gltf { file });
+        match node
+            .params
+            .entry("objects".into())
+            .or_insert_with(|| ParamValue::Objects(crate::kinds::scene::default_objects()))
+        {
+            ParamValue::Objects(objects) => objects.push(model),
+            other => *other = ParamValue::Objects(vec![model]),
         }
     }
     project.version = CURRENT_VERSION;

@@ -26,6 +26,28 @@ pub enum Shape {
     CornellBox {
         size: f64,
     },
+    /// A glTF 2.0 model (a file relative to the project; its own node transforms apply
+    /// inside the object, and its base colours are multiplied by the object's colour / 0.8).
+    Gltf {
+        file: String,
+    },
+}
+
+impl SceneObject {
+    /// The model file a glTF object names (relative to the project), if any.
+    pub fn file(&self) -> Option<&str> {
+        match &self.shape {
+            Shape::Gltf { file } if !file.is_empty() => Some(file),
+            _ => None,
+        }
+    }
+
+    pub fn file_mut(&mut self) -> Option<&mut String> {
+        match &mut self.shape {
+            Shape::Gltf { file } => Some(file),
+            _ => None,
+        }
+    }
 }
 
 /// One object of a scene: a shape, its transform and colour.

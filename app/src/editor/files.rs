@@ -138,6 +138,73 @@ impl EditorApp {
         }
     }
 
+    /// Edits the object list of Scene node `node` as one undo step.
+    fn edit_objects(
+        &mut self,
+        node: &str,
+        label: &str,
+        f: impl FnOnce(&mut Vec<lightloom_nodes::kinds::scene::SceneObject>) -> Result<(), String>,
+    ) -> Result<(), String> {
+        let spec = edits::kind_of(&self.doc.project, node)
+            .and_then(|k| k.param("objects"))
+            .ok_or_else(|| format!("node `{node}` has no object list"))?;
+        let ParamValue::Objects(mut objects) = inspector::param_value(&self.doc.project, node, spec) else {
+            return Err(format!("node `{node}` has no object list"));
+        };
+        f(&mut objects)?;
+        self.doc.edit(label, None, |p| {
+            spec.check(&ParamValue::Objects(objects.clone()))?;
+            let n = p.nodes.iter_mut().find(|n| n.id == node).ok_or_else(|| format!("no node `{node}`"))?;
+            n.params.insert("objects".into(), ParamValue::Objects(objects));
+            Ok(())
+        })
+    }
+
+    /// Adds the glTF model `file` (relative to the project) to Scene node `node` as an object
+    /// resting on the floor at the origin, selects it and frames the view on it.
+    pub fn import_model(&mut self, node: &str, file: &str) -> Result<(), String> {
+        let path = self.doc.project_dir().join(file);
+        let imported = lightloom_nodes::gltf_import::import(&path)?;
+        let (lo, hi) = lightloom_nodes::mesh::union_bounds(&imported.meshes);
+        if lo[0] > hi[0] {
+            return Err(format!("{}: the model has no triangles", path.display()));
+        }
+        for warning in &imported.warnings {
+            self.log_info(format!("{}: {warning}", path.display()));
+        }
+        let stem = std::path::Path::new(file).file_stem().map_or("model".into(), |s| s.to_string_lossy().into_owned());
+        let centre = [0, 1, 2].map(|a| (f64::from(lo[a]) + f64::from(hi[a])) / 2.0);
+        let mut index = 0;
+        self.edit_objects(node, &format!("Import {stem}"), |objects| {
+            let mut name = stem.clone();
+            let mut n = 2;
+            while objects.iter().any(|o| o.name == name) {
+                name = format!("{stem}{n}");
+                n += 1;
+            }
+            let mut model = lightloom_nodes::kinds::scene::SceneObject::new(
+                &name,
+                lightloom_nodes::kinds::scene::Shape::Gltf { file: file.to_string() },
+            );
+            // (+ 0.0: no "-0" in the inspector)
+            model.translation = [-centre[0] + 0.0, -f64::from(lo[1]) + 0.0, -centre[2] + 0.0];
+            objects.push(model);
+            index = objects.len() - 1;
+            Ok(())
+        })?;
+        self.selection = Selection::Node(node.to_string());
+        self.view.selected_object = Some(index);
+        let half = [0, 1, 2].map(|a| (hi[a] - lo[a]) / 2.0);
+        self.view.camera.frame(([-half[0], 0.0, -half[2]], [half[0], hi[1] - lo[1], half[2]]));
+        self.log_info(format!(
+            "imported {file}: {:.2} × {:.2} × {:.2} m, placed on the floor at the origin",
+            hi[0] - lo[0],
+            hi[1] - lo[1],
+            hi[2] - lo[2]
+        ));
+        Ok(())
+    }
+
     pub(super) fn replace_document(&mut self, doc: Document) {
         self.doc = doc;
         self.selection = Selection::None;
@@ -168,10 +235,27 @@ impl EditorApp {
                         ctx.send_viewport_cmd(egui::ViewportCommand::Close);
                     }
                 }
-                Some(FileAction::Browse { node, param }) => {
+                Some(FileAction::Browse { node, target }) => {
                     let dir = std::path::absolute(self.doc.project_dir()).unwrap_or_default();
                     let value = path.strip_prefix(&dir).map_or(path.clone(), PathBuf::from).display().to_string();
-                    if let Err(e) = inspector::set_param(&mut self.doc, &node, &param, ParamValue::Path(value)) {
+                    let result = match target {
+                        inspector::FileTarget::Param(param) => {
+                            inspector::set_param(&mut self.doc, &node, &param, ParamValue::Path(value))
+                        }
+                        inspector::FileTarget::NewModel => self.import_model(&node, &value),
+                        inspector::FileTarget::Model(index) => {
+                            self.edit_objects(&node, "Choose model file", |objects| {
+                                match objects.get_mut(index).and_then(|o| o.file_mut()) {
+                                    Some(file) => {
+                                        *file = value.clone();
+                                        Ok(())
+                                    }
+                                    None => Err(format!("object {index} is not a glTF model")),
+                                }
+                            })
+                        }
+                    };
+                    if let Err(e) = result {
                         self.log_error(e);
                     }
                     self.doc.seal();

@@ -11,11 +11,26 @@ use lightloom_nodes::kinds::scene::{SceneObject, Shape};
 use lightloom_nodes::node_kind::{ParamKind, ParamSpec, ParamValue};
 use lightloom_nodes::project::Project;
 
+/// What a picked file is for.
+#[derive(Clone, Debug, PartialEq)]
+pub enum FileTarget {
+    /// A file parameter.
+    Param(String),
+    /// A new glTF model object in the node's object list.
+    NewModel,
+    /// The file of the object at this index.
+    Model(usize),
+}
+
 /// Something the inspector wants from the editor.
 pub enum InspectorRequest {
-    /// Pick a file for `node.param` with these extensions.
-    Browse { node: String, param: String, extensions: &'static [&'static str] },
+    /// Pick a file with these extensions for `node`.
+    Browse { node: String, target: FileTarget, extensions: &'static [&'static str] },
 }
+
+/// Lengths a model may have been authored in, as scales to metres.
+pub const MODEL_UNITS: [(&str, f64); 5] =
+    [("metres", 1.0), ("centimetres", 0.01), ("millimetres", 0.001), ("inches", 0.0254), ("feet", 0.3048)];
 
 /// Sets one parameter after checking it against its spec; `merge` makes a drag one undo step.
 pub fn set_param(doc: &mut Document, node: &str, name: &str, value: ParamValue) -> Result<(), String> {
@@ -88,6 +103,8 @@ pub struct Inspector<'a> {
     pub report: Option<&'a Report>,
     /// The object picked in the viewport (Scene nodes).
     pub selected_object: &'a mut Option<usize>,
+    /// The meshes on screen (object sizes).
+    pub meshes: Option<&'a lightloom_nodes::mesh::MeshSet>,
     pub requests: Vec<InspectorRequest>,
     pub errors: Vec<String>,
 }
@@ -273,7 +290,7 @@ impl Inspector<'_> {
                         if ui.button("Browse…").clicked() {
                             self.requests.push(InspectorRequest::Browse {
                                 node: id.into(),
-                                param: spec.name.into(),
+                                target: FileTarget::Param(spec.name.into()),
                                 extensions,
                             });
                         }
@@ -326,10 +343,21 @@ impl Inspector<'_> {
                         ui.close();
                     }
                 }
+                ui.separator();
+                if ui.button("glTF model…").on_hover_text("import a .gltf or .glb file as an object").clicked() {
+                    self.requests.push(InspectorRequest::Browse {
+                        node: id.into(),
+                        target: FileTarget::NewModel,
+                        extensions: &["gltf", "glb"],
+                    });
+                    ui.close();
+                }
             });
         });
         let mut remove = None;
         let mut duplicate = None;
+        let meshes = self.meshes;
+        let project_dir = self.doc.project_dir();
         for (i, o) in objects.iter_mut().enumerate() {
             let selected = *self.selected_object == Some(i);
             let header = egui::CollapsingHeader::new(RichText::new(&o.name).color(if selected {
@@ -347,6 +375,24 @@ impl Inspector<'_> {
                     ui.label("Shape");
                     shape_widget(ui, &mut o.shape);
                     ui.end_row();
+                    if let Shape::Gltf { file } = &mut o.shape {
+                        ui.label("File");
+                        ui.horizontal(|ui| {
+                            ui.add(egui::TextEdit::singleline(file).desired_width(150.0).hint_text("(none)"));
+                            if ui.button("Browse…").clicked() {
+                                self.requests.push(InspectorRequest::Browse {
+                                    node: id.into(),
+                                    target: FileTarget::Model(i),
+                                    extensions: &["gltf", "glb"],
+                                });
+                            }
+                            if !file.is_empty() && !project_dir.join(file.as_str()).is_file() {
+                                ui.colored_label(Color32::from_rgb(235, 90, 80), "missing");
+                            }
+                        });
+                        ui.end_row();
+                        model_units_rows(ui, o, meshes, (id, i));
+                    }
                     ui.label("Translation");
                     vec3_widget(ui, &mut o.translation, -1e4, 1e4, " m");
                     ui.end_row();
@@ -471,6 +517,7 @@ fn shape_widget(ui: &mut egui::Ui, shape: &mut Shape) {
             Shape::Box { .. } => "box",
             Shape::Torus { .. } => "torus",
             Shape::CornellBox { .. } => "Cornell box",
+            Shape::Gltf { .. } => "glTF model",
         };
         ui.label(name);
         match shape {
@@ -487,6 +534,57 @@ fn shape_widget(ui: &mut egui::Ui, shape: &mut Shape) {
                 ui.add(egui::DragValue::new(major).range(1e-3..=1e4).speed(0.01).prefix("R "));
                 ui.add(egui::DragValue::new(minor).range(1e-3..=1e4).speed(0.01).prefix("r "));
             }
+            Shape::Gltf { .. } => {}
         }
     });
+}
+
+/// A model's size on screen and the unit it was authored in (a uniform scale), with a hint
+/// when the size is implausible for a scene measured in metres.
+fn model_units_rows(
+    ui: &mut egui::Ui,
+    o: &mut SceneObject,
+    meshes: Option<&lightloom_nodes::mesh::MeshSet>,
+    id_salt: (&str, usize),
+) {
+    let prefix = format!("{}/", o.name);
+    let size = meshes.map(|m| m.meshes.iter().filter(|x| x.name.starts_with(&prefix))).and_then(|parts| {
+        let (lo, hi) = lightloom_nodes::mesh::union_bounds(parts);
+        (lo[0] <= hi[0]).then(|| [0, 1, 2].map(|a| f64::from(hi[a] - lo[a])))
+    });
+    let label = ui.label("Units");
+    let uniform = (o.scale[0] == o.scale[1] && o.scale[1] == o.scale[2]).then_some(o.scale[0]);
+    let current = MODEL_UNITS.iter().find(|(_, s)| Some(*s) == uniform).map_or("custom scale", |(n, _)| n);
+    egui::ComboBox::from_id_salt(("units", id_salt))
+        .selected_text(current)
+        .show_ui(ui, |ui| {
+            for (name, scale) in MODEL_UNITS {
+                if ui.selectable_label(uniform == Some(scale), name).clicked() {
+                    o.scale = [scale; 3];
+                }
+            }
+        })
+        .response
+        .labelled_by(label.id)
+        .on_hover_text("the length unit the model was made in: sets a uniform scale to metres");
+    ui.end_row();
+    if let Some(size) = size {
+        ui.label("Size");
+        let largest = size.iter().cloned().fold(0.0, f64::max);
+        ui.vertical(|ui| {
+            ui.label(format!("{:.2} × {:.2} × {:.2} m", size[0], size[1], size[2]));
+            if largest > 50.0 {
+                ui.colored_label(
+                    Color32::from_rgb(240, 190, 80),
+                    "larger than a building: if it was made in centimetres or millimetres, set its units",
+                );
+            } else if largest < 0.05 {
+                ui.colored_label(
+                    Color32::from_rgb(240, 190, 80),
+                    "smaller than a coin: if it was made in another unit, set its units or scale",
+                );
+            }
+        });
+        ui.end_row();
+    }
 }

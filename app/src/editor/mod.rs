@@ -73,7 +73,7 @@ pub enum Selection {
 enum FileAction {
     Open,
     SaveAs { then_close: bool },
-    Browse { node: String, param: String },
+    Browse { node: String, target: inspector::FileTarget },
 }
 
 /// A question that needs an answer before going on.
@@ -751,11 +751,13 @@ impl EditorApp {
             self.selection = Selection::None;
             return;
         }
+        let frame_meshes = self.view.frame.clone();
         let mut inspector = inspector::Inspector {
             doc: &mut self.doc,
             status: self.evaluator.status.get(&id),
             report: self.evaluator.last.as_ref().map(|(e, _)| &e.report),
             selected_object: &mut self.view.selected_object,
+            meshes: frame_meshes.as_ref().and_then(|f| f.geometry.meshes.value.get::<lightloom_nodes::mesh::MeshSet>()),
             requests: Vec::new(),
             errors: Vec::new(),
         };
@@ -765,8 +767,8 @@ impl EditorApp {
             self.log_error(e);
         }
         for r in requests {
-            let inspector::InspectorRequest::Browse { node, param, extensions } = r;
-            self.file_action = Some(FileAction::Browse { node, param });
+            let inspector::InspectorRequest::Browse { node, target, extensions } = r;
+            self.file_action = Some(FileAction::Browse { node, target });
             // Its own dialog, filtered to the parameter's file types (the project dialog keeps
             // its .ron filter).
             let mut dialog = egui_file_dialog::FileDialog::new()

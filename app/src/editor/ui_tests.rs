@@ -673,3 +673,95 @@ fn the_saved_view_is_what_the_cli_renders() {
     let view = reopened.state().view.camera;
     assert!((view.position() - framed.position()).length() < 1e-9 && (view.target - framed.target).length() < 1e-9);
 }
+
+/// A glTF model is imported as an object: the Add menu offers it, it joins the Objects list
+/// (selected, resting on the floor at the origin, the view framed on it), its size is shown
+/// and its units set its scale; it renders and can be picked in the viewport.
+#[test]
+fn a_gltf_model_is_an_object_in_the_list_and_framed() {
+    let model = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../shared/assets/gltf/assimp-glTF2/BoxTextured-glTF-Binary/BoxTextured.glb");
+    let mut harness = default_harness();
+    harness.state_mut().selection = Selection::Node("scene".into());
+    harness.run_steps(2);
+    harness.get_by_label("+ Add").click();
+    harness.run_steps(2);
+    harness.get_by_label("glTF model…").click();
+    harness.run_steps(2);
+    assert!(
+        matches!(
+            &harness.state().file_action,
+            Some(FileAction::Browse { target: inspector::FileTarget::NewModel, .. })
+        ),
+        "the menu asks for a model file"
+    );
+    assert!(harness.state().asset_dialog.is_some(), "a file dialog is open");
+    // What the file dialog does with the file picked.
+    harness.state_mut().asset_dialog = None;
+    harness.state_mut().file_action = None;
+    let before = harness.state().view.camera;
+    harness.state_mut().import_model("scene", &model.display().to_string()).unwrap();
+    let objects = match edits::node(&harness.state().doc.project, "scene").and_then(|n| n.params.get("objects")) {
+        Some(ParamValue::Objects(o)) => o.clone(),
+        _ => panic!("the scene lists objects"),
+    };
+    let imported = objects.last().unwrap();
+    assert_eq!(imported.name, "BoxTextured");
+    assert!(matches!(imported.shape, lightloom_nodes::kinds::scene::Shape::Gltf { .. }));
+    assert_eq!(harness.state().view.selected_object, Some(objects.len() - 1));
+    assert_eq!(harness.state().doc.undo_label(), Some("Import BoxTextured"));
+    let framed = harness.state().view.camera;
+    assert!(framed.target != before.target && framed.distance < before.distance, "the view frames the model");
+    settle(&mut harness);
+
+    // It renders: its parts are in the scene, resting on the floor at the origin.
+    let meshes = harness
+        .state()
+        .view
+        .frame
+        .as_ref()
+        .unwrap()
+        .geometry
+        .meshes
+        .value
+        .get::<lightloom_nodes::mesh::MeshSet>()
+        .unwrap()
+        .clone();
+    let parts: Vec<_> = meshes.meshes.iter().filter(|m| m.name.starts_with("BoxTextured/")).collect();
+    assert!(!parts.is_empty());
+    let (lo, hi) = lightloom_nodes::mesh::union_bounds(parts.iter().copied());
+    assert!(lo[1].abs() < 1e-4 && (lo[0] + hi[0]).abs() < 1e-4 && (lo[2] + hi[2]).abs() < 1e-4, "{lo:?} {hi:?}");
+    // The Objects list shows it, with its size; units set a uniform scale.
+    harness.get_by_label_contains("1.00 × 1.00 × 1.00 m");
+    harness.get_by_role_and_label(Role::ComboBox, "Units").click();
+    harness.run_steps(2);
+    harness.get_by_label("centimetres").click();
+    harness.run_steps(2);
+    let objects = match edits::node(&harness.state().doc.project, "scene").and_then(|n| n.params.get("objects")) {
+        Some(ParamValue::Objects(o)) => o.clone(),
+        _ => panic!("the scene lists objects"),
+    };
+    assert_eq!(objects.last().unwrap().scale, [0.01; 3]);
+    harness.state_mut().undo();
+    settle(&mut harness);
+    // Clicking the model in the viewport selects it.
+    harness.state_mut().view.selected_object = None;
+    let frame = harness.state().render_frame(harness.state().viewport_rect);
+    let (rect, camera) =
+        (harness.state().viewport_rect, harness.state().viewport_camera(harness.state().viewport_rect));
+    let at = project_point(&camera, rect, [0.0, 0.5, 0.0]);
+    assert!(frame.contains(at));
+    harness.state_mut().pick(at, rect);
+    assert_eq!(harness.state().view.selected_object, Some(objects.len() - 1), "picking the model selects its object");
+    harness.render().unwrap().save(state_dir().join("gltf-object.png")).unwrap();
+}
+
+/// Where a world point lands in the viewport.
+fn project_point(camera: &orbit::OrbitCamera, rect: egui::Rect, p: [f32; 3]) -> egui::Pos2 {
+    let view_proj = camera.view().view_proj(rect.width() / rect.height(), ([-10.0; 3], [10.0; 3]));
+    let c = view_proj * glam::Vec3::from(p).extend(1.0);
+    egui::pos2(
+        rect.left() + (c.x / c.w * 0.5 + 0.5) * rect.width(),
+        rect.top() + (0.5 - c.y / c.w * 0.5) * rect.height(),
+    )
+}

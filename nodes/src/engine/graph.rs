@@ -14,12 +14,10 @@ pub struct GraphNode {
 }
 
 impl GraphNode {
-    /// The file parameter `name` names (relative to the project), if it names one.
-    pub fn file_param(&self, name: &str) -> Option<&str> {
-        match self.params.get(name) {
-            Some(ParamValue::Path(p)) if !p.is_empty() => Some(p),
-            _ => None,
-        }
+    /// The files parameter `name` names (relative to the project): a file parameter's, or
+    /// the models of an object list.
+    pub fn files(&self, name: &str) -> Vec<&str> {
+        self.params.get(name).map_or_else(Vec::new, ParamValue::files)
     }
 }
 

@@ -204,6 +204,11 @@ impl StageContext<'_> {
     }
 
     /// A path parameter resolved against the project directory (`None` when empty).
+    /// The folder relative file names resolve against.
+    pub fn project_dir(&self) -> &Path {
+        self.project_dir
+    }
+
     pub fn path(&self, name: &str) -> Result<Option<PathBuf>, StageError> {
         match self.param(name)? {
             ParamValue::Path(p) if p.is_empty() => Ok(None),
@@ -646,9 +651,7 @@ impl Engine {
         bytes.clear();
         let taken = std::mem::take(bytes);
         *bytes = postcard::to_extend(value, taken).unwrap_or_default();
-        if let ParamValue::Path(p) = value
-            && !p.is_empty()
-        {
+        for p in value.files() {
             let path = graph.project_dir.join(p);
             bytes.extend_from_slice(&self.file_hash(&path).to_le_bytes());
             for sidecar in gltf_sidecars(&path) {

@@ -59,6 +59,10 @@ impl SceneObject {
             return Err(format!("object `{}` colour {:?} must be within 0..1", self.name, self.color));
         }
         let sizes: Vec<f64> = match &self.shape {
+            Shape::Gltf { file } if file.is_empty() => {
+                return Err(format!("object `{}` is a glTF model without a file: choose one", self.name));
+            }
+            Shape::Gltf { .. } => vec![],
             Shape::Plane { size } | Shape::CornellBox { size } => vec![*size],
             Shape::Sphere { radius } => vec![*radius],
             Shape::Box { size } => size.to_vec(),
@@ -70,30 +74,44 @@ impl SceneObject {
         Ok(())
     }
 
-    /// World-space meshes of the object.
-    pub fn meshes(&self, tessellation: usize) -> Vec<mesh::Mesh> {
-        self.meshes_with(tessellation, self.transform())
+    /// World-space meshes of the object; `project_dir` resolves a glTF model's file.
+    pub fn meshes(&self, tessellation: usize, project_dir: &std::path::Path) -> Result<Vec<mesh::Mesh>, String> {
+        Ok(self.place(self.raw_meshes(tessellation, project_dir)?, self.transform()))
     }
 
     /// Object-space meshes (no transform): what per-object transport is computed on.
-    pub fn object_meshes(&self, tessellation: usize) -> Vec<mesh::Mesh> {
-        self.meshes_with(tessellation, DMat4::IDENTITY)
+    pub fn object_meshes(&self, tessellation: usize, project_dir: &std::path::Path) -> Result<Vec<mesh::Mesh>, String> {
+        Ok(self.place(self.raw_meshes(tessellation, project_dir)?, DMat4::IDENTITY))
     }
 
-    fn meshes_with(&self, tessellation: usize, transform: DMat4) -> Vec<mesh::Mesh> {
-        let raw = match &self.shape {
+    fn raw_meshes(&self, tessellation: usize, project_dir: &std::path::Path) -> Result<Vec<mesh::Mesh>, String> {
+        Ok(match &self.shape {
             Shape::Plane { size } => vec![mesh::plane(*size, (tessellation / 4).max(1))],
             Shape::Sphere { radius } => vec![mesh::sphere(*radius, tessellation)],
             Shape::Box { size } => vec![mesh::cuboid(*size, (tessellation / 8).max(1), false)],
             Shape::Torus { major, minor } => vec![mesh::torus(*major, *minor, tessellation)],
             Shape::CornellBox { size } => mesh::cornell_box(*size, (tessellation / 8).max(1)),
-        };
-        let single = raw.len() == 1;
+            Shape::Gltf { file } => {
+                let imported = crate::gltf_import::import(&project_dir.join(file))
+                    .map_err(|e| format!("object `{}`: {e}", self.name))?;
+                imported.meshes
+            }
+        })
+    }
+
+    /// Applies the object's transform, colour, material and name to its meshes.
+    fn place(&self, raw: Vec<mesh::Mesh>, transform: DMat4) -> Vec<mesh::Mesh> {
+        // A model's parts are always named `object/part`, so they can be found by the object.
+        let model = matches!(self.shape, Shape::Gltf { .. });
+        let single = raw.len() == 1 && !model;
         raw.into_iter()
             .map(|m| {
                 let mut m = m.transformed(transform);
                 m.visibility_texture = self.visibility_texture;
-                m.material = self.material.clone();
+                // A model keeps its own materials unless the object names one.
+                if !(model && self.material.is_empty()) {
+                    m.material = self.material.clone();
+                }
                 let tint = self.color.map(|c| c as f32);
                 if single {
                     m.base_color = tint;
@@ -126,7 +144,7 @@ pub fn spec() -> NodeKindSpec {
     NodeKindSpec {
         name: "Scene",
         label: "Scene",
-        doc: "Objects to light: built-in shapes with transforms and colours.",
+        doc: "Objects to light: built-in shapes and glTF models, with transforms and colours.",
         inputs: vec![],
         outputs: vec![PortSpec { name: "scene", ty: PortType::Scene, required: false, many: false }],
         params: vec![
@@ -135,7 +153,7 @@ pub fn spec() -> NodeKindSpec {
                 label: "Objects",
                 unit: "",
                 kind: ParamKind::Objects { default: default_objects() },
-                doc: "Shapes, transforms and colours.",
+                doc: "Shapes and glTF models, their transforms, colours and materials.",
             },
             ParamSpec {
                 name: "tessellation",
@@ -143,13 +161,6 @@ pub fn spec() -> NodeKindSpec {
                 unit: "",
                 kind: ParamKind::Int { min: 3, max: 1024, default: 48 },
                 doc: "Segments of curved shapes (flat shapes use a quarter).",
-            },
-            ParamSpec {
-                name: "file",
-                label: "glTF file",
-                unit: "",
-                kind: ParamKind::Path { extensions: &["gltf", "glb"], selects: None },
-                doc: "A glTF 2.0 scene added to the objects (its own node transforms apply).",
             },
             ParamSpec {
                 name: "visibility_texture_size",
@@ -205,7 +216,7 @@ pub fn spec() -> NodeKindSpec {
             StageSpec {
                 name: "geometry",
                 version: 1,
-                params: &["objects", "tessellation", "file"],
+                params: &["objects", "tessellation"],
                 stages: &[],
                 inputs: &[],
                 persist: None,
@@ -250,7 +261,7 @@ pub fn spec() -> NodeKindSpec {
             StageSpec {
                 name: "transport_objects",
                 version: 2,
-                params: &["objects", "tessellation", "file", "transport_bands", "transport_rays"],
+                params: &["objects", "tessellation", "transport_bands", "transport_rays"],
                 stages: &[],
                 inputs: &[],
                 persist: Some(Codec::of::<Vec<crate::transport::ObjectTransport>>()),
@@ -308,10 +319,9 @@ fn geometry(ctx: &StageContext) -> Result<StageValue, StageError> {
         return Err(StageError::Internal("objects".into()));
     };
     let tessellation = ctx.int("tessellation")? as usize;
-    let mut meshes: Vec<_> = objects.iter().flat_map(|o| o.meshes(tessellation)).collect();
-    if let Some(path) = ctx.path("file")? {
-        let imported = crate::gltf_import::import(&path).map_err(StageError::Failed)?;
-        meshes.extend(imported.meshes);
+    let mut meshes = Vec::new();
+    for object in objects {
+        meshes.extend(object.meshes(tessellation, ctx.project_dir()).map_err(StageError::Failed)?);
     }
     let triangles: usize = meshes.iter().map(|m| m.triangle_count()).sum();
     if triangles > crate::limits::MAX_TRIANGLES {
@@ -376,21 +386,18 @@ fn transport_objects(ctx: &StageContext) -> Result<StageValue, StageError> {
     let mut out = Vec::with_capacity(objects.len());
     for object in objects {
         let mut bytes = postcard::to_stdvec(&object.shape).map_err(|e| StageError::Internal(e.to_string()))?;
+        // A model's transport depends on its file's content, not only its name.
+        if let Some(file) = object.file() {
+            let path = ctx.project_dir().join(file);
+            let content = crate::limits::read_regular_file(&path, crate::limits::MAX_FILE_BYTES)
+                .map_err(|e| StageError::Failed(format!("object `{}`: {e}", object.name)))?;
+            bytes.extend_from_slice(&xxhash_rust::xxh3::xxh3_64(&content).to_le_bytes());
+        }
         bytes.extend_from_slice(format!("self-sh v1 {tessellation} {bands} {rays}").as_bytes());
         out.push(self_transport(ctx, &bytes, &object.name, object.transform(), (bands, rays), || {
-            Ok(object.object_meshes(tessellation))
+            object.object_meshes(tessellation, ctx.project_dir()).map_err(StageError::Failed)
         })?);
         ctx.progress(out.len() as f64 / objects.len() as f64);
-    }
-    // A glTF file is one static object (its node transforms are baked into its meshes).
-    if let Some(path) = ctx.path("file")? {
-        let mut bytes =
-            std::fs::read(&path).map_err(|e| StageError::Failed(format!("cannot read {}: {e}", path.display())))?;
-        bytes.extend_from_slice(format!("gltf self-sh v1 {bands} {rays}").as_bytes());
-        let name = path.file_name().map(|n| n.to_string_lossy().to_string()).unwrap_or_default();
-        out.push(self_transport(ctx, &bytes, &name, DMat4::IDENTITY, (bands, rays), || {
-            Ok(crate::gltf_import::import(&path).map_err(StageError::Failed)?.meshes)
-        })?);
     }
     Ok(StageValue::new(out))
 }

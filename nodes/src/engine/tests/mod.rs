@@ -1,6 +1,7 @@
 use super::*;
 use crate::node_kind::{Availability, NodeKindSpec, ParamKind, ParamSpec, PortSpec, PortType, StageSpec};
 use crate::project::{Project, ProjectLink, ProjectNode, default_project};
+use crate::scene_object::{SceneObject, Shape};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeSet;
 use std::sync::atomic::AtomicUsize;
@@ -761,15 +762,15 @@ fn a_gltf_file_is_one_object_with_its_own_transport() {
     assert!(file.is_file(), "shared glTF assets expected at {}", file.display());
     let engine = Engine::in_memory();
     let mut graph = default_graph();
-    graph.set_param("scene", "objects", ParamValue::Objects(Vec::new())).unwrap();
-    graph.set_param("scene", "file", ParamValue::Path(file.display().to_string())).unwrap();
+    let model = SceneObject::new("box", Shape::Gltf { file: file.display().to_string() });
+    graph.set_param("scene", "objects", ParamValue::Objects(vec![model])).unwrap();
     graph.set_param("scene", "transport_rays", ParamValue::Int(1024)).unwrap();
     let eval = engine.evaluate(&graph, &CancelToken::default(), None);
     assert!(eval.report.failed().is_empty(), "{:?}", eval.report.failed());
     let meshes = value_of::<crate::mesh::MeshSet>(&eval, "scene", "geometry");
     let objects = value_of::<Vec<crate::transport::ObjectTransport>>(&eval, "scene", "transport_objects");
     assert_eq!(objects.len(), 1);
-    assert_eq!(objects[0].name, "BoxTextured.gltf");
+    assert_eq!(objects[0].name, "box");
     let vertices: usize = meshes.meshes.iter().map(|m| m.positions.len()).sum();
     assert_eq!(objects[0].sh.visibility.len(), vertices * 36);
     // A convex box does not shadow itself: every receiver sees its whole upper hemisphere
@@ -789,8 +790,8 @@ fn editing_a_gltf_buffer_file_changes_the_geometry_key() {
     }
     let engine = Engine::in_memory();
     let mut graph = default_graph();
-    graph.set_param("scene", "objects", ParamValue::Objects(Vec::new())).unwrap();
-    graph.set_param("scene", "file", ParamValue::Path(dir.join("BoxTextured.gltf").display().to_string())).unwrap();
+    let model = SceneObject::new("box", Shape::Gltf { file: dir.join("BoxTextured.gltf").display().to_string() });
+    graph.set_param("scene", "objects", ParamValue::Objects(vec![model])).unwrap();
     let geometry_key = |engine: &Engine, graph: &Graph| {
         let eval = engine.evaluate(graph, &CancelToken::default(), None);
         let report = eval.report.stages.iter().find(|s| s.node == "scene" && s.stage == "geometry").unwrap();

@@ -8,6 +8,7 @@
 pub mod document;
 pub mod edits;
 mod files;
+mod gizmos;
 pub mod graph_editor;
 pub mod inspector;
 pub mod jobs;
@@ -169,6 +170,8 @@ struct ViewState {
     /// The error view's scale (the radiance difference of its top colour).
     error_scale: Option<f64>,
     selected_object: Option<usize>,
+    /// The light whose gizmo is being dragged.
+    dragging_light: Option<String>,
 }
 
 pub struct EditorApp {
@@ -340,6 +343,7 @@ impl EditorApp {
                 error: None,
                 error_scale: None,
                 selected_object: None,
+                dragging_light: None,
             },
             host,
             host_error: host_error.clone(),

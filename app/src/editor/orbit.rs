@@ -64,6 +64,32 @@ impl OrbitCamera {
         self
     }
 
+    /// Where world point `p` lands in a `width`×`height` image of this camera (pixels, y
+    /// down), and its depth along the view; `None` behind the camera.
+    pub fn project(&self, p: DVec3, (width, height): (f64, f64)) -> Option<((f64, f64), f64)> {
+        let forward = (self.target - self.position()).normalize();
+        let (right, up) = lightloom_nodes::reference::camera_basis(forward);
+        let d = p - self.position();
+        let depth = d.dot(forward);
+        if depth <= 1e-6 {
+            return None;
+        }
+        let tan = (self.fov_y_deg.to_radians() / 2.0).tan();
+        let x = d.dot(right) / (depth * tan * width / height.max(1e-9));
+        let y = d.dot(up) / (depth * tan);
+        Some((((x * 0.5 + 0.5) * width, (0.5 - y * 0.5) * height), depth))
+    }
+
+    /// Moves world point `p` so that its image follows a drag of `(dx, dy)` pixels in an
+    /// image `height` pixels tall, at the same depth (in the view plane through `p`).
+    pub fn drag_point(&self, p: DVec3, (dx, dy): (f64, f64), height: f64) -> DVec3 {
+        let forward = (self.target - self.position()).normalize();
+        let (right, up) = lightloom_nodes::reference::camera_basis(forward);
+        let depth = (p - self.position()).dot(forward).max(1e-6);
+        let world_per_pixel = 2.0 * depth * (self.fov_y_deg.to_radians() / 2.0).tan() / height.max(1.0);
+        p + (right * dx - up * dy) * world_per_pixel
+    }
+
     /// Turns by a drag of `(dx, dy)` pixels (a full viewport height ≈ half a turn).
     pub fn orbit(&mut self, (dx, dy): (f64, f64), viewport_height: f64) {
         let speed = std::f64::consts::PI / viewport_height.max(1.0);
@@ -133,6 +159,24 @@ mod tests {
         assert!(((orbit.target - orbit.position()).normalize() - forward).length() < 1e-9);
         orbit.zoom(0.5);
         assert!((orbit.distance - d * 0.5).abs() < 1e-9);
+    }
+
+    #[test]
+    fn a_dragged_point_follows_the_pointer_at_its_depth() {
+        let orbit = OrbitCamera::from_camera(&camera()).widened(1.3);
+        let size = (800.0, 500.0);
+        // The target projects to the image centre.
+        let (centre, _) = orbit.project(orbit.target, size).unwrap();
+        assert!((centre.0 - 400.0).abs() < 1e-9 && (centre.1 - 250.0).abs() < 1e-9);
+        let p = DVec3::new(0.7, 1.4, -0.3);
+        let ((x, y), depth) = orbit.project(p, size).unwrap();
+        let moved = orbit.drag_point(p, (35.0, -20.0), size.1);
+        let ((x2, y2), depth2) = orbit.project(moved, size).unwrap();
+        assert!((x2 - x - 35.0).abs() < 1e-6 && (y2 - y + 20.0).abs() < 1e-6, "({x}, {y}) → ({x2}, {y2})");
+        assert!((depth2 - depth).abs() < 1e-9, "the point stays at its depth");
+        // Behind the camera there is no image.
+        let behind = orbit.position() * 2.0 - orbit.target;
+        assert!(orbit.project(behind, size).is_none());
     }
 
     #[test]

@@ -765,3 +765,53 @@ fn project_point(camera: &orbit::OrbitCamera, rect: egui::Rect, p: [f32; 3]) -> 
         rect.top() + (0.5 - c.y / c.w * 0.5) * rect.height(),
     )
 }
+
+/// Point lights have gizmos: a linked light is drawn where it is; clicking it selects its
+/// node; dragging it moves the light in the view plane as one undo step, and the lighting
+/// follows.
+#[test]
+fn a_light_gizmo_drag_moves_the_light() {
+    let mut harness = default_harness();
+    harness
+        .state_mut()
+        .doc
+        .edit("Add light", None, |p| {
+            let id = edits::add_node(p, "PointLight", [320.0, 420.0])?;
+            let n = p.nodes.iter_mut().find(|n| n.id == id).unwrap();
+            n.params.insert("position".into(), ParamValue::Vec3([1.2, 1.5, 1.0]));
+            n.params.insert("intensity".into(), ParamValue::Color([30.0, 30.0, 30.0]));
+            p.links.push(lightloom_nodes::project::ProjectLink {
+                from: (id.clone(), "lights".into()),
+                to: ("output".into(), "lights".into()),
+            });
+            Ok(())
+        })
+        .unwrap();
+    settle(&mut harness);
+    let light = harness.state().light_gizmos().pop().expect("a gizmo for the light");
+    assert!(light.linked, "the linked light is drawn as lighting the output");
+    let rect = harness.state().viewport_rect;
+    let camera = harness.state().viewport_camera(rect);
+    let at = harness.state().gizmo_pos(&camera, rect, light.position).expect("in front of the camera");
+    assert!(harness.state().render_frame(rect).contains(at), "the light is in view");
+    let lit_before = viewport_mean(&mut harness);
+
+    // Click: the light's node is selected.
+    pointer_click(&mut harness, at);
+    assert_eq!(harness.state().selection, Selection::Node(light.id.clone()));
+
+    // Drag 80 points right and 30 up: the light follows the pointer at its depth.
+    pointer_drag(&mut harness, egui::PointerButton::Primary, at, at + egui::vec2(80.0, -30.0));
+    let moved = harness.state().light_gizmos().pop().unwrap();
+    let now = harness.state().gizmo_pos(&camera, rect, moved.position).unwrap();
+    assert!((now - (at + egui::vec2(80.0, -30.0))).length() < 3.0, "the gizmo follows the pointer: {at:?} → {now:?}");
+    assert_eq!(harness.state().doc.undo_label(), Some(format!("Set {}.position", light.id).as_str()));
+    settle(&mut harness);
+    let lit_after = viewport_mean(&mut harness);
+    assert!((lit_after - lit_before).abs() > 0.2, "the lighting follows the light: {lit_before:.2} → {lit_after:.2}");
+    // One undo puts it back.
+    harness.state_mut().undo();
+    let back = harness.state().light_gizmos().pop().unwrap();
+    assert_eq!(back.position, light.position);
+    harness.render().unwrap().save(state_dir().join("light-gizmo.png")).unwrap();
+}

@@ -10,8 +10,10 @@ impl EditorApp {
         let (rect, response) = ui.allocate_exact_size(available, egui::Sense::click_and_drag());
         self.viewport_rect = rect;
         self.navigate(ui, &response, rect);
+        let dragging_light = self.drag_gizmo(ui, &response, rect);
         // While the view moves, draw at half resolution; the full frame follows on release.
-        let moving = response.dragged() || (response.hovered() && ui.input(|i| i.smooth_scroll_delta.y != 0.0));
+        let moving = (response.dragged() && !dragging_light)
+            || (response.hovered() && ui.input(|i| i.smooth_scroll_delta.y != 0.0));
         let scale = self.view.resolution_scale * ui.ctx().pixels_per_point() * if moving { 0.5 } else { 1.0 };
         let size = (((rect.width() * scale) as u32).clamp(16, 4096), ((rect.height() * scale) as u32).clamp(16, 4096));
         self.draw_viewport(ui.ctx(), size);
@@ -27,6 +29,7 @@ impl EditorApp {
         }
         self.selection_overlay(&painter, rect);
         render_frame_overlay(&painter, rect, self.render_frame(rect), &self.doc.project.render);
+        self.draw_gizmos(&painter, rect, response.hover_pos());
         let message = if let Some(e) = &self.host_error {
             Some(format!("viewport unavailable: {e}"))
         } else if let Some(e) = &self.view.frame_error {
@@ -82,7 +85,13 @@ impl EditorApp {
         if response.clicked()
             && let Some(pos) = response.interact_pointer_pos()
         {
-            self.pick(pos, rect);
+            match self.gizmo_at(pos, rect) {
+                Some(light) => {
+                    self.selection = Selection::Node(light);
+                    self.view.selected_object = None;
+                }
+                None => self.pick(pos, rect),
+            }
         }
     }
 

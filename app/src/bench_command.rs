@@ -186,6 +186,7 @@ fn synthetic_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
         pending: None,
         settings: lightloom_nodes::kinds::output::OutputSettings { mode, ..base_settings.clone() },
         ignored_inputs: Vec::new(),
+        lobe_limits: Vec::new(),
         materials: materials.clone(),
         background: Background { radiance: Some(keyed(4, StageValue::new(environment.clone()))), visible: true },
         surfaces,

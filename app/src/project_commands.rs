@@ -236,6 +236,9 @@ pub fn render_project(
         for note in &frame.ignored_inputs {
             eprintln!("note: output `{}`: {note}", output.id);
         }
+        for (node, note) in &frame.lobe_limits {
+            eprintln!("note: material `{node}`: {note}");
+        }
     }
     let (width, height) = (size.0.unwrap_or(project.render.width), size.1.unwrap_or(project.render.height));
     let start = Instant::now();

@@ -229,6 +229,41 @@ impl Brdf {
     }
 }
 
+/// Half-angle (radians) at which a Phong lobe `cos^n α` falls to half its peak.
+pub fn phong_half_width(exponent: f64) -> f64 {
+    0.5f64.powf(1.0 / exponent.max(1e-9)).acos()
+}
+
+/// Fraction of the normalised Phong lobe's energy (its squared L2 norm) that the first `bands`
+/// SH bands keep: how much of the highlight's shape an SH mode of that order can show. The
+/// norm has the closed form `∫ f² dω = (n+2)² / (2π (2n+1))` (upper hemisphere).
+pub fn phong_sh_energy_kept(exponent: f64, bands: usize) -> f64 {
+    let kept: f64 = Brdf::phong_zonal(exponent, bands).iter().map(|z| z * z).sum();
+    let total = (exponent + 2.0).powi(2) / (2.0 * PI * (2.0 * exponent + 1.0));
+    (kept / total).min(1.0)
+}
+
+/// The sharpest Phong exponent whose lobe `bands` SH bands show with at least `keep` of its
+/// energy (bisection in log exponent; the kept energy falls as the exponent grows).
+pub fn sharpest_phong_for_sh(bands: usize, keep: f64) -> f64 {
+    let (mut lo, mut hi) = (0.0f64, 12.0f64); // ln exponent: 1 .. 160 000
+    if phong_sh_energy_kept(hi.exp(), bands) >= keep {
+        return hi.exp();
+    }
+    for _ in 0..40 {
+        let mid = 0.5 * (lo + hi);
+        if phong_sh_energy_kept(mid.exp(), bands) >= keep { lo = mid } else { hi = mid }
+    }
+    lo.exp()
+}
+
+/// The sharpest Phong exponent a table of `cells` equal cells over the sphere shows: the
+/// lobe's half-maximum cone must cover at least two cells (`2π(1 - cos θ½) ≥ 2 · 4π/cells`).
+pub fn sharpest_phong_for_cells(cells: usize) -> f64 {
+    let cos_half = 1.0 - 4.0 / cells.max(3) as f64;
+    0.5f64.ln() / cos_half.ln()
+}
+
 impl LobePreview {
     pub fn of(brdf: &Brdf) -> Self {
         let theta_out_deg = vec![0.0, 45.0, 75.0];
@@ -259,6 +294,36 @@ pub fn cosine_hemisphere(u1: f64, u2: f64) -> DVec3 {
     let r = u1.sqrt();
     let phi = 2.0 * PI * u2;
     DVec3::new(r * phi.cos(), r * phi.sin(), (1.0 - u1).max(0.0).sqrt())
+}
+
+#[cfg(test)]
+mod lobe_limit_tests {
+    use super::*;
+
+    #[test]
+    fn sh_keeps_all_of_a_broad_lobe_and_little_of_a_sharp_one() {
+        // Enough bands keep the whole lobe: the closed-form norm matches the projection.
+        assert!((phong_sh_energy_kept(4.0, 40) - 1.0).abs() < 1e-3, "{}", phong_sh_energy_kept(4.0, 40));
+        // Kept energy grows with the bands and falls with the exponent.
+        assert!(phong_sh_energy_kept(20.0, 4) < phong_sh_energy_kept(20.0, 8));
+        assert!(phong_sh_energy_kept(200.0, 6) < phong_sh_energy_kept(20.0, 6));
+        assert!(phong_sh_energy_kept(200.0, 6) < 0.2, "6 bands cannot show Phong 200");
+        // The sharpest lobe kept at one half is where the kept energy crosses one half.
+        let n = sharpest_phong_for_sh(6, 0.5);
+        assert!((phong_sh_energy_kept(n, 6) - 0.5).abs() < 1e-3 && n > 1.0 && n < 200.0, "{n}");
+    }
+
+    #[test]
+    fn the_half_width_and_the_cell_limit_agree_with_their_definitions() {
+        let n = 200.0;
+        let h = phong_half_width(n);
+        assert!((h.cos().powf(n) - 0.5).abs() < 1e-12);
+        // At the cell limit the half-maximum cone covers exactly two cells.
+        let cells = 320;
+        let limit = sharpest_phong_for_cells(cells);
+        let cone = 2.0 * PI * (1.0 - phong_half_width(limit).cos());
+        assert!((cone - 2.0 * 4.0 * PI / cells as f64).abs() < 1e-9);
+    }
 }
 
 #[cfg(test)]

@@ -43,6 +43,9 @@ pub struct FrameInputs {
     /// Connected inputs the renderer does not draw yet, and material names that matched
     /// nothing, to tell the user.
     pub ignored_inputs: Vec<String>,
+    /// Materials whose highlight the mode cannot show as it is: `(node, why and what shows
+    /// it)`.
+    pub lobe_limits: Vec<(String, String)>,
     /// The materials linked to the Output, in link order (the default material when none is),
     /// at most [`MAX_MATERIALS`].
     pub materials: Vec<FrameMaterial>,

@@ -105,6 +105,8 @@ pub struct Inspector<'a> {
     pub selected_object: &'a mut Option<usize>,
     /// The meshes on screen (object sizes).
     pub meshes: Option<&'a lightloom_nodes::mesh::MeshSet>,
+    /// What the viewport cannot show of this node, as drawn now (a material's highlight).
+    pub limits: Vec<String>,
     pub requests: Vec<InspectorRequest>,
     pub errors: Vec<String>,
 }
@@ -134,6 +136,9 @@ impl Inspector<'_> {
             ui.weak(format!("id {id}"));
         });
         self.status_section(ui, id);
+        for limit in &self.limits {
+            ui.add(egui::Label::new(RichText::new(format!("⚠ {limit}")).color(Color32::from_rgb(240, 190, 80))).wrap());
+        }
         self.inputs_section(ui, id, kind);
         ui.separator();
         egui::Grid::new(("params", id)).num_columns(2).striped(true).show(ui, |ui| {

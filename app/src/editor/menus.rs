@@ -275,6 +275,11 @@ impl EditorApp {
         for (node, _, path) in self.missing_assets() {
             out.push(format!("node `{node}`: file {} does not exist", path.display()));
         }
+        if let Some(frame) = &self.view.frame {
+            for (node, message) in &frame.lobe_limits {
+                out.push(format!("note: material `{node}`: {message}"));
+            }
+        }
         out
     }
 

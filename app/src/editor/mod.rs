@@ -762,6 +762,10 @@ impl EditorApp {
             report: self.evaluator.last.as_ref().map(|(e, _)| &e.report),
             selected_object: &mut self.view.selected_object,
             meshes: frame_meshes.as_ref().and_then(|f| f.geometry.meshes.value.get::<lightloom_nodes::mesh::MeshSet>()),
+            limits: frame_meshes
+                .as_ref()
+                .map(|f| f.lobe_limits.iter().filter(|(n, _)| *n == id).map(|(_, m)| m.clone()).collect())
+                .unwrap_or_default(),
             requests: Vec::new(),
             errors: Vec::new(),
         };

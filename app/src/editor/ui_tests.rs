@@ -815,3 +815,33 @@ fn a_light_gizmo_drag_moves_the_light() {
     assert_eq!(back.position, light.position);
     harness.render().unwrap().save(state_dir().join("light-gizmo.png")).unwrap();
 }
+
+/// Where the mode cannot show a material's highlight, the editor says so (Problems and the
+/// material's inspector), naming what would show it; a lobe the mode shows gets no note.
+#[test]
+fn a_highlight_the_mode_cannot_show_is_named() {
+    let mut harness = default_harness();
+    let set = |h: &mut Harness<'_, EditorApp>, node: &str, name: &str, v: ParamValue| {
+        inspector::set_param(&mut h.state_mut().doc, node, name, v).unwrap();
+        h.state_mut().doc.seal();
+    };
+    set(&mut harness, "material", "model", ParamValue::Choice("phong".into()));
+    set(&mut harness, "material", "exponent", ParamValue::Float(20.0));
+    settle(&mut harness);
+    assert!(!harness.state().problems().iter().any(|p| p.starts_with("note: material")), "Phong 20 is shown");
+
+    set(&mut harness, "material", "exponent", ParamValue::Float(200.0));
+    settle(&mut harness);
+    let problems = harness.state().problems();
+    let note = problems.iter().find(|p| p.starts_with("note: material `material`")).expect("a note on the material");
+    assert!(note.contains("sharper than 320 wavelet cells"), "{note}");
+    harness.state_mut().selection = Selection::Node("material".into());
+    harness.run_steps(2);
+    harness.get_by_label_contains("⚠ its phong highlight (about Phong 200");
+
+    set(&mut harness, "output", "mode", ParamValue::Choice("sh_prt".into()));
+    settle(&mut harness);
+    let problems = harness.state().problems();
+    let note = problems.iter().find(|p| p.starts_with("note: material `material`")).expect("a note on the material");
+    assert!(note.contains("sharper than 6 SH bands"), "{note}");
+}

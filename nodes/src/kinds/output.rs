@@ -531,6 +531,7 @@ impl FrameInputs {
                 materials[0].node
             ));
         }
+        let lobe_limits = lobe_limits(graph, output, &scene, settings.mode, &materials);
         let medium = MediumFrame::new(lights, &materials, fog);
         Ok(Self {
             geometry,
@@ -540,6 +541,7 @@ impl FrameInputs {
             background: Background { radiance, visible: settings.background },
             settings,
             ignored_inputs,
+            lobe_limits,
             materials,
             surfaces,
             medium,
@@ -584,4 +586,57 @@ fn fog_frame(
         environment,
         scatter_onto_surfaces: mode.is_wavelet(),
     })
+}
+
+/// Materials whose highlight `mode` cannot show as it is, and why: irradiance shows no
+/// highlights; SH of the Scene's order keeps less than half of a sharp lobe's energy
+/// ([`crate::brdf::phong_sh_energy_kept`]); the wavelet table needs the lobe's half-maximum
+/// cone to cover two of its cells ([`crate::brdf::sharpest_phong_for_cells`]).
+fn lobe_limits(
+    graph: &Graph,
+    output: &str,
+    scene: &str,
+    mode: Mode,
+    materials: &[FrameMaterial],
+) -> Vec<(String, String)> {
+    let int = |node: &str, name: &str, default: i64| match graph.node(node).and_then(|n| n.params.get(name)) {
+        Some(ParamValue::Int(v)) => *v,
+        _ => default,
+    };
+    let bands = int(scene, "transport_bands", 6).clamp(1, 16) as usize;
+    let cells = match graph.node(output).and_then(|n| n.params.get("wavelet_terms")) {
+        Some(ParamValue::Choice(c)) => c.parse().unwrap_or(320),
+        _ => 320,
+    };
+    let sh_limit = crate::brdf::sharpest_phong_for_sh(bands, 0.5);
+    let cell_limit = crate::brdf::sharpest_phong_for_cells(cells);
+    let mut out = Vec::new();
+    for m in materials.iter().filter(|m| !m.node.is_empty()) {
+        let brdf = crate::brdf::Brdf::from_material(&m.material);
+        let Some(exponent) = brdf.equivalent_phong_exponent() else { continue };
+        if brdf.specular.max_element() * brdf.f0 <= 0.0 {
+            continue;
+        }
+        let width = crate::brdf::phong_half_width(exponent).to_degrees();
+        let lobe = format!("its {} highlight (about Phong {exponent:.0}, {width:.1}° half-width)", m.material.model);
+        let message = match mode {
+            Mode::ShIrradiance => Some(format!(
+                "{mode} draws diffuse light only: {lobe} is not shown; sh_prt shows lobes up to about Phong \
+                 {sh_limit:.0}, the wavelet modes up to about Phong {cell_limit:.0}"
+            )),
+            Mode::ShPrt if exponent > sh_limit => Some(format!(
+                "{lobe} is sharper than {bands} SH bands show (about Phong {sh_limit:.0}): it is drawn broader and \
+                 dimmer; raise the Scene's transport SH bands, or use wavelet_pixel (to about Phong {cell_limit:.0})"
+            )),
+            Mode::WaveletVertex | Mode::WaveletPixel if exponent > cell_limit => Some(format!(
+                "{lobe} is sharper than {cells} wavelet cells show (about Phong {cell_limit:.0}): it is spread over \
+                 a cell, broader and dimmer than the reference"
+            )),
+            _ => None,
+        };
+        if let Some(message) = message {
+            out.push((m.node.clone(), message));
+        }
+    }
+    out
 }

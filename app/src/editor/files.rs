@@ -32,7 +32,7 @@ impl EditorApp {
                 self.action_errors.clear();
                 self.log_info(format!("saved {}", path.display()));
             }
-            Err(e) => self.log_error(format!("{e:#}")),
+            Err(e) => self.log_file_error(format!("{e:#}")),
         }
     }
 
@@ -72,7 +72,7 @@ impl EditorApp {
                     self.pending = Some(Pending::Recover(p, at));
                 }
             }
-            Err(e) => self.log_error(format!("{e:#}")),
+            Err(e) => self.log_file_error(format!("{e:#}")),
         }
     }
 
@@ -116,7 +116,7 @@ impl EditorApp {
         });
         match spawned {
             Ok(_) => self.image_render = Some(ImageRender { path, started: std::time::Instant::now(), result }),
-            Err(e) => self.log_error(format!("cannot start rendering {}: {e}", path.display())),
+            Err(e) => self.log_file_error(format!("cannot start rendering {}: {e}", path.display())),
         }
     }
 
@@ -134,7 +134,7 @@ impl EditorApp {
         let took = crate::project_commands::duration_text(job.started.elapsed().as_secs_f64());
         match outcome {
             Ok((w, h)) => self.log_info(format!("rendered {} ({w}×{h}) in {took}", job.path.display())),
-            Err(e) => self.log_error(format!("render to {} failed: {e}", job.path.display())),
+            Err(e) => self.log_file_error(format!("render to {} failed: {e}", job.path.display())),
         }
     }
 
@@ -374,7 +374,7 @@ impl EditorApp {
         match self.doc.autosave(AUTOSAVE_INTERVAL) {
             Ok(Some(path)) => self.log_info(format!("autosaved to {}", path.display())),
             Ok(None) => {}
-            Err(e) => self.log_error(format!("autosave failed: {e:#}")),
+            Err(e) => self.log_file_error(format!("autosave failed: {e:#}")),
         }
     }
 

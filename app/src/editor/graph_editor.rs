@@ -75,6 +75,9 @@ pub struct GraphEditor {
     fit_pending: bool,
     /// A refused link or failed edit, shown over the graph for a few seconds.
     pub notice: Option<(String, std::time::Instant)>,
+    /// The pass in which a right-click add menu was last shown (a menu not shown in the
+    /// previous pass opens with an empty search).
+    menu_pass: u64,
     /// Each node's rectangle on screen in the last frame.
     node_rects: HashMap<String, egui::Rect>,
     /// Whether the primary button went down on empty graph space (a box selection).
@@ -115,6 +118,7 @@ impl Default for GraphEditor {
             selected: Vec::new(),
             fit_pending: true,
             notice: None,
+            menu_pass: 0,
             node_rects: HashMap::new(),
             press_on_background: false,
         }
@@ -155,7 +159,8 @@ impl GraphEditor {
     /// Blender's pointer bindings on top of egui-snarl's, whose are fixed: snarl selects on
     /// Shift+click, box-selects on Shift+drag and pans on any drag of empty space. Here a
     /// click selects one node (Shift+click adds, as in snarl), a click on empty space clears
-    /// the selection, a left drag on empty space box-selects and a middle drag pans. This
+    /// the selection, a left drag on empty space box-selects, a middle drag pans and a
+    /// right-click on empty space opens the add menu. This
     /// sets the modifiers snarl reads for this frame; the caller restores the real ones.
     /// Returns the real modifiers when it changed them, and the pan to apply.
     fn blender_gestures(&mut self, ctx: &egui::Context, graph: egui::Rect) -> (Option<egui::Modifiers>, egui::Vec2) {
@@ -166,6 +171,15 @@ impl GraphEditor {
         });
         if pointer.primary_pressed() {
             self.press_on_background = in_graph && !over_node;
+        }
+        // The right-click add menu is ours: a click on empty space does not reach snarl
+        // while it listens for a box selection.
+        if pointer.secondary_clicked()
+            && in_graph
+            && !over_node
+            && let Some(pos) = pos
+        {
+            self.open_add_menu(pos);
         }
         let middle = pointer.button_down(egui::PointerButton::Middle);
         let pan = if middle && in_graph { pointer.delta() } else { egui::Vec2::ZERO };
@@ -249,6 +263,7 @@ impl GraphEditor {
         project: &Project,
         status: &HashMap<String, NodeStatus>,
         evaluation: Option<&Evaluation>,
+        feeding: Option<&HashSet<String>>,
         previews: &mut Previews,
     ) -> Vec<GraphAction> {
         let rect = ui.available_rect_before_wrap();
@@ -262,10 +277,12 @@ impl GraphEditor {
             project,
             status,
             evaluation,
+            feeding,
             previews,
             actions: Vec::new(),
             to_global: self.to_global,
             query: &mut self.query,
+            menu_pass: &mut self.menu_pass,
             fit,
             pan,
             node_rects: HashMap::new(),
@@ -445,10 +462,13 @@ struct Viewer<'a> {
     project: &'a Project,
     status: &'a HashMap<String, NodeStatus>,
     evaluation: Option<&'a Evaluation>,
+    /// Nodes whose results reach an Output (`None`: not known yet).
+    feeding: Option<&'a HashSet<String>>,
     previews: &'a mut Previews,
     actions: Vec<GraphAction>,
     to_global: egui::emath::TSTransform,
     query: &'a mut String,
+    menu_pass: &'a mut u64,
     /// A transform to impose this frame (fit to view).
     fit: Option<egui::emath::TSTransform>,
     /// Screen-space pan to apply this frame (middle drag), unless snarl panned itself.
@@ -458,8 +478,38 @@ struct Viewer<'a> {
 }
 
 impl Viewer<'_> {
+    /// The add menu's search, emptied when the menu opens anew (a search left from the last
+    /// time could match nothing and hide every kind).
+    fn fresh_query(&mut self, ctx: &egui::Context) -> &mut String {
+        let pass = ctx.cumulative_pass_nr();
+        if *self.menu_pass + 1 < pass {
+            self.query.clear();
+        }
+        *self.menu_pass = pass;
+        self.query
+    }
+
     fn kind(&self, id: &str) -> Option<&'static lightloom_nodes::node_kind::NodeKindSpec> {
         super::edits::kind_of(self.project, id)
+    }
+
+    /// Whether the node's results reach an Output (Outputs count as reached).
+    fn feeds_output(&self, id: &str) -> bool {
+        self.kind(id).is_some_and(|k| k.outputs.is_empty()) || self.feeding.is_none_or(|f| f.contains(id))
+    }
+
+    /// For a node that reaches no Output: which of its outputs to link where.
+    fn link_hint(&self, id: &str) -> Option<String> {
+        if self.feeds_output(id) {
+            return None;
+        }
+        let kind = self.kind(id)?;
+        let output = kinds::kind("Output")?;
+        let hint = kind.outputs.iter().find_map(|out| {
+            let input = output.inputs.iter().find(|i| i.ty == out.ty)?;
+            Some(format!("not connected: link `{}` to the Output's `{}` input", out.name, input.name))
+        });
+        Some(hint.unwrap_or_else(|| "not connected to the Output: it is not evaluated".into()))
     }
 
     fn record_extent(&mut self, id: &str, rect: egui::Rect) {
@@ -491,17 +541,27 @@ impl SnarlViewer<String> for Viewer<'_> {
     fn show_header(&mut self, node: NodeId, _: &[InPin], _: &[OutPin], ui: &mut egui::Ui, snarl: &mut Snarl<String>) {
         let id = snarl[node].clone();
         let status = self.status.get(&id);
-        let (color, word) = status_color(status);
+        let planned = self.kind(&id).and_then(|k| match k.availability {
+            Availability::Planned(missing) => Some(missing),
+            Availability::Ready => None,
+        });
+        let (color, word) = match planned {
+            Some(_) => (Color32::from_gray(140), "parameters only"),
+            None => status_color(status),
+        };
+        let feeds_output = self.feeds_output(&id);
         ui.horizontal(|ui| {
             let (rect, response) = ui.allocate_exact_size(egui::vec2(10.0, 10.0), egui::Sense::hover());
             ui.painter().circle_filled(rect.center(), 4.5, color);
-            let hover = match status {
-                Some(NodeStatus::Error(m)) => format!("error: {m}"),
-                Some(NodeStatus::Running(stage, f)) => format!("running {stage} ({:.0}%)", f * 100.0),
+            let hover = match (planned, status) {
+                (Some(missing), _) => format!("parameters only: {missing}"),
+                (None, Some(NodeStatus::Error(m))) => format!("error: {m}"),
+                (None, Some(NodeStatus::Running(stage, f))) => format!("running {stage} ({:.0}%)", f * 100.0),
                 _ => word.to_string(),
             };
             response.on_hover_text(hover);
-            ui.label(RichText::new(self.title(&id)).strong());
+            let title = RichText::new(self.title(&id)).strong();
+            ui.label(if feeds_output { title } else { title.weak() });
         });
         self.record_extent(&id, ui.min_rect());
     }
@@ -539,7 +599,8 @@ impl SnarlViewer<String> for Viewer<'_> {
     }
 
     fn has_body(&mut self, node: &String) -> bool {
-        matches!(self.status.get(node), Some(NodeStatus::Error(_) | NodeStatus::Running(..)))
+        self.link_hint(node).is_some()
+            || matches!(self.status.get(node), Some(NodeStatus::Error(_) | NodeStatus::Running(..)))
             || self.kind(node).is_some_and(super::previews::has_preview)
             || self.kind(node).is_some_and(|k| k.availability != Availability::Ready)
     }
@@ -556,6 +617,9 @@ impl SnarlViewer<String> for Viewer<'_> {
                     ui.add(egui::ProgressBar::new(*fraction).desired_width(200.0).text(stage.as_str()));
                 }
                 _ => {}
+            }
+            if let Some(hint) = self.link_hint(&id) {
+                ui.add(egui::Label::new(RichText::new(hint).weak().italics()).wrap());
             }
             if let Some(kind) = self.kind(&id) {
                 if let Availability::Planned(missing) = kind.availability {
@@ -600,19 +664,6 @@ impl SnarlViewer<String> for Viewer<'_> {
         }
     }
 
-    fn has_graph_menu(&mut self, _: egui::Pos2, _: &mut Snarl<String>) -> bool {
-        true
-    }
-
-    fn show_graph_menu(&mut self, pos: egui::Pos2, ui: &mut egui::Ui, _: &mut Snarl<String>) {
-        ui.label(RichText::new("Add node").strong());
-        if let Some(kind) = add_list(ui, self.query, None) {
-            self.actions.push(GraphAction::Add { kind, position: [pos.x, pos.y], link: None });
-            self.query.clear();
-            ui.close();
-        }
-    }
-
     fn has_dropped_wire_menu(&mut self, _: AnyPins, _: &mut Snarl<String>) -> bool {
         true
     }
@@ -631,7 +682,8 @@ impl SnarlViewer<String> for Viewer<'_> {
             }
         };
         ui.label(RichText::new(format!("Add a node taking {}", ty.0)).strong());
-        if let Some(kind) = add_list(ui, self.query, Some(ty)) {
+        let query = self.fresh_query(ui.ctx());
+        if let Some(kind) = add_list(ui, query, Some(ty)) {
             self.actions.push(GraphAction::Add { kind, position: [pos.x, pos.y], link: Some(link) });
             self.query.clear();
             ui.close();

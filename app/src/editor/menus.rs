@@ -249,7 +249,13 @@ impl EditorApp {
     }
 
     pub(super) fn problems(&self) -> Vec<String> {
-        let mut out = self.action_errors.clone();
+        let revision = self.doc.revision();
+        let mut out: Vec<String> = self
+            .action_errors
+            .iter()
+            .filter(|(r, _)| r.is_none_or(|r| r == revision))
+            .map(|(_, text)| text.clone())
+            .collect();
         out.extend(self.graph_errors.iter().cloned());
         if let Some(e) = &self.host_error {
             out.push(format!("viewport: {e}"));

@@ -191,9 +191,10 @@ pub struct EditorApp {
     checked_revision: Option<(u64, PathBuf)>,
     built_graph: Option<lightloom_nodes::engine::Graph>,
     log: Vec<LogLine>,
-    /// Errors of the user's own actions (a failed save or open), listed with the problems
-    /// until the next successful save or open.
-    action_errors: Vec<String>,
+    /// Errors of the user's own actions, listed with the problems: a failed save or open
+    /// (`None`) until the next successful one, others while the document is at the revision
+    /// they happened in (an undo takes them away with the state they were about).
+    action_errors: Vec<(Option<u64>, String)>,
     /// The document revision the graph widget last matched: it is brought up to date just
     /// before it is shown (an undo must reach the widget before it reads node positions back,
     /// or it would redo the move it shows). `u64::MAX` forces a sync.
@@ -409,8 +410,16 @@ impl EditorApp {
     }
 
     fn log_error(&mut self, text: impl Into<String>) {
-        let text = text.into();
-        self.action_errors.push(text.clone());
+        self.log_action_error(Some(self.doc.revision()), text.into());
+    }
+
+    /// A failed save or open: listed until the next successful one.
+    fn log_file_error(&mut self, text: impl Into<String>) {
+        self.log_action_error(None, text.into());
+    }
+
+    fn log_action_error(&mut self, revision: Option<u64>, text: String) {
+        self.action_errors.push((revision, text.clone()));
         if self.action_errors.len() > 5 {
             self.action_errors.remove(0);
         }
@@ -622,8 +631,18 @@ impl EditorApp {
             self.graph_revision = self.doc.revision();
         }
         let evaluation = self.evaluator.last.as_ref().map(|(e, _)| e.clone());
-        let actions =
-            self.graph.show(ui, &self.doc.project, &self.evaluator.status, evaluation.as_deref(), &mut self.previews);
+        let feeding: Option<std::collections::HashSet<String>> = self
+            .built_graph
+            .as_ref()
+            .map(|g| g.nodes.iter().filter(|n| g.feeds_sink(&n.id)).map(|n| n.id.clone()).collect());
+        let actions = self.graph.show(
+            ui,
+            &self.doc.project,
+            &self.evaluator.status,
+            evaluation.as_deref(),
+            feeding.as_ref(),
+            &mut self.previews,
+        );
         if self.graph.selection_changed
             && let [id] = self.graph.selected.as_slice()
             && self.selection != Selection::Node(id.clone())

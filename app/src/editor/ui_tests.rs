@@ -845,3 +845,65 @@ fn a_highlight_the_mode_cannot_show_is_named() {
     let note = problems.iter().find(|p| p.starts_with("note: material `material`")).expect("a note on the material");
     assert!(note.contains("sharper than 6 SH bands"), "{note}");
 }
+
+/// Smaller stumbles: an unconnected node is dimmed with a hint of what to link it to; a
+/// refused action's problem leaves with an undo; the layout does not move when the
+/// inspector shows another node; the right-click menu's search starts empty.
+#[test]
+fn small_stumbles_are_gone() {
+    let mut harness = default_harness();
+    // An unconnected node says what to link it to.
+    harness
+        .state_mut()
+        .doc
+        .edit("Add sky", None, |p| edits::add_node(p, "EnvironmentMap", [600.0, 500.0]).map(|_| ()))
+        .unwrap();
+    settle(&mut harness);
+    harness.get_by_label("not connected: link `environment` to the Output's `environment` input");
+
+    // A problem from an action disappears with an undo of the state it was about.
+    harness.state_mut().log_error("something about this state");
+    assert!(harness.state().problems().iter().any(|p| p == "something about this state"));
+    harness.state_mut().undo();
+    assert!(!harness.state().problems().iter().any(|p| p == "something about this state"));
+
+    // The inspector keeps its width whatever it shows.
+    let mut edges = Vec::new();
+    for id in ["sky", "scene", "material", "output"] {
+        harness.state_mut().selection = Selection::Node(id.into());
+        harness.run_steps(3);
+        edges.push((harness.state().viewport_rect.right(), harness.state().viewport_rect.top()));
+    }
+    assert!(edges.windows(2).all(|w| (w[0].0 - w[1].0).abs() < 0.5 && (w[0].1 - w[1].1).abs() < 0.5), "{edges:?}");
+
+    // The right-click add menu opens with an empty search, even after a search that matched
+    // nothing.
+    let empty = harness.state().graph_rect.right_bottom() - egui::vec2(40.0, 40.0);
+    for round in 0..2 {
+        harness.hover_at(empty);
+        harness.step();
+        harness.event(egui::Event::PointerButton {
+            pos: empty,
+            button: egui::PointerButton::Secondary,
+            pressed: true,
+            modifiers: egui::Modifiers::NONE,
+        });
+        harness.step();
+        harness.event(egui::Event::PointerButton {
+            pos: empty,
+            button: egui::PointerButton::Secondary,
+            pressed: false,
+            modifiers: egui::Modifiers::NONE,
+        });
+        harness.run_steps(3);
+        harness.get_by_label("Add node");
+        harness.get_by_label("Point light");
+        if round == 0 {
+            harness.event(egui::Event::Text("zzzz".into()));
+            harness.run_steps(2);
+            harness.get_by_label("no node kind matches");
+            harness.key_press(egui::Key::Escape);
+            harness.run_steps(3);
+        }
+    }
+}

@@ -105,7 +105,8 @@ impl EditorApp {
             inspector::param_value(&doc.project, &output, spec.param(name).expect("param"))
         };
         let mut changes: Vec<(&str, ParamValue)> = Vec::new();
-        ui.horizontal_wrapped(|ui| {
+        // Two fixed rows (what is shown; the view), so the toolbar never reflows as labels change.
+        ui.horizontal(|ui| {
             for (name, label) in [("view", "View"), ("mode", "Mode"), ("tonemap", "Tone map")] {
                 let ParamValue::Choice(current) = value(&self.doc, name) else { continue };
                 let lightloom_nodes::node_kind::ParamKind::Choice { options, labels, .. } =
@@ -130,7 +131,8 @@ impl EditorApp {
                     changes.push(("exposure", ParamValue::Float(exposure)));
                 }
             }
-            ui.separator();
+        });
+        ui.horizontal(|ui| {
             ui.label("Resolution");
             egui::ComboBox::from_id_salt("resolution")
                 .selected_text(format!("{:.0}%", self.view.resolution_scale * 100.0))

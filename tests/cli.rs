@@ -780,3 +780,32 @@ fn an_unlinked_node_with_a_missing_input_is_a_warning_not_an_error() {
     assert!(stderr.contains("warning:") && stderr.contains("node `rsl` port `environment`"), "{stderr}");
     assert!(png.exists());
 }
+
+/// The samples (File → Open sample) load with their assets, evaluate without errors and
+/// render a lit picture through the CLI (small, with few transport rays, to stay quick).
+#[test]
+fn every_sample_renders() {
+    let dir = tempdir("samples");
+    let samples: Vec<PathBuf> = std::fs::read_dir(workspace().join("projects/samples"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "ron"))
+        .collect();
+    assert!(samples.len() >= 3, "{samples:?}");
+    for sample in samples {
+        let text = std::fs::read_to_string(&sample).unwrap();
+        let project = lightloom_nodes::project::Project::from_ron(&text, &sample).unwrap();
+        let scene = project.nodes.iter().find(|n| n.kind == "Scene").unwrap().id.clone();
+        let out = dir.join(sample.with_extension("png").file_name().unwrap());
+        let result = lightloom()
+            .args(["render", sample.to_str().unwrap(), "-o", out.to_str().unwrap(), "--width", "160", "--height", "90"])
+            .args(["--no-disk-cache", "--quiet", "--set", &format!("{scene}.transport_rays=32")])
+            .output()
+            .unwrap();
+        assert!(result.status.success(), "{}: {}", sample.display(), String::from_utf8_lossy(&result.stderr));
+        let image = image::open(&out).unwrap().to_rgb8();
+        let mean = image.pixels().map(|p| p.0.iter().map(|&c| f64::from(c)).sum::<f64>()).sum::<f64>()
+            / (3 * image.width() * image.height()) as f64;
+        assert!(mean > 20.0 && mean < 250.0, "{}: mean sRGB {mean:.1}", sample.display());
+    }
+}

@@ -3,6 +3,26 @@
 
 use super::*;
 
+/// The sample projects (File → Open sample), with their names.
+pub fn samples() -> Vec<(String, PathBuf)> {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../projects/samples");
+    let mut found: Vec<(String, PathBuf)> = std::fs::read_dir(&dir)
+        .into_iter()
+        .flatten()
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| p.extension().is_some_and(|e| e == "ron"))
+        .filter_map(|p| {
+            let text = std::fs::read_to_string(&p).ok()?;
+            let project = lightloom_nodes::project::Project::from_ron(&text, &p).ok()?;
+            let name = project.name.strip_prefix("Sample: ").unwrap_or(&project.name).to_string();
+            Some((name, p))
+        })
+        .collect();
+    found.sort();
+    found
+}
+
 /// A render of the view to an image file, on its own thread.
 pub(super) struct ImageRender {
     pub path: PathBuf,
@@ -48,6 +68,7 @@ impl EditorApp {
     pub(super) fn perform(&mut self, what: Pending) {
         match what {
             Pending::Open(path) => self.open(&path),
+            Pending::OpenSample(path) => self.open_sample(&path),
             Pending::New => {
                 self.doc.discard_recovery();
                 self.replace_document(Document::new(default_project(), None));
@@ -203,6 +224,23 @@ impl EditorApp {
             hi[2] - lo[2]
         ));
         Ok(())
+    }
+
+    /// Opens a copy of a sample project: untitled, with its asset paths made to resolve from
+    /// here, so Save asks where to put it.
+    pub fn open_sample(&mut self, path: &std::path::Path) {
+        match Document::open(path) {
+            Ok(sample) => {
+                let mut project = sample.project.clone();
+                let cwd = std::env::current_dir().unwrap_or_default();
+                project.rebase_paths(&sample.project_dir(), &cwd);
+                self.doc.discard_recovery();
+                self.action_errors.clear();
+                self.replace_document(Document::new(project, None));
+                self.log_info(format!("opened a copy of the sample {}", path.display()));
+            }
+            Err(e) => self.log_file_error(format!("{e:#}")),
+        }
     }
 
     pub(super) fn replace_document(&mut self, doc: Document) {

@@ -67,6 +67,18 @@ impl EditorApp {
                     self.file_dialog.pick_file();
                     ui.close();
                 }
+                ui.menu_button("Open sample", |ui| {
+                    if ui.button("Default: sphere and torus under a procedural sky").clicked() {
+                        self.request(Pending::New);
+                        ui.close();
+                    }
+                    for (name, path) in files::samples() {
+                        if ui.button(name).clicked() {
+                            self.request(Pending::OpenSample(path));
+                            ui.close();
+                        }
+                    }
+                });
                 ui.menu_button("Open recent", |ui| {
                     let recent = document::recent_files();
                     if recent.is_empty() {

@@ -83,6 +83,8 @@ enum Pending {
     /// Unsaved changes, and the user asked to do this.
     Close,
     Open(PathBuf),
+    /// Open a copy of a sample project (untitled, so saving never changes the sample).
+    OpenSample(PathBuf),
     New,
     /// A recovery file from a session that did not close cleanly.
     Recover(PathBuf, SystemTime),

@@ -907,3 +907,24 @@ fn small_stumbles_are_gone() {
         }
     }
 }
+
+/// File → Open sample opens a copy of a sample (untitled, so saving never changes it) that
+/// evaluates without problems and draws.
+#[test]
+fn a_sample_opens_from_the_file_menu() {
+    let mut harness = default_harness();
+    harness.get_by_label("File").click();
+    harness.run_steps(2);
+    harness.get_by_label_contains("Open sample").hover();
+    harness.run_steps(2);
+    harness.run_steps(2);
+    harness.get_by_label_contains("glossy objects under a courtyard HDRI").click();
+    harness.run_steps(2);
+    assert_eq!(harness.state().doc.path, None, "a copy, not the sample file");
+    assert!(harness.state().doc.project.name.contains("courtyard"));
+    settle(&mut harness);
+    let problems: Vec<String> = harness.state().problems().into_iter().filter(|p| !p.starts_with("note:")).collect();
+    assert!(problems.is_empty(), "{problems:?}");
+    assert!(viewport_mean(&mut harness) > 20.0, "the sample is drawn");
+    harness.render().unwrap().save(state_dir().join("sample.png")).unwrap();
+}

@@ -41,6 +41,10 @@ struct EditorArgs {
     /// Editor: print UI frame-time statistics (idle and while background work runs) on exit.
     #[arg(long)]
     frame_stats: bool,
+    /// Editor: append a line to this file whenever the view settles (evaluated and drawn)
+    /// or the project is saved, with the layout in window pixels (for scripted sessions).
+    #[arg(long, value_name = "FILE")]
+    status_file: Option<std::path::PathBuf>,
     /// Disk cache for expensive stages [default: $XDG_CACHE_HOME/lightloom or ~/.cache/lightloom].
     #[arg(long, value_name = "DIR")]
     cache_dir: Option<std::path::PathBuf>,
@@ -116,6 +120,7 @@ fn main_job(args: EditorArgs) -> Result<()> {
             cache_dir: args.cache_dir.clone(),
             no_disk_cache: args.no_disk_cache,
             frame_stats: args.frame_stats,
+            status_file: args.status_file.clone(),
             viewport_slow_down: std::time::Duration::ZERO,
         };
         match editor::run(options) {

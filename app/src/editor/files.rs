@@ -51,6 +51,9 @@ impl EditorApp {
                 document::remember_recent(path);
                 self.action_errors.clear();
                 self.log_info(format!("saved {}", path.display()));
+                if let Some(status) = self.options.status_file.clone() {
+                    self.append_status(&status, &format!("saved {}", path.display()));
+                }
             }
             Err(e) => self.log_file_error(format!("{e:#}")),
         }
@@ -418,6 +421,49 @@ impl EditorApp {
 
     /// With `--screenshot`: once the first evaluation is on screen, capture the window, save
     /// it, and close.
+    /// `--status-file`: a line each time the view settles (evaluated, drawn, not a preview)
+    /// or the document is saved: what, seconds since start, and the layout in window pixels.
+    pub(super) fn report_status(&mut self, ctx: &egui::Context) {
+        let Some(path) = self.options.status_file.clone() else { return };
+        let settled = self.view.frame.as_ref().is_some_and(|f| f.pending.is_none())
+            && self.view.drawn != 0
+            && !self.evaluator.is_running()
+            && !self.host.as_ref().is_some_and(|h| h.is_busy());
+        let state = if settled {
+            format!(
+                "settled revision={} mode={}",
+                self.doc.revision(),
+                self.view.frame.as_ref().map_or("none".into(), |f| f.mode.to_string())
+            )
+        } else {
+            String::new()
+        };
+        if state.is_empty() || state == self.last_status {
+            return;
+        }
+        self.last_status = state.clone();
+        let ppp = ctx.pixels_per_point();
+        let px = |r: egui::Rect| {
+            format!("{:.0},{:.0},{:.0},{:.0}", r.left() * ppp, r.top() * ppp, r.right() * ppp, r.bottom() * ppp)
+        };
+        let line =
+            format!("{state} viewport={} frame={}", px(self.viewport_rect), px(self.render_frame(self.viewport_rect)));
+        self.append_status(&path, &line);
+    }
+
+    fn append_status(&self, path: &std::path::Path, line: &str) {
+        use std::io::Write;
+        let line = format!("{line} t={:.2}\n", self.started.elapsed().as_secs_f64());
+        let written = std::fs::OpenOptions::new()
+            .create(true)
+            .append(true)
+            .open(path)
+            .and_then(|mut f| f.write_all(line.as_bytes()));
+        if let Err(e) = written {
+            eprintln!("cannot write the status file {}: {e}", path.display());
+        }
+    }
+
     pub(super) fn screenshot(&mut self, ctx: &egui::Context) {
         match self.screenshot_state {
             ScreenshotState::Waiting
@@ -454,12 +500,13 @@ impl EditorApp {
                     };
                     match saved {
                         Ok(()) => println!(
-                            "screenshot: {} ({}x{}); graph {}; viewport {}",
+                            "screenshot: {} ({}x{}); graph {}; viewport {}; frame {}",
                             path.display(),
                             image.size[0],
                             image.size[1],
                             px(self.graph_rect),
-                            px(self.viewport_rect)
+                            px(self.viewport_rect),
+                            px(self.render_frame(self.viewport_rect))
                         ),
                         Err(e) => eprintln!("screenshot failed: {e}"),
                     }

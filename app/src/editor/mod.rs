@@ -51,6 +51,8 @@ pub struct EditorOptions {
     pub no_disk_cache: bool,
     /// Print UI frame-time statistics when the editor closes.
     pub frame_stats: bool,
+    /// Append a line here whenever the view settles or the project is saved.
+    pub status_file: Option<PathBuf>,
 }
 
 /// How often unsaved work is written to the recovery file.
@@ -216,6 +218,10 @@ pub struct EditorApp {
     title: String,
     pub stats: FrameStats,
     options: EditorOptions,
+    /// When the editor started (status lines).
+    started: Instant,
+    /// The last `--status-file` state written.
+    last_status: String,
     last_frame: Option<Instant>,
     screenshot_state: ScreenshotState,
     /// Text for the system clipboard (copied nodes), handed to egui at the end of the frame.
@@ -378,6 +384,8 @@ impl EditorApp {
                 ScreenshotState::None
             },
             options,
+            started: Instant::now(),
+            last_status: String::new(),
             last_frame: None,
             copy_request: None,
             viewport_rect: egui::Rect::NOTHING,
@@ -462,6 +470,7 @@ impl EditorApp {
             self.title = title;
         }
         self.screenshot(&ctx);
+        self.report_status(&ctx);
         if let Some(text) = self.copy_request.take() {
             ctx.copy_text(text);
         }

@@ -6,6 +6,7 @@
 //! produces a [`Report`] of what ran and why.
 
 pub mod cache;
+mod flight;
 pub mod graph;
 pub mod key;
 pub mod request;
@@ -41,17 +42,42 @@ pub enum StageError {
     Internal(String),
 }
 
-/// A shared cancellation flag; stages poll it in their loops.
+/// A shared cancellation flag; stages poll it in their loops. A stage computed for several
+/// evaluations (see `flight`) gets a token that is cancelled once all of theirs are.
 #[derive(Clone, Debug, Default)]
-pub struct CancelToken(Arc<AtomicBool>);
+pub struct CancelToken {
+    flag: Arc<AtomicBool>,
+    /// When set: cancelled once every one of these is.
+    all_of: Option<Arc<Mutex<Vec<CancelToken>>>>,
+}
 
 impl CancelToken {
     pub fn cancel(&self) {
-        self.0.store(true, Ordering::SeqCst);
+        self.flag.store(true, Ordering::SeqCst);
     }
 
     pub fn is_cancelled(&self) -> bool {
-        self.0.load(Ordering::SeqCst)
+        if self.flag.load(Ordering::SeqCst) {
+            return true;
+        }
+        let Some(all) = &self.all_of else { return false };
+        let all_cancelled = all.lock().unwrap().iter().all(CancelToken::is_cancelled);
+        if all_cancelled {
+            self.flag.store(true, Ordering::SeqCst);
+        }
+        all_cancelled
+    }
+
+    /// A token cancelled once `first` and every token added with
+    /// [`CancelToken::also_wanted_by`] are.
+    fn wanted_by(first: &CancelToken) -> Self {
+        Self { flag: Arc::default(), all_of: Some(Arc::new(Mutex::new(vec![first.clone()]))) }
+    }
+
+    fn also_wanted_by(&self, other: &CancelToken) {
+        if let Some(all) = &self.all_of {
+            all.lock().unwrap().push(other.clone());
+        }
     }
 
     pub fn check(&self) -> Result<(), StageError> {
@@ -98,6 +124,8 @@ pub struct StageContext<'a> {
     project_dir: &'a Path,
     cancel: &'a CancelToken,
     events: Option<&'a Sender<EvalEvent>>,
+    /// Where this computation's progress is shared with evaluations that joined it.
+    flight: Option<&'a flight::Flight>,
     engine: &'a Engine,
     persist: Option<Codec>,
     memo_hits: std::sync::atomic::AtomicUsize,
@@ -255,6 +283,9 @@ impl StageContext<'_> {
 
     /// Reports progress in `[0, 1]` (throttling is the receiver's business).
     pub fn progress(&self, fraction: f64) {
+        if let Some(flight) = self.flight {
+            flight.set_progress(fraction);
+        }
         if let Some(tx) = self.events {
             let _ = tx.send(EvalEvent::StageProgress {
                 node: self.node_id.to_string(),
@@ -416,6 +447,8 @@ pub struct Engine {
     file_hashes: Mutex<HashMap<PathBuf, (std::time::SystemTime, u64, u64)>>,
     /// Warnings of computed stages by key, repeated whenever the result is reused.
     stage_warnings: Mutex<HashMap<Key, Vec<String>>>,
+    /// Stages being computed, shared with newer evaluations that need the same key.
+    flights: flight::Flights,
 }
 
 /// A stage instance scheduled in one evaluation.
@@ -458,6 +491,7 @@ impl Engine {
             failures: Mutex::new(HashMap::default()),
             file_hashes: Mutex::new(HashMap::default()),
             stage_warnings: Mutex::new(HashMap::default()),
+            flights: flight::Flights::default(),
         }
     }
 
@@ -738,6 +772,51 @@ impl Engine {
         if let Some(tx) = events {
             let _ = tx.send(EvalEvent::StageStarted { node: inst.node.id.clone(), stage: inst.spec.name.to_string() });
         }
+        // Another evaluation may be computing this very key (an edit cancelled it, and this
+        // newer evaluation needs the same result): wait for it rather than start over.
+        let (flight, leader) = self.flights.join(inst.key, cancel);
+        if !leader {
+            let progress = |fraction| {
+                if let Some(tx) = events {
+                    let _ = tx.send(EvalEvent::StageProgress {
+                        node: inst.node.id.clone(),
+                        stage: inst.spec.name.to_string(),
+                        fraction,
+                    });
+                }
+            };
+            reasons.push("joined the computation an earlier evaluation had started".into());
+            return match flight.wait(cancel, progress) {
+                Ok(value) => (finish(Ok(value), StageStatus::Computed, reasons), note),
+                Err(StageError::Cancelled) => {
+                    (finish(Err(StageError::Cancelled), StageStatus::Cancelled, reasons), note)
+                }
+                Err(e) => (finish(Err(e), StageStatus::Failed, reasons), note),
+            };
+        }
+        let (outcome, note) = self.compute_instance(graph, inst, results, &flight, events, reasons, note, finish);
+        let shared = match &outcome.0 {
+            Ok(value) => Ok(value.clone()),
+            Err(e) => Err(e.clone()),
+        };
+        self.flights.finish(inst.key, &flight, shared);
+        (outcome, note)
+    }
+
+    /// Runs an instance's computation (its flight's leader) and caches the result.
+    #[allow(clippy::too_many_arguments)]
+    fn compute_instance(
+        &self,
+        graph: &Graph,
+        inst: &Instance,
+        results: &[Option<Outcome>],
+        flight: &flight::Flight,
+        events: Option<&Sender<EvalEvent>>,
+        mut reasons: Vec<String>,
+        mut note: Option<String>,
+        finish: impl Fn(Result<Arc<StageValue>, StageError>, StageStatus, Vec<String>) -> Outcome,
+    ) -> (Outcome, Option<String>) {
+        let cancel = &flight.token;
         let mut ctx = StageContext {
             node_id: &inst.node.id,
             stage: inst.spec.name,
@@ -747,6 +826,7 @@ impl Engine {
             project_dir: &graph.project_dir,
             cancel,
             events,
+            flight: Some(flight),
             engine: self,
             persist: inst.spec.persist,
             memo_hits: Default::default(),
@@ -783,8 +863,8 @@ impl Engine {
         if hits + misses > 0 {
             reasons.push(format!("{misses} part(s) computed, {hits} reused"));
         }
-        // A result computed while the evaluation was cancelled is still correct for its key,
-        // but we drop it to keep cancellation prompt and simple to reason about.
+        // A result computed after every evaluation that wanted it was cancelled is still
+        // correct for its key, but we drop it to keep cancellation prompt and simple.
         match outcome {
             Ok(value) if !cancel.is_cancelled() => {
                 let value = Arc::new(value);

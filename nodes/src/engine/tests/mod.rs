@@ -444,7 +444,9 @@ fn scheduler_cancels_the_stale_evaluation() {
 #[test]
 fn independent_stages_run_in_parallel_off_the_calling_thread() {
     let engine = Arc::new(Engine::in_memory());
-    let graph = test_graph(&[("a", "Meet"), ("b", "Meet")], &[]);
+    // Different parameters, so different keys (identical stages would share one computation).
+    let mut graph = test_graph(&[("a", "Meet"), ("b", "Meet")], &[]);
+    graph.set_param("b", "x", ParamValue::Float(2.0)).unwrap();
     let job = engine.spawn(graph);
     let eval = job.wait();
     assert_eq!(eval.value("a", "value").unwrap().get::<Number>(), Some(&Number(1.0)), "stages did not overlap");
@@ -1038,4 +1040,48 @@ fn transport_beyond_the_rays_budget_is_refused_with_its_estimate() {
     let stage = failed.iter().find(|s| s.stage == "transport_sh").expect("transport_sh is refused");
     let error = stage.error.as_deref().unwrap_or_default();
     assert!(error.contains("visibility rays") && error.contains("lower transport_rays or tessellation"), "{error}");
+}
+
+/// An edit during a long stage (here one downstream of it) does not restart that stage: the
+/// newer evaluation joins the computation already running, sees its progress, and gets its
+/// result. `Slow` takes 10 s; restarting it would take at least 10 s more.
+#[test]
+fn a_newer_evaluation_joins_a_stage_already_running() {
+    let engine = Arc::new(Engine::in_memory());
+    let graph = test_graph(&[("slow", "Slow"), ("after", "Sum")], &[("slow", "after")]);
+    let older = engine.spawn(graph.clone());
+    let started = Instant::now();
+    // Let the slow stage get a third of the way, then edit: the older evaluation is cancelled.
+    std::thread::sleep(std::time::Duration::from_millis(3500));
+    let mut edited = graph.clone();
+    edited.set_param("after", "x", ParamValue::Float(0.5)).unwrap();
+    let newer = engine.spawn(edited);
+    older.cancel();
+    std::thread::spawn(move || drop(older.wait()));
+    let mut joined_at = None;
+    while !newer.is_finished() {
+        while let Ok(event) = newer.events.try_recv() {
+            if let EvalEvent::StageProgress { node, fraction, .. } = event
+                && node == "slow"
+                && joined_at.is_none()
+            {
+                joined_at = Some(fraction);
+            }
+        }
+        assert!(started.elapsed().as_secs() < 30, "the newer evaluation never finished");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    let eval = newer.wait();
+    let total = started.elapsed().as_secs_f64();
+    assert!(eval.report.failed().is_empty(), "{:?}", eval.report.failed());
+    assert_eq!(eval.value("after", "value").unwrap().get::<Number>(), Some(&Number(1.5)));
+    let slow_alone = eval.report.stages.iter().find(|s| s.node == "slow").unwrap().ms / 1e3;
+    assert!(
+        slow_alone < total - 2.0,
+        "the newer evaluation waited {slow_alone:.1} s of the {total:.1} s: it restarted"
+    );
+    let joined_at = joined_at.expect("the newer evaluation reported the stage's progress");
+    assert!(joined_at > 0.2, "progress continued from where it was, not from 0 ({joined_at:.2})");
+    let slow = eval.report.stages.iter().find(|s| s.node == "slow").unwrap();
+    assert!(slow.reasons.iter().any(|r| r.contains("joined")), "{:?}", slow.reasons);
 }

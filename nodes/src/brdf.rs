@@ -246,6 +246,17 @@ pub fn phong_sh_energy_kept(exponent: f64, bands: usize) -> f64 {
 /// The sharpest Phong exponent whose lobe `bands` SH bands show with at least `keep` of its
 /// energy (bisection in log exponent; the kept energy falls as the exponent grows).
 pub fn sharpest_phong_for_sh(bands: usize, keep: f64) -> f64 {
+    // Memoised: the editor asks after every evaluation.
+    static KNOWN: std::sync::Mutex<Vec<(usize, u64, f64)>> = std::sync::Mutex::new(Vec::new());
+    if let Some(&(.., n)) = KNOWN.lock().unwrap().iter().find(|(b, k, _)| *b == bands && *k == keep.to_bits()) {
+        return n;
+    }
+    let n = bisect_sharpest_phong_for_sh(bands, keep);
+    KNOWN.lock().unwrap().push((bands, keep.to_bits(), n));
+    n
+}
+
+fn bisect_sharpest_phong_for_sh(bands: usize, keep: f64) -> f64 {
     let (mut lo, mut hi) = (0.0f64, 12.0f64); // ln exponent: 1 .. 160 000
     if phong_sh_energy_kept(hi.exp(), bands) >= keep {
         return hi.exp();
@@ -260,7 +271,7 @@ pub fn sharpest_phong_for_sh(bands: usize, keep: f64) -> f64 {
 /// The sharpest Phong exponent a table of `cells` equal cells over the sphere shows: the
 /// lobe's half-maximum cone must cover at least two cells (`2π(1 - cos θ½) ≥ 2 · 4π/cells`).
 pub fn sharpest_phong_for_cells(cells: usize) -> f64 {
-    let cos_half = 1.0 - 4.0 / cells.max(3) as f64;
+    let cos_half = 1.0 - 4.0 / cells.max(5) as f64;
     0.5f64.ln() / cos_half.ln()
 }
 

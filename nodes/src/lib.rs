@@ -28,6 +28,7 @@ pub mod prt;
 pub mod quadrature;
 pub mod raycast;
 pub mod reference;
+pub mod rsl;
 pub mod sampling;
 pub mod sat;
 pub mod scene_object;

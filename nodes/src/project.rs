@@ -295,16 +295,16 @@ impl Project {
         }
     }
 
-    /// The camera to render with: the one named, else the editor's saved view (what the
-    /// editor showed when the project was saved), else the render settings' camera, else the
+    /// The camera to render with: the one named (here, else in the render settings), else
+    /// the editor's saved view (what the editor showed when the project was saved), else the
     /// first camera, else a default view.
     pub fn camera(&self, name: Option<&str>) -> Result<Camera, String> {
+        let name = name.or(Some(self.render.camera.as_str()).filter(|n| !n.is_empty()));
         if name.is_none()
             && let Some(view) = &self.view
         {
             return Ok(view.clone());
         }
-        let name = name.or(Some(self.render.camera.as_str()).filter(|n| !n.is_empty()));
         match name {
             Some(n) => self.cameras.iter().find(|c| c.name == n).cloned().ok_or_else(|| {
                 let known: Vec<&str> = self.cameras.iter().map(|c| c.name.as_str()).collect();
@@ -322,18 +322,26 @@ impl Project {
         }
     }
 
-    /// Rewrites file parameters for a project file moving from `from_dir` to `to_dir`: each
-    /// names the same file as before, relative to `to_dir` where that is short (at most
-    /// three `..`), absolute otherwise.
+    /// Rewrites relative file names for a project file moving from `from_dir` to `to_dir`:
+    /// each names the same file as before, relative to `to_dir` where that is short (at most
+    /// three `..`), absolute otherwise. Absolute names stay as they are; nothing changes when
+    /// the folder does not.
     pub fn rebase_paths(&mut self, from_dir: &Path, to_dir: &Path) {
         let absolute = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
         let (from_dir, to_dir) = (absolute(from_dir), absolute(to_dir));
+        if from_dir == to_dir {
+            return;
+        }
         for node in &mut self.nodes {
             for text in node.params.values_mut().flat_map(ParamValue::files_mut) {
+                if Path::new(text.as_str()).is_absolute() {
+                    continue;
+                }
                 let file = normalize(&from_dir.join(&*text));
                 let relative = pathdiff::diff_paths(&file, &to_dir)
                     .filter(|r| r.components().filter(|c| matches!(c, std::path::Component::ParentDir)).count() <= 3);
-                *text = relative.unwrap_or(file).to_string_lossy().into_owned();
+                // Forward slashes, so the project reads the same on every system.
+                *text = relative.unwrap_or(file).to_string_lossy().replace('\\', "/");
             }
         }
     }
@@ -621,14 +629,18 @@ mod tests {
         set(&mut project, "../assets/sky.hdr");
         project.rebase_paths(std::path::Path::new("/a/projects"), std::path::Path::new("/a/projects/renders"));
         assert_eq!(get(&project), "../../assets/sky.hdr");
-        // An absolute path inside the new folder becomes relative.
+        // Absolute names stay absolute.
         set(&mut project, "/a/projects/renders/maps/sky.hdr");
         project.rebase_paths(std::path::Path::new("/x"), std::path::Path::new("/a/projects/renders"));
-        assert_eq!(get(&project), "maps/sky.hdr");
-        // Far away stays absolute (more than three `..`).
-        set(&mut project, "/opt/library/hdri/sky.hdr");
-        project.rebase_paths(std::path::Path::new("/"), std::path::Path::new("/home/me/work/shots/a"));
+        assert_eq!(get(&project), "/a/projects/renders/maps/sky.hdr");
+        // A relative name that would climb more than three folders becomes absolute.
+        set(&mut project, "hdri/sky.hdr");
+        project.rebase_paths(std::path::Path::new("/opt/library"), std::path::Path::new("/home/me/work/shots/a"));
         assert_eq!(get(&project), "/opt/library/hdri/sky.hdr");
+        // Saving in the same folder changes nothing.
+        set(&mut project, "../../../../far/sky.hdr");
+        project.rebase_paths(std::path::Path::new("/a/b/c/d/e"), std::path::Path::new("/a/b/c/d/e"));
+        assert_eq!(get(&project), "../../../../far/sky.hdr");
     }
 
     use super::*;

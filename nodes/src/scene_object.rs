@@ -44,7 +44,7 @@ impl SceneObject {
 
     pub fn file_mut(&mut self) -> Option<&mut String> {
         match &mut self.shape {
-            Shape::Gltf { file } => Some(file),
+            Shape::Gltf { file } if !file.is_empty() => Some(file),
             _ => None,
         }
     }

@@ -150,10 +150,15 @@ impl Document {
     pub fn save_as(&mut self, path: &Path) -> Result<()> {
         let old_recovery = recovery_path(self.path.as_deref());
         let mut project = self.project.clone();
-        let new_dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
-        project.rebase_paths(&self.project_dir(), new_dir);
+        let (old_dir, new_dir) =
+            (self.project_dir(), path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new(".")));
+        project.rebase_paths(&old_dir, new_dir);
         project.save(path)?;
         self.project = project;
+        // Undo and redo restore states whose relative names must resolve from here too.
+        for entry in self.undo.iter_mut().chain(self.redo.iter_mut()) {
+            entry.before.rebase_paths(&old_dir, new_dir);
+        }
         self.path = Some(path.to_path_buf());
         self.saved = self.project.clone();
         let _ = std::fs::remove_file(&old_recovery);

@@ -115,6 +115,14 @@ impl EditorApp {
     /// size) to `path` as `lightloom render` does, on its own thread, sharing the editor's
     /// engine and its caches.
     pub fn render_image_to(&mut self, path: PathBuf) {
+        let extension = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+        if !matches!(extension.as_deref(), Some("png" | "exr")) {
+            self.log_file_error(format!(
+                "{}: choose a .png (tone-mapped) or .exr (linear radiance) file",
+                path.display()
+            ));
+            return;
+        }
         let mut project = self.doc.project.clone();
         project.view = Some(self.view.camera.to_camera("view"));
         let graph = match project.graph(&self.doc.project_dir()) {
@@ -286,12 +294,12 @@ impl EditorApp {
                         inspector::FileTarget::NewModel => self.import_model(&node, &value),
                         inspector::FileTarget::Model(index) => {
                             self.edit_objects(&node, "Choose model file", |objects| {
-                                match objects.get_mut(index).and_then(|o| o.file_mut()) {
-                                    Some(file) => {
+                                match objects.get_mut(index).map(|o| &mut o.shape) {
+                                    Some(lightloom_nodes::kinds::scene::Shape::Gltf { file }) => {
                                         *file = value.clone();
                                         Ok(())
                                     }
-                                    None => Err(format!("object {index} is not a glTF model")),
+                                    _ => Err(format!("object {index} is not a glTF model")),
                                 }
                             })
                         }

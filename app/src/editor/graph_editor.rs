@@ -174,7 +174,9 @@ impl GraphEditor {
         }
         // The right-click add menu is ours: a click on empty space does not reach snarl
         // while it listens for a box selection.
+        // (Not while the primary button holds a wire: a right-click cancels the wire.)
         if pointer.secondary_clicked()
+            && !pointer.primary_down()
             && in_graph
             && !over_node
             && let Some(pos) = pos

@@ -76,7 +76,9 @@ impl CancelToken {
 
     fn also_wanted_by(&self, other: &CancelToken) {
         if let Some(all) = &self.all_of {
-            all.lock().unwrap().push(other.clone());
+            let mut all = all.lock().unwrap();
+            all.retain(|t| !t.is_cancelled());
+            all.push(other.clone());
         }
     }
 
@@ -545,6 +547,10 @@ impl Engine {
                     let memory = self.memory.lock().unwrap();
                     ready.iter().partition(|&&i| memory.contains(instances[i].key))
                 };
+                // Stages another evaluation is computing are waited for on this thread (not a
+                // pool worker), after this wave's own work.
+                let (joined, work): (Vec<usize>, Vec<usize>) =
+                    work.into_iter().partition(|&i| self.flights.is_live(instances[i].key));
                 let mut done: Vec<(usize, _)> = cached
                     .iter()
                     .map(|&i| (i, self.run_instance(graph, &instances, i, &results, cancel, events)))
@@ -557,6 +563,9 @@ impl Engine {
                         work.par_iter()
                             .map(|&i| (i, self.run_instance(graph, &instances, i, &results, cancel, events))),
                     );
+                }
+                for &i in &joined {
+                    done.push((i, self.run_instance(graph, &instances, i, &results, cancel, events)));
                 }
                 for (i, (outcome, note)) in done {
                     if let Some(n) = note {
@@ -773,33 +782,43 @@ impl Engine {
             let _ = tx.send(EvalEvent::StageStarted { node: inst.node.id.clone(), stage: inst.spec.name.to_string() });
         }
         // Another evaluation may be computing this very key (an edit cancelled it, and this
-        // newer evaluation needs the same result): wait for it rather than start over.
-        let (flight, leader) = self.flights.join(inst.key, cancel);
-        if !leader {
-            let progress = |fraction| {
-                if let Some(tx) = events {
-                    let _ = tx.send(EvalEvent::StageProgress {
-                        node: inst.node.id.clone(),
-                        stage: inst.spec.name.to_string(),
-                        fraction,
-                    });
+        // newer evaluation needs the same result): wait for it rather than start over. Only
+        // off the rayon pool (see `flight`); a worker computes on its own instead.
+        let may_wait = rayon::current_thread_index().is_none();
+        let flight = loop {
+            match self.flights.join(inst.key, cancel, may_wait) {
+                flight::Role::Lead(flight) => break flight,
+                flight::Role::Wait(flight) => {
+                    let progress = |fraction| {
+                        if let Some(tx) = events {
+                            let _ = tx.send(EvalEvent::StageProgress {
+                                node: inst.node.id.clone(),
+                                stage: inst.spec.name.to_string(),
+                                fraction,
+                            });
+                        }
+                    };
+                    match flight.wait(cancel, progress) {
+                        None => return (finish(Err(StageError::Cancelled), StageStatus::Cancelled, reasons), note),
+                        // Its other evaluations were all cancelled first: compute it here.
+                        Some(Err(StageError::Cancelled)) => continue,
+                        Some(Ok(value)) => {
+                            reasons.push("joined the computation an earlier evaluation had started".into());
+                            return (finish(Ok(value), StageStatus::Computed, reasons), note);
+                        }
+                        Some(Err(e)) => return (finish(Err(e), StageStatus::Failed, reasons), note),
+                    }
                 }
-            };
-            reasons.push("joined the computation an earlier evaluation had started".into());
-            return match flight.wait(cancel, progress) {
-                Ok(value) => (finish(Ok(value), StageStatus::Computed, reasons), note),
-                Err(StageError::Cancelled) => {
-                    (finish(Err(StageError::Cancelled), StageStatus::Cancelled, reasons), note)
-                }
-                Err(e) => (finish(Err(e), StageStatus::Failed, reasons), note),
-            };
-        }
+            }
+        };
+        let mut guard = flight::FinishOnUnwind { flights: &self.flights, key: inst.key, flight: &flight, done: false };
         let (outcome, note) = self.compute_instance(graph, inst, results, &flight, events, reasons, note, finish);
         let shared = match &outcome.0 {
             Ok(value) => Ok(value.clone()),
             Err(e) => Err(e.clone()),
         };
         self.flights.finish(inst.key, &flight, shared);
+        guard.done = true;
         (outcome, note)
     }
 
@@ -920,6 +939,19 @@ impl Engine {
     /// tier but the last is kept for [`EvalJob::take_partial`].
     pub fn spawn_request(self: &Arc<Self>, graph: Graph, request: Request) -> EvalJob {
         let cancel = CancelToken::default();
+        // Stages it needs that an older evaluation is computing keep running for it, even
+        // when that evaluation is cancelled right after this call.
+        // (Only while something runs: scheduling hashes the graph's files, which the running
+        // evaluation has already done.)
+        if self.flights.any_live() {
+            let (instances, index) = self.schedule(&graph);
+            let tier_of = request::needed_tiers(&graph, &instances, &index, &request, &mut Vec::new());
+            for (inst, tier) in instances.iter().zip(&tier_of) {
+                if tier.is_some() {
+                    self.flights.adopt(inst.key, &cancel);
+                }
+            }
+        }
         let (tx, rx) = std::sync::mpsc::channel();
         let engine = Arc::clone(self);
         let token = cancel.clone();
@@ -979,12 +1011,14 @@ impl Scheduler {
     }
 
     pub fn submit_request(&mut self, engine: &Arc<Engine>, graph: Graph, request: Request) {
-        if let Some(old) = self.current.take() {
+        // The new evaluation first adopts what it shares with the old one's running stages,
+        // then the old one is cancelled.
+        let new = engine.spawn_request(graph, request);
+        if let Some(old) = self.current.replace(new) {
             old.cancel();
             // Let it wind down on its own thread; its results are discarded.
             std::thread::spawn(move || drop(old.wait()));
         }
-        self.current = Some(engine.spawn_request(graph, request));
     }
 
     /// The finished evaluation, if the current one is done.

@@ -10,6 +10,8 @@
 //!   the values, and real transport for 100k vertices takes minutes (see `--bench transport`).
 //! * Fog (the street lamps of `tests/projects/fog_lamps.ron`): frame time at 1280×720, and what
 //!   moving a light or changing β costs (no table is recomputed).
+//! * RSL decomposition (Xu et al. 2006 §4.1) of the default procedural sky: the merge sequence
+//!   at 6×16², 6×32² and 6×64², and the cut at K = 30 (the paper: about 2 minutes at 6×32²).
 
 use crate::project_commands::{evaluate, fail_on_errors, output_request, upstream_of};
 use anyhow::{Result, anyhow};
@@ -62,7 +64,29 @@ pub fn run(args: &BenchArgs) -> Result<()> {
     println!("device: {}", gpu.describe());
     default_project_figures(args, &gpu)?;
     fog_figures(args, &gpu)?;
+    rsl_figures();
     synthetic_figures(args, &gpu)
+}
+
+fn rsl_figures() {
+    use lightloom_nodes::rsl::MergeSequence;
+    let sky = lightloom_nodes::sky::ProceduralSky::default();
+    let image = lightloom_nodes::cubemap::Equirect::from_fn(512, 256, 3, |d| sky.radiance(d));
+    println!("RSL decomposition of the default sky (paper anchor: about 2 min at 6x32^2, K = 30, 2006 CPU):");
+    for size in [16, 32, 64] {
+        let cube = image.to_cubemap(size);
+        let start = Instant::now();
+        let Ok(sequence) = MergeSequence::compute(&cube, &CancelToken::default(), &|_| {}) else { return };
+        let merge_ms = start.elapsed().as_secs_f64() * 1e3;
+        let start = Instant::now();
+        let lights = sequence.cut(&cube, 30);
+        let cut_ms = start.elapsed().as_secs_f64() * 1e3;
+        println!(
+            "  6x{size}^2: merge sequence {merge_ms:.0} ms ({} merges), cut at K = 30 and fit {cut_ms:.1} ms, {} lights",
+            sequence.merges.len(),
+            lights.lights.len()
+        );
+    }
 }
 
 fn fog_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {

@@ -275,7 +275,7 @@ impl PortType {
     /// The stages every producer of this type provides (what consumers may read).
     pub fn provided_stages(self) -> &'static [&'static str] {
         match self {
-            PortType::Environment => &["radiance", "rotation", "rotated_radiance", "sh", "haar"],
+            PortType::Environment => &["source", "radiance", "rotation", "rotated_radiance", "sh", "haar"],
             PortType::Material => &["material", "sh_lobe", "local_table"],
             PortType::Scene => {
                 &["geometry", "receivers", "texel_receivers", "transport_sh", "transport_local", "transport_texels"]

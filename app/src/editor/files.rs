@@ -23,6 +23,13 @@ pub fn samples() -> Vec<(String, PathBuf)> {
     found
 }
 
+/// `x0,y0,x1,y1` of `rect` in window pixels (the layout `--screenshot` and `--status-file`
+/// report).
+fn window_pixels(ctx: &egui::Context, rect: egui::Rect) -> String {
+    let ppp = ctx.pixels_per_point();
+    format!("{:.0},{:.0},{:.0},{:.0}", rect.left() * ppp, rect.top() * ppp, rect.right() * ppp, rect.bottom() * ppp)
+}
+
 /// A render of the view to an image file, on its own thread.
 pub(super) struct ImageRender {
     pub path: PathBuf,
@@ -450,10 +457,7 @@ impl EditorApp {
             return;
         }
         self.last_status = state.clone();
-        let ppp = ctx.pixels_per_point();
-        let px = |r: egui::Rect| {
-            format!("{:.0},{:.0},{:.0},{:.0}", r.left() * ppp, r.top() * ppp, r.right() * ppp, r.bottom() * ppp)
-        };
+        let px = |r| window_pixels(ctx, r);
         let line =
             format!("{state} viewport={} frame={}", px(self.viewport_rect), px(self.render_frame(self.viewport_rect)));
         self.append_status(&path, &line);
@@ -496,16 +500,7 @@ impl EditorApp {
                         image::RgbaImage::from_raw(image.size[0] as u32, image.size[1] as u32, image.as_raw().to_vec())
                             .ok_or_else(|| "bad screenshot size".to_string())
                             .and_then(|img| img.save(&path).map_err(|e| e.to_string()));
-                    let ppp = ctx.pixels_per_point();
-                    let px = |r: egui::Rect| {
-                        format!(
-                            "{:.0},{:.0},{:.0},{:.0}",
-                            r.left() * ppp,
-                            r.top() * ppp,
-                            r.right() * ppp,
-                            r.bottom() * ppp
-                        )
-                    };
+                    let px = |r| window_pixels(ctx, r);
                     match saved {
                         Ok(()) => println!(
                             "screenshot: {} ({}x{}); graph {}; viewport {}; frame {}",

@@ -16,6 +16,12 @@ pub(super) struct LightGizmo {
     pub linked: bool,
 }
 
+/// Where world point `p` is in the viewport `rect` seen by `camera`, if in front of it.
+pub(super) fn screen_pos(camera: &OrbitCamera, rect: egui::Rect, p: [f64; 3]) -> Option<egui::Pos2> {
+    let ((x, y), _) = camera.project(glam::DVec3::from(p), (rect.width().into(), rect.height().into()))?;
+    Some(rect.min + egui::vec2(x as f32, y as f32))
+}
+
 impl EditorApp {
     /// The project's point lights.
     pub(super) fn light_gizmos(&self) -> Vec<LightGizmo> {
@@ -45,18 +51,12 @@ impl EditorApp {
             .collect()
     }
 
-    /// Where a light's gizmo is on screen, if in front of the camera.
-    pub(super) fn gizmo_pos(&self, camera: &OrbitCamera, rect: egui::Rect, position: [f64; 3]) -> Option<egui::Pos2> {
-        let ((x, y), _) = camera.project(glam::DVec3::from(position), (rect.width().into(), rect.height().into()))?;
-        Some(rect.min + egui::vec2(x as f32, y as f32))
-    }
-
     /// The light whose gizmo is under `pos`.
     pub(super) fn gizmo_at(&self, pos: egui::Pos2, rect: egui::Rect) -> Option<String> {
         let camera = self.viewport_camera(rect);
         self.light_gizmos()
             .into_iter()
-            .filter_map(|g| Some((self.gizmo_pos(&camera, rect, g.position)?.distance(pos), g.id)))
+            .filter_map(|g| Some((screen_pos(&camera, rect, g.position)?.distance(pos), g.id)))
             .filter(|(d, _)| *d <= HIT_RADIUS)
             .min_by(|a, b| a.0.total_cmp(&b.0))
             .map(|(_, id)| id)
@@ -69,7 +69,7 @@ impl EditorApp {
             _ => None,
         };
         for g in self.light_gizmos() {
-            let Some(at) = self.gizmo_pos(&camera, rect, g.position) else { continue };
+            let Some(at) = screen_pos(&camera, rect, g.position) else { continue };
             if !rect.contains(at) {
                 continue;
             }

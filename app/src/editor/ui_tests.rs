@@ -749,21 +749,11 @@ fn a_gltf_model_is_an_object_in_the_list_and_framed() {
     let frame = harness.state().render_frame(harness.state().viewport_rect);
     let (rect, camera) =
         (harness.state().viewport_rect, harness.state().viewport_camera(harness.state().viewport_rect));
-    let at = project_point(&camera, rect, [0.0, 0.5, 0.0]);
+    let at = gizmos::screen_pos(&camera, rect, [0.0, 0.5, 0.0]).expect("in front of the camera");
     assert!(frame.contains(at));
     harness.state_mut().pick(at, rect);
     assert_eq!(harness.state().view.selected_object, Some(objects.len() - 1), "picking the model selects its object");
     harness.render().unwrap().save(state_dir().join("gltf-object.png")).unwrap();
-}
-
-/// Where a world point lands in the viewport.
-fn project_point(camera: &orbit::OrbitCamera, rect: egui::Rect, p: [f32; 3]) -> egui::Pos2 {
-    let view_proj = camera.view().view_proj(rect.width() / rect.height(), ([-10.0; 3], [10.0; 3]));
-    let c = view_proj * glam::Vec3::from(p).extend(1.0);
-    egui::pos2(
-        rect.left() + (c.x / c.w * 0.5 + 0.5) * rect.width(),
-        rect.top() + (0.5 - c.y / c.w * 0.5) * rect.height(),
-    )
 }
 
 /// Point lights have gizmos: a linked light is drawn where it is; clicking it selects its
@@ -792,7 +782,7 @@ fn a_light_gizmo_drag_moves_the_light() {
     assert!(light.linked, "the linked light is drawn as lighting the output");
     let rect = harness.state().viewport_rect;
     let camera = harness.state().viewport_camera(rect);
-    let at = harness.state().gizmo_pos(&camera, rect, light.position).expect("in front of the camera");
+    let at = gizmos::screen_pos(&camera, rect, light.position).expect("in front of the camera");
     assert!(harness.state().render_frame(rect).contains(at), "the light is in view");
     let lit_before = viewport_mean(&mut harness);
 
@@ -803,7 +793,7 @@ fn a_light_gizmo_drag_moves_the_light() {
     // Drag 80 points right and 30 up: the light follows the pointer at its depth.
     pointer_drag(&mut harness, egui::PointerButton::Primary, at, at + egui::vec2(80.0, -30.0));
     let moved = harness.state().light_gizmos().pop().unwrap();
-    let now = harness.state().gizmo_pos(&camera, rect, moved.position).unwrap();
+    let now = gizmos::screen_pos(&camera, rect, moved.position).unwrap();
     assert!((now - (at + egui::vec2(80.0, -30.0))).length() < 3.0, "the gizmo follows the pointer: {at:?} → {now:?}");
     assert_eq!(harness.state().doc.undo_label(), Some(format!("Set {}.position", light.id).as_str()));
     settle(&mut harness);

@@ -33,6 +33,12 @@ impl SummedAreaTable {
         self.height
     }
 
+    /// The corner values, row-major `(width + 1) × (height + 1)`, first row and column zero
+    /// (what a GPU copy of the table uploads).
+    pub fn corners(&self) -> &[f64] {
+        &self.table
+    }
+
     fn at(&self, x: usize, y: usize) -> f64 {
         self.table[y * (self.width + 1) + x]
     }

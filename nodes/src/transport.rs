@@ -78,7 +78,7 @@ impl Receivers {
         self.positions.is_empty()
     }
 
-    fn point(&self, i: usize) -> (DVec3, DVec3) {
+    pub fn point(&self, i: usize) -> (DVec3, DVec3) {
         (
             DVec3::from(self.positions[i].map(f64::from)),
             DVec3::from(self.normals[i].map(f64::from)).normalize_or(DVec3::Y),

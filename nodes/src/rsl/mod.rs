@@ -19,6 +19,15 @@
 //!   queue with lazy invalidation replaces the paper's full rescan with the same result.
 //! - The fit runs on luminance; the objective scales with the square of a global exposure,
 //!   so exposure does not change the partition (notes §1.4).
+//!
+//! Submodules: [`plane`] (the equal-area hemisphere-to-disc map of §5), [`brdf_sat`] (the
+//! BRDF integral over a square by summed-area tables, §4.2 Eq. 8), [`vdt`] (visibility by
+//! distance tables, §4.3 Eqs. 9–10) and [`shade`] (per-vertex shading, Eq. 5).
+
+pub mod brdf_sat;
+pub mod plane;
+pub mod shade;
+pub mod vdt;
 
 use crate::cubemap::{CubeMap, FACES, face_uv_to_dir, texel_solid_angle};
 use crate::engine::CancelToken;
@@ -29,6 +38,15 @@ use std::collections::BinaryHeap;
 
 crate::stage_type!(MergeSequence, "rsl_merge_sequence", |v| v.merges.len() * 8 + 64);
 crate::stage_type!(SquareLights, "square_lights", |v| v.lights.len() * 64 + v.labels.len() * 4);
+crate::stage_type!(WorldLights, "world_square_lights", |v| v.lights.len() * 64);
+
+/// The square lights in the world frame, after exposure, tint and the environment's rotation:
+/// what shading reads each frame, and what export writes as directional lights with an
+/// angular size.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct WorldLights {
+    pub lights: Vec<SquareLight>,
+}
 
 /// Turns of the square averaged by the fit (the paper's 0, π/8, π/4, 3π/8).
 pub const ROTATION_SAMPLES: usize = 4;

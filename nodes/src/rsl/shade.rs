@@ -1,0 +1,1 @@
+//! Per-vertex shading with square lights (Xu et al. 2006 Eq. 5).

@@ -24,6 +24,9 @@ pub struct AccuracyArgs {
     /// Top-only coefficient counts for the `wavelet_vertex` rows.
     #[arg(long, value_delimiter = ',', default_value = "80,320")]
     pub wavelets: Vec<usize>,
+    /// Square-light counts for the `rsl` rows (when an RSL decomposer feeds the Output).
+    #[arg(long, value_delimiter = ',', default_value = "10,30,60,100")]
+    pub square_lights: Vec<usize>,
     /// Reference samples per pixel.
     #[arg(long, default_value_t = 256)]
     pub samples: usize,
@@ -127,6 +130,14 @@ pub fn run(args: &AccuracyArgs) -> Result<()> {
             g.set_param(&output, "mode", ParamValue::Choice(mode.into()))?;
             g.set_param(&output, "wavelet_terms", ParamValue::Choice(terms.to_string()))?;
             rows.push(measure(&g, mode, terms)?);
+        }
+    }
+    if let Some(decomposer) = graph.upstream(&output, "square_lights").map(|n| n.id.clone()) {
+        for &k in &args.square_lights {
+            let mut g = base.clone();
+            g.set_param(&output, "mode", ParamValue::Choice("rsl".into()))?;
+            g.set_param(&decomposer, "light_count", ParamValue::Int(k as i64))?;
+            rows.push(measure(&g, "rsl", k)?);
         }
     }
     let report = Report {

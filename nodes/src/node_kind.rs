@@ -275,15 +275,23 @@ impl PortType {
     /// The stages every producer of this type provides (what consumers may read).
     pub fn provided_stages(self) -> &'static [&'static str] {
         match self {
-            PortType::Environment => &["source", "radiance", "rotation", "rotated_radiance", "sh", "haar"],
-            PortType::Material => &["material", "sh_lobe", "local_table"],
-            PortType::Scene => {
-                &["geometry", "receivers", "texel_receivers", "transport_sh", "transport_local", "transport_texels"]
+            PortType::Environment => {
+                &["source", "radiance", "radiance_scale", "rotation", "rotated_radiance", "sh", "haar"]
             }
+            PortType::Material => &["material", "sh_lobe", "local_table", "rsl_tables"],
+            PortType::Scene => &[
+                "geometry",
+                "receivers",
+                "texel_receivers",
+                "transport_sh",
+                "transport_local",
+                "transport_texels",
+                "rsl_self_visibility",
+            ],
             PortType::Medium => &["medium", "f_tables", "g_tables"],
             PortType::Lights => &["lights"],
             PortType::Blockers => &["spheres"],
-            PortType::SquareLights => &["square_lights"],
+            PortType::SquareLights => &["square_lights", "world_lights"],
         }
     }
 }

@@ -10,6 +10,7 @@ use crate::passes::geometry::GeometryBuffers;
 use crate::passes::irradiance::IrradiancePass;
 use crate::passes::medium::MediumPass;
 use crate::passes::prt::PrtPass;
+use crate::passes::rsl::RslPass;
 use crate::passes::tonemap::TonemapPass;
 use crate::passes::wavelet::WaveletPass;
 use crate::passes::{DEPTH_FORMAT, Draw, HDR_FORMAT, LDR_FORMAT, Pass, PassSetup, to_rgba_f16};
@@ -74,6 +75,7 @@ pub struct ViewportRenderer {
     irradiance: IrradiancePass,
     prt: PrtPass,
     wavelet: WaveletPass,
+    rsl: RslPass,
     tonemap: TonemapPass,
     geometry: Option<GeometryBuffers>,
     targets: Option<Targets>,
@@ -97,6 +99,7 @@ impl ViewportRenderer {
             irradiance: IrradiancePass::new(&setup),
             prt: PrtPass::new(&setup),
             wavelet: WaveletPass::new(&setup),
+            rsl: RslPass::new(&setup),
             tonemap: TonemapPass::new(&gpu.device),
             camera,
             medium,
@@ -123,6 +126,7 @@ impl ViewportRenderer {
             Surfaces::Irradiance(data) => self.irradiance.prepare(gpu, data)?,
             Surfaces::Prt(data) => self.prt.prepare(gpu, data)?,
             Surfaces::Wavelet(data) => self.wavelet.prepare(gpu, data)?,
+            Surfaces::Rsl(data) => self.rsl.prepare(gpu, data)?,
         }
         self.ensure_targets(gpu, width, height);
         let bounds = self.geometry.as_ref().map_or(([0.0; 3], [0.0; 3]), |m| m.bounds);
@@ -163,6 +167,7 @@ impl ViewportRenderer {
                 Surfaces::Irradiance(_) => &self.irradiance,
                 Surfaces::Prt(_) => &self.prt,
                 Surfaces::Wavelet(_) => &self.wavelet,
+                Surfaces::Rsl(_) => &self.rsl,
             };
             surfaces.draw(&mut pass, self.geometry.as_ref());
         }

@@ -18,6 +18,12 @@ use serde::{Deserialize, Serialize};
 // Stage value types this module owns (see `engine::value`).
 crate::stage_type!(WaveletLighting, "wavelet", |v| v.channels.iter().map(|c| c.len() * 16).sum());
 crate::stage_type!(DMat3, "rotation");
+crate::stage_type!(RadianceScale, "radiance scale");
+
+/// Exposure and tint as one factor per RGB channel (`2^exposure · tint`): what consumers that
+/// keep the unscaled source (the RSL decomposer) multiply in, O(1) per edit.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct RadianceScale(pub [f64; 3]);
 
 /// Sparse Haar lighting per colour channel.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -145,6 +151,15 @@ pub fn spec() -> NodeKindSpec {
                 compute: radiance,
             },
             StageSpec {
+                name: "radiance_scale",
+                version: 1,
+                params: &["exposure", "tint"],
+                stages: &[],
+                inputs: &[],
+                persist: None,
+                compute: radiance_scale,
+            },
+            StageSpec {
                 name: "sh_unrotated",
                 version: 1,
                 params: &["sh_bands"],
@@ -261,6 +276,12 @@ fn source(ctx: &StageContext) -> Result<StageValue, StageError> {
             Ok(StageValue::new(crate::cubemap::Equirect::from_fn(512, 256, 3, |d| sky.radiance(d))))
         }
     }
+}
+
+fn radiance_scale(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let scale = 2f64.powf(ctx.float("exposure")?);
+    let tint = ctx.vec3("tint")?;
+    Ok(StageValue::new(RadianceScale(tint.map(|t| t * scale))))
 }
 
 fn radiance(ctx: &StageContext) -> Result<StageValue, StageError> {

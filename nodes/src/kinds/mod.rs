@@ -7,6 +7,7 @@ pub mod fog;
 pub mod lights;
 pub mod output;
 pub mod planned;
+pub mod rsl;
 pub mod scene;
 
 use crate::node_kind::NodeKindSpec;
@@ -24,7 +25,7 @@ pub fn registry() -> &'static [NodeKindSpec] {
             fog::spec(),
             lights::point_light_spec(),
             planned::area_light_painter_spec(),
-            planned::rsl_decomposer_spec(),
+            rsl::spec(),
             planned::blocker_spheres_spec(),
         ]
     })

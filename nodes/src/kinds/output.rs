@@ -31,6 +31,8 @@ crate::choice_enum! {
         WaveletVertex = "wavelet_vertex",
         /// The same, per pixel on objects with a visibility texture.
         WaveletPixel = "wavelet_pixel",
+        /// Rotatable square lights per vertex (Xu et al. 2006): objects may move.
+        Rsl = "rsl",
     }
 }
 
@@ -118,7 +120,8 @@ pub fn spec() -> NodeKindSpec {
                       radiance, per vertex. wavelet_vertex: all-frequency triple \
                       product in each vertex's local frame (Ma et al. eq. 7), 80 or 320 top-only coefficients. \
                       wavelet_pixel: the same, per pixel on objects with a \
-                      visibility texture (sharp shadows and reflections on coarse meshes). Each mode computes the \
+                      visibility texture (sharp shadows and reflections on coarse meshes). rsl: the square lights \
+                      of a linked RSL decomposer, per vertex (Xu et al. 2006 eq. 5). Each mode computes the \
                       transport it reads when first chosen; until then the view shows the unshadowed SH \
                       lighting and says so.",
             },
@@ -213,6 +216,15 @@ pub fn spec() -> NodeKindSpec {
                 ],
                 persist: None,
                 compute: texel_irradiance,
+            },
+            StageSpec {
+                name: "rsl_visibility",
+                version: 1,
+                params: &[],
+                stages: &[],
+                inputs: &[("scene", "rsl_self_visibility"), ("square_lights", "world_lights")],
+                persist: None,
+                compute: rsl_visibility,
             },
         ],
         previews: Vec::new(),
@@ -317,13 +329,31 @@ fn texel_irradiance(ctx: &StageContext) -> Result<StageValue, StageError> {
     )?))
 }
 
+/// `V̄` per vertex and square light for the `rsl` mode (pulled only by it): the lights' world
+/// directions through each object's current pose into its self-visibility tables. Reruns on an
+/// environment rotation or an object move (O(vertices × lights) lookups), never on a camera
+/// move or a BRDF edit.
+fn rsl_visibility(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let objects = ctx.required_input::<Vec<crate::rsl::vdt::ObjectSvdf>>("scene", "rsl_self_visibility")?;
+    // Without square lights there is nothing to see (drawing the mode then says what to link).
+    let Some(lights) = ctx.input::<crate::rsl::WorldLights>("square_lights", "world_lights")? else {
+        return Ok(StageValue::new(crate::rsl::shade::LightVisibility::default()));
+    };
+    Ok(StageValue::new(crate::rsl::shade::light_visibility(
+        objects,
+        lights,
+        crate::rsl::vdt::Ramp::StraightEdge,
+        ctx.cancel_token(),
+    )?))
+}
+
 /// A copy of a gathered stage's value as `T` (an error naming both types otherwise).
 fn typed<T: crate::engine::StageType + Clone>(keyed: &Keyed, stage: &str) -> Result<T, String> {
     keyed.value.expect::<T>().cloned().map_err(|e| format!("stage `{stage}`: {e}"))
 }
 
 use crate::frame::{
-    Background, FogFrame, FrameMaterial, Geometry, IrradianceSurfaces, MediumFrame, PrtSurfaces, Surfaces,
+    Background, FogFrame, FrameMaterial, Geometry, IrradianceSurfaces, MediumFrame, PrtSurfaces, RslSurfaces, Surfaces,
     WaveletSurfaces,
 };
 pub use crate::frame::{FrameInputs, Keyed, MAX_LIGHTS, MAX_MATERIALS};
@@ -354,6 +384,14 @@ pub fn mode_stages(graph: &Graph, output: &str, mode: Mode) -> Vec<StageRef> {
         if mode == Mode::ShPrt {
             stages.push(StageRef::new(&scene, "transport_sh"));
         }
+        if mode == Mode::Rsl {
+            stages.push(StageRef::new(&scene, "rsl_self_visibility"));
+        }
+    }
+    if mode == Mode::Rsl
+        && let Some(lights) = upstream("square_lights")
+    {
+        stages.push(StageRef::new(&lights, "world_lights"));
     }
     if let Some(env) = upstream("environment") {
         stages.push(StageRef::new(&env, "sh"));
@@ -364,6 +402,7 @@ pub fn mode_stages(graph: &Graph, output: &str, mode: Mode) -> Vec<StageRef> {
         match mode {
             Mode::ShPrt => stages.push(StageRef::new(&material.id, "sh_lobe")),
             Mode::WaveletVertex | Mode::WaveletPixel => stages.push(StageRef::new(&material.id, "local_table")),
+            Mode::Rsl => stages.push(StageRef::new(&material.id, "rsl_tables")),
             Mode::ShIrradiance => {}
         }
     }
@@ -381,6 +420,7 @@ pub fn mode_stages(graph: &Graph, output: &str, mode: Mode) -> Vec<StageRef> {
             stages.push(StageRef::new(output, "local_products"));
             stages.push(StageRef::new(output, "texel_irradiance"));
         }
+        Mode::Rsl => stages.push(StageRef::new(output, "rsl_visibility")),
     }
     stages
 }
@@ -449,6 +489,7 @@ impl FrameInputs {
         let mut materials = Vec::new();
         let mut lobes = Vec::new();
         let mut tables = Vec::new();
+        let mut rsl_tables = Vec::new();
         for node in &material_nodes {
             materials.push(FrameMaterial {
                 node: node.id.clone(),
@@ -460,10 +501,13 @@ impl FrameInputs {
             if mode.is_wavelet() {
                 tables.push(keyed(&node.id, "local_table")?);
             }
+            if mode == Mode::Rsl {
+                rsl_tables.push(keyed(&node.id, "rsl_tables")?);
+            }
         }
         if materials.is_empty() {
-            if mode.is_wavelet() {
-                return Err("the wavelet modes need a material: link a BRDF editor to the Output".into());
+            if mode.is_wavelet() || mode == Mode::Rsl {
+                return Err(format!("the {mode} mode needs a material: link a BRDF editor to the Output"));
             }
             materials.push(FrameMaterial { node: String::new(), material: Default::default() });
             lobes.push(None);
@@ -507,16 +551,36 @@ impl FrameInputs {
                 let products = products.ok_or("the wavelet products were not evaluated")?;
                 Surfaces::Wavelet(WaveletSurfaces::new(products, &tables, texels, fogged, &geometry, &materials)?)
             }
+            Mode::Rsl => {
+                let node = upstream("square_lights").ok_or(
+                    "the rsl mode needs square lights: link an RSL decomposer to the Output's square_lights input",
+                )?;
+                let lights = keyed(&node, "world_lights")?;
+                let world = lights.value.expect::<crate::rsl::WorldLights>().map_err(|e| e.to_string())?;
+                Surfaces::Rsl(RslSurfaces::new(
+                    world,
+                    lights.key,
+                    keyed(output, "rsl_visibility")?,
+                    &rsl_tables,
+                    fogged,
+                    &geometry,
+                )?)
+            }
             _ => Surfaces::Irradiance(IrradianceSurfaces::new(light, fogged, &materials)),
         };
         let mut lights = match upstream("lights") {
             Some(node) => typed::<Vec<crate::kinds::lights::PointLight>>(&keyed(&node, "lights")?, "lights")?,
             None => Vec::new(),
         };
-        let mut ignored_inputs: Vec<String> = ["blockers", "square_lights"]
+        let mut ignored_inputs: Vec<String> = ["blockers"]
             .into_iter()
             .filter_map(|p| upstream(p).map(|n| format!("`{p}` (from `{n}`) is not drawn yet")))
             .collect();
+        if settings.mode != Mode::Rsl
+            && let Some(n) = upstream("square_lights")
+        {
+            ignored_inputs.push(format!("`square_lights` (from `{n}`) are drawn by the rsl mode only"));
+        }
         if lights.len() > MAX_LIGHTS {
             ignored_inputs.push(format!("{} point lights are linked; the first {MAX_LIGHTS} are drawn", lights.len()));
             lights.truncate(MAX_LIGHTS);

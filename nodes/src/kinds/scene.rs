@@ -268,6 +268,15 @@ pub fn spec() -> NodeKindSpec {
                 compute: transport_objects,
             },
             StageSpec {
+                name: "rsl_self_visibility",
+                version: 1,
+                params: &["objects", "tessellation"],
+                stages: &[],
+                inputs: &[],
+                persist: None,
+                compute: rsl_self_visibility,
+            },
+            StageSpec {
                 name: "transport_haar",
                 version: 2,
                 params: &["haar_resolution", "haar_terms"],
@@ -385,19 +394,58 @@ fn transport_objects(ctx: &StageContext) -> Result<StageValue, StageError> {
         (ctx.int("tessellation")? as usize, ctx.int("transport_bands")? as usize, ctx.int("transport_rays")? as usize);
     let mut out = Vec::with_capacity(objects.len());
     for object in objects {
-        let mut bytes = postcard::to_stdvec(&object.shape).map_err(|e| StageError::Internal(e.to_string()))?;
-        // A model's transport depends on its file's content, not only its name.
-        if let Some(file) = object.file() {
-            let path = ctx.project_dir().join(file);
-            let content = crate::limits::read_regular_file(&path, crate::limits::MAX_FILE_BYTES)
-                .map_err(|e| StageError::Failed(format!("object `{}`: {e}", object.name)))?;
-            bytes.extend_from_slice(&xxhash_rust::xxh3::xxh3_64(&content).to_le_bytes());
-        }
-        bytes.extend_from_slice(format!("self-sh v1 {tessellation} {bands} {rays}").as_bytes());
+        let bytes = object_shape_key(ctx, object, &format!("self-sh v1 {tessellation} {bands} {rays}"))?;
         out.push(self_transport(ctx, &bytes, &object.name, object.transform(), (bands, rays), || {
             object.object_meshes(tessellation, ctx.project_dir()).map_err(StageError::Failed)
         })?);
         ctx.progress(out.len() as f64 / objects.len() as f64);
+    }
+    Ok(StageValue::new(out))
+}
+
+/// Bytes identifying an object's object-space geometry (its shape, and a model's file
+/// content, not only its name) followed by `suffix` (what else the memoised value depends on).
+fn object_shape_key(ctx: &StageContext, object: &SceneObject, suffix: &str) -> Result<Vec<u8>, StageError> {
+    let mut bytes = postcard::to_stdvec(&object.shape).map_err(|e| StageError::Internal(e.to_string()))?;
+    if let Some(file) = object.file() {
+        let path = ctx.project_dir().join(file);
+        let content = crate::limits::read_regular_file(&path, crate::limits::MAX_FILE_BYTES)
+            .map_err(|e| StageError::Failed(format!("object `{}`: {e}", object.name)))?;
+        bytes.extend_from_slice(&xxhash_rust::xxh3::xxh3_64(&content).to_le_bytes());
+    }
+    bytes.extend_from_slice(suffix.as_bytes());
+    Ok(bytes)
+}
+
+/// Per-object self-visibility distance tables for the `rsl` mode (Xu et al. §4.3.1, Eq. 10),
+/// in each object's object space and memoised on its shape: moving, turning or recolouring an
+/// object casts no ray (the report counts the memo hits).
+fn rsl_self_visibility(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let ParamValue::Objects(objects) = ctx.value("objects")? else {
+        return Err(StageError::Internal("objects".into()));
+    };
+    let tessellation = ctx.int("tessellation")? as usize;
+    let size = crate::rsl::vdt::VDT_SIZE;
+    let mut out = Vec::with_capacity(objects.len());
+    for (done, object) in objects.iter().enumerate() {
+        let bytes = object_shape_key(ctx, object, &format!("svdf v1 {tessellation} {size}"))?;
+        let svdf = ctx.memo(xxhash_rust::xxh3::xxh3_128(&bytes), || {
+            let meshes =
+                MeshSet { meshes: object.object_meshes(tessellation, ctx.project_dir()).map_err(StageError::Failed)? };
+            let scene = RayScene::build(&meshes);
+            let receivers = Receivers::from_meshes(&meshes);
+            check_ray_budget(receivers.len(), size * size, "tessellation")?;
+            let base = done as f64 / objects.len() as f64;
+            crate::rsl::vdt::Svdf::compute(&scene, &receivers, size, ctx.cancel_token(), &|f| {
+                ctx.progress(base + f / objects.len() as f64)
+            })
+        })?;
+        out.push(crate::rsl::vdt::ObjectSvdf {
+            name: object.name.clone(),
+            world_from_object: object.transform().to_cols_array(),
+            svdf: (*svdf).clone(),
+        });
+        ctx.progress((done + 1) as f64 / objects.len() as f64);
     }
     Ok(StageValue::new(out))
 }

@@ -29,6 +29,9 @@ pub mod plane;
 pub mod shade;
 pub mod vdt;
 
+#[cfg(test)]
+mod experiment;
+
 use crate::cubemap::{CubeMap, FACES, face_uv_to_dir, texel_solid_angle};
 use crate::engine::CancelToken;
 use glam::DVec3;

@@ -29,7 +29,20 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
 
-crate::stage_type!(Svdf, "self-visibility distance tables", encoding = 1, |v| v.distances.len() + 64);
+crate::stage_type!(Svdf, "self-visibility distance tables", encoding = 1, |v| v.distances.len() + v.frames.len() * 24);
+crate::stage_type!(Vec<ObjectSvdf>, "per-object self-visibility", |v| v
+    .iter()
+    .map(|o| o.svdf.distances.len() + 160)
+    .sum());
+
+/// One scene object's self-visibility tables and where the object is now.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ObjectSvdf {
+    pub name: String,
+    /// Column-major 4×4.
+    pub world_from_object: [f64; 16],
+    pub svdf: Svdf,
+}
 
 /// Texels per side of a visibility distance table (the paper's 32).
 pub const VDT_SIZE: usize = 32;
@@ -167,6 +180,8 @@ pub struct Svdf {
     pub vertices: usize,
     /// `vertices × size²` signed distances, 8-bit fixed point over `±D_MAX`.
     pub distances: Arc<Vec<i8>>,
+    /// Per vertex: the object-space normal and tangent of the frame the table is in.
+    pub frames: Arc<Vec<[[f32; 3]; 2]>>,
 }
 
 impl Svdf {
@@ -212,7 +227,8 @@ impl Svdf {
                 Ok(signed_distances(&visible, size, false).into_iter().map(quantise).collect())
             })
             .collect::<Result<_, StageError>>()?;
-        Ok(Self { size, vertices: count, distances: Arc::new(tables.concat()) })
+        let frames = (0..count).map(|r| [receivers.normals[r], receivers.tangents[r]]).collect();
+        Ok(Self { size, vertices: count, distances: Arc::new(tables.concat()), frames: Arc::new(frames) })
     }
 
     /// Signed distance at plane point `p` of vertex `vertex`'s table (bilinear).
@@ -220,6 +236,15 @@ impl Svdf {
         let n = self.size;
         let table = &self.distances[vertex * n * n..(vertex + 1) * n * n];
         lookup(|i| dequantise(table[i]), n, p)
+    }
+
+    /// The local frame `[t, n × t, n]` (columns, object space) of vertex `vertex`'s table.
+    pub fn frame(&self, vertex: usize) -> glam::DMat3 {
+        let [n, t] = self.frames[vertex];
+        let n = DVec3::from(n.map(f64::from)).normalize_or(DVec3::Y);
+        let t = DVec3::from(t.map(f64::from));
+        let t = (t - n * n.dot(t)).try_normalize().unwrap_or_else(|| n.any_orthonormal_vector());
+        glam::DMat3::from_cols(t, n.cross(t), n)
     }
 
     /// Bytes per vertex, as stored.

@@ -13,6 +13,7 @@ pub mod geometry;
 pub mod irradiance;
 pub mod medium;
 pub mod prt;
+pub mod rsl;
 pub mod tonemap;
 pub mod wavelet;
 
@@ -109,7 +110,8 @@ const SHADER_PRELUDE: [&str; 2] =
 
 /// Every scene pass's shader (checked by `shaders_compose_and_match_the_rust_uniforms`).
 #[cfg(test)]
-const SCENE_SHADERS: [(&str, &str); 4] = [irradiance::SHADER, prt::SHADER, wavelet::SHADER, background::SHADER];
+const SCENE_SHADERS: [(&str, &str); 5] =
+    [irradiance::SHADER, prt::SHADER, wavelet::SHADER, background::SHADER, rsl::SHADER];
 
 /// A scene pass's complete WGSL: the prelude, then the pass's source. WGSL has no includes;
 /// this is the one place modules are joined, and `shaders_compose_and_match_the_rust_uniforms`
@@ -344,7 +346,7 @@ mod layout_tests {
                 assert_eq!(members, rust, "{} members and offsets", $wgsl);
             }};
         }
-        let [irr, prt, wavelet, _background, tone] = [0, 1, 2, 3, 4].map(|i| &modules[i].1);
+        let [irr, prt, wavelet, _background, rsl, tone] = [0, 1, 2, 3, 4, 5].map(|i| &modules[i].1);
         check!(irr, "Globals", camera::Globals, [view_proj, inv_view_proj, camera_pos, flags]);
         check!(irr, "Irradiance", irradiance::IrradianceParams, [bands, albedo, coeffs]);
         check!(
@@ -355,6 +357,7 @@ mod layout_tests {
         );
         check!(prt, "PrtParams", prt::PrtParams, [counts, albedo, specular, lobe, light]);
         check!(wavelet, "WaveletParams", wavelet::WaveletParams, [counts, albedo, specular, texels]);
+        check!(rsl, "RslParams", rsl::RslParams, [counts, albedo, specular, layouts]);
         check!(tone, "ToneParams", tonemap::ToneParams, [params]);
     }
 }

@@ -30,6 +30,8 @@ fn set(names: &[&str]) -> BTreeSet<String> {
     names.iter().map(|s| s.to_string()).collect()
 }
 
+/// Everything a new environment source reruns (exposure and tint, read alone by
+/// `radiance_scale`, stay).
 const SKY_ALL: &[&str] =
     &["sky.source", "sky.radiance", "sky.sh_unrotated", "sky.rotated_radiance", "sky.sh", "sky.haar"];
 const SCENE_ALL: &[&str] = &[
@@ -42,6 +44,8 @@ const SCENE_ALL: &[&str] = &[
     "scene.transport_haar",
     "scene.transport_local",
     "scene.transport_texels",
+    "scene.rsl_self_visibility",
+    "output.rsl_visibility",
 ];
 const SKY_AFTER_SOURCE: &[&str] = &["sky.radiance", "sky.sh_unrotated", "sky.rotated_radiance", "sky.sh", "sky.haar"];
 
@@ -62,8 +66,8 @@ fn each_parameter_recomputes_exactly_its_stages() {
             Vec3([30.0, 0.0, 0.0]),
             with_lighting(&["sky.rotation", "sky.rotated_radiance", "sky.sh", "sky.haar"]),
         ),
-        ("sky", "exposure", Float(1.0), with_lighting(SKY_AFTER_SOURCE)),
-        ("sky", "tint", Color([1.0, 0.9, 0.8]), with_lighting(SKY_AFTER_SOURCE)),
+        ("sky", "exposure", Float(1.0), with_lighting(&[SKY_AFTER_SOURCE, &["sky.radiance_scale"]].concat())),
+        ("sky", "tint", Color([1.0, 0.9, 0.8]), with_lighting(&[SKY_AFTER_SOURCE, &["sky.radiance_scale"]].concat())),
         ("sky", "resolution", Choice("32".into()), with_lighting(SKY_AFTER_SOURCE)),
         ("sky", "sh_bands", Int(3), vec!["sky.sh_unrotated", "sky.sh", "output.incident_sh"]),
         ("sky", "wavelet_terms", Int(64), vec!["sky.haar"]),
@@ -109,43 +113,85 @@ fn each_parameter_recomputes_exactly_its_stages() {
             "material",
             "model",
             Choice("ggx".into()),
-            vec!["material.material", "material.preview", "material.sh_lobe", "material.local_table"],
+            vec![
+                "material.material",
+                "material.preview",
+                "material.sh_lobe",
+                "material.local_table",
+                "material.rsl_tables",
+            ],
         ),
         (
             "material",
             "albedo",
             Color([0.5, 0.5, 0.5]),
-            vec!["material.material", "material.preview", "material.sh_lobe", "material.local_table"],
+            vec![
+                "material.material",
+                "material.preview",
+                "material.sh_lobe",
+                "material.local_table",
+                "material.rsl_tables",
+            ],
         ),
         (
             "material",
             "specular",
             Color([0.2, 0.2, 0.2]),
-            vec!["material.material", "material.preview", "material.sh_lobe", "material.local_table"],
+            vec![
+                "material.material",
+                "material.preview",
+                "material.sh_lobe",
+                "material.local_table",
+                "material.rsl_tables",
+            ],
         ),
         (
             "material",
             "roughness",
             Float(0.2),
-            vec!["material.material", "material.preview", "material.sh_lobe", "material.local_table"],
+            vec![
+                "material.material",
+                "material.preview",
+                "material.sh_lobe",
+                "material.local_table",
+                "material.rsl_tables",
+            ],
         ),
         (
             "material",
             "exponent",
             Float(10.0),
-            vec!["material.material", "material.preview", "material.sh_lobe", "material.local_table"],
+            vec![
+                "material.material",
+                "material.preview",
+                "material.sh_lobe",
+                "material.local_table",
+                "material.rsl_tables",
+            ],
         ),
         (
             "material",
             "anisotropy",
             Float(0.5),
-            vec!["material.material", "material.preview", "material.sh_lobe", "material.local_table"],
+            vec![
+                "material.material",
+                "material.preview",
+                "material.sh_lobe",
+                "material.local_table",
+                "material.rsl_tables",
+            ],
         ),
         (
             "material",
             "f0",
             Float(0.5),
-            vec!["material.material", "material.preview", "material.sh_lobe", "material.local_table"],
+            vec![
+                "material.material",
+                "material.preview",
+                "material.sh_lobe",
+                "material.local_table",
+                "material.rsl_tables",
+            ],
         ),
         // Setting the current value (the default project's shadowed mode) recomputes nothing.
         ("output", "mode", Choice("wavelet_pixel".into()), vec![]),
@@ -162,14 +208,20 @@ fn each_parameter_recomputes_exactly_its_stages() {
             "material",
             "roughness",
             Float(0.7),
-            vec!["material.material", "material.preview", "material.sh_lobe", "material.local_table"],
+            vec![
+                "material.material",
+                "material.preview",
+                "material.sh_lobe",
+                "material.local_table",
+                "material.rsl_tables",
+            ],
         ),
     ];
     let engine = Engine::in_memory();
     let mut graph = default_graph();
     let first = engine.evaluate(&graph, &CancelToken::default(), None);
     assert!(first.report.failed().is_empty(), "{:?}", first.report.failed());
-    assert_eq!(first.report.computed().len(), 24);
+    assert_eq!(first.report.computed().len(), 28);
     let again = engine.evaluate(&graph, &CancelToken::default(), None);
     assert!(ran(&again.report).is_empty(), "an unchanged graph recomputed {:?}", ran(&again.report));
     for (node, param, value, expected) in table {
@@ -632,8 +684,15 @@ fn planned_kinds_recompute_exactly_their_stages_too() {
         ),
         ("blockers", "sh_bands", Int(6), vec!["blockers.spheres"]),
         // A new K is a cut of the same merge sequence.
-        ("rsl", "light_count", Int(10), vec!["rsl.square_lights"]),
-        ("rsl", "cube_resolution", Choice("16".into()), vec!["rsl.cube", "rsl.merge_sequence", "rsl.square_lights"]),
+        // A new K is a cut of the same merge sequence (then the O(K) world lights and the
+        // per-vertex visibility of the new lights).
+        ("rsl", "light_count", Int(10), vec!["rsl.square_lights", "rsl.world_lights", "output.rsl_visibility"]),
+        (
+            "rsl",
+            "cube_resolution",
+            Choice("16".into()),
+            vec!["rsl.cube", "rsl.merge_sequence", "rsl.square_lights", "rsl.world_lights", "output.rsl_visibility"],
+        ),
         ("area", "size", Float(2.0), vec!["area.lights"]),
         ("area", "intensity", Float(3.0), vec!["area.lights"]),
         ("area", "position", Vec3([0.0, 3.0, 0.0]), vec!["area.lights"]),
@@ -642,11 +701,29 @@ fn planned_kinds_recompute_exactly_their_stages_too() {
             "exposure",
             Float(2.0),
             [
-                // The square lights are fitted before exposure: none of their stages rerun.
+                // The square lights are fitted before exposure: only the O(K) world lights
+                // (and the visibility keyed on them) rerun.
                 SKY_AFTER_SOURCE,
+                &["sky.radiance_scale", "rsl.world_lights", "output.rsl_visibility"],
                 &["output.incident_sh", "output.local_products", "output.texel_irradiance"],
             ]
             .concat(),
+        ),
+        (
+            "sky",
+            "rotation",
+            Vec3([0.0, 40.0, 0.0]),
+            vec![
+                "sky.rotation",
+                "sky.rotated_radiance",
+                "sky.sh",
+                "sky.haar",
+                "rsl.world_lights",
+                "output.rsl_visibility",
+                "output.incident_sh",
+                "output.local_products",
+                "output.texel_irradiance",
+            ],
         ),
     ];
     let engine = Engine::in_memory();
@@ -916,6 +993,7 @@ fn each_mode_and_view_evaluates_exactly_the_stages_it_reads() {
             ]
             .concat(),
         ),
+        ("rsl", "approximation", with(&["scene.rsl_self_visibility", "material.rsl_tables", "output.rsl_visibility"])),
         ("sh_irradiance", "reference", with(&["scene.ray_scene"])),
         ("sh_irradiance", "error", with(&["scene.ray_scene"])),
     ];
@@ -932,7 +1010,7 @@ fn each_mode_and_view_evaluates_exactly_the_stages_it_reads() {
         for s in eval.report.stages.iter().filter(|s| s.status == StageStatus::NotNeeded) {
             assert!(s.reasons[0].contains(&format!("mode {mode}")), "{}.{}: {:?}", s.node, s.stage, s.reasons);
         }
-        assert_eq!(eval.report.stages.len(), 24, "every stage is reported");
+        assert_eq!(eval.report.stages.len(), 28, "every stage is reported");
     }
 }
 

@@ -1,0 +1,107 @@
+//! RSL decomposer node: the environment as rotatable square lights (Xu et al. 2006 §4.1,
+//! `crate::rsl`). The decomposition reads the environment before exposure, tint and rotation,
+//! so those edits only rescale and turn the lights (`world_lights`, O(K)).
+
+use crate::engine::{StageContext, StageError, StageValue};
+use crate::node_kind::{Availability, NodeKindSpec, ParamKind, ParamSpec, PortSpec, PortType, StageSpec};
+
+pub fn spec() -> NodeKindSpec {
+    NodeKindSpec {
+        name: "RslDecomposer",
+        label: "RSL decomposer",
+        doc: "Fits rotatable square lights to an environment (Xu et al. 2006 §4.1): bright regions stay \
+              small, dim ones grow; energy is kept exactly. Exposure does not change the fit.",
+        inputs: vec![PortSpec { name: "environment", ty: PortType::Environment, required: true, many: false }],
+        outputs: vec![PortSpec { name: "square_lights", ty: PortType::SquareLights, required: false, many: false }],
+        params: vec![
+            ParamSpec {
+                name: "light_count",
+                label: "Lights",
+                unit: "",
+                kind: ParamKind::Int { min: 6, max: 256, default: 30 },
+                doc: "Number of square lights K (at least one per cube face; 20–40 suit most maps).",
+            },
+            ParamSpec {
+                name: "cube_resolution",
+                label: "Cube resolution",
+                unit: "px",
+                kind: ParamKind::Choice { options: &["16", "32", "64"], default: "32", labels: &[] },
+                doc: "Texels per cube face the regions are merged from (64 is about 5x slower).",
+            },
+        ],
+        stages: vec![
+            StageSpec {
+                name: "cube",
+                version: 1,
+                params: &["cube_resolution"],
+                stages: &[],
+                inputs: &[("environment", "source")],
+                persist: None,
+                compute: rsl_cube,
+            },
+            StageSpec {
+                name: "merge_sequence",
+                version: 1,
+                params: &[],
+                stages: &["cube"],
+                inputs: &[],
+                persist: None,
+                compute: rsl_merge_sequence,
+            },
+            StageSpec {
+                name: "square_lights",
+                version: 2,
+                params: &["light_count"],
+                stages: &["merge_sequence", "cube"],
+                inputs: &[],
+                persist: None,
+                compute: rsl_square_lights,
+            },
+            StageSpec {
+                name: "world_lights",
+                version: 1,
+                params: &[],
+                stages: &["square_lights"],
+                inputs: &[("environment", "rotation"), ("environment", "radiance_scale")],
+                persist: None,
+                compute: world_lights,
+            },
+        ],
+        previews: Vec::new(),
+        availability: Availability::Ready,
+    }
+}
+
+/// The environment before exposure and tint, as a cube map (exposure scales every candidate
+/// merge's error alike, so it cannot change the fit).
+fn rsl_cube(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let image = ctx.required_input::<crate::cubemap::Equirect>("environment", "source")?;
+    let size: usize =
+        ctx.choice("cube_resolution")?.parse().map_err(|_| StageError::Internal("cube_resolution".into()))?;
+    Ok(StageValue::new(image.to_cubemap(size)))
+}
+
+fn rsl_merge_sequence(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let cube = ctx.stage::<crate::cubemap::CubeMap>("cube")?;
+    let sequence = crate::rsl::MergeSequence::compute(cube, ctx.cancel_token(), &|f| ctx.progress(f))
+        .map_err(|_| StageError::Cancelled)?;
+    Ok(StageValue::new(sequence))
+}
+
+/// A cut of the merge sequence at K: O(fits of K regions), no new decomposition.
+fn rsl_square_lights(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let cube = ctx.stage::<crate::cubemap::CubeMap>("cube")?;
+    let sequence = ctx.stage::<crate::rsl::MergeSequence>("merge_sequence")?;
+    Ok(StageValue::new(sequence.cut(cube, ctx.int("light_count")? as usize)))
+}
+
+/// The lights in the world frame: the environment's rotation turns their centres, exposure
+/// and tint scale their intensities. O(K): no new decomposition.
+fn world_lights(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let lights = ctx.stage::<crate::rsl::SquareLights>("square_lights")?;
+    let rotation = ctx.required_input::<glam::DMat3>("environment", "rotation")?;
+    let scale = ctx.required_input::<crate::kinds::environment::RadianceScale>("environment", "radiance_scale")?;
+    Ok(StageValue::new(crate::rsl::WorldLights {
+        lights: lights.transformed(scale.0, glam::DQuat::from_mat3(rotation)),
+    }))
+}

@@ -1,0 +1,155 @@
+// Mesh pass for the `rsl` mode (nodes/src/rsl/shade.rs, Xu et al. 2006 eq. 5):
+//   B = sum_i I_i Omega_i Vbar_i (albedo * mean(cos/pi) + specular * mean(lobe cos))
+// The means are over the light's square in the equal-area plane of the vertex's frame
+// [t, n x t, n] (nodes/src/rsl/plane.rs), four bilinear lookups of a corner-stored
+// summed-area table each (nodes/src/rsl/brdf_sat.rs); Vbar per vertex and light comes from
+// the CPU (the rsl_visibility stage). Per vertex, Gouraud between vertices as in the paper.
+
+struct RslParams {
+    // x: lights, y: table texels per side
+    counts: vec4<u32>,
+    // Per material: diffuse albedo; specular colour.
+    albedo: array<vec4<f32>, 8>,
+    specular: array<vec4<f32>, 8>,
+    // Per material: x first float in `tables`, y view grid (0 none, 1 isotropic, 2 anisotropic),
+    // z slices (theta_0 values, or view slices per side).
+    layouts: array<vec4<u32>, 8>,
+};
+
+@group(2) @binding(0) var<uniform> rp: RslParams;
+// Per light: (direction, solid angle), (intensity, 0), world frame.
+@group(2) @binding(1) var<storage, read> lights: array<vec4<f32>>;
+// Vbar per vertex and light, vertex-major.
+@group(2) @binding(2) var<storage, read> visibility: array<f32>;
+@group(2) @binding(3) var<storage, read> tables: array<f32>;
+
+// The largest tabulated view polar angle (brdf_sat.rs MAX_VIEW_ANGLE).
+const MAX_VIEW_ANGLE: f32 = 1.5620696;
+
+fn to_plane(d: vec3<f32>) -> vec2<f32> {
+    let s = 1.0 + d.z;
+    if (s <= 1e-6) {
+        return vec2<f32>(1.4142135, 0.0);
+    }
+    return d.xy / sqrt(s);
+}
+
+// The SAT at fractional corner coordinates (bilinear; exact for piecewise-constant texels).
+fn sat_at(base: u32, x: f32, y: f32) -> f32 {
+    let n = rp.counts.y;
+    let nf = f32(n);
+    let cx = clamp(x, 0.0, nf);
+    let cy = clamp(y, 0.0, nf);
+    let ix = min(u32(floor(cx)), n - 1u);
+    let iy = min(u32(floor(cy)), n - 1u);
+    let tx = cx - f32(ix);
+    let ty = cy - f32(iy);
+    let stride = n + 1u;
+    let r0 = base + iy * stride + ix;
+    let r1 = r0 + stride;
+    let top = mix(tables[r0], tables[r0 + 1u], tx);
+    let bottom = mix(tables[r1], tables[r1 + 1u], tx);
+    return mix(top, bottom, ty);
+}
+
+// Mean over the square of half-edge `half_edge` centred on `p`, clipped to the table but divided by
+// its full area.
+fn square_mean(base: u32, p: vec2<f32>, half_edge: f32) -> f32 {
+    let n = f32(rp.counts.y);
+    let lo = (p - vec2<f32>(half_edge) + 1.0) * 0.5 * n;
+    let hi = (p + vec2<f32>(half_edge) + 1.0) * 0.5 * n;
+    let area = (hi.x - lo.x) * (hi.y - lo.y);
+    if (area <= 0.0) {
+        return 0.0;
+    }
+    let sum = sat_at(base, hi.x, hi.y) - sat_at(base, lo.x, hi.y) - sat_at(base, hi.x, lo.y) + sat_at(base, lo.x, lo.y);
+    return sum / area;
+}
+
+fn table_base(m: u32, slice: u32) -> u32 {
+    let n = rp.counts.y + 1u;
+    return rp.layouts[m].x + (1u + slice) * n * n;
+}
+
+// Mean of lobe * cos over the square for view `wo` (local frame).
+fn lobe_mean(m: u32, c: vec3<f32>, half_edge: f32, wo: vec3<f32>) -> f32 {
+    let grid = rp.layouts[m];
+    if (grid.y == 0u || wo.z <= 0.0) {
+        return 0.0;
+    }
+    if (grid.y == 1u) {
+        let slices = grid.z;
+        let phi = atan2(wo.y, wo.x);
+        let s = sin(phi);
+        let k = cos(phi);
+        let turned = vec3<f32>(c.x * k + c.y * s, -c.x * s + c.y * k, c.z);
+        let p = to_plane(turned);
+        let t = min(acos(clamp(wo.z, -1.0, 1.0)) / MAX_VIEW_ANGLE, 1.0) * f32(slices - 1u);
+        let j = min(u32(floor(t)), slices - 2u);
+        let f = t - f32(j);
+        let a = square_mean(table_base(m, j), p, half_edge);
+        let b = square_mean(table_base(m, j + 1u), p, half_edge);
+        return mix(a, b, f);
+    }
+    let size = grid.z;
+    let p = to_plane(c);
+    let v = to_plane(wo);
+    let last = f32(size - 1u);
+    let coord = clamp((v + 1.0) * 0.5 * f32(size) - 0.5, vec2<f32>(0.0), vec2<f32>(last));
+    let i = min(u32(floor(coord.x)), size - 2u);
+    let j = min(u32(floor(coord.y)), size - 2u);
+    let f = coord - vec2<f32>(f32(i), f32(j));
+    let s00 = square_mean(table_base(m, j * size + i), p, half_edge);
+    let s10 = square_mean(table_base(m, j * size + i + 1u), p, half_edge);
+    let s01 = square_mean(table_base(m, (j + 1u) * size + i), p, half_edge);
+    let s11 = square_mean(table_base(m, (j + 1u) * size + i + 1u), p, half_edge);
+    return mix(mix(s00, s10, f.x), mix(s01, s11, f.x), f.y);
+}
+
+struct VertexOut {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) radiance: vec3<f32>,
+    @location(1) albedo: vec3<f32>,
+    @location(2) @interpolate(flat) material: u32,
+    @location(3) position: vec3<f32>,
+    @location(4) normal: vec3<f32>,
+};
+
+@vertex
+fn vs_main(v: MeshVertex, @builtin(vertex_index) index: u32) -> VertexOut {
+    var out: VertexOut;
+    out.clip = globals.view_proj * vec4<f32>(v.position, 1.0);
+    let m = v.material;
+    out.material = m;
+    out.position = v.position;
+    out.normal = v.normal;
+    out.albedo = rp.albedo[m].rgb * v.color;
+    let n = normalize(v.normal);
+    let t = normalize(v.tangent - n * dot(n, v.tangent));
+    let b = cross(n, t);
+    let view = normalize(globals.camera_pos.xyz - v.position);
+    let wo = vec3<f32>(dot(view, t), dot(view, b), dot(view, n));
+    let count = rp.counts.x;
+    var diffuse = vec3<f32>(0.0);
+    var glossy = vec3<f32>(0.0);
+    for (var i = 0u; i < count; i = i + 1u) {
+        let vis = visibility[index * count + i];
+        if (vis <= 0.0) {
+            continue;
+        }
+        let d = lights[2u * i];
+        let energy = lights[2u * i + 1u].rgb * d.w * vis;
+        let c = vec3<f32>(dot(d.xyz, t), dot(d.xyz, b), dot(d.xyz, n));
+        let half_edge = sqrt(d.w * 0.5) * 0.5;
+        diffuse = diffuse + energy * square_mean(rp.layouts[m].x, to_plane(c), half_edge);
+        glossy = glossy + energy * lobe_mean(m, c, half_edge, wo);
+    }
+    out.radiance = out.albedo * diffuse + rp.specular[m].rgb * glossy;
+    return out;
+}
+
+@fragment
+fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
+    let n = normalize(in.normal);
+    return vec4<f32>(fog_shade(in.radiance, in.position, n, in.albedo / PI, in.material), 1.0);
+}

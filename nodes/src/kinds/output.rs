@@ -222,7 +222,11 @@ pub fn spec() -> NodeKindSpec {
                 version: 1,
                 params: &[],
                 stages: &[],
-                inputs: &[("scene", "rsl_self_visibility"), ("square_lights", "world_lights")],
+                inputs: &[
+                    ("scene", "rsl_self_visibility"),
+                    ("scene", "rsl_occluders"),
+                    ("square_lights", "world_lights"),
+                ],
                 persist: None,
                 compute: rsl_visibility,
             },
@@ -335,12 +339,14 @@ fn texel_irradiance(ctx: &StageContext) -> Result<StageValue, StageError> {
 /// move or a BRDF edit.
 fn rsl_visibility(ctx: &StageContext) -> Result<StageValue, StageError> {
     let objects = ctx.required_input::<Vec<crate::rsl::vdt::ObjectSvdf>>("scene", "rsl_self_visibility")?;
+    let occluders = ctx.required_input::<Vec<crate::rsl::ovdf::ObjectOvdf>>("scene", "rsl_occluders")?;
     // Without square lights there is nothing to see (drawing the mode then says what to link).
     let Some(lights) = ctx.input::<crate::rsl::WorldLights>("square_lights", "world_lights")? else {
         return Ok(StageValue::new(crate::rsl::shade::LightVisibility::default()));
     };
     Ok(StageValue::new(crate::rsl::shade::light_visibility(
         objects,
+        occluders,
         lights,
         crate::rsl::vdt::Ramp::StraightEdge,
         ctx.cancel_token(),
@@ -386,6 +392,7 @@ pub fn mode_stages(graph: &Graph, output: &str, mode: Mode) -> Vec<StageRef> {
         }
         if mode == Mode::Rsl {
             stages.push(StageRef::new(&scene, "rsl_self_visibility"));
+            stages.push(StageRef::new(&scene, "rsl_occluders"));
         }
     }
     if mode == Mode::Rsl

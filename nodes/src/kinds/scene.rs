@@ -170,6 +170,14 @@ pub fn spec() -> NodeKindSpec {
                 doc: "Texels per side of the visibility textures of objects that ask for one.",
             },
             ParamSpec {
+                name: "occluder_resolution",
+                label: "Occluder field resolution",
+                unit: "px",
+                kind: ParamKind::Choice { options: &["8", "16", "32"], default: "8", labels: &[] },
+                doc: "Square-light mode: cube texels per face on each of the 16 shells around every object where \
+                      its shadow on others is sampled (the paper uses 32; each step up is 4x the rays).",
+            },
+            ParamSpec {
                 name: "transport_bands",
                 label: "Transport SH bands",
                 unit: "",
@@ -275,6 +283,15 @@ pub fn spec() -> NodeKindSpec {
                 inputs: &[],
                 persist: None,
                 compute: rsl_self_visibility,
+            },
+            StageSpec {
+                name: "rsl_occluders",
+                version: 1,
+                params: &["objects", "tessellation", "occluder_resolution"],
+                stages: &[],
+                inputs: &[],
+                persist: None,
+                compute: rsl_occluders,
             },
             StageSpec {
                 name: "transport_haar",
@@ -444,6 +461,48 @@ fn rsl_self_visibility(ctx: &StageContext) -> Result<StageValue, StageError> {
             name: object.name.clone(),
             world_from_object: object.transform().to_cols_array(),
             svdf: (*svdf).clone(),
+        });
+        ctx.progress((done + 1) as f64 / objects.len() as f64);
+    }
+    Ok(StageValue::new(out))
+}
+
+/// Per-object occluder fields for the `rsl` mode (Xu et al. §4.3.2, Eq. 11): how each object
+/// shadows the others, in its object space and memoised on its shape, so moves cast no ray.
+fn rsl_occluders(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let ParamValue::Objects(objects) = ctx.value("objects")? else {
+        return Err(StageError::Internal("objects".into()));
+    };
+    let tessellation = ctx.int("tessellation")? as usize;
+    let face: usize =
+        ctx.choice("occluder_resolution")?.parse().map_err(|_| StageError::Internal("resolution".into()))?;
+    let table = crate::rsl::vdt::VDT_SIZE;
+    // Alone, an object shadows nothing else.
+    if objects.len() < 2 {
+        return Ok(StageValue::new(Vec::<crate::rsl::ovdf::ObjectOvdf>::new()));
+    }
+    let mut out = Vec::with_capacity(objects.len());
+    for (done, object) in objects.iter().enumerate() {
+        let bytes = object_shape_key(ctx, object, &format!("ovdf v1 {tessellation} {face} {table}"))?;
+        let ovdf = ctx.memo(xxhash_rust::xxh3::xxh3_128(&bytes), || {
+            let meshes =
+                MeshSet { meshes: object.object_meshes(tessellation, ctx.project_dir()).map_err(StageError::Failed)? };
+            let scene = RayScene::build(&meshes);
+            check_ray_budget(crate::rsl::ovdf::SHELLS * 6 * face * face, table * table, "occluder_resolution")?;
+            let base = done as f64 / objects.len() as f64;
+            crate::rsl::ovdf::Ovdf::compute(
+                &scene,
+                crate::rsl::ovdf::bounding_sphere(&meshes),
+                face,
+                table,
+                ctx.cancel_token(),
+                &|f| ctx.progress(base + f / objects.len() as f64),
+            )
+        })?;
+        out.push(crate::rsl::ovdf::ObjectOvdf {
+            name: object.name.clone(),
+            world_from_object: object.transform().to_cols_array(),
+            ovdf: (*ovdf).clone(),
         });
         ctx.progress((done + 1) as f64 / objects.len() as f64);
     }

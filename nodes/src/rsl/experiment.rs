@@ -8,6 +8,7 @@
 //! so it isolates the lighting approximation, which flatters Haar.
 
 use super::brdf_sat::BrdfSat;
+use super::ovdf::{ObjectOvdf, Ovdf, bounding_sphere};
 use super::shade::{light_visibility, shade, shading_frame};
 use super::vdt::{ObjectSvdf, Ramp, Svdf, VDT_SIZE};
 use super::{MergeSequence, WorldLights};
@@ -20,9 +21,10 @@ use crate::transport::Receivers;
 use glam::DVec3;
 use rayon::prelude::*;
 
-/// A scene to measure: meshes (one rigid object), a BRDF, an environment cube, a camera.
+/// A scene to measure: rigid objects (each with its own self-visibility; with several, each
+/// shadows the others through its occluder field), a BRDF, an environment cube, a camera.
 pub struct Setup<'a> {
-    pub meshes: &'a MeshSet,
+    pub objects: &'a [MeshSet],
     pub brdf: Brdf,
     pub cube: &'a CubeMap,
     pub camera: DVec3,
@@ -91,8 +93,9 @@ fn texel_sum(
 /// Runs the experiment for each `K` in `counts`.
 pub fn run(setup: &Setup, counts: &[usize]) -> Errors {
     let cancel = CancelToken::default();
-    let scene = RayScene::build(setup.meshes);
-    let receivers = Receivers::from_meshes(setup.meshes);
+    let all = MeshSet { meshes: setup.objects.iter().flat_map(|o| o.meshes.clone()).collect() };
+    let scene = RayScene::build(&all);
+    let receivers = Receivers::from_meshes(&all);
     // Vertices the camera sees the front of (the BRDF is zero for views below the horizon).
     let vertices: Vec<usize> = (0..receivers.len())
         .step_by(setup.stride.max(1))
@@ -103,16 +106,36 @@ pub fn run(setup: &Setup, counts: &[usize]) -> Errors {
         .collect();
     let reference = texel_sum(setup, &scene, &receivers, &vertices, setup.cube);
 
-    let svdf = Svdf::compute(&scene, &receivers, VDT_SIZE, &cancel, &|_| {}).expect("not cancelled");
-    let object = ObjectSvdf { name: "scene".into(), world_from_object: glam::DMat4::IDENTITY.to_cols_array(), svdf };
+    let identity = glam::DMat4::IDENTITY.to_cols_array();
+    let objects: Vec<ObjectSvdf> = setup
+        .objects
+        .iter()
+        .map(|o| {
+            let own = Receivers::from_meshes(o);
+            let svdf = Svdf::compute(&RayScene::build(o), &own, VDT_SIZE, &cancel, &|_| {}).expect("not cancelled");
+            ObjectSvdf { name: String::new(), world_from_object: identity, svdf }
+        })
+        .collect();
+    let occluders: Vec<ObjectOvdf> = if setup.objects.len() < 2 {
+        Vec::new()
+    } else {
+        setup
+            .objects
+            .iter()
+            .map(|o| {
+                let ovdf = Ovdf::compute(&RayScene::build(o), bounding_sphere(o), 8, VDT_SIZE, &cancel, &|_| {})
+                    .expect("not cancelled");
+                ObjectOvdf { name: String::new(), world_from_object: identity, ovdf }
+            })
+            .collect()
+    };
     let sat = BrdfSat::build(&setup.brdf, &cancel).expect("not cancelled");
     let sequence = MergeSequence::compute(setup.cube, &cancel, &|_| {}).expect("not cancelled");
     let rsl = counts
         .iter()
         .map(|&k| {
             let lights = WorldLights { lights: sequence.cut(setup.cube, k).lights };
-            let visibility =
-                light_visibility(std::slice::from_ref(&object), &lights, Ramp::StraightEdge, &cancel).unwrap();
+            let visibility = light_visibility(&objects, &occluders, &lights, Ramp::StraightEdge, &cancel).unwrap();
             let approx: Vec<DVec3> = vertices
                 .iter()
                 .map(|&v| {
@@ -147,9 +170,13 @@ mod tests {
     use crate::kinds::brdf::Material;
     use crate::mesh;
 
-    fn torus_on_a_floor() -> MeshSet {
+    fn floor() -> mesh::Mesh {
+        mesh::plane(3.0, 16)
+    }
+
+    fn torus() -> mesh::Mesh {
         let lift = glam::DMat4::from_translation(DVec3::new(0.0, 0.35, 0.0)) * glam::DMat4::from_rotation_x(0.5);
-        MeshSet { meshes: vec![mesh::plane(3.0, 16), mesh::torus(0.6, 0.22, 24).transformed(lift)] }
+        mesh::torus(0.6, 0.22, 24).transformed(lift)
     }
 
     fn glossy() -> Brdf {
@@ -164,9 +191,15 @@ mod tests {
         })
     }
 
-    fn check(label: &str, cube: &CubeMap) {
-        let meshes = torus_on_a_floor();
-        let setup = Setup { meshes: &meshes, brdf: glossy(), cube, camera: DVec3::new(0.0, 2.5, 4.0), stride: 7 };
+    /// The torus and floor as one rigid object (self-visibility only) or as two (each shadowing
+    /// the other through its occluder field).
+    fn check(label: &str, cube: &CubeMap, separate: bool) {
+        let objects = if separate {
+            vec![MeshSet { meshes: vec![floor()] }, MeshSet { meshes: vec![torus()] }]
+        } else {
+            vec![MeshSet { meshes: vec![floor(), torus()] }]
+        };
+        let setup = Setup { objects: &objects, brdf: glossy(), cube, camera: DVec3::new(0.0, 2.5, 4.0), stride: 7 };
         let errors = run(&setup, &[10, 30, 60, 100]);
         let figures: Vec<String> = errors.rsl.iter().map(|(k, e)| format!("K={k}: {:.1}%", e * 100.0)).collect();
         println!("{label}: RSL {}; 100-term Haar lighting {:.1}%", figures.join(", "), errors.haar_100 * 100.0);
@@ -187,13 +220,20 @@ mod tests {
     fn error_falls_with_the_number_of_lights_on_an_hdri() {
         let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/assets/envmaps/courtyard.hdr");
         let loaded = crate::envmap_io::load_equirect(&path).expect("shared environment maps expected");
-        check("courtyard HDRI", &loaded.image.to_cubemap(32));
+        check("courtyard HDRI", &loaded.image.to_cubemap(32), false);
+    }
+
+    #[test]
+    fn separate_objects_shadow_each_other_through_occluder_fields() {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/assets/envmaps/courtyard.hdr");
+        let loaded = crate::envmap_io::load_equirect(&path).expect("shared environment maps expected");
+        check("courtyard HDRI, torus and floor as two objects", &loaded.image.to_cubemap(32), true);
     }
 
     #[test]
     fn error_falls_with_the_number_of_lights_under_a_small_sun() {
         let sky = crate::sky::ProceduralSky { sun_radius_deg: 1.5, ..Default::default() };
         let image = crate::cubemap::Equirect::from_fn(512, 256, 2, |d| sky.radiance(d));
-        check("small sun", &image.to_cubemap(32));
+        check("small sun", &image.to_cubemap(32), false);
     }
 }

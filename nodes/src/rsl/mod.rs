@@ -25,6 +25,7 @@
 //! distance tables, §4.3 Eqs. 9–10) and [`shade`] (per-vertex shading, Eq. 5).
 
 pub mod brdf_sat;
+pub mod ovdf;
 pub mod plane;
 pub mod shade;
 pub mod vdt;

@@ -8,6 +8,7 @@
 //! (`shaders/mesh_rsl.wgsl`). [`shade`] is the same sum on the CPU, for tests and references.
 
 use super::brdf_sat::BrdfSat;
+use super::ovdf::ObjectOvdf;
 use super::plane::{square_edge, to_plane};
 use super::vdt::{ObjectSvdf, Ramp, visible_fraction};
 use super::{SquareLight, WorldLights};
@@ -34,20 +35,35 @@ pub fn shading_frame(normal: DVec3, tangent: DVec3) -> DMat3 {
     DMat3::from_cols(t, n.cross(t), n)
 }
 
-/// `V̄` of every light at every vertex of `objects` (in scene order) from their self-visibility
-/// tables, with the objects at their current poses: a light's world direction is taken into the
-/// object's space (`M⁻¹ c`, normalised) and then into the vertex's table frame.
+/// `V̄` of every light at every vertex of `objects` (in scene order), with the objects at their
+/// current poses: the self-visibility table times every other object's occluder field (Eq. 5
+/// averages each occluder separately and multiplies). A light's world direction is taken into
+/// an object's space as `M⁻¹ c` (normalised), a vertex into an occluder's as `M_J⁻¹ x`.
+/// `occluders` is empty or has one field per object, in the same order.
 pub fn light_visibility(
     objects: &[ObjectSvdf],
+    occluders: &[ObjectOvdf],
     lights: &WorldLights,
     ramp: Ramp,
     cancel: &CancelToken,
 ) -> Result<LightVisibility, StageError> {
     let k = lights.lights.len();
+    // Each occluder: object-from-world (affine and linear) and the lights in its space.
+    let fields: Vec<(DMat4, Vec<DVec3>)> = occluders
+        .iter()
+        .map(|o| {
+            let world_from_object = DMat4::from_cols_array(&o.world_from_object);
+            let linear = DMat3::from_mat4(world_from_object).inverse();
+            let directions =
+                lights.lights.iter().map(|l| (linear * DVec3::from(l.direction)).normalize_or(DVec3::Z)).collect();
+            (world_from_object.inverse(), directions)
+        })
+        .collect();
     let mut values = Vec::new();
-    for object in objects {
+    for (index, object) in objects.iter().enumerate() {
         cancel.check()?;
-        let linear = DMat3::from_mat4(DMat4::from_cols_array(&object.world_from_object));
+        let world_from_object = DMat4::from_cols_array(&object.world_from_object);
+        let linear = DMat3::from_mat4(world_from_object);
         let object_from_world = linear.inverse();
         let directions: Vec<(DVec3, f64)> = lights
             .lights
@@ -58,15 +74,28 @@ pub fn light_visibility(
             })
             .collect();
         let svdf = &object.svdf;
+        let fields = &fields;
+        let directions = &directions;
         let rows: Vec<f32> = (0..svdf.vertices)
             .into_par_iter()
             .flat_map_iter(|v| {
                 let to_local = svdf.frame(v).transpose();
+                let world = world_from_object.transform_point3(DVec3::from(svdf.positions[v].map(f64::from)));
                 directions
                     .iter()
-                    .map(move |&(d, edge)| {
+                    .enumerate()
+                    .map(move |(i, &(d, edge))| {
                         let p = to_plane(to_local * d);
-                        visible_fraction(svdf.distance(v, p), edge, ramp) as f32
+                        let mut visible = visible_fraction(svdf.distance(v, p), edge, ramp);
+                        for (j, (object_from_world, occluder_directions)) in fields.iter().enumerate() {
+                            if j == index || visible <= 0.0 {
+                                continue;
+                            }
+                            let x = object_from_world.transform_point3(world);
+                            let omega = lights.lights[i].solid_angle;
+                            visible *= occluders[j].ovdf.visible_fraction(x, occluder_directions[i], omega, ramp);
+                        }
+                        visible as f32
                     })
                     .collect::<Vec<_>>()
             })

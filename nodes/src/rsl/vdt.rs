@@ -29,7 +29,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
 
-crate::stage_type!(Svdf, "self-visibility distance tables", encoding = 1, |v| v.distances.len() + v.frames.len() * 24);
+crate::stage_type!(Svdf, "self-visibility distance tables", encoding = 2, |v| v.distances.len() + v.frames.len() * 24);
 crate::stage_type!(Vec<ObjectSvdf>, "per-object self-visibility", |v| v
     .iter()
     .map(|o| o.svdf.distances.len() + 160)
@@ -154,22 +154,29 @@ pub fn signed_distances(visible: &[bool], n: usize, outside: bool) -> Vec<f64> {
         .collect()
 }
 
-/// Bilinear lookup of a table of texel-centre values at plane point `p` (clamped to the edge).
-pub fn lookup(values: impl Fn(usize) -> f64, n: usize, p: DVec2) -> f64 {
+/// Bilinear lookup of a table of texel-centre signed distances at plane point `p`. Beyond the
+/// outermost texel centres the distance grows (`outside` visible) or falls (occluded) with the
+/// distance travelled out of the table, where visibility is `outside` everywhere.
+pub fn lookup(values: impl Fn(usize) -> f64, n: usize, p: DVec2, outside: bool) -> f64 {
+    let half_texel = 1.0 / n as f64;
+    let q = p.clamp(DVec2::splat(-1.0 + half_texel), DVec2::splat(1.0 - half_texel));
+    let beyond = (p - q).length() * if outside { 1.0 } else { -1.0 };
     let coord = |c: f64| (to_texels(c, n) - 0.5).clamp(0.0, (n - 1) as f64);
-    let (u, v) = (coord(p.x), coord(p.y));
+    let (u, v) = (coord(q.x), coord(q.y));
     let (i, j) = ((u.floor() as usize).min(n - 2), (v.floor() as usize).min(n - 2));
     let (fu, fv) = (u - i as f64, v - j as f64);
     let at = |x: usize, y: usize| values(y * n + x);
-    (at(i, j) * (1.0 - fu) + at(i + 1, j) * fu) * (1.0 - fv) + (at(i, j + 1) * (1.0 - fu) + at(i + 1, j + 1) * fu) * fv
+    let inside = (at(i, j) * (1.0 - fu) + at(i + 1, j) * fu) * (1.0 - fv)
+        + (at(i, j + 1) * (1.0 - fu) + at(i + 1, j + 1) * fu) * fv;
+    inside + beyond
 }
 
 /// Quantises a signed distance to 8-bit fixed point over `±D_MAX`.
-fn quantise(d: f64) -> i8 {
+pub(super) fn quantise(d: f64) -> i8 {
     (d / D_MAX * 127.0).round().clamp(-127.0, 127.0) as i8
 }
 
-fn dequantise(q: i8) -> f64 {
+pub(super) fn dequantise(q: i8) -> f64 {
     f64::from(q) * D_MAX / 127.0
 }
 
@@ -182,6 +189,8 @@ pub struct Svdf {
     pub distances: Arc<Vec<i8>>,
     /// Per vertex: the object-space normal and tangent of the frame the table is in.
     pub frames: Arc<Vec<[[f32; 3]; 2]>>,
+    /// Per vertex: its object-space position.
+    pub positions: Arc<Vec<[f32; 3]>>,
 }
 
 impl Svdf {
@@ -228,14 +237,20 @@ impl Svdf {
             })
             .collect::<Result<_, StageError>>()?;
         let frames = (0..count).map(|r| [receivers.normals[r], receivers.tangents[r]]).collect();
-        Ok(Self { size, vertices: count, distances: Arc::new(tables.concat()), frames: Arc::new(frames) })
+        Ok(Self {
+            size,
+            vertices: count,
+            distances: Arc::new(tables.concat()),
+            frames: Arc::new(frames),
+            positions: Arc::new(receivers.positions.clone()),
+        })
     }
 
     /// Signed distance at plane point `p` of vertex `vertex`'s table (bilinear).
     pub fn distance(&self, vertex: usize, p: DVec2) -> f64 {
         let n = self.size;
         let table = &self.distances[vertex * n * n..(vertex + 1) * n * n];
-        lookup(|i| dequantise(table[i]), n, p)
+        lookup(|i| dequantise(table[i]), n, p, false)
     }
 
     /// The local frame `[t, n × t, n]` (columns, object space) of vertex `vertex`'s table.

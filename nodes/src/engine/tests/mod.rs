@@ -45,6 +45,7 @@ const SCENE_ALL: &[&str] = &[
     "scene.transport_local",
     "scene.transport_texels",
     "scene.rsl_self_visibility",
+    "scene.rsl_occluders",
     "output.rsl_visibility",
 ];
 const SKY_AFTER_SOURCE: &[&str] = &["sky.radiance", "sky.sh_unrotated", "sky.rotated_radiance", "sky.sh", "sky.haar"];
@@ -96,6 +97,7 @@ fn each_parameter_recomputes_exactly_its_stages() {
             vec!["scene.transport_sh", "scene.transport_objects", "output.incident_sh"],
         ),
         ("scene", "haar_resolution", Choice("8".into()), vec!["scene.transport_haar"]),
+        ("scene", "occluder_resolution", Choice("16".into()), vec!["scene.rsl_occluders", "output.rsl_visibility"]),
         ("scene", "haar_terms", Int(32), vec!["scene.transport_haar"]),
         (
             "scene",
@@ -221,7 +223,7 @@ fn each_parameter_recomputes_exactly_its_stages() {
     let mut graph = default_graph();
     let first = engine.evaluate(&graph, &CancelToken::default(), None);
     assert!(first.report.failed().is_empty(), "{:?}", first.report.failed());
-    assert_eq!(first.report.computed().len(), 28);
+    assert_eq!(first.report.computed().len(), 29);
     let again = engine.evaluate(&graph, &CancelToken::default(), None);
     assert!(ran(&again.report).is_empty(), "an unchanged graph recomputed {:?}", ran(&again.report));
     for (node, param, value, expected) in table {
@@ -993,7 +995,11 @@ fn each_mode_and_view_evaluates_exactly_the_stages_it_reads() {
             ]
             .concat(),
         ),
-        ("rsl", "approximation", with(&["scene.rsl_self_visibility", "material.rsl_tables", "output.rsl_visibility"])),
+        (
+            "rsl",
+            "approximation",
+            with(&["scene.rsl_self_visibility", "scene.rsl_occluders", "material.rsl_tables", "output.rsl_visibility"]),
+        ),
         ("sh_irradiance", "reference", with(&["scene.ray_scene"])),
         ("sh_irradiance", "error", with(&["scene.ray_scene"])),
     ];
@@ -1010,7 +1016,7 @@ fn each_mode_and_view_evaluates_exactly_the_stages_it_reads() {
         for s in eval.report.stages.iter().filter(|s| s.status == StageStatus::NotNeeded) {
             assert!(s.reasons[0].contains(&format!("mode {mode}")), "{}.{}: {:?}", s.node, s.stage, s.reasons);
         }
-        assert_eq!(eval.report.stages.len(), 28, "every stage is reported");
+        assert_eq!(eval.report.stages.len(), 29, "every stage is reported");
     }
 }
 

@@ -7,6 +7,7 @@ use std::collections::BTreeSet;
 use std::sync::atomic::AtomicUsize;
 
 mod disk_cache;
+mod rsl_mode;
 
 fn default_graph() -> Graph {
     default_project().graph(Path::new("default.ron")).expect("default project is valid")

@@ -12,6 +12,9 @@
 //!   moving a light or changing β costs (no table is recomputed).
 //! * RSL decomposition (Xu et al. 2006 §4.1) of the default procedural sky: the merge sequence
 //!   at 6×16², 6×32² and 6×64², and the cut at K = 30 (the paper: about 2 minutes at 6×32²).
+//! * The `rsl` mode on a 60k-vertex receiver with one moving occluder and 30 square lights:
+//!   BRDF table builds, self-visibility and occluder-field precompute and their memory, the
+//!   CPU cost of a move (per-vertex visibility) and the GPU frame, beside the paper's Table 1.
 
 use crate::project_commands::{evaluate, fail_on_errors, output_request, upstream_of};
 use anyhow::{Result, anyhow};
@@ -65,6 +68,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
     default_project_figures(args, &gpu)?;
     fog_figures(args, &gpu)?;
     rsl_figures();
+    rsl_mode_figures(args, &gpu)?;
     synthetic_figures(args, &gpu)
 }
 
@@ -87,6 +91,184 @@ fn rsl_figures() {
             lights.lights.len()
         );
     }
+}
+
+/// The `rsl` mode at the paper's Table 1 scale: a 60k-vertex sphere, a torus occluder moving
+/// around it, 30 square lights of the default sky.
+fn rsl_mode_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
+    use lightloom_nodes::rsl::brdf_sat::BrdfSat;
+    use lightloom_nodes::rsl::ovdf::{ObjectOvdf, Ovdf, bounding_sphere};
+    use lightloom_nodes::rsl::shade::light_visibility;
+    use lightloom_nodes::rsl::vdt::{ObjectSvdf, Ramp, Svdf, VDT_SIZE};
+    use lightloom_nodes::rsl::{MergeSequence, WorldLights};
+    let cancel = CancelToken::default();
+    let ms = |start: Instant| start.elapsed().as_secs_f64() * 1e3;
+    println!(
+        "\nrsl mode (paper, Table 1 on a GeForce 7800: robot 60k vertices 10.8 fps, Buddha 45k 27 fps = 36.5 M vertex-RSL/s):"
+    );
+    for (label, model, anisotropy) in [("isotropic (Phong 20)", "phong", 0.0), ("anisotropic (Ward)", "ward", 0.6)] {
+        let material = lightloom_nodes::kinds::brdf::Material {
+            model: model.into(),
+            exponent: 20.0,
+            roughness: 0.5,
+            anisotropy,
+            f0: 0.3,
+            ..Default::default()
+        };
+        let start = Instant::now();
+        let sat = BrdfSat::build(&lightloom_nodes::brdf::Brdf::from_material(&material), &cancel)
+            .map_err(|e| anyhow!("{e}"))?;
+        println!("  BRDF summed-area tables, {label}: {:.1} ms ({} view slices)", ms(start), sat.lobes.len());
+    }
+    let receiver = lightloom_nodes::mesh::MeshSet { meshes: vec![lightloom_nodes::mesh::sphere(1.0, 173)] };
+    let occluder = lightloom_nodes::mesh::MeshSet { meshes: vec![lightloom_nodes::mesh::torus(0.6, 0.2, 32)] };
+    let n = receiver.meshes[0].positions.len();
+    let start = Instant::now();
+    let receivers = Receivers::from_meshes(&receiver);
+    let svdf =
+        Svdf::compute(&lightloom_nodes::raycast::RayScene::build(&receiver), &receivers, VDT_SIZE, &cancel, &|_| {})
+            .map_err(|e| anyhow!("{e}"))?;
+    println!(
+        "  self-visibility tables: {n} vertices in {:.1} s; {} B per vertex (8-bit; the paper's FP32 is 4096 B, its \
+         CPCA 1:17 about 240 B)",
+        ms(start) / 1e3,
+        svdf.bytes_per_vertex()
+    );
+    let start = Instant::now();
+    let (compressed, error) = svdf.compressed(256, 8);
+    println!(
+        "  CPCA, 256 clusters x 8 directions: {:.1} s, {:.1} MiB for {n} vertices ({:.0} B per vertex; 1:{:.1} \
+         against FP32, paper 1:17), relative error {:.1}%",
+        ms(start) / 1e3,
+        compressed.bytes() as f64 / (1 << 20) as f64,
+        compressed.bytes() as f64 / n as f64,
+        (n * VDT_SIZE * VDT_SIZE * 4) as f64 / compressed.bytes() as f64,
+        error * 100.0
+    );
+    for face in [8, 16] {
+        let start = Instant::now();
+        let field = Ovdf::compute(
+            &lightloom_nodes::raycast::RayScene::build(&occluder),
+            bounding_sphere(&occluder),
+            face,
+            VDT_SIZE,
+            &cancel,
+            &|_| {},
+        )
+        .map_err(|e| anyhow!("{e}"))?;
+        println!(
+            "  occluder field, 16 shells x 6x{face}^2: {:.1} s, {:.1} MiB per occluder (the paper at 6x32^2: 384 MiB FP32, \
+             15 MiB with PCA)",
+            ms(start) / 1e3,
+            field.bytes() as f64 / (1 << 20) as f64
+        );
+        let (compressed, error) = field.compressed(8);
+        println!(
+            "    PCA per segment (384 x 8 directions): {:.1} MiB (1:{:.1} against FP32, paper 1:26), relative error \
+             {:.1}%",
+            compressed.bytes() as f64 / (1 << 20) as f64,
+            (field.bytes() * 4) as f64 / compressed.bytes() as f64,
+            error * 100.0
+        );
+    }
+    let field = Ovdf::compute(
+        &lightloom_nodes::raycast::RayScene::build(&occluder),
+        bounding_sphere(&occluder),
+        8,
+        VDT_SIZE,
+        &cancel,
+        &|_| {},
+    )
+    .map_err(|e| anyhow!("{e}"))?;
+    let sky = lightloom_nodes::sky::ProceduralSky::default();
+    let cube = lightloom_nodes::cubemap::Equirect::from_fn(512, 256, 3, |d| sky.radiance(d)).to_cubemap(32);
+    let sequence = MergeSequence::compute(&cube, &cancel, &|_| {}).map_err(|e| anyhow!(e))?;
+    let lights = WorldLights { lights: sequence.cut(&cube, 30).lights };
+    let objects =
+        [ObjectSvdf { name: "receiver".into(), world_from_object: glam::DMat4::IDENTITY.to_cols_array(), svdf }];
+    // The occluder circles the receiver: each frame is a move.
+    let mut visibility_ms = Vec::new();
+    let mut visibility = None;
+    for frame in 0..args.frames.max(1) {
+        let angle = frame as f64 * 0.3;
+        let at = glam::DVec3::new(1.8 * angle.cos(), 0.4, 1.8 * angle.sin());
+        let occluders = [
+            ObjectOvdf {
+                name: "receiver".into(),
+                world_from_object: glam::DMat4::IDENTITY.to_cols_array(),
+                ovdf: Ovdf::default(),
+            },
+            ObjectOvdf {
+                name: "occluder".into(),
+                world_from_object: glam::DMat4::from_translation(at).to_cols_array(),
+                ovdf: field.clone(),
+            },
+        ];
+        let start = Instant::now();
+        visibility = Some(
+            light_visibility(&objects, &occluders, &lights, Ramp::StraightEdge, &cancel).map_err(|e| anyhow!("{e}"))?,
+        );
+        visibility_ms.push(ms(start));
+    }
+    println!(
+        "  CPU per move: per-vertex visibility of 30 lights with one moving occluder, {n} vertices: {:.0} ms",
+        median(visibility_ms)
+    );
+    let material =
+        lightloom_nodes::kinds::brdf::Material { model: "phong".into(), exponent: 20.0, f0: 0.3, ..Default::default() };
+    let sat =
+        BrdfSat::build(&lightloom_nodes::brdf::Brdf::from_material(&material), &cancel).map_err(|e| anyhow!("{e}"))?;
+    let keyed = |key: u128, value: StageValue| Keyed { key, value: Arc::new(value) };
+    let geometry = Geometry { meshes: keyed(1, StageValue::new(receiver.clone())), mesh_materials: vec![0] };
+    let surfaces = lightloom_nodes::frame::RslSurfaces::new(
+        &lights,
+        2,
+        keyed(3, StageValue::new(visibility.expect("at least one frame"))),
+        &[keyed(4, StageValue::new(sat))],
+        None,
+        &geometry,
+    )
+    .map_err(|e| anyhow!(e))?;
+    let materials = vec![FrameMaterial { node: "bench".into(), material }];
+    let frame = FrameInputs {
+        geometry,
+        ray_scene: None,
+        mode: Mode::Rsl,
+        pending: None,
+        settings: lightloom_nodes::kinds::output::OutputSettings {
+            mode: Mode::Rsl,
+            exposure: 0.0,
+            tonemap: Tonemap::Aces,
+            background: false,
+            view: View::Approximation,
+            reference_samples: 1,
+        },
+        ignored_inputs: Vec::new(),
+        lobe_limits: Vec::new(),
+        materials: materials.clone(),
+        background: Background { radiance: None, visible: false },
+        surfaces: Surfaces::Rsl(surfaces),
+        medium: MediumFrame::new(Vec::new(), &materials, None),
+    };
+    let camera = lightloom_nodes::project::Camera {
+        name: "bench".into(),
+        position: [0.0, 0.5, 3.0],
+        target: [0.0; 3],
+        fov_y_deg: 45.0,
+    };
+    let view = CameraView::from_project(&camera);
+    let mut renderer = ViewportRenderer::new(gpu);
+    timed_frame(gpu, &mut renderer, &frame, &view, (1280, 720))?;
+    let times: Vec<f64> = (0..args.frames.max(1))
+        .map(|_| timed_frame(gpu, &mut renderer, &frame, &view, (1280, 720)))
+        .collect::<Result<_>>()?;
+    let frame_ms = median(times);
+    println!(
+        "  GPU frame at 1280x720, {n} vertices x 30 lights: {frame_ms:.1} ms = {:.1} M vertex-RSL/s (this device: {})",
+        n as f64 * 30.0 / frame_ms / 1e3,
+        gpu.describe()
+    );
+    Ok(())
 }
 
 fn fog_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {

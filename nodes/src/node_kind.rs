@@ -287,6 +287,7 @@ impl PortType {
                 "transport_local",
                 "transport_texels",
                 "rsl_self_visibility",
+                "rsl_occluders",
             ],
             PortType::Medium => &["medium", "f_tables", "g_tables"],
             PortType::Lights => &["lights"],

@@ -102,6 +102,76 @@ pub fn fog_glow(
     PreviewImage { width: size, height: size, rgba }
 }
 
+/// The square lights' regions over an equirectangular thumbnail of the cube map they were
+/// fitted to (the environment's own frame, before rotation), auto-exposed, with the borders
+/// between regions drawn in green (Xu et al. Fig. 6).
+pub fn square_light_regions(
+    cube: &CubeMap,
+    lights: &crate::rsl::SquareLights,
+    width: usize,
+    height: usize,
+) -> PreviewImage {
+    let mut image = environment_thumbnail(cube, width, height);
+    let (width, height) = (image.width, image.height);
+    let n = lights.size;
+    if cube.size != n || lights.labels.len() != 6 * n * n {
+        return image;
+    }
+    let label = |x: usize, y: usize| {
+        let dir = equirect_uv_to_dir((x as f64 + 0.5) / width as f64, (y as f64 + 0.5) / height as f64);
+        let (face, u, v) = crate::cubemap::dir_to_face_uv(dir);
+        let (tx, ty) = (((u * n as f64) as usize).min(n - 1), ((v * n as f64) as usize).min(n - 1));
+        lights.labels[(face * n + ty) * n + tx]
+    };
+    let labels: Vec<u32> = (0..width * height).map(|i| label(i % width, i / width)).collect();
+    for y in 0..height {
+        for x in 0..width {
+            let here = labels[y * width + x];
+            let border = (x + 1 < width && labels[y * width + x + 1] != here)
+                || (y + 1 < height && labels[(y + 1) * width + x] != here);
+            if border {
+                image.rgba[y * width + x] = [40, 230, 60, 255];
+            }
+        }
+    }
+    image
+}
+
+/// The square lights alone, on the environment sphere seen from outside along -Z (+X right, +Y
+/// up): each square drawn at its centre with its solid angle (edge `√Ω` on the tangent plane;
+/// its turn is arbitrary, so it is drawn aligned to a fixed up vector) and its radiance,
+/// auto-exposed; transparent outside the sphere.
+pub fn square_lights_sphere(lights: &crate::rsl::SquareLights, size: usize) -> PreviewImage {
+    let size = size.max(1);
+    let squares: Vec<(glam::DMat3, f64, [f64; 3])> = lights
+        .lights
+        .iter()
+        .map(|l| {
+            let frame = crate::rsl::ovdf::frame_towards(DVec3::from(l.direction));
+            ((frame.transpose()), (l.solid_angle.sqrt() * 0.5).tan(), l.intensity)
+        })
+        .collect();
+    let radiance: Vec<Option<[f64; 3]>> = (0..size * size)
+        .map(|i| {
+            sphere_normal(i % size, i / size, size).map(|d| {
+                let mut sum = [0.0; 3];
+                for (to_local, half, intensity) in &squares {
+                    let local = *to_local * d;
+                    if local.z > 0.0 && (local.x / local.z).abs() <= *half && (local.y / local.z).abs() <= *half {
+                        for c in 0..3 {
+                            sum[c] += intensity[c];
+                        }
+                    }
+                }
+                sum
+            })
+        })
+        .collect();
+    let scale = auto_scale(radiance.iter().flatten().copied());
+    let rgba = radiance.iter().map(|c| c.map_or([0, 0, 0, 0], |c| display_rgb8(c, scale))).collect();
+    PreviewImage { width: size, height: size, rgba }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

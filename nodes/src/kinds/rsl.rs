@@ -3,7 +3,8 @@
 //! so those edits only rescale and turn the lights (`world_lights`, O(K)).
 
 use crate::engine::{StageContext, StageError, StageValue};
-use crate::node_kind::{Availability, NodeKindSpec, ParamKind, ParamSpec, PortSpec, PortType, StageSpec};
+use crate::node_kind::{Availability, NodeKindSpec, ParamKind, ParamSpec, PortSpec, PortType, PreviewSpec, StageSpec};
+use crate::preview::{self, Preview};
 
 pub fn spec() -> NodeKindSpec {
     NodeKindSpec {
@@ -28,6 +29,18 @@ pub fn spec() -> NodeKindSpec {
                 kind: ParamKind::Choice { options: &["16", "32", "64"], default: "32", labels: &[] },
                 doc: "Texels per cube face the regions are merged from (64 is about 5x slower).",
             },
+            ParamSpec {
+                name: "merge_rule",
+                label: "Merge rule",
+                unit: "",
+                kind: ParamKind::Choice {
+                    options: &["merged_error", "error_increase"],
+                    default: "merged_error",
+                    labels: &[],
+                },
+                doc: "merged_error (the paper): merge the pair whose merged region fits best. error_increase: merge \
+                      the pair that adds the least fitting error; keeps a uniform bright patch as one light.",
+            },
         ],
         stages: vec![
             StageSpec {
@@ -41,8 +54,8 @@ pub fn spec() -> NodeKindSpec {
             },
             StageSpec {
                 name: "merge_sequence",
-                version: 1,
-                params: &[],
+                version: 2,
+                params: &["merge_rule"],
                 stages: &["cube"],
                 inputs: &[],
                 persist: None,
@@ -67,7 +80,20 @@ pub fn spec() -> NodeKindSpec {
                 compute: world_lights,
             },
         ],
-        previews: Vec::new(),
+        previews: vec![
+            PreviewSpec {
+                stages: &["cube", "square_lights"],
+                make: |v| Some(Preview::Image(preview::square_light_regions(v[0].get()?, v[1].get()?, 192, 96))),
+                size: [128.0, 64.0],
+                caption: "regions of the square lights over the environment (its own frame, auto-exposed)",
+            },
+            PreviewSpec {
+                stages: &["square_lights"],
+                make: |v| Some(Preview::Image(preview::square_lights_sphere(v[0].get()?, 96))),
+                size: [64.0, 64.0],
+                caption: "the square lights on the environment sphere (auto-exposed)",
+            },
+        ],
         availability: Availability::Ready,
     }
 }
@@ -83,7 +109,11 @@ fn rsl_cube(ctx: &StageContext) -> Result<StageValue, StageError> {
 
 fn rsl_merge_sequence(ctx: &StageContext) -> Result<StageValue, StageError> {
     let cube = ctx.stage::<crate::cubemap::CubeMap>("cube")?;
-    let sequence = crate::rsl::MergeSequence::compute(cube, ctx.cancel_token(), &|f| ctx.progress(f))
+    let rule = match ctx.choice("merge_rule")? {
+        "error_increase" => crate::rsl::MergeRule::ErrorIncrease,
+        _ => crate::rsl::MergeRule::MergedError,
+    };
+    let sequence = crate::rsl::MergeSequence::compute_with(cube, rule, ctx.cancel_token(), &|f| ctx.progress(f))
         .map_err(|_| StageError::Cancelled)?;
     Ok(StageValue::new(sequence))
 }

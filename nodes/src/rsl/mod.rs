@@ -25,6 +25,7 @@
 //! distance tables, §4.3 Eqs. 9–10) and [`shade`] (per-vertex shading, Eq. 5).
 
 pub mod brdf_sat;
+pub mod compress;
 pub mod ovdf;
 pub mod plane;
 pub mod shade;
@@ -286,10 +287,30 @@ fn neighbours(t: &Texels, labels: &[u32], id: u32, texels: &[u32]) -> Vec<u32> {
     out
 }
 
+/// Which pair of regions merges next.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MergeRule {
+    /// The paper's (§4.1.2): the pair whose merged region fits with the smallest error.
+    MergedError,
+    /// The notes' extension: the pair whose merge adds the least error to the total
+    /// (`E(a ∪ b) − E(a) − E(b)`), the greedy step towards §3's stated goal of a small sum.
+    ErrorIncrease,
+}
+
 impl MergeSequence {
-    /// Merges the cube map's texels down to one region per face (Fig. 5 run to the end),
-    /// reporting progress; `Err` when cancelled.
+    /// Merges the cube map's texels down to one region per face (Fig. 5 run to the end) with
+    /// the paper's rule, reporting progress; `Err` when cancelled.
     pub fn compute(cube: &CubeMap, cancel: &CancelToken, progress: &dyn Fn(f64)) -> Result<Self, String> {
+        Self::compute_with(cube, MergeRule::MergedError, cancel, progress)
+    }
+
+    /// [`Self::compute`] with a choice of merge rule.
+    pub fn compute_with(
+        cube: &CubeMap,
+        rule: MergeRule,
+        cancel: &CancelToken,
+        progress: &dyn Fn(f64),
+    ) -> Result<Self, String> {
         let t = Texels::new(cube);
         let n = cube.size;
         let count = FACES * n * n;
@@ -298,11 +319,16 @@ impl MergeSequence {
         let mut version = vec![0u32; count];
         let mut heap = BinaryHeap::new();
         let union = |a: &[u32], b: &[u32]| -> Vec<u32> { a.iter().chain(b).copied().collect() };
+        // Each region's own fit objective (read by the error-increase rule).
+        let mut own: Vec<f64> = match rule {
+            MergeRule::MergedError => vec![0.0; count],
+            MergeRule::ErrorIncrease => (0..count as u32).map(|i| fit(&t, &[i]).objective).collect(),
+        };
         for i in 0..count as u32 {
             let (_, x, y) = t.xy(i);
             for (ok, j) in [(x + 1 < n, i + 1), (y + 1 < n, i + n as u32)] {
                 if ok {
-                    let cost = fit(&t, &[i, j]).objective;
+                    let cost = fit(&t, &[i, j]).objective - own[i as usize] - own[j as usize];
                     heap.push(Reverse((Cost(cost), i, j, 0u32, 0u32)));
                 }
             }
@@ -328,9 +354,13 @@ impl MergeSequence {
             version[a as usize] += 1;
             version[b as usize] += 1;
             merges.push((a, b));
+            if rule == MergeRule::ErrorIncrease {
+                own[a as usize] = fit(&t, &members[a as usize]).objective;
+            }
             for k in neighbours(&t, &labels, a, &members[a as usize]) {
                 let (lo, hi) = (a.min(k), a.max(k));
-                let cost = fit(&t, &union(&members[lo as usize], &members[hi as usize])).objective;
+                let merged = fit(&t, &union(&members[lo as usize], &members[hi as usize])).objective;
+                let cost = merged - own[lo as usize] - own[hi as usize];
                 heap.push(Reverse((Cost(cost), lo, hi, version[lo as usize], version[hi as usize])));
             }
         }
@@ -523,39 +553,44 @@ mod tests {
     }
 
     /// The queue picks what the paper's full rescan picks: at every step, the pair of
-    /// adjacent regions whose merged region fits best (ties by lower, then higher id).
+    /// adjacent regions whose merged region fits best (ties by lower, then higher id); and
+    /// with the error-increase rule, the pair whose merge adds the least error.
     #[test]
     fn the_merge_order_equals_a_brute_force_rescan() {
-        let cube = random_cube(4, 11);
-        let sequence = MergeSequence::compute(&cube, &CancelToken::default(), &no_progress).unwrap();
-        let t = Texels::new(&cube);
-        let count = cube.texels.len();
-        let mut labels: Vec<u32> = (0..count as u32).collect();
-        let mut members: Vec<Vec<u32>> = (0..count as u32).map(|i| vec![i]).collect();
-        for step in 0..count - FACES {
-            let mut best: Option<(f64, u32, u32)> = None;
-            for a in 0..count as u32 {
-                if members[a as usize].is_empty() {
-                    continue;
-                }
-                for b in neighbours(&t, &labels, a, &members[a as usize]) {
-                    if b <= a {
+        for rule in [MergeRule::MergedError, MergeRule::ErrorIncrease] {
+            let cube = random_cube(4, 11);
+            let sequence = MergeSequence::compute_with(&cube, rule, &CancelToken::default(), &no_progress).unwrap();
+            let t = Texels::new(&cube);
+            let count = cube.texels.len();
+            let own = |members: &[u32]| if rule == MergeRule::ErrorIncrease { fit(&t, members).objective } else { 0.0 };
+            let mut labels: Vec<u32> = (0..count as u32).collect();
+            let mut members: Vec<Vec<u32>> = (0..count as u32).map(|i| vec![i]).collect();
+            for step in 0..count - FACES {
+                let mut best: Option<(f64, u32, u32)> = None;
+                for a in 0..count as u32 {
+                    if members[a as usize].is_empty() {
                         continue;
                     }
-                    let merged: Vec<u32> = members[a as usize].iter().chain(&members[b as usize]).copied().collect();
-                    let cost = fit(&t, &merged).objective;
-                    if best.is_none_or(|(c, ..)| cost.total_cmp(&c).is_lt()) {
-                        best = Some((cost, a, b));
+                    for b in neighbours(&t, &labels, a, &members[a as usize]) {
+                        if b <= a {
+                            continue;
+                        }
+                        let merged: Vec<u32> =
+                            members[a as usize].iter().chain(&members[b as usize]).copied().collect();
+                        let cost = fit(&t, &merged).objective - own(&members[a as usize]) - own(&members[b as usize]);
+                        if best.is_none_or(|(c, ..)| cost.total_cmp(&c).is_lt()) {
+                            best = Some((cost, a, b));
+                        }
                     }
                 }
+                let (_, a, b) = best.expect("a pair to merge");
+                assert_eq!(sequence.merges[step], (a, b), "{rule:?}, step {step}");
+                let absorbed = std::mem::take(&mut members[b as usize]);
+                for &i in &absorbed {
+                    labels[i as usize] = a;
+                }
+                members[a as usize].extend(absorbed);
             }
-            let (_, a, b) = best.expect("a pair to merge");
-            assert_eq!(sequence.merges[step], (a, b), "step {step}");
-            let absorbed = std::mem::take(&mut members[b as usize]);
-            for &i in &absorbed {
-                labels[i as usize] = a;
-            }
-            members[a as usize].extend(absorbed);
         }
     }
 

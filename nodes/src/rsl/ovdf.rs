@@ -175,6 +175,25 @@ impl Ovdf {
         visible_fraction(d, square_edge(omega), ramp)
     }
 
+    /// The field compressed by PCA per segment (each shell's faces split 2×2: 384 segments),
+    /// `vectors` principal directions each (the paper uses 8), with its relative error.
+    pub fn compressed(&self, vectors: usize) -> (super::compress::Compressed, f64) {
+        let tables: Vec<f32> = self.distances.iter().map(|&q| dequantise(q) as f32).collect();
+        let n = self.face_size;
+        let half = n.div_ceil(2);
+        let assignment: Vec<u32> = (0..SHELLS * FACES * n * n)
+            .map(|k| {
+                let (shell_face, texel) = (k / (n * n), k % (n * n));
+                let (x, y) = (texel % n, texel / n);
+                (shell_face * 4 + (y / half) * 2 + x / half) as u32
+            })
+            .collect();
+        let dim = self.table_size * self.table_size;
+        let compressed = super::compress::compress_with(&tables, dim, assignment, SHELLS * FACES * 4, vectors);
+        let error = compressed.relative_error(&tables);
+        (compressed, error)
+    }
+
     /// Bytes per occluder, as stored.
     pub fn bytes(&self) -> usize {
         self.distances.len()

@@ -39,7 +39,8 @@ pub fn shading_frame(normal: DVec3, tangent: DVec3) -> DMat3 {
 /// current poses: the self-visibility table times every other object's occluder field (Eq. 5
 /// averages each occluder separately and multiplies). A light's world direction is taken into
 /// an object's space as `M⁻¹ c` (normalised), a vertex into an occluder's as `M_J⁻¹ x`.
-/// `occluders` is empty or has one field per object, in the same order.
+/// `occluders[j]` is object `j`'s field (it does not shadow itself); fields beyond the objects
+/// belong to occluders that receive no shading.
 pub fn light_visibility(
     objects: &[ObjectSvdf],
     occluders: &[ObjectOvdf],

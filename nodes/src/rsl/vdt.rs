@@ -262,6 +262,23 @@ impl Svdf {
         glam::DMat3::from_cols(t, n.cross(t), n)
     }
 
+    /// The tables as floats (plane units), one row per vertex.
+    pub fn tables(&self) -> Vec<f32> {
+        self.distances.iter().map(|&q| dequantise(q) as f32).collect()
+    }
+
+    /// The tables compressed by clustered PCA (`clusters` k-means clusters, `vectors`
+    /// principal directions each; the paper uses 256 × 8), with its relative error.
+    pub fn compressed(&self, clusters: usize, vectors: usize) -> (super::compress::Compressed, f64) {
+        let tables = self.tables();
+        let dim = self.size * self.size;
+        let assignment = super::compress::kmeans(&tables, dim, clusters, 2);
+        let clusters = assignment.iter().max().map_or(1, |m| *m as usize + 1);
+        let compressed = super::compress::compress_with(&tables, dim, assignment, clusters, vectors);
+        let error = compressed.relative_error(&tables);
+        (compressed, error)
+    }
+
     /// Bytes per vertex, as stored.
     pub fn bytes_per_vertex(&self) -> usize {
         self.size * self.size

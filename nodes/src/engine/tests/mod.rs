@@ -692,6 +692,12 @@ fn planned_kinds_recompute_exactly_their_stages_too() {
         ("rsl", "light_count", Int(10), vec!["rsl.square_lights", "rsl.world_lights", "output.rsl_visibility"]),
         (
             "rsl",
+            "merge_rule",
+            Choice("error_increase".into()),
+            vec!["rsl.merge_sequence", "rsl.square_lights", "rsl.world_lights", "output.rsl_visibility"],
+        ),
+        (
+            "rsl",
             "cube_resolution",
             Choice("16".into()),
             vec!["rsl.cube", "rsl.merge_sequence", "rsl.square_lights", "rsl.world_lights", "output.rsl_visibility"],

@@ -12,7 +12,7 @@
 //!   moving a light or changing β costs (no table is recomputed).
 //! * RSL decomposition (Xu et al. 2006 §4.1) of the default procedural sky: the merge sequence
 //!   at 6×16², 6×32² and 6×64², and the cut at K = 30 (the paper: about 2 minutes at 6×32²).
-//! * The `rsl` mode on a 60k-vertex receiver with one moving occluder and 30 square lights:
+//! * The `rsl` mode on a 60k-vertex torus with one moving occluder and 30 square lights:
 //!   BRDF table builds, self-visibility and occluder-field precompute and their memory, the
 //!   CPU cost of a move (per-vertex visibility) and the GPU frame, beside the paper's Table 1.
 
@@ -93,7 +93,7 @@ fn rsl_figures() {
     }
 }
 
-/// The `rsl` mode at the paper's Table 1 scale: a 60k-vertex sphere, a torus occluder moving
+/// The `rsl` mode at the paper's Table 1 scale: a 60k-vertex torus, a sphere occluder moving
 /// around it, 30 square lights of the default sky.
 fn rsl_mode_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
     use lightloom_nodes::rsl::brdf_sat::BrdfSat;
@@ -120,8 +120,9 @@ fn rsl_mode_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
             .map_err(|e| anyhow!("{e}"))?;
         println!("  BRDF summed-area tables, {label}: {:.1} ms ({} view slices)", ms(start), sat.lobes.len());
     }
-    let receiver = lightloom_nodes::mesh::MeshSet { meshes: vec![lightloom_nodes::mesh::sphere(1.0, 173)] };
-    let occluder = lightloom_nodes::mesh::MeshSet { meshes: vec![lightloom_nodes::mesh::torus(0.6, 0.2, 32)] };
+    // A fat torus shadows itself (a sphere's tables would all be the same horizon).
+    let receiver = lightloom_nodes::mesh::MeshSet { meshes: vec![lightloom_nodes::mesh::torus(1.0, 0.45, 173)] };
+    let occluder = lightloom_nodes::mesh::MeshSet { meshes: vec![lightloom_nodes::mesh::sphere(0.4, 32)] };
     let n = receiver.meshes[0].positions.len();
     let start = Instant::now();
     let receivers = Receivers::from_meshes(&receiver);
@@ -191,7 +192,7 @@ fn rsl_mode_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
     let mut visibility = None;
     for frame in 0..args.frames.max(1) {
         let angle = frame as f64 * 0.3;
-        let at = glam::DVec3::new(1.8 * angle.cos(), 0.4, 1.8 * angle.sin());
+        let at = glam::DVec3::new(1.2 * angle.cos(), 0.9, 1.2 * angle.sin());
         let occluders = [
             ObjectOvdf {
                 name: "receiver".into(),

@@ -178,6 +178,38 @@ mod tests {
     use crate::sh;
 
     #[test]
+    fn square_light_previews_show_region_borders_and_the_squares_where_they_are() {
+        // A sky with one bright patch straight ahead (-Z, the thumbnail's centre and, seen
+        // from +Z, the far side of the sphere) and one at +Z (the sphere's front).
+        let cube = CubeMap::from_fn(16, 1, |d| if d.z > 0.95 { [40.0; 3] } else { [0.2, 0.3, 0.5] });
+        let sequence =
+            crate::rsl::MergeSequence::compute(&cube, &crate::engine::CancelToken::default(), &|_| {}).unwrap();
+        let lights = sequence.cut(&cube, 12);
+        let regions = square_light_regions(&cube, &lights, 96, 48);
+        let green = regions.rgba.iter().filter(|p| **p == [40, 230, 60, 255]).count();
+        assert!(green > 48, "borders between 12 regions: {green} pixels");
+        // The squares themselves: a bright one facing the viewer (+Z) and a dim one behind.
+        let light = |direction: [f64; 3], intensity: f64| crate::rsl::SquareLight {
+            direction,
+            solid_angle: 0.2,
+            intensity: [intensity; 3],
+            half_diagonal_texels: 1.0,
+            fit_error: 0.0,
+            texels: 1,
+        };
+        let pair = crate::rsl::SquareLights {
+            size: 1,
+            lights: vec![light([0.0, 0.0, 1.0], 50.0), light([0.0, 0.0, -1.0], 1.0)],
+            labels: Vec::new(),
+        };
+        let sphere = square_lights_sphere(&pair, 65);
+        let centre = sphere.rgba[32 * 65 + 32];
+        let rim = sphere.rgba[32 * 65 + 3];
+        assert!(centre[0] > rim[0] + 60, "the bright square faces the viewer: centre {centre:?}, rim {rim:?}");
+        assert_eq!(sphere.rgba[0][3], 0, "transparent outside the sphere");
+    }
+
+    #[test]
     fn constant_environment_gives_a_uniform_thumbnail_and_sphere() {
         let cube = CubeMap::new(4, vec![[0.5, 0.5, 0.5]; 6 * 16]);
         let thumb = environment_thumbnail(&cube, 32, 16);

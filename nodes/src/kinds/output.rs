@@ -681,6 +681,7 @@ fn lobe_limits(
     };
     let sh_limit = crate::brdf::sharpest_phong_for_sh(bands, 0.5);
     let cell_limit = crate::brdf::sharpest_phong_for_cells(cells);
+    let table_limit = crate::rsl::brdf_sat::sharpest_phong();
     let mut out = Vec::new();
     for m in materials.iter().filter(|m| !m.node.is_empty()) {
         let brdf = crate::brdf::Brdf::from_material(&m.material);
@@ -702,6 +703,10 @@ fn lobe_limits(
             Mode::WaveletVertex | Mode::WaveletPixel if exponent > cell_limit => Some(format!(
                 "{lobe} is sharper than {cells} wavelet cells show (about Phong {cell_limit:.0}): it is spread over \
                  a cell, broader and dimmer than the reference"
+            )),
+            Mode::Rsl if exponent > table_limit => Some(format!(
+                "{lobe} is sharper than the square lights' BRDF tables show (about Phong {table_limit:.0}): it is \
+                 drawn broader and dimmer than the reference, and a square light's highlight is as large as the light"
             )),
             _ => None,
         };

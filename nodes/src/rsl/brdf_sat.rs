@@ -15,7 +15,8 @@
 //! - **Isotropic** lobes: 32 slices of the view's polar angle `θ₀` (0 to 89.5°, linear
 //!   interpolation), light directions turned about the normal so the view has azimuth 0.
 //!   **Anisotropic** lobes (GGX and Ward with `α_x ≠ α_y`): 32×32 view slices over the same
-//!   plane (a 4D table), bilinear between slice centres, in the tangent frame.
+//!   plane (a 4D table), bilinear between slice centres, in the tangent frame; the lobes are
+//!   mirror-symmetric in x and in y, so one quadrant of slices is tabulated and mirrored.
 //! - The 32 view slices and 5° texels blur lobes sharper than about Phong 200 (notes §2); the
 //!   error is reported by the reference comparison, not hidden.
 
@@ -34,6 +35,14 @@ pub const TABLE_SIZE: usize = 32;
 pub const VIEW_SLICES: usize = 32;
 /// The largest tabulated view polar angle (a view at the horizon sees no lobe).
 const MAX_VIEW_ANGLE: f64 = 89.5 * std::f64::consts::PI / 180.0;
+
+/// The sharpest Phong lobe the tables resolve: its full width at half maximum
+/// (`2√(2 ln 2 / n)`) spans two texels at the pole, where a texel is `√2 · 2/32` rad (about
+/// Phong 180 at 32²; notes §2). Sharper lobes are drawn broader and dimmer.
+pub fn sharpest_phong() -> f64 {
+    let texel = std::f64::consts::SQRT_2 * 2.0 / TABLE_SIZE as f64;
+    8.0 * std::f64::consts::LN_2 / (2.0 * texel).powi(2)
+}
 
 /// How view directions are tabulated.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -70,6 +79,11 @@ pub fn view_grid_for(brdf: &Brdf) -> ViewGrid {
 /// The SAT of `f` area-averaged over each texel of an `n × n` grid on `[-1, 1]²`
 /// (`samples²` stratified points per texel; `f` is zero below the horizon).
 fn tabulate(n: usize, samples: usize, f: impl Fn(DVec3) -> f64) -> SummedAreaTable {
+    SummedAreaTable::new(n, n, &texel_means(n, samples, f))
+}
+
+/// `f` area-averaged over each texel of an `n × n` grid on `[-1, 1]²`, row-major.
+fn texel_means(n: usize, samples: usize, f: impl Fn(DVec3) -> f64) -> Vec<f64> {
     let texel = 2.0 / n as f64;
     let mut values = vec![0.0; n * n];
     for (i, v) in values.iter_mut().enumerate() {
@@ -87,7 +101,7 @@ fn tabulate(n: usize, samples: usize, f: impl Fn(DVec3) -> f64) -> SummedAreaTab
         }
         *v = sum / (samples * samples) as f64;
     }
-    SummedAreaTable::new(n, n, &values)
+    values
 }
 
 /// View direction of slice `j` of an isotropic table.
@@ -119,7 +133,39 @@ impl BrdfSat {
         };
         let samples = if matches!(views, ViewGrid::Anisotropic { .. }) { 2 } else { 4 };
         let has_lobe = brdf.lobe != Lobe::None && brdf.specular.max_element() > 0.0;
-        let lobes = if has_lobe {
+        let lobes = if !has_lobe {
+            Vec::new()
+        } else if let ViewGrid::Anisotropic { size: s } = views {
+            // Every lobe here is symmetric under mirroring x (or y) in both directions at once,
+            // so one quadrant of view slices is tabulated and the others are its mirror images.
+            let half = s / 2;
+            let quadrant: Vec<Vec<f64>> = (0..(s - half) * (s - half))
+                .into_par_iter()
+                .map(|k| {
+                    cancel.check()?;
+                    let wo = view_list[(half + k / (s - half)) * s + half + k % (s - half)];
+                    Ok(texel_means(size, samples, |wi| brdf.lobe_value(wi, wo) * wi.z.max(0.0)))
+                })
+                .collect::<Result<_, StageError>>()?;
+            (0..s * s)
+                .into_par_iter()
+                .map(|k| {
+                    let (i, j) = (k % s, k / s);
+                    let (si, sj) = (i.max(s - 1 - i), j.max(s - 1 - j));
+                    let source = &quadrant[(sj - half) * (s - half) + si - half];
+                    let (flip_x, flip_y) = (i != si, j != sj);
+                    let values: Vec<f64> = (0..size * size)
+                        .map(|t| {
+                            let (x, y) = (t % size, t / size);
+                            let x = if flip_x { size - 1 - x } else { x };
+                            let y = if flip_y { size - 1 - y } else { y };
+                            source[y * size + x]
+                        })
+                        .collect();
+                    SummedAreaTable::new(size, size, &values)
+                })
+                .collect()
+        } else {
             view_list
                 .par_iter()
                 .map(|&wo| {
@@ -127,8 +173,6 @@ impl BrdfSat {
                     Ok(tabulate(size, samples, |wi| brdf.lobe_value(wi, wo) * wi.z.max(0.0)))
                 })
                 .collect::<Result<Vec<_>, StageError>>()?
-        } else {
-            Vec::new()
         };
         Ok(Self {
             size,
@@ -316,6 +360,22 @@ mod tests {
             worst = worst.max((a - b).length() / a.length());
         }
         assert!(worst < 0.08, "iso and aniso tables differ by {worst:.3}");
+    }
+
+    #[test]
+    fn mirrored_anisotropic_slices_equal_directly_tabulated_ones() {
+        let b = brdf("ward", 1.0, 0.5, 0.7);
+        let sat = build(&b);
+        let ViewGrid::Anisotropic { size: s } = sat.views else { panic!("anisotropic") };
+        for (i, j) in [(0, 0), (3, 20), (31, 1), (16, 15)] {
+            let direct = tabulate(sat.size, 2, |wi| b.lobe_value(wi, anisotropic_view(i, j, s)) * wi.z.max(0.0));
+            let n = sat.size as f64;
+            let mirrored = &sat.lobes[j * s + i];
+            for (x0, y0, x1, y1) in [(0.0, 0.0, n, n), (3.5, 7.25, 20.0, 9.0), (16.0, 16.0, 17.5, 30.0)] {
+                let (a, b) = (mirrored.integral(x0, y0, x1, y1), direct.integral(x0, y0, x1, y1));
+                assert!((a - b).abs() <= 1e-9 * (1.0 + b.abs()), "slice ({i}, {j}): {a} vs {b}");
+            }
+        }
     }
 
     #[test]

@@ -234,6 +234,59 @@ fn white_furnace_in_the_square_light_mode() {
 }
 
 #[test]
+fn square_light_images_approach_the_monte_carlo_reference_as_lights_are_added() {
+    // A glossy GGX sphere under the courtyard HDRI in the `rsl` mode, against the Monte Carlo
+    // reference of the same scene (independent: BRDF sampling and MIS on the BVH), for two
+    // light counts: the GPU pass's glossy lookups must converge towards the reference.
+    let dir = tempdir("rsl-reference");
+    let hdr = shared_assets().join("envmaps/courtyard.hdr");
+    let project = format!(
+        r#"(
+        version: 4,
+        cameras: [(name: "c", position: (0.0, 0.5, 3.2), target: (0.0, 0.0, 0.0), fov_y_deg: 40.0)],
+        render: (width: 64, height: 64),
+        nodes: [
+            (id: "env", kind: "EnvironmentMap", params: {{"source": Choice("file"), "file": Path("{}")}}),
+            (id: "lights", kind: "RslDecomposer"),
+            (id: "scene", kind: "Scene", params: {{
+                "objects": Objects([(name: "s", shape: Sphere(radius: 1.0), color: (1.0, 1.0, 1.0))]),
+            }}),
+            (id: "gloss", kind: "BrdfEditor", params: {{
+                "model": Choice("ggx"), "roughness": Float(0.45), "f0": Float(0.5), "albedo": Color((0.4, 0.4, 0.4)),
+            }}),
+            (id: "out", kind: "Output", params: {{"mode": Choice("rsl"), "reference_samples": Int(1024)}}),
+        ],
+        links: [
+            (from: ("env", "environment"), to: ("out", "environment")),
+            (from: ("env", "environment"), to: ("lights", "environment")),
+            (from: ("lights", "square_lights"), to: ("out", "square_lights")),
+            (from: ("scene", "scene"), to: ("out", "scene")),
+            (from: ("gloss", "material"), to: ("out", "material")),
+        ],
+    )"#,
+        hdr.display()
+    );
+    let path = dir.join("rsl.ron");
+    std::fs::write(&path, project).unwrap();
+    let error_at = |k: usize| -> f64 {
+        let png = dir.join(format!("error-{k}.png"));
+        let out = lightloom()
+            .args(["render", path.to_str().unwrap(), "-o", png.to_str().unwrap(), "--no-disk-cache"])
+            .args(["--set", "out.view=error", "--set", &format!("lights.light_count={k}")])
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        let text = String::from_utf8_lossy(&out.stdout).to_string();
+        let relative = text.split("(relative ").nth(1).and_then(|t| t.split('%').next()).expect("an error line");
+        relative.trim().parse::<f64>().unwrap() / 100.0
+    };
+    let (few, many) = (error_at(10), error_at(100));
+    println!("rsl against the reference: K=10 {:.1}%, K=100 {:.1}%", few * 100.0, many * 100.0);
+    assert!(many < few, "more lights, no closer: {few} -> {many}");
+    assert!(many < 0.12, "K=100 is {:.1}% from the reference", many * 100.0);
+}
+
+#[test]
 fn white_furnace_through_the_whole_pipeline() {
     // A white Lambert object under a constant environment with no occluders reflects exactly
     // the environment radiance: E = πL, L_out = albedo·E/π = L. The EXR is linear radiance.

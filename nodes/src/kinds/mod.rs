@@ -71,6 +71,16 @@ mod tests {
             }
             for p in &kind.params {
                 assert!(p.check(&p.default_value()).is_ok(), "{}.{} default is invalid", kind.name, p.name);
+                if let crate::node_kind::ParamKind::Choice { options, labels, .. } = &p.kind {
+                    assert!(
+                        labels.is_empty() || labels.len() == options.len(),
+                        "{}.{}: {} labels for {} options",
+                        kind.name,
+                        p.name,
+                        labels.len(),
+                        options.len()
+                    );
+                }
                 assert!(
                     kind.stages.iter().any(|s| s.params.contains(&p.name)),
                     "{}.{} is read by no stage",

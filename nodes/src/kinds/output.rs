@@ -89,6 +89,13 @@ pub const MODE_LABELS: &[(&str, &str)] = &[
         "As per vertex, plus per-texel visibility on objects with a visibility texture, so even a \
          coarse floor gets sharp shadows. Most accurate, slowest to precompute.",
     ),
+    (
+        "Square lights, movable objects",
+        "The environment as a few dozen square lights (link an RSL decomposer to the Output's square \
+         lights), each with per-vertex visibility from distance tables kept in each object's own space: \
+         objects move and turn, and the environment rotates, without new precomputation; BRDF edits \
+         rebuild small tables. Shadows between objects come from fields sampled around each object.",
+    ),
 ];
 
 pub fn spec() -> NodeKindSpec {

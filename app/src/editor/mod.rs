@@ -176,6 +176,8 @@ struct ViewState {
     selected_object: Option<usize>,
     /// The light whose gizmo is being dragged.
     dragging_light: Option<String>,
+    /// The Scene node and object index being dragged in the viewport.
+    dragging_object: Option<(String, usize)>,
 }
 
 pub struct EditorApp {
@@ -353,6 +355,7 @@ impl EditorApp {
                 error_scale: None,
                 selected_object: None,
                 dragging_light: None,
+                dragging_object: None,
             },
             host,
             host_error: host_error.clone(),

@@ -973,3 +973,59 @@ fn square_lights_from_the_add_menu_to_the_viewport() {
     let fewer = viewport_mean(&mut harness);
     assert!((fewer - lit).abs() > 0.05, "the image changed with K: {lit:.2} vs {fewer:.2}");
 }
+
+/// Objects move with the pointer: a left drag that starts on an object moves it in the view
+/// plane (it follows the pointer), Shift+drag turns it, each drag one undo step; in the rsl
+/// mode the move recomputes only the per-vertex visibility.
+#[test]
+fn dragging_an_object_moves_it_and_shift_turns_it() {
+    let mut harness = default_harness();
+    settle(&mut harness);
+    let spec = lightloom_nodes::kinds::kind("Scene").and_then(|k| k.param("objects")).unwrap();
+    let objects = |h: &Harness<'_, EditorApp>| match inspector::param_value(&h.state().doc.project, "scene", spec) {
+        ParamValue::Objects(o) => o,
+        _ => panic!("the scene lists objects"),
+    };
+    let before = objects(&harness);
+    let sphere = before.iter().position(|o| o.name == "sphere").expect("the default sphere");
+    let rect = harness.state().viewport_rect;
+    let camera = harness.state().viewport_camera(rect);
+    let at = gizmos::screen_pos(&camera, rect, before[sphere].translation).expect("in front of the camera");
+    pointer_drag(&mut harness, egui::PointerButton::Primary, at, at + egui::vec2(60.0, -20.0));
+    let after = objects(&harness);
+    let now = gizmos::screen_pos(&camera, rect, after[sphere].translation).unwrap();
+    assert!((now - (at + egui::vec2(60.0, -20.0))).length() < 3.0, "the sphere follows the pointer: {at:?} → {now:?}");
+    assert_eq!(harness.state().selection, Selection::Node("scene".into()));
+    assert_eq!(harness.state().view.selected_object, Some(sphere), "the dragged object is selected");
+    assert_eq!(after[sphere].rotation_deg, before[sphere].rotation_deg);
+    assert_eq!(harness.state().doc.undo_label(), Some("Set scene.objects"));
+    settle(&mut harness);
+
+    // Shift+drag turns it about the vertical axis.
+    let turn_from = gizmos::screen_pos(&camera, rect, after[sphere].translation).unwrap();
+    let press = |pos, pressed| egui::Event::PointerButton {
+        pos,
+        button: egui::PointerButton::Primary,
+        pressed,
+        modifiers: egui::Modifiers::SHIFT,
+    };
+    harness.hover_at(turn_from);
+    harness.step();
+    harness.event(egui::Event::ModifiersChanged(egui::Modifiers::SHIFT));
+    harness.event(press(turn_from, true));
+    harness.step();
+    for i in 1..=4 {
+        harness.hover_at(turn_from + egui::vec2(10.0 * i as f32, 0.0));
+        harness.step();
+    }
+    harness.event(press(turn_from + egui::vec2(40.0, 0.0), false));
+    harness.event(egui::Event::ModifiersChanged(egui::Modifiers::NONE));
+    harness.run_steps(2);
+    let turned = objects(&harness);
+    assert_eq!(turned[sphere].translation, after[sphere].translation, "a turn does not move it");
+    assert!((turned[sphere].rotation_deg[1] - after[sphere].rotation_deg[1]).abs() > 5.0, "{:?}", turned[sphere]);
+    // Undo twice: back where it was.
+    harness.state_mut().undo();
+    harness.state_mut().undo();
+    assert_eq!(objects(&harness)[sphere].translation, before[sphere].translation);
+}

@@ -11,8 +11,9 @@ impl EditorApp {
         self.viewport_rect = rect;
         self.navigate(ui, &response, rect);
         let dragging_light = self.drag_gizmo(ui, &response, rect);
+        let dragging_object = !dragging_light && self.drag_object(ui, &response, rect);
         // While the view moves, draw at half resolution; the full frame follows on release.
-        let moving = (response.dragged() && !dragging_light)
+        let moving = (response.dragged() && !dragging_light && !dragging_object)
             || (response.hovered() && ui.input(|i| i.smooth_scroll_delta.y != 0.0));
         let scale = self.view.resolution_scale * ui.ctx().pixels_per_point() * if moving { 0.5 } else { 1.0 };
         let size = (((rect.width() * scale) as u32).clamp(16, 4096), ((rect.height() * scale) as u32).clamp(16, 4096));
@@ -233,42 +234,104 @@ impl EditorApp {
         }
     }
 
-    pub(super) fn pick(&mut self, pos: egui::Pos2, rect: egui::Rect) {
-        let Some(frame) = &self.view.frame else { return };
+    /// The Scene node and the index of the object under `pos`, or the mesh's name when it is
+    /// part of no listed object.
+    fn object_at(&self, pos: egui::Pos2, rect: egui::Rect) -> Option<Result<(String, usize), String>> {
+        let frame = self.view.frame.as_ref()?;
         let local = pos - rect.min;
         let size = (rect.width().max(1.0) as usize, rect.height().max(1.0) as usize);
         let camera = self.viewport_camera(rect).pinhole();
-        let Some(mesh) = frame.pick(&camera, (f64::from(local.x), f64::from(local.y)), size) else {
-            self.view.selected_object = None;
-            return;
-        };
-        let Some(meshes) = frame.geometry.meshes.value.get::<lightloom_nodes::mesh::MeshSet>() else { return };
+        let mesh = frame.pick(&camera, (f64::from(local.x), f64::from(local.y)), size)?;
+        let meshes = frame.geometry.meshes.value.get::<lightloom_nodes::mesh::MeshSet>()?;
         let name = meshes.meshes[mesh].name.split('/').next().unwrap_or_default().to_string();
         // The Scene node feeding the output, and the object with that name.
-        let Some((_, graph)) = &self.evaluator.last else { return };
-        let Some(output) = graph.nodes.iter().find(|n| n.kind.name == "Output") else { return };
-        let Some(scene) = graph.upstream(&output.id, "scene") else { return };
-        let Some(ParamValue::Objects(objects)) = scene.params.get("objects") else { return };
-        if let Some(index) = objects.iter().position(|o| o.name == name) {
-            self.selection = Selection::Node(scene.id.clone());
-            self.view.selected_object = Some(index);
-            self.log_info(format!("selected object `{name}` of {}", scene.id));
-        } else {
-            self.selection = Selection::Node(scene.id.clone());
-            self.view.selected_object = None;
-            self.log_info(format!("`{}` comes from the scene's file", meshes.meshes[mesh].name));
+        let (_, graph) = self.evaluator.last.as_ref()?;
+        let output = graph.nodes.iter().find(|n| n.kind.name == "Output")?;
+        let scene = graph.upstream(&output.id, "scene")?;
+        let Some(ParamValue::Objects(objects)) = scene.params.get("objects") else { return None };
+        Some(match objects.iter().position(|o| o.name == name) {
+            Some(index) => Ok((scene.id.clone(), index)),
+            None => Err(meshes.meshes[mesh].name.clone()),
+        })
+    }
+
+    /// A Scene node's object list (its default when the project does not set it).
+    fn scene_objects(&self, scene: &str) -> Option<ParamValue> {
+        let spec = lightloom_nodes::kinds::kind("Scene")?.param("objects")?;
+        Some(inspector::param_value(&self.doc.project, scene, spec))
+    }
+
+    pub(super) fn pick(&mut self, pos: egui::Pos2, rect: egui::Rect) {
+        if self.view.frame.is_none() {
+            return;
         }
+        match self.object_at(pos, rect) {
+            Some(Ok((scene, index))) => {
+                self.selection = Selection::Node(scene.clone());
+                self.view.selected_object = Some(index);
+                let name = match self.scene_objects(&scene) {
+                    Some(ParamValue::Objects(objects)) => {
+                        objects.get(index).map(|o| o.name.clone()).unwrap_or_default()
+                    }
+                    _ => String::new(),
+                };
+                self.log_info(format!("selected object `{name}` of {scene}"));
+            }
+            Some(Err(mesh)) => {
+                self.view.selected_object = None;
+                self.log_info(format!("`{mesh}` comes from the scene's file"));
+            }
+            None => self.view.selected_object = None,
+        }
+    }
+
+    /// A primary drag that starts on an object moves it in the view plane (Shift turns it about
+    /// the vertical axis), one undo step per drag; returns whether it did. Objects keep their
+    /// precomputed transport in their own space, so in the `rsl` mode a move recomputes only
+    /// the per-vertex visibility.
+    pub(super) fn drag_object(&mut self, ui: &egui::Ui, response: &egui::Response, rect: egui::Rect) -> bool {
+        let alt = ui.input(|i| i.modifiers.alt);
+        if response.drag_started_by(egui::PointerButton::Primary) && !alt {
+            let origin = ui.input(|i| i.pointer.press_origin());
+            self.view.dragging_object = origin.and_then(|p| self.object_at(p, rect)).and_then(Result::ok);
+            if let Some((scene, index)) = &self.view.dragging_object {
+                self.selection = Selection::Node(scene.clone());
+                self.view.selected_object = Some(*index);
+            }
+        }
+        if !response.dragged_by(egui::PointerButton::Primary) {
+            self.view.dragging_object = None;
+            return false;
+        }
+        let Some((scene, index)) = self.view.dragging_object.clone() else { return false };
+        let (delta, turn) = ui.input(|i| (i.pointer.delta(), i.modifiers.shift));
+        if delta == egui::Vec2::ZERO {
+            return true;
+        }
+        let Some(ParamValue::Objects(mut objects)) = self.scene_objects(&scene) else { return false };
+        let Some(object) = objects.get_mut(index) else { return false };
+        if turn {
+            object.rotation_deg[1] = (object.rotation_deg[1] + f64::from(delta.x) * 0.5).rem_euclid(360.0);
+        } else {
+            let camera = self.viewport_camera(rect);
+            let moved = camera.drag_point(
+                glam::DVec3::from(object.translation),
+                (f64::from(delta.x), f64::from(delta.y)),
+                f64::from(rect.height()),
+            );
+            object.translation = moved.to_array();
+        }
+        if let Err(e) = inspector::set_param(&mut self.doc, &scene, "objects", ParamValue::Objects(objects)) {
+            self.log_error(e);
+        }
+        true
     }
 
     /// Outlines the selected object's bounding box.
     pub(super) fn selection_overlay(&self, painter: &egui::Painter, rect: egui::Rect) {
         let (Some(index), Some(frame)) = (self.view.selected_object, &self.view.frame) else { return };
         let Selection::Node(scene_id) = &self.selection else { return };
-        let Some(ParamValue::Objects(objects)) =
-            edits::node(&self.doc.project, scene_id).and_then(|n| n.params.get("objects"))
-        else {
-            return;
-        };
+        let Some(ParamValue::Objects(objects)) = self.scene_objects(scene_id) else { return };
         let Some(object) = objects.get(index) else { return };
         let Some(m) = frame.geometry.meshes.value.get::<lightloom_nodes::mesh::MeshSet>() else { return };
         let prefix = format!("{}/", object.name);

@@ -41,6 +41,9 @@ pub struct BenchArgs {
     /// Frames timed per figure (the median is printed).
     #[arg(long, default_value_t = 5)]
     pub frames: usize,
+    /// Only these sections (default, fog, rsl, synthetic; all when empty).
+    #[arg(long, value_delimiter = ',')]
+    pub only: Vec<String>,
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -65,11 +68,21 @@ fn timed_frame(
 pub fn run(args: &BenchArgs) -> Result<()> {
     let gpu = GpuContext::headless()?;
     println!("device: {}", gpu.describe());
-    default_project_figures(args, &gpu)?;
-    fog_figures(args, &gpu)?;
-    rsl_figures();
-    rsl_mode_figures(args, &gpu)?;
-    synthetic_figures(args, &gpu)
+    let wanted = |section: &str| args.only.is_empty() || args.only.iter().any(|s| s == section);
+    if wanted("default") {
+        default_project_figures(args, &gpu)?;
+    }
+    if wanted("fog") {
+        fog_figures(args, &gpu)?;
+    }
+    if wanted("rsl") {
+        rsl_figures();
+        rsl_mode_figures(args, &gpu)?;
+    }
+    if wanted("synthetic") {
+        synthetic_figures(args, &gpu)?;
+    }
+    Ok(())
 }
 
 fn rsl_figures() {
@@ -120,10 +133,15 @@ fn rsl_mode_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
             .map_err(|e| anyhow!("{e}"))?;
         println!("  BRDF summed-area tables, {label}: {:.1} ms ({} view slices)", ms(start), sat.lobes.len());
     }
-    // A fat torus shadows itself (a sphere's tables would all be the same horizon).
-    let receiver = lightloom_nodes::mesh::MeshSet { meshes: vec![lightloom_nodes::mesh::torus(1.0, 0.45, 173)] };
-    let occluder = lightloom_nodes::mesh::MeshSet { meshes: vec![lightloom_nodes::mesh::sphere(0.4, 32)] };
-    let n = receiver.meshes[0].positions.len();
+    // A fat torus with a box through its rim shadows itself irregularly (a sphere's tables would
+    // all be the same horizon, a lone torus's would repeat around its axis).
+    let block = lightloom_nodes::mesh::cuboid([0.7, 1.4, 0.5], 4, false)
+        .transformed(glam::DMat4::from_translation(glam::DVec3::new(1.0, 0.3, 0.0)));
+    let receiver = lightloom_nodes::mesh::MeshSet { meshes: vec![lightloom_nodes::mesh::torus(1.0, 0.45, 172), block] };
+    let occluder = lightloom_nodes::mesh::MeshSet {
+        meshes: vec![lightloom_nodes::mesh::torus(0.4, 0.12, 32).transformed(glam::DMat4::from_rotation_x(1.0))],
+    };
+    let n: usize = receiver.meshes.iter().map(|m| m.positions.len()).sum();
     let start = Instant::now();
     let receivers = Receivers::from_meshes(&receiver);
     let svdf =
@@ -139,7 +157,7 @@ fn rsl_mode_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
     let (compressed, error) = svdf.compressed(256, 8);
     println!(
         "  CPCA, 256 clusters x 8 directions: {:.1} s, {:.1} MiB for {n} vertices ({:.0} B per vertex; 1:{:.1} \
-         against FP32, paper 1:17), relative error {:.1}%",
+         against FP32, paper 1:17), relative error {:.2}%",
         ms(start) / 1e3,
         compressed.bytes() as f64 / (1 << 20) as f64,
         compressed.bytes() as f64 / n as f64,
@@ -166,7 +184,7 @@ fn rsl_mode_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
         let (compressed, error) = field.compressed(8);
         println!(
             "    PCA per segment (384 x 8 directions): {:.1} MiB (1:{:.1} against FP32, paper 1:26), relative error \
-             {:.1}%",
+             {:.2}%",
             compressed.bytes() as f64 / (1 << 20) as f64,
             (field.bytes() * 4) as f64 / compressed.bytes() as f64,
             error * 100.0
@@ -220,7 +238,7 @@ fn rsl_mode_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
     let sat =
         BrdfSat::build(&lightloom_nodes::brdf::Brdf::from_material(&material), &cancel).map_err(|e| anyhow!("{e}"))?;
     let keyed = |key: u128, value: StageValue| Keyed { key, value: Arc::new(value) };
-    let geometry = Geometry { meshes: keyed(1, StageValue::new(receiver.clone())), mesh_materials: vec![0] };
+    let geometry = Geometry { meshes: keyed(1, StageValue::new(receiver.clone())), mesh_materials: vec![0, 0] };
     let surfaces = lightloom_nodes::frame::RslSurfaces::new(
         &lights,
         2,
@@ -269,6 +287,83 @@ fn rsl_mode_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
         n as f64 * 30.0 / frame_ms / 1e3,
         gpu.describe()
     );
+    square_light_sample_figures(args, gpu)
+}
+
+/// Edits on the square-light sample (`projects/samples/square_lights.ron`, built in): what each
+/// recomputes on the CPU and the frame after it. The issue's anchor: a BRDF edit within 100 ms
+/// of CPU-side work; moves and environment turns without precomputation.
+fn square_light_sample_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../projects/samples/square_lights.ron");
+    let (project, mut graph) = lightloom_nodes::project::Project::load(&path).map_err(|e| anyhow!("{e}"))?;
+    let view = CameraView::from_project(&project.camera(None).map_err(|e| anyhow!(e))?);
+    let engine = Arc::new(Engine::in_memory());
+    let mut renderer = ViewportRenderer::new(gpu);
+    let frame_of = |graph: &Graph| -> Result<(FrameInputs, f64, usize)> {
+        let start = Instant::now();
+        let evaluation = evaluate(engine.clone(), graph, output_request(graph, "output"), true);
+        fail_on_errors(&evaluation, &upstream_of(graph, "output"))?;
+        let frame = FrameInputs::gather(&evaluation, graph, "output").map_err(|e| anyhow!(e))?;
+        Ok((frame, start.elapsed().as_secs_f64() * 1e3, evaluation.report.computed().len()))
+    };
+    let (frame, first_ms, _) = frame_of(&graph)?;
+    let vertices = frame.geometry.vertex_count();
+    timed_frame(gpu, &mut renderer, &frame, &view, (960, 540))?;
+    println!(
+        "\nsquare-light sample ({vertices} vertices, 30 lights, 3 objects), 960x540; first evaluation {:.1} s",
+        first_ms / 1e3
+    );
+    println!("{:<30} {:>16} {:>8} {:>12}", "edit", "CPU stages ms", "stages", "frame ms");
+    let ParamValue::Objects(objects) =
+        graph.node("scene").and_then(|n| n.params.get("objects")).cloned().ok_or_else(|| anyhow!("objects"))?
+    else {
+        return Err(anyhow!("objects"));
+    };
+    type Edit = Box<dyn Fn(&mut Graph, usize) -> Result<()>>;
+    let edits: Vec<(&str, Edit)> = vec![
+        (
+            "BRDF edit (gloss exponent)",
+            Box::new(|g, k| Ok(g.set_param("gloss", "exponent", ParamValue::Float(20.0 + 3.0 * k as f64))?)),
+        ),
+        (
+            "BRDF swap (gold: Ward/GGX aniso)",
+            Box::new(|g, k| {
+                let model = if k % 2 == 0 { "ward" } else { "ggx_anisotropic" };
+                g.set_param("gold", "anisotropy", ParamValue::Float(0.5 + 0.01 * k as f64))?;
+                Ok(g.set_param("gold", "model", ParamValue::Choice(model.into()))?)
+            }),
+        ),
+        (
+            "move the sphere",
+            Box::new(move |g, k| {
+                let mut moved = objects.clone();
+                moved[1].translation[0] += 0.1 * (k + 1) as f64;
+                moved[1].rotation_deg[1] += 7.0 * (k + 1) as f64;
+                Ok(g.set_param("scene", "objects", ParamValue::Objects(moved))?)
+            }),
+        ),
+        (
+            "turn the environment",
+            Box::new(|g, k| {
+                Ok(g.set_param("courtyard", "rotation", ParamValue::Vec3([5.0 * (k + 1) as f64, 0.0, 0.0]))?)
+            }),
+        ),
+        (
+            "environment exposure",
+            Box::new(|g, k| Ok(g.set_param("courtyard", "exposure", ParamValue::Float(0.25 * (k + 1) as f64))?)),
+        ),
+    ];
+    for (label, edit) in edits {
+        let (mut stages, mut frames, mut count) = (Vec::new(), Vec::new(), 0);
+        for k in 0..args.frames.max(1) {
+            edit(&mut graph, k)?;
+            let (frame, ms, computed) = frame_of(&graph)?;
+            stages.push(ms);
+            count = count.max(computed);
+            frames.push(timed_frame(gpu, &mut renderer, &frame, &view, (960, 540))?);
+        }
+        println!("{label:<30} {:>16.1} {:>8} {:>12.1}", median(stages), count, median(frames));
+    }
     Ok(())
 }
 

@@ -126,19 +126,30 @@ impl Default for GraphEditor {
 }
 
 impl GraphEditor {
-    /// Where a node added from the menu bar goes: the middle of the visible graph (`view`, in
-    /// screen space), moved down until it overlaps no node.
-    pub fn free_spot(&self, view: egui::Rect, project: &Project) -> [f32; 2] {
-        let (w, h) = (190.0, 110.0);
-        let centre = self.to_global.inverse() * view.center();
-        let mut spot = egui::pos2(centre.x - w / 2.0, centre.y - h / 2.0);
+    /// Where a node of `kind` added from the menu bar goes: the middle of the visible graph
+    /// (`view`, in screen space), moved down until it overlaps no node. Nodes are measured as
+    /// last drawn (a node with previews is wider), and the new one by its previews.
+    pub fn free_spot(&self, view: egui::Rect, project: &Project, kind: &str) -> [f32; 2] {
+        let previews: f32 =
+            lightloom_nodes::kinds::kind(kind).map_or(0.0, |k| k.previews.iter().map(|p| p.size[0] + 8.0).sum());
+        let size = egui::vec2((previews + 130.0).max(190.0), 110.0);
+        let to_graph = self.to_global.inverse();
+        let occupied: Vec<egui::Rect> = project
+            .nodes
+            .iter()
+            .map(|n| match self.node_rects.get(&n.id) {
+                Some(r) => to_graph * *r,
+                None => egui::Rect::from_min_size(egui::pos2(n.position[0], n.position[1]), egui::vec2(190.0, 110.0)),
+            })
+            .collect();
+        let centre = to_graph * view.center();
+        let mut spot = centre - size / 2.0;
         for _ in 0..64 {
-            let taken =
-                project.nodes.iter().any(|n| (n.position[0] - spot.x).abs() < w && (n.position[1] - spot.y).abs() < h);
-            if !taken {
+            let candidate = egui::Rect::from_min_size(spot, size);
+            if !occupied.iter().any(|r| r.intersects(candidate)) {
                 break;
             }
-            spot.y += h / 2.0;
+            spot.y += size.y / 2.0;
         }
         [spot.x, spot.y]
     }

@@ -160,7 +160,7 @@ impl EditorApp {
             ui.menu_button("Add", |ui| {
                 let mut query = String::new();
                 if let Some(kind) = graph_editor::add_list(ui, &mut query, None) {
-                    let position = self.graph.free_spot(self.graph_rect, &self.doc.project);
+                    let position = self.graph.free_spot(self.graph_rect, &self.doc.project, &kind);
                     self.apply(vec![GraphAction::Add { kind, position, link: None }]);
                     ui.close();
                 }

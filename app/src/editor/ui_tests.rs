@@ -933,6 +933,12 @@ fn square_lights_from_the_add_menu_to_the_viewport() {
     harness.run_steps(4);
     let added = harness.state().doc.project.nodes.iter().find(|n| !before.contains(&n.id)).unwrap().id.clone();
     assert_eq!(harness.state().selection, Selection::Node(added.clone()));
+    // It lands clear of the other nodes, measured as drawn (with its previews it is wide).
+    let rect = harness.state().graph.node_rect(&added).expect("drawn");
+    for other in &before {
+        let theirs = harness.state().graph.node_rect(other).expect("drawn");
+        assert!(!rect.intersects(theirs), "{added} at {rect:?} covers {other} at {theirs:?}");
+    }
     harness.get_by_role_and_label(Role::ComboBox, "environment (Environment)").click();
     harness.run_steps(3);
     harness.get_by_label("sky.environment").click();

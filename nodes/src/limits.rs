@@ -23,6 +23,9 @@ pub const MAX_TRIANGLES: usize = 20_000_000;
 pub const MAX_TOTAL_RAYS: u64 = 4_000_000_000;
 /// Largest world coordinate, in metres: beyond it f32 geometry loses all precision.
 pub const MAX_COORDINATE: f32 = 1e7;
+/// Largest per-vertex table of the square-light mode (self-visibility tables at 1 KiB per
+/// vertex, per-vertex visibility at 4 bytes per vertex and light), in bytes.
+pub const MAX_RSL_TABLE_BYTES: u64 = 1 << 30;
 /// Largest render target, in bytes of GPU memory (colour, depth, MSAA and readback).
 pub const MAX_RENDER_TARGET_BYTES: u64 = 3 << 30;
 

@@ -351,6 +351,17 @@ fn rsl_visibility(ctx: &StageContext) -> Result<StageValue, StageError> {
     let Some(lights) = ctx.input::<crate::rsl::WorldLights>("square_lights", "world_lights")? else {
         return Ok(StageValue::new(crate::rsl::shade::LightVisibility::default()));
     };
+    let vertices: usize = objects.iter().map(|o| o.svdf.vertices).sum();
+    let bytes = (vertices * lights.lights.len() * 4) as u64;
+    if bytes > crate::limits::MAX_RSL_TABLE_BYTES {
+        return Err(StageError::Failed(format!(
+            "the per-vertex visibility of {vertices} vertices × {} square lights would take {} MiB; the limit is {} MiB: \
+             use fewer lights or a lower tessellation",
+            lights.lights.len(),
+            bytes >> 20,
+            crate::limits::MAX_RSL_TABLE_BYTES >> 20
+        )));
+    }
     Ok(StageValue::new(crate::rsl::shade::light_visibility(
         objects,
         occluders,

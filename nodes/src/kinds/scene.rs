@@ -452,6 +452,18 @@ fn rsl_self_visibility(ctx: &StageContext) -> Result<StageValue, StageError> {
             let scene = RayScene::build(&meshes);
             let receivers = Receivers::from_meshes(&meshes);
             check_ray_budget(receivers.len(), size * size, "tessellation")?;
+            let bytes = (receivers.len() * size * size) as u64;
+            if bytes > crate::limits::MAX_RSL_TABLE_BYTES {
+                return Err(StageError::Failed(format!(
+                    "object `{}`: its self-visibility tables would take {} MiB ({} vertices × {} KiB); the limit is {} \
+                     MiB: lower tessellation",
+                    object.name,
+                    bytes >> 20,
+                    receivers.len(),
+                    size * size / 1024,
+                    crate::limits::MAX_RSL_TABLE_BYTES >> 20
+                )));
+            }
             let base = done as f64 / objects.len() as f64;
             crate::rsl::vdt::Svdf::compute(&scene, &receivers, size, ctx.cancel_token(), &|f| {
                 ctx.progress(base + f / objects.len() as f64)

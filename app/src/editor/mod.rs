@@ -176,8 +176,8 @@ struct ViewState {
     selected_object: Option<usize>,
     /// The light whose gizmo is being dragged.
     dragging_light: Option<String>,
-    /// The Scene node and object index being dragged in the viewport.
-    dragging_object: Option<(String, usize)>,
+    /// The Scene node and the name of the object being dragged in the viewport.
+    dragging_object: Option<(String, String)>,
 }
 
 pub struct EditorApp {

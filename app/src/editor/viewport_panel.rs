@@ -293,23 +293,29 @@ impl EditorApp {
         let alt = ui.input(|i| i.modifiers.alt);
         if response.drag_started_by(egui::PointerButton::Primary) && !alt {
             let origin = ui.input(|i| i.pointer.press_origin());
-            self.view.dragging_object = origin.and_then(|p| self.object_at(p, rect)).and_then(Result::ok);
-            if let Some((scene, index)) = &self.view.dragging_object {
-                self.selection = Selection::Node(scene.clone());
-                self.view.selected_object = Some(*index);
+            let hit = origin.and_then(|p| self.object_at(p, rect)).and_then(Result::ok);
+            // Held by name: the list may change before the next evaluation.
+            self.view.dragging_object = hit.and_then(|(scene, index)| match self.scene_objects(&scene) {
+                Some(ParamValue::Objects(objects)) => objects.get(index).map(|o| (scene, o.name.clone())),
+                _ => None,
+            });
+            if let Some((scene, index)) = hit_index(self, &self.view.dragging_object) {
+                self.selection = Selection::Node(scene);
+                self.view.selected_object = Some(index);
             }
         }
-        if !response.dragged_by(egui::PointerButton::Primary) {
+        // Alt hands the drag to navigation (orbit) for the rest of the press.
+        if !response.dragged_by(egui::PointerButton::Primary) || alt {
             self.view.dragging_object = None;
             return false;
         }
-        let Some((scene, index)) = self.view.dragging_object.clone() else { return false };
+        let Some((scene, name)) = self.view.dragging_object.clone() else { return false };
         let (delta, turn) = ui.input(|i| (i.pointer.delta(), i.modifiers.shift));
         if delta == egui::Vec2::ZERO {
             return true;
         }
         let Some(ParamValue::Objects(mut objects)) = self.scene_objects(&scene) else { return false };
-        let Some(object) = objects.get_mut(index) else { return false };
+        let Some(object) = objects.iter_mut().find(|o| o.name == name) else { return false };
         if turn {
             object.rotation_deg[1] = (object.rotation_deg[1] + f64::from(delta.x) * 0.5).rem_euclid(360.0);
         } else {
@@ -507,4 +513,13 @@ fn render_frame_overlay(
         egui::FontId::proportional(11.0),
         Color32::from_gray(170),
     );
+}
+
+/// The Scene node and current index of the object held by name.
+fn hit_index(app: &EditorApp, held: &Option<(String, String)>) -> Option<(String, usize)> {
+    let (scene, name) = held.as_ref()?;
+    match app.scene_objects(scene)? {
+        ParamValue::Objects(objects) => objects.iter().position(|o| &o.name == name).map(|i| (scene.clone(), i)),
+        _ => None,
+    }
 }

@@ -12,7 +12,10 @@
 //! - A receiver `x` beyond the outer shell is not shadowed (also the culling test); inside the
 //!   inner shell it takes the inner shell. Otherwise the distance is the trilinear blend of the
 //!   eight nearest samples (shell × face `u` × face `v`), each read at the light's plane point
-//!   in the receiver's own frame (axis from `x` to `o`), then Eq. 9's ramp.
+//!   in that sample's own frame, then Eq. 9's ramp. Samples do not blend across cube faces.
+//! - Limitation: the hemisphere facing away from `o` always reads as visible, which is exact
+//!   only outside the bounding sphere; a receiver inside it (an object on a large floor) gets
+//!   unblocked light from that half.
 
 use super::plane::{from_plane, from_texels, square_edge, to_plane};
 use super::vdt::{Ramp, dequantise, lookup, quantise, signed_distances, visible_fraction};
@@ -142,28 +145,39 @@ impl Ovdf {
         if distance >= self.radius * OUTER || self.radius <= 0.0 {
             return 1.0;
         }
-        // Culling: the light's cone (its square's circumscribed cone) misses the bounding sphere.
-        let towards = -rel / distance.max(1e-12);
+        // At the centre itself any axis will do (the inner shell is read there).
+        let towards = if distance > 1e-9 * self.radius { -rel / distance } else { -DVec3::Y };
+        // Culling: the light's circumscribed cone (half-angle ≈ its half-diagonal, √(Ω/2))
+        // misses the bounding sphere.
         if distance > self.radius {
             let sphere = (self.radius / distance).asin();
-            let light = (omega / std::f64::consts::PI).sqrt().min(std::f64::consts::PI);
+            let light = (omega / 2.0).sqrt().min(std::f64::consts::PI);
             if c.dot(towards).clamp(-1.0, 1.0).acos() > sphere + light {
                 return 1.0;
             }
         }
-        let p = to_plane(frame_towards(towards).transpose() * c);
         let s = shell_coordinate(self.radius, distance);
-        let (face, u, v) = dir_to_face_uv(if distance > 1e-12 { rel } else { DVec3::Y });
+        let (face, u, v) = dir_to_face_uv(-towards);
         let n = self.face_size;
         let coord = |t: f64| (t * n as f64 - 0.5).clamp(0.0, (n - 1) as f64);
         let (fx, fy) = (coord(u), coord(v));
         let (s0, x0, y0) = (s.floor() as usize, fx.floor() as usize, fy.floor() as usize);
         let (s1, x1, y1) = ((s0 + 1).min(SHELLS - 1), (x0 + 1).min(n - 1), (y0 + 1).min(n - 1));
         let (ws, wx, wy) = (s - s0 as f64, fx - x0 as f64, fy - y0 as f64);
+        // Each sample's table is in its own frame (axis towards the centre from that sample):
+        // the light is read there, so neighbouring samples agree whatever their frames' turn.
+        let plane_point = |tx: usize, ty: usize| {
+            let outward = face_uv_to_dir(face, (tx as f64 + 0.5) / n as f64, (ty as f64 + 0.5) / n as f64);
+            to_plane(frame_towards(-outward).transpose() * c)
+        };
         let mut d = 0.0;
-        for (shell, a) in [(s0, 1.0 - ws), (s1, ws)] {
-            for (ty, b) in [(y0, 1.0 - wy), (y1, wy)] {
-                for (tx, w) in [(x0, 1.0 - wx), (x1, wx)] {
+        for (ty, b) in [(y0, 1.0 - wy), (y1, wy)] {
+            for (tx, w) in [(x0, 1.0 - wx), (x1, wx)] {
+                if b * w <= 0.0 {
+                    continue;
+                }
+                let p = plane_point(tx, ty);
+                for (shell, a) in [(s0, 1.0 - ws), (s1, ws)] {
                     let weight = a * b * w;
                     if weight > 0.0 {
                         let table = self.table(shell, face, tx, ty);
@@ -248,6 +262,57 @@ mod tests {
             }
         }
         visible / total
+    }
+
+    /// Ray-traced visible fraction of the light's plane square (as the tables see it) from `x`.
+    fn traced_fraction(scene: &RayScene, x: DVec3, c: DVec3, omega: f64, centre: DVec3) -> f64 {
+        let frame = frame_towards((centre - x).normalize());
+        let pc = to_plane(frame.transpose() * c);
+        let edge = square_edge(omega);
+        let steps = 40;
+        let (mut visible, mut total) = (0.0f64, 0.0f64);
+        for i in 0..steps {
+            for j in 0..steps {
+                let p = pc
+                    + DVec2::new((i as f64 + 0.5) / steps as f64 - 0.5, (j as f64 + 0.5) / steps as f64 - 0.5) * edge;
+                if p.length_squared() > 2.0 {
+                    continue;
+                }
+                let d = frame * from_plane(p);
+                total += 1.0;
+                if !scene.occluded(x.as_vec3().into(), d.as_vec3().into(), f32::INFINITY) {
+                    visible += 1.0;
+                }
+            }
+        }
+        visible / total.max(1.0)
+    }
+
+    /// A box turned about Y, receivers under it (around the occluder's -Y axis, where the
+    /// sample frames turn fastest): lookups match ray-traced fractions (notes test 12).
+    #[test]
+    fn a_box_occluder_matches_ray_traced_visibility_under_it() {
+        let block = mesh::cuboid([1.0, 0.4, 0.6], 2, false).transformed(glam::DMat4::from_rotation_y(0.5));
+        let meshes = MeshSet { meshes: vec![block] };
+        let scene = RayScene::build(&meshes);
+        let bounds = bounding_sphere(&meshes);
+        let field = Ovdf::compute(&scene, bounds, 8, 32, &CancelToken::default(), &|_| {}).unwrap();
+        let mut rng = test_rng(14);
+        let (mut sum, mut count) = (0.0, 0);
+        for _ in 0..200 {
+            let x = DVec3::new(rng.random_range(-0.4..0.4), -rng.random_range(0.5..1.2), rng.random_range(-0.4..0.4));
+            let c = (DVec3::Y + crate::sampling::random_unit_vector(&mut rng) * rng.random_range(0.0..0.8)).normalize();
+            let omega = rng.random_range(0.02..0.2);
+            let got = field.visible_fraction(x, c, omega, Ramp::StraightEdge);
+            sum += (got - traced_fraction(&scene, x, c, omega, bounds.0)).abs();
+            count += 1;
+        }
+        let mean = sum / count as f64;
+        println!("box occluder: mean |V̄ − traced| {mean:.3}");
+        // Measured 0.026; reading every sample in the receiver's frame instead gave 0.041.
+        assert!(mean < 0.035, "mean error {mean}");
+        // The centre of the occluder is a valid (if odd) receiver: no NaN.
+        assert!(field.visible_fraction(bounds.0, DVec3::Y, 0.1, Ramp::StraightEdge).is_finite());
     }
 
     #[test]

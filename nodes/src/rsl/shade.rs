@@ -103,7 +103,7 @@ pub fn light_visibility(
             .collect();
         values.extend(rows);
     }
-    Ok(LightVisibility { lights: k, vertices: values.len() / k.max(1), values })
+    Ok(LightVisibility { lights: k, vertices: objects.iter().map(|o| o.svdf.vertices).sum(), values })
 }
 
 /// One light's contribution `I Ω ρ̄ V̄` at a vertex with shading frame `frame`, seen from the

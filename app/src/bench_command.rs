@@ -46,6 +46,16 @@ pub struct BenchArgs {
     pub only: Vec<String>,
 }
 
+/// The view of the synthetic meshes: a unit object at the origin from 3 m.
+fn bench_view() -> CameraView {
+    CameraView::from_project(&lightloom_nodes::project::Camera {
+        name: "bench".into(),
+        position: [0.0, 0.5, 3.0],
+        target: [0.0; 3],
+        fov_y_deg: 45.0,
+    })
+}
+
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     v[v.len() / 2]
@@ -269,13 +279,7 @@ fn rsl_mode_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
         surfaces: Surfaces::Rsl(surfaces),
         medium: MediumFrame::new(Vec::new(), &materials, None),
     };
-    let camera = lightloom_nodes::project::Camera {
-        name: "bench".into(),
-        position: [0.0, 0.5, 3.0],
-        target: [0.0; 3],
-        fov_y_deg: 45.0,
-    };
-    let view = CameraView::from_project(&camera);
+    let view = bench_view();
     let mut renderer = ViewportRenderer::new(gpu);
     timed_frame(gpu, &mut renderer, &frame, &view, (1280, 720))?;
     let times: Vec<f64> = (0..args.frames.max(1))
@@ -291,7 +295,7 @@ fn rsl_mode_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
 }
 
 /// Edits on the square-light sample (`projects/samples/square_lights.ron`, built in): what each
-/// recomputes on the CPU and the frame after it. The anchor: a BRDF edit within 100 ms
+/// recomputes on the CPU and the frame after it, beside the targets: a BRDF edit within 100 ms
 /// of CPU-side work; moves and environment turns without precomputation.
 fn square_light_sample_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../projects/samples/square_lights.ron");
@@ -459,13 +463,7 @@ fn synthetic_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
     println!("\nsynthetic sphere: {n} vertices, 1280x720");
     println!("{:<24} {:>22} {:>14}", "mode", "lighting change ms", "frame ms");
     let mut rng = rand::rngs::SmallRng::seed_from_u64(7);
-    let camera = lightloom_nodes::project::Camera {
-        name: "bench".into(),
-        position: [0.0, 0.5, 3.0],
-        target: [0.0; 3],
-        fov_y_deg: 45.0,
-    };
-    let view = CameraView::from_project(&camera);
+    let view = bench_view();
     let environment = lightloom_nodes::cubemap::CubeMap::from_fn(64, 1, |d| [1.0 + d.y, 0.8, 0.5 + d.x.abs()]);
     let light = lightloom_nodes::sh::project_samples(8, environment.samples());
     let keyed = |key: u128, value: StageValue| Keyed { key, value: Arc::new(value) };

@@ -441,41 +441,34 @@ fn rsl_self_visibility(ctx: &StageContext) -> Result<StageValue, StageError> {
     let ParamValue::Objects(objects) = ctx.value("objects")? else {
         return Err(StageError::Internal("objects".into()));
     };
-    let tessellation = ctx.int("tessellation")? as usize;
     let size = crate::rsl::vdt::VDT_SIZE;
-    let mut out = Vec::with_capacity(objects.len());
-    for (done, object) in objects.iter().enumerate() {
-        let bytes = object_shape_key(ctx, object, &format!("svdf v1 {tessellation} {size}"))?;
-        let svdf = ctx.memo(xxhash_rust::xxh3::xxh3_128(&bytes), || {
-            let meshes =
-                MeshSet { meshes: object.object_meshes(tessellation, ctx.project_dir()).map_err(StageError::Failed)? };
-            let scene = RayScene::build(&meshes);
-            let receivers = Receivers::from_meshes(&meshes);
-            check_ray_budget(receivers.len(), size * size, "tessellation")?;
-            let bytes = (receivers.len() * size * size) as u64;
-            if bytes > crate::limits::MAX_RSL_TABLE_BYTES {
-                return Err(StageError::Failed(format!(
-                    "object `{}`: its self-visibility tables would take {} MiB ({} vertices × {} KiB); the limit is {} \
-                     MiB: lower tessellation",
-                    object.name,
-                    bytes >> 20,
-                    receivers.len(),
-                    size * size / 1024,
-                    crate::limits::MAX_RSL_TABLE_BYTES >> 20
-                )));
-            }
-            let base = done as f64 / objects.len() as f64;
-            crate::rsl::vdt::Svdf::compute(&scene, &receivers, size, ctx.cancel_token(), &|f| {
-                ctx.progress(base + f / objects.len() as f64)
-            })
-        })?;
-        out.push(crate::rsl::vdt::ObjectSvdf {
+    let tables = per_object_memo(ctx, objects, &format!("svdf v1 {size}"), |object, meshes, progress| {
+        let scene = RayScene::build(meshes);
+        let receivers = Receivers::from_meshes(meshes);
+        check_ray_budget(receivers.len(), size * size, "tessellation")?;
+        let bytes = (receivers.len() * size * size) as u64;
+        if bytes > crate::limits::MAX_RSL_TABLE_BYTES {
+            return Err(StageError::Failed(format!(
+                "object `{}`: its self-visibility tables would take {} MiB ({} vertices × {} KiB); the limit is {} \
+                 MiB: lower tessellation",
+                object.name,
+                bytes >> 20,
+                receivers.len(),
+                size * size / 1024,
+                crate::limits::MAX_RSL_TABLE_BYTES >> 20
+            )));
+        }
+        crate::rsl::vdt::Svdf::compute(&scene, &receivers, size, ctx.cancel_token(), progress)
+    })?;
+    let out: Vec<_> = objects
+        .iter()
+        .zip(tables)
+        .map(|(object, svdf)| crate::rsl::vdt::ObjectSvdf {
             name: object.name.clone(),
             world_from_object: object.transform().to_cols_array(),
-            svdf: (*svdf).clone(),
-        });
-        ctx.progress((done + 1) as f64 / objects.len() as f64);
-    }
+            svdf,
+        })
+        .collect();
     Ok(StageValue::new(out))
 }
 
@@ -485,7 +478,6 @@ fn rsl_occluders(ctx: &StageContext) -> Result<StageValue, StageError> {
     let ParamValue::Objects(objects) = ctx.value("objects")? else {
         return Err(StageError::Internal("objects".into()));
     };
-    let tessellation = ctx.int("tessellation")? as usize;
     let face: usize =
         ctx.choice("occluder_resolution")?.parse().map_err(|_| StageError::Internal("resolution".into()))?;
     let table = crate::rsl::vdt::VDT_SIZE;
@@ -493,32 +485,47 @@ fn rsl_occluders(ctx: &StageContext) -> Result<StageValue, StageError> {
     if objects.len() < 2 {
         return Ok(StageValue::new(Vec::<crate::rsl::ovdf::ObjectOvdf>::new()));
     }
-    let mut out = Vec::with_capacity(objects.len());
-    for (done, object) in objects.iter().enumerate() {
-        let bytes = object_shape_key(ctx, object, &format!("ovdf v1 {tessellation} {face} {table}"))?;
-        let ovdf = ctx.memo(xxhash_rust::xxh3::xxh3_128(&bytes), || {
-            let meshes =
-                MeshSet { meshes: object.object_meshes(tessellation, ctx.project_dir()).map_err(StageError::Failed)? };
-            let scene = RayScene::build(&meshes);
-            check_ray_budget(crate::rsl::ovdf::SHELLS * 6 * face * face, table * table, "occluder_resolution")?;
-            let base = done as f64 / objects.len() as f64;
-            crate::rsl::ovdf::Ovdf::compute(
-                &scene,
-                crate::rsl::ovdf::bounding_sphere(&meshes),
-                face,
-                table,
-                ctx.cancel_token(),
-                &|f| ctx.progress(base + f / objects.len() as f64),
-            )
-        })?;
-        out.push(crate::rsl::ovdf::ObjectOvdf {
+    let fields = per_object_memo(ctx, objects, &format!("ovdf v1 {face} {table}"), |_, meshes, progress| {
+        check_ray_budget(crate::rsl::ovdf::SHELLS * 6 * face * face, table * table, "occluder_resolution")?;
+        let bounds = crate::rsl::ovdf::bounding_sphere(meshes);
+        crate::rsl::ovdf::Ovdf::compute(&RayScene::build(meshes), bounds, face, table, ctx.cancel_token(), progress)
+    })?;
+    let out: Vec<_> = objects
+        .iter()
+        .zip(fields)
+        .map(|(object, ovdf)| crate::rsl::ovdf::ObjectOvdf {
             name: object.name.clone(),
             world_from_object: object.transform().to_cols_array(),
-            ovdf: (*ovdf).clone(),
-        });
+            ovdf,
+        })
+        .collect();
+    Ok(StageValue::new(out))
+}
+
+/// Per object, a value computed from its object-space meshes and memoised on its shape, the
+/// tessellation and `suffix` (what else the value depends on), so moving, turning or
+/// recolouring an object recomputes nothing (the report counts the memo hits). Progress spans
+/// the objects.
+fn per_object_memo<T: crate::engine::Persisted + Clone>(
+    ctx: &StageContext,
+    objects: &[SceneObject],
+    suffix: &str,
+    compute: impl Fn(&SceneObject, &MeshSet, &(dyn Fn(f64) + Sync)) -> Result<T, StageError>,
+) -> Result<Vec<T>, StageError> {
+    let tessellation = ctx.int("tessellation")? as usize;
+    let mut out = Vec::with_capacity(objects.len());
+    for (done, object) in objects.iter().enumerate() {
+        let bytes = object_shape_key(ctx, object, &format!("{suffix} {tessellation}"))?;
+        let value = ctx.memo(xxhash_rust::xxh3::xxh3_128(&bytes), || {
+            let meshes =
+                MeshSet { meshes: object.object_meshes(tessellation, ctx.project_dir()).map_err(StageError::Failed)? };
+            let base = done as f64 / objects.len() as f64;
+            compute(object, &meshes, &|f| ctx.progress(base + f / objects.len() as f64))
+        })?;
+        out.push((*value).clone());
         ctx.progress((done + 1) as f64 / objects.len() as f64);
     }
-    Ok(StageValue::new(out))
+    Ok(out)
 }
 
 /// One object's self-shadowing SH transport, memoised under the hash of `key_bytes`

@@ -17,12 +17,12 @@
 //!   only outside the bounding sphere; a receiver inside it (an object on a large floor) gets
 //!   unblocked light from that half.
 
-use super::plane::{from_plane, from_texels, square_edge, to_plane};
-use super::vdt::{Ramp, dequantise, lookup, quantise, signed_distances, visible_fraction};
+use super::plane::{square_edge, to_plane};
+use super::vdt::{Ramp, dequantise, lookup, quantise, signed_distances, texel_directions, visible_fraction};
 use crate::cubemap::{FACES, dir_to_face_uv, face_uv_to_dir};
 use crate::engine::{CancelToken, StageError};
 use crate::raycast::RayScene;
-use glam::{DMat3, DVec2, DVec3};
+use glam::{DMat3, DVec3};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
@@ -89,15 +89,7 @@ impl Ovdf {
         cancel: &CancelToken,
         progress: &(dyn Fn(f64) + Sync),
     ) -> Result<Self, StageError> {
-        let plane_directions: Vec<Option<DVec3>> = (0..table_size * table_size)
-            .map(|i| {
-                let p = DVec2::new(
-                    from_texels((i % table_size) as f64 + 0.5, table_size),
-                    from_texels((i / table_size) as f64 + 0.5, table_size),
-                );
-                (p.length_squared() < 1.0).then(|| from_plane(p))
-            })
-            .collect();
+        let plane_directions = texel_directions(table_size);
         let per_shell = FACES * face_size * face_size;
         let count = SHELLS * per_shell;
         let done = std::sync::atomic::AtomicUsize::new(0);
@@ -228,44 +220,17 @@ pub fn bounding_sphere(meshes: &crate::mesh::MeshSet) -> (DVec3, f64) {
 
 #[cfg(test)]
 mod tests {
+    use super::super::plane::from_plane;
     use super::*;
     use crate::mesh::{self, MeshSet};
     use crate::sampling::test_rng;
+    use glam::DVec2;
     use rand::Rng;
 
-    /// Exact covered fraction of a small cap of directions around `c` (half-angle `a`) by a
-    /// sphere of radius `radius` at `centre` seen from `x`, by quadrature over the cap.
-    fn exact_sphere_fraction(x: DVec3, c: DVec3, omega: f64, centre: DVec3, radius: f64) -> f64 {
-        // The light's square, as the table sees it: sample the square in the light's plane.
-        let frame = frame_towards((centre - x).normalize());
-        let pc = to_plane(frame.transpose() * c);
-        let edge = square_edge(omega);
-        let steps = 60;
-        let (mut visible, mut total) = (0.0, 0.0);
-        for i in 0..steps {
-            for j in 0..steps {
-                let p = pc
-                    + DVec2::new((i as f64 + 0.5) / steps as f64 - 0.5, (j as f64 + 0.5) / steps as f64 - 0.5) * edge;
-                if p.length_squared() > 2.0 {
-                    continue;
-                }
-                let d = frame * from_plane(p);
-                // Ray-sphere test.
-                let oc = x - centre;
-                let b = oc.dot(d);
-                let disc = b * b - (oc.length_squared() - radius * radius);
-                let hit = disc > 0.0 && -b - disc.sqrt() > 0.0;
-                total += 1.0;
-                if !hit {
-                    visible += 1.0;
-                }
-            }
-        }
-        visible / total
-    }
-
-    /// Ray-traced visible fraction of the light's plane square (as the tables see it) from `x`.
-    fn traced_fraction(scene: &RayScene, x: DVec3, c: DVec3, omega: f64, centre: DVec3) -> f64 {
+    /// The visible fraction of the light's plane square, as the tables see it, from `x` (frame
+    /// axis towards `centre`), by 40×40 samples of the square; `blocked` says whether a
+    /// direction is occluded.
+    fn square_fraction(x: DVec3, c: DVec3, omega: f64, centre: DVec3, blocked: impl Fn(DVec3) -> bool) -> f64 {
         let frame = frame_towards((centre - x).normalize());
         let pc = to_plane(frame.transpose() * c);
         let edge = square_edge(omega);
@@ -278,14 +243,28 @@ mod tests {
                 if p.length_squared() > 2.0 {
                     continue;
                 }
-                let d = frame * from_plane(p);
                 total += 1.0;
-                if !scene.occluded(x.as_vec3().into(), d.as_vec3().into(), f32::INFINITY) {
+                if !blocked(frame * from_plane(p)) {
                     visible += 1.0;
                 }
             }
         }
         visible / total.max(1.0)
+    }
+
+    /// Exact: a ray-sphere test for a sphere of `radius` at `centre`.
+    fn exact_sphere_fraction(x: DVec3, c: DVec3, omega: f64, centre: DVec3, radius: f64) -> f64 {
+        square_fraction(x, c, omega, centre, |d| {
+            let oc = x - centre;
+            let b = oc.dot(d);
+            let disc = b * b - (oc.length_squared() - radius * radius);
+            disc > 0.0 && -b - disc.sqrt() > 0.0
+        })
+    }
+
+    /// Ray-traced against `scene`.
+    fn traced_fraction(scene: &RayScene, x: DVec3, c: DVec3, omega: f64, centre: DVec3) -> f64 {
+        square_fraction(x, c, omega, centre, |d| scene.occluded(x.as_vec3().into(), d.as_vec3().into(), f32::INFINITY))
     }
 
     /// A box turned about Y, receivers under it (around the occluder's -Y axis, where the

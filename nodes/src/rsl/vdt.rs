@@ -177,6 +177,17 @@ pub fn lookup(values: impl Fn(usize) -> f64, n: usize, p: DVec2, outside: bool) 
     inside + beyond
 }
 
+/// The local direction through each texel centre of an `n × n` table over the plane, or `None`
+/// outside the unit disc (below the horizon); what the tables are ray-traced along.
+pub fn texel_directions(n: usize) -> Vec<Option<DVec3>> {
+    (0..n * n)
+        .map(|i| {
+            let p = DVec2::new(from_texels((i % n) as f64 + 0.5, n), from_texels((i / n) as f64 + 0.5, n));
+            (p.length_squared() < 1.0).then(|| from_plane(p))
+        })
+        .collect()
+}
+
 /// Quantises a signed distance to 8-bit fixed point over `±D_MAX`.
 pub(super) fn quantise(d: f64) -> i8 {
     (d / D_MAX * 127.0).round().clamp(-127.0, 127.0) as i8
@@ -209,13 +220,7 @@ impl Svdf {
         cancel: &CancelToken,
         progress: &(dyn Fn(f64) + Sync),
     ) -> Result<Self, StageError> {
-        let directions: Vec<Option<DVec3>> = (0..size * size)
-            .map(|i| {
-                let p =
-                    DVec2::new(from_texels((i % size) as f64 + 0.5, size), from_texels((i / size) as f64 + 0.5, size));
-                (p.length_squared() < 1.0).then(|| from_plane(p))
-            })
-            .collect();
+        let directions = texel_directions(size);
         let done = std::sync::atomic::AtomicUsize::new(0);
         let count = receivers.len();
         let tables: Vec<Vec<i8>> = (0..count)

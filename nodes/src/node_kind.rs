@@ -292,7 +292,7 @@ impl PortType {
             PortType::Medium => &["medium", "f_tables", "g_tables"],
             PortType::Lights => &["lights"],
             PortType::Blockers => &["spheres"],
-            PortType::SquareLights => &["square_lights", "world_lights"],
+            PortType::SquareLights => &["square_lights", "turned_lights", "world_lights"],
         }
     }
 }

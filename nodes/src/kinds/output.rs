@@ -232,7 +232,7 @@ pub fn spec() -> NodeKindSpec {
                 inputs: &[
                     ("scene", "rsl_self_visibility"),
                     ("scene", "rsl_occluders"),
-                    ("square_lights", "world_lights"),
+                    ("square_lights", "turned_lights"),
                 ],
                 persist: None,
                 compute: rsl_visibility,
@@ -348,7 +348,7 @@ fn rsl_visibility(ctx: &StageContext) -> Result<StageValue, StageError> {
     let objects = ctx.required_input::<Vec<crate::rsl::vdt::ObjectSvdf>>("scene", "rsl_self_visibility")?;
     let occluders = ctx.required_input::<Vec<crate::rsl::ovdf::ObjectOvdf>>("scene", "rsl_occluders")?;
     // Without square lights there is nothing to see (drawing the mode then says what to link).
-    let Some(lights) = ctx.input::<crate::rsl::WorldLights>("square_lights", "world_lights")? else {
+    let Some(lights) = ctx.input::<crate::rsl::WorldLights>("square_lights", "turned_lights")? else {
         return Ok(StageValue::new(crate::rsl::shade::LightVisibility::default()));
     };
     let vertices: usize = objects.iter().map(|o| o.svdf.vertices).sum();

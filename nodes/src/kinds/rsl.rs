@@ -71,11 +71,20 @@ pub fn spec() -> NodeKindSpec {
                 compute: rsl_square_lights,
             },
             StageSpec {
-                name: "world_lights",
+                name: "turned_lights",
                 version: 1,
                 params: &[],
                 stages: &["square_lights"],
-                inputs: &[("environment", "rotation"), ("environment", "radiance_scale")],
+                inputs: &[("environment", "rotation")],
+                persist: None,
+                compute: turned_lights,
+            },
+            StageSpec {
+                name: "world_lights",
+                version: 2,
+                params: &[],
+                stages: &["turned_lights"],
+                inputs: &[("environment", "radiance_scale")],
                 persist: None,
                 compute: world_lights,
             },
@@ -125,13 +134,27 @@ fn rsl_square_lights(ctx: &StageContext) -> Result<StageValue, StageError> {
     Ok(StageValue::new(sequence.cut(cube, ctx.int("light_count")? as usize)))
 }
 
-/// The lights in the world frame: the environment's rotation turns their centres, exposure
-/// and tint scale their intensities. O(K): no new decomposition.
-fn world_lights(ctx: &StageContext) -> Result<StageValue, StageError> {
+/// The lights turned into the world frame by the environment's rotation, before exposure and
+/// tint: their directions and sizes, which is all visibility reads (so exposure reruns no
+/// visibility). O(K).
+fn turned_lights(ctx: &StageContext) -> Result<StageValue, StageError> {
     let lights = ctx.stage::<crate::rsl::SquareLights>("square_lights")?;
     let rotation = ctx.required_input::<glam::DMat3>("environment", "rotation")?;
+    Ok(StageValue::new(crate::rsl::WorldLights {
+        lights: lights.transformed([1.0; 3], glam::DQuat::from_mat3(rotation)),
+    }))
+}
+
+/// The lights in the world frame with exposure and tint scaling their intensities: what
+/// shading and export read. O(K): no new decomposition.
+fn world_lights(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let turned = ctx.stage::<crate::rsl::WorldLights>("turned_lights")?;
     let scale = ctx.required_input::<crate::kinds::environment::RadianceScale>("environment", "radiance_scale")?;
     Ok(StageValue::new(crate::rsl::WorldLights {
-        lights: lights.transformed(scale.0, glam::DQuat::from_mat3(rotation)),
+        lights: turned
+            .lights
+            .iter()
+            .map(|l| crate::rsl::SquareLight { intensity: [0, 1, 2].map(|c| l.intensity[c] * scale.0[c]), ..l.clone() })
+            .collect(),
     }))
 }

@@ -688,21 +688,38 @@ fn planned_kinds_recompute_exactly_their_stages_too() {
             vec!["blockers.spheres"],
         ),
         ("blockers", "sh_bands", Int(6), vec!["blockers.spheres"]),
-        // A new K is a cut of the same merge sequence.
         // A new K is a cut of the same merge sequence (then the O(K) world lights and the
         // per-vertex visibility of the new lights).
-        ("rsl", "light_count", Int(10), vec!["rsl.square_lights", "rsl.world_lights", "output.rsl_visibility"]),
+        (
+            "rsl",
+            "light_count",
+            Int(10),
+            vec!["rsl.square_lights", "rsl.turned_lights", "rsl.world_lights", "output.rsl_visibility"],
+        ),
         (
             "rsl",
             "merge_rule",
             Choice("error_increase".into()),
-            vec!["rsl.merge_sequence", "rsl.square_lights", "rsl.world_lights", "output.rsl_visibility"],
+            vec![
+                "rsl.merge_sequence",
+                "rsl.square_lights",
+                "rsl.turned_lights",
+                "rsl.world_lights",
+                "output.rsl_visibility",
+            ],
         ),
         (
             "rsl",
             "cube_resolution",
             Choice("16".into()),
-            vec!["rsl.cube", "rsl.merge_sequence", "rsl.square_lights", "rsl.world_lights", "output.rsl_visibility"],
+            vec![
+                "rsl.cube",
+                "rsl.merge_sequence",
+                "rsl.square_lights",
+                "rsl.turned_lights",
+                "rsl.world_lights",
+                "output.rsl_visibility",
+            ],
         ),
         ("area", "size", Float(2.0), vec!["area.lights"]),
         ("area", "intensity", Float(3.0), vec!["area.lights"]),
@@ -713,9 +730,9 @@ fn planned_kinds_recompute_exactly_their_stages_too() {
             Float(2.0),
             [
                 // The square lights are fitted before exposure: only the O(K) world lights
-                // (and the visibility keyed on them) rerun.
+                // rerun; visibility reads the turned lights, which exposure leaves alone.
                 SKY_AFTER_SOURCE,
-                &["sky.radiance_scale", "rsl.world_lights", "output.rsl_visibility"],
+                &["sky.radiance_scale", "rsl.world_lights"],
                 &["output.incident_sh", "output.local_products", "output.texel_irradiance"],
             ]
             .concat(),
@@ -729,6 +746,7 @@ fn planned_kinds_recompute_exactly_their_stages_too() {
                 "sky.rotated_radiance",
                 "sky.sh",
                 "sky.haar",
+                "rsl.turned_lights",
                 "rsl.world_lights",
                 "output.rsl_visibility",
                 "output.incident_sh",

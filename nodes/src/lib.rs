@@ -33,6 +33,7 @@ pub mod sampling;
 pub mod sat;
 pub mod scene_object;
 pub mod sh;
+pub mod sh_exponential;
 pub mod single_scattering;
 pub mod sky;
 pub mod transport;

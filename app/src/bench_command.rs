@@ -278,6 +278,7 @@ fn rsl_mode_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
         background: Background { radiance: None, visible: false },
         surfaces: Surfaces::Rsl(surfaces),
         medium: MediumFrame::new(Vec::new(), &materials, None),
+        blockers: None,
     };
     let view = bench_view();
     let mut renderer = ViewportRenderer::new(gpu);
@@ -491,6 +492,7 @@ fn synthetic_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
         background: Background { radiance: Some(keyed(4, StageValue::new(environment.clone()))), visible: true },
         surfaces,
         medium: MediumFrame::new(Vec::new(), &materials, None),
+        blockers: None,
     };
     let mut renderer = ViewportRenderer::new(gpu);
     let frame_times = |renderer: &mut ViewportRenderer, frame: &FrameInputs| -> Result<f64> {

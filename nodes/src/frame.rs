@@ -52,6 +52,8 @@ pub struct FrameInputs {
     pub background: Background,
     pub surfaces: Surfaces,
     pub medium: MediumFrame,
+    /// The blocker spheres linked to the Output, when evaluated (the reference traces them).
+    pub blockers: Option<crate::kinds::blockers::BlockerSet>,
 }
 
 /// The scene's meshes and which material each uses.
@@ -429,6 +431,7 @@ impl FrameInputs {
             brdfs: (0..meshes.meshes.len()).map(|i| crate::brdf::Brdf::from_material(self.mesh_material(i))).collect(),
             environment,
             background: self.settings.background,
+            blockers: self.blockers.as_ref().map_or(&[], |b| b.blockers.as_slice()),
         };
         crate::reference::render(&rs, camera, size, self.settings.reference_samples, seed, cancel, progress)
             .map_err(|e| e.to_string())

@@ -124,6 +124,8 @@ pub struct ReferenceScene<'a> {
     pub environment: &'a CubeMap,
     /// Draw the environment where camera rays miss.
     pub background: bool,
+    /// Spheres that block light but are not seen (blocker sphere sets stand in for geometry).
+    pub blockers: &'a [crate::sh_exponential::Blocker],
 }
 
 /// A linear HDR image, rows top to bottom, with the fraction of each pixel's samples that
@@ -178,6 +180,17 @@ struct Hit {
     base_color: DVec3,
 }
 
+/// Whether the ray `origin + t dir`, `t > 0`, meets the sphere (an origin inside it is blocked).
+fn ray_hits_sphere(origin: DVec3, dir: DVec3, sphere: &crate::sh_exponential::Blocker) -> bool {
+    let to = DVec3::from(sphere.centre) - origin;
+    let r2 = sphere.radius * sphere.radius;
+    if to.length_squared() <= r2 {
+        return true;
+    }
+    let along = to.dot(dir);
+    along > 0.0 && to.length_squared() - along * along <= r2
+}
+
 fn shade_point(rs: &ReferenceScene, table: &TriangleTable, origin: DVec3, dir: DVec3) -> Option<Hit> {
     let (t, triangle) = rs.scene.closest(origin.as_vec3().into(), dir.as_vec3().into())?;
     let (mi, ti) = table.locate(triangle);
@@ -218,7 +231,10 @@ fn direct_lighting(
     let mut brdf = rs.brdfs[hit.mesh];
     brdf.diffuse *= hit.base_color;
     let origin = rs.scene.leave_surface(hit.position, hit.geometric);
-    let visible = |wi_world: DVec3| !rs.scene.occluded(origin, Vec3A::from(wi_world.as_vec3()), f32::INFINITY);
+    let visible = |wi_world: DVec3| {
+        !rs.blockers.iter().any(|b| ray_hits_sphere(hit.position, wi_world, b))
+            && !rs.scene.occluded(origin, Vec3A::from(wi_world.as_vec3()), f32::INFINITY)
+    };
     let mut total = DVec3::ZERO;
     // Environment sample.
     let wi_world = env.sample([rng.random(), rng.random(), rng.random()]);
@@ -416,7 +432,14 @@ mod tests {
 
     /// Every mesh shaded by `brdf`, no background.
     fn lit<'a>(scene: &'a RayScene, meshes: &'a MeshSet, environment: &'a CubeMap, brdf: Brdf) -> ReferenceScene<'a> {
-        ReferenceScene { scene, meshes, brdfs: vec![brdf; meshes.meshes.len()], environment, background: false }
+        ReferenceScene {
+            scene,
+            meshes,
+            brdfs: vec![brdf; meshes.meshes.len()],
+            environment,
+            background: false,
+            blockers: &[],
+        }
     }
 
     #[test]
@@ -507,6 +530,28 @@ mod tests {
         // A narrow view of the floor point under the sphere, seen from the side.
         let camera =
             PinholeCamera { position: DVec3::new(3.0, 0.8, 0.0), target: DVec3::new(0.0, 0.0, 0.0), fov_y_deg: 2.0 };
+        let image = render(&rs, &camera, (4, 4), 4096, 2, &CancelToken::default(), &|_| {}).unwrap();
+        let value = image.pixels.iter().map(|p| p[0] as f64).sum::<f64>() / 16.0;
+        let expected = 1.0 - (r / h).powi(2);
+        assert!((value - expected).abs() < 0.01, "{value} vs {expected}");
+    }
+
+    /// The same closed form with the sphere as a blocker sphere (blocks light, is not seen):
+    /// the camera sees the floor point through it from above.
+    #[test]
+    fn point_under_a_blocker_sphere_matches_the_analytic_shadowed_irradiance() {
+        let (r, h) = (0.5, 2.0);
+        let meshes = MeshSet { meshes: vec![mesh::plane(40.0, 1)] };
+        let scene = RayScene::build(&meshes);
+        let environment = cube_from(|_| [1.0; 3]);
+        let material = Material { albedo: [1.0; 3], ..Default::default() };
+        let blockers = [crate::sh_exponential::Blocker { centre: [0.0, h, 0.0], radius: r }];
+        let rs = ReferenceScene {
+            blockers: &blockers,
+            ..lit(&scene, &meshes, &environment, Brdf::from_material(&material))
+        };
+        let camera =
+            PinholeCamera { position: DVec3::new(0.01, 4.0, 0.0), target: DVec3::new(0.0, 0.0, 0.0), fov_y_deg: 2.0 };
         let image = render(&rs, &camera, (4, 4), 4096, 2, &CancelToken::default(), &|_| {}).unwrap();
         let value = image.pixels.iter().map(|p| p[0] as f64).sum::<f64>() / 16.0;
         let expected = 1.0 - (r / h).powi(2);

@@ -453,5 +453,91 @@ pub fn move_blocker(
     touched
 }
 
+/// `count` log vectors, each the sum of 1–40 random spheres' logs (distance 1.5–6, radius
+/// 0.2–1, upper hemisphere): what [`OlTable::fit`] is trained on.
+pub fn training_logs(table: &LogCapTable, count: usize, seed: u64) -> Vec<Vec<f64>> {
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand::rngs::SmallRng::seed_from_u64(seed);
+    let bands = table.bands;
+    let basis = ShBasis::new(bands);
+    let (mut y, mut zonal) = (vec![0.0; bands * bands], vec![0.0; bands]);
+    (0..count)
+        .map(|_| {
+            let mut f = vec![0.0; bands * bands];
+            for _ in 0..rng.random_range(1..=40) {
+                let d: f64 = rng.random_range(1.5..6.0);
+                let r: f64 = rng.random_range(0.2..1.0);
+                let z: f64 = rng.random_range(0.05..1.0);
+                let phi: f64 = rng.random_range(0.0..2.0 * PI);
+                let dir = DVec3::new((1.0 - z * z).sqrt() * phi.cos(), (1.0 - z * z).sqrt() * phi.sin(), z);
+                table.lookup((r / d).asin(), &mut zonal);
+                add_rotated_zonal(&basis, &zonal, dir, 1.0, &mut y, &mut f);
+            }
+            f
+        })
+        .collect()
+}
+
+/// Per receiver, a transport's SH vectors (`bands_t²` each, receiver-major) times the
+/// blockers' visibility `g = exp_*(strength · Σ log g_i)` at the blockers' order, by the
+/// truncated product `v * g` (Eq. 5.8). Receivers no sphere reaches keep their vectors.
+pub struct BlockedProduct {
+    shexp: ShExp,
+    gaunt: GauntTable,
+    basis: ShBasis,
+    bands_t: usize,
+}
+
+impl BlockedProduct {
+    pub fn new(shexp: ShExp, bands_t: usize) -> Self {
+        let bands_b = shexp.bands();
+        Self { gaunt: GauntTable::new(bands_t, bands_b, bands_t), basis: ShBasis::new(bands_b), shexp, bands_t }
+    }
+
+    /// The visibility of `blockers` at `receiver`, `None` where none reaches it.
+    pub fn visibility(
+        &self,
+        receiver: DVec3,
+        blockers: &[Blocker],
+        table: &LogCapTable,
+        method: ExpMethod,
+        strength: f64,
+    ) -> Option<Vec<f64>> {
+        let mut scratch = LogScratch::new(table.bands);
+        let mut f = vec![0.0; self.shexp.len()];
+        let mut reached = false;
+        for blocker in blockers {
+            reached |= blocker.add_log(receiver, table, &self.basis, strength, &mut scratch, &mut f);
+        }
+        reached.then(|| self.shexp.exp(&f, method))
+    }
+
+    /// `vectors` (each `bands_t²`, several per receiver) multiplied in place by each
+    /// receiver's visibility.
+    pub fn apply(
+        &self,
+        receivers: &[DVec3],
+        blockers: &[Blocker],
+        table: &LogCapTable,
+        method: ExpMethod,
+        strength: f64,
+        vectors: &mut [&mut [f32]],
+    ) {
+        let n = self.bands_t * self.bands_t;
+        for (i, x) in receivers.iter().enumerate() {
+            let Some(g) = self.visibility(*x, blockers, table, method, strength) else {
+                continue;
+            };
+            for v in vectors.iter_mut() {
+                let slot = &mut v[i * n..(i + 1) * n];
+                let before: Vec<f64> = slot.iter().map(|&x| f64::from(x)).collect();
+                for (o, p) in slot.iter_mut().zip(self.gaunt.multiply(&before, &g)) {
+                    *o = p as f32;
+                }
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests;

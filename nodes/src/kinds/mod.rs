@@ -1,6 +1,7 @@
 //! Every node kind: parameters, ports and stages. The math lives in the technique modules
 //! (`sh`, `wavelet`, …); a kind's stages only wire parameters to it.
 
+pub mod blockers;
 pub mod brdf;
 pub mod environment;
 pub mod fog;
@@ -26,7 +27,7 @@ pub fn registry() -> &'static [NodeKindSpec] {
             lights::point_light_spec(),
             planned::area_light_painter_spec(),
             rsl::spec(),
-            planned::blocker_spheres_spec(),
+            blockers::spec(),
         ]
     })
 }

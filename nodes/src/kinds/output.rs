@@ -3,6 +3,7 @@
 
 use crate::engine::{Evaluation, Graph, GraphNode, Request, StageContext, StageError, StageRef, StageValue};
 use crate::node_kind::{Availability, NodeKindSpec, ParamKind, ParamSpec, ParamValue, PortSpec, PortType, StageSpec};
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 // Stage value types this module owns (see `engine::value`).
@@ -187,11 +188,20 @@ pub fn spec() -> NodeKindSpec {
                 compute: settings,
             },
             StageSpec {
-                name: "incident_sh",
-                version: 2,
+                name: "blocked_transport",
+                version: 1,
                 params: &[],
                 stages: &[],
-                inputs: &[("scene", "transport_sh"), ("environment", "sh")],
+                inputs: &[("scene", "transport_sh"), ("scene", "geometry"), ("blockers", "spheres")],
+                persist: None,
+                compute: blocked_transport,
+            },
+            StageSpec {
+                name: "incident_sh",
+                version: 3,
+                params: &[],
+                stages: &["blocked_transport"],
+                inputs: &[("environment", "sh")],
                 persist: None,
                 compute: incident_sh,
             },
@@ -257,11 +267,109 @@ fn settings(ctx: &StageContext) -> Result<StageValue, StageError> {
 /// Shadowed incident radiance `R = L·V` per receiver for the `sh_prt` mode (pulled only by it).
 /// Depends on lighting and transport only: BRDF and camera edits reuse it.
 fn incident_sh(ctx: &StageContext) -> Result<StageValue, StageError> {
-    let transport = ctx.required_input::<crate::transport::ShTransport>("scene", "transport_sh")?;
+    let transport = ctx.stage::<crate::transport::ShTransport>("blocked_transport")?;
     let Some(light) = ctx.input::<crate::sh::ShRgb>("environment", "sh")? else {
         return Ok(StageValue::new(crate::prt::IncidentSh::default()));
     };
     Ok(StageValue::new(crate::prt::incident_radiance(light, transport, ctx.cancel_token())?))
+}
+
+/// Receivers per memoised part of [`blocked_transport`]: a sphere's move recomputes only the
+/// parts within its reach.
+const BLOCKED_CHUNK: usize = 256;
+
+/// One part of the blocked transport (both SH vectors of [`BLOCKED_CHUNK`] receivers).
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+struct BlockedChunk {
+    visibility: Vec<f32>,
+    transfer: Vec<f32>,
+}
+crate::stage_type!(BlockedChunk, "blocked transport part", encoding = 1, |v| (v.visibility.len() + v.transfer.len())
+    * 4);
+
+/// The scene's SH transport with the blocker spheres' visibility multiplied in per receiver
+/// (Sun 2008 §5.2; pulled by `sh_prt`). Receivers go in parts of [`BLOCKED_CHUNK`], each
+/// memoised on its transport, its positions and the spheres within reach of its bounds, so
+/// moving one sphere recomputes only the parts it reached before or reaches now. Without
+/// blockers it is the scene's transport.
+fn blocked_transport(ctx: &StageContext) -> Result<StageValue, StageError> {
+    use glam::DVec3;
+    let transport = ctx.required_input::<crate::transport::ShTransport>("scene", "transport_sh")?;
+    let Some(set) = ctx.input::<crate::kinds::blockers::BlockerSet>("blockers", "spheres")? else {
+        return Ok(StageValue::new(transport.clone()));
+    };
+    let meshes = ctx.required_input::<crate::mesh::MeshSet>("scene", "geometry")?;
+    let positions: Vec<DVec3> =
+        meshes.meshes.iter().flat_map(|m| m.positions.iter().map(|p| DVec3::from(p.map(f64::from)))).collect();
+    let n = transport.bands * transport.bands;
+    if transport.transfer.len() != positions.len() * n || transport.visibility.len() != positions.len() * n {
+        return Err(StageError::Failed(format!(
+            "the transport has {} receivers for {} vertices",
+            transport.transfer.len() / n.max(1),
+            positions.len()
+        )));
+    }
+    let product = crate::sh_exponential::BlockedProduct::new(set.shexp(), transport.bands);
+    let mut out = transport.clone();
+    let chunks = positions.len().div_ceil(BLOCKED_CHUNK);
+    let parts: Vec<Result<Option<crate::engine::Memo<BlockedChunk>>, StageError>> = (0..chunks)
+        .into_par_iter()
+        .map(|c| {
+            let range = c * BLOCKED_CHUNK..((c + 1) * BLOCKED_CHUNK).min(positions.len());
+            let points = &positions[range.clone()];
+            let centre = points.iter().sum::<DVec3>() / points.len() as f64;
+            let radius = points.iter().map(|p| (*p - centre).length()).fold(0.0, f64::max);
+            let near: Vec<crate::sh_exponential::Blocker> = set
+                .blockers
+                .iter()
+                .filter(|b| (DVec3::from(b.centre) - centre).length() <= radius + b.influence_radius())
+                .copied()
+                .collect();
+            if near.is_empty() {
+                return Ok(None);
+            }
+            let (v, t) = (
+                &transport.visibility[range.start * n..range.end * n],
+                &transport.transfer[range.start * n..range.end * n],
+            );
+            let mut key = xxhash_rust::xxh3::Xxh3::new();
+            key.update(
+                format!("blocked {} {} {:?} {}", transport.bands, set.bands(), set.method, set.strength).as_bytes(),
+            );
+            key.update(
+                &postcard::to_allocvec(&(
+                    points.iter().map(|p| p.to_array()).collect::<Vec<_>>(),
+                    &near,
+                    &set.tables.log.zonal,
+                ))
+                .unwrap_or_default(),
+            );
+            key.update(bytemuck::cast_slice(v));
+            key.update(bytemuck::cast_slice(t));
+            ctx.memo(key.digest128(), || {
+                ctx.check_cancel()?;
+                let (mut visibility, mut transfer) = (v.to_vec(), t.to_vec());
+                product.apply(
+                    points,
+                    &near,
+                    &set.tables.log,
+                    set.method,
+                    set.strength,
+                    &mut [&mut visibility, &mut transfer],
+                );
+                Ok(BlockedChunk { visibility, transfer })
+            })
+            .map(Some)
+        })
+        .collect();
+    for (c, part) in parts.into_iter().enumerate() {
+        if let Some(part) = part? {
+            let start = c * BLOCKED_CHUNK * n;
+            out.visibility[start..start + part.visibility.len()].copy_from_slice(&part.visibility);
+            out.transfer[start..start + part.transfer.len()].copy_from_slice(&part.transfer);
+        }
+    }
+    Ok(StageValue::new(out))
 }
 
 /// Per-vertex `P_c = ΔΩ_c L^x_c V^x_c` for the wavelet modes (pulled only by them).
@@ -407,6 +515,7 @@ pub fn mode_stages(graph: &Graph, output: &str, mode: Mode) -> Vec<StageRef> {
         stages.push(StageRef::new(&scene, "geometry"));
         if mode == Mode::ShPrt {
             stages.push(StageRef::new(&scene, "transport_sh"));
+            stages.push(StageRef::new(output, "blocked_transport"));
         }
         if mode == Mode::Rsl {
             stages.push(StageRef::new(&scene, "rsl_self_visibility"));
@@ -470,6 +579,10 @@ pub fn frame_request(graph: &Graph, output: &str, picking: bool) -> Request {
         && let Some(scene) = graph.upstream(output, "scene")
     {
         first.push(StageRef::new(&scene.id, "ray_scene"));
+        // The reference traces the blocker spheres whatever the mode.
+        if let Some(blockers) = graph.upstream(output, "blockers") {
+            first.push(StageRef::new(&blockers.id, "spheres"));
+        }
     }
     if mode.is_shadowed() {
         Request::new(format!("output `{output}`: unshadowed preview"), first)
@@ -563,7 +676,7 @@ impl FrameInputs {
             .is_some_and(|p| p.value.get::<crate::triple_product::LocalProducts>().is_some_and(|p| p.cells == 0));
         let surfaces = match mode {
             Mode::ShPrt => Surfaces::Prt(PrtSurfaces::new(
-                keyed(&scene, "transport_sh")?,
+                keyed(output, "blocked_transport")?,
                 keyed(output, "incident_sh")?,
                 light,
                 fogged,
@@ -597,10 +710,20 @@ impl FrameInputs {
             Some(node) => typed::<Vec<crate::kinds::lights::PointLight>>(&keyed(&node, "lights")?, "lights")?,
             None => Vec::new(),
         };
-        let mut ignored_inputs: Vec<String> = ["blockers"]
-            .into_iter()
-            .filter_map(|p| upstream(p).map(|n| format!("`{p}` (from `{n}`) is not drawn yet")))
-            .collect();
+        let mut ignored_inputs = Vec::new();
+        if settings.mode != Mode::ShPrt
+            && let Some(n) = upstream("blockers")
+        {
+            ignored_inputs.push(format!(
+                "`blockers` (from `{n}`) shadow the sh_prt mode only (the reference traces them in every mode)"
+            ));
+        }
+        let blockers = match upstream("blockers") {
+            Some(n) if evaluation.get(&n, "spheres").is_some() => {
+                Some(typed::<crate::kinds::blockers::BlockerSet>(&keyed(&n, "spheres")?, "spheres")?)
+            }
+            _ => None,
+        };
         if settings.mode != Mode::Rsl
             && let Some(n) = upstream("square_lights")
         {
@@ -634,6 +757,7 @@ impl FrameInputs {
             materials,
             surfaces,
             medium,
+            blockers,
         })
     }
 }

@@ -277,3 +277,57 @@ fn hyb_and_ps_star_2_against_the_exact_exponential() {
     assert!(hyb < 0.05, "HYB mean {hyb}");
     assert!(ps2 < 0.005, "PS*-2 mean {ps2}");
 }
+
+/// Ambient occlusion of a white Lambert floor under a constant sky, shaded as the `sh_prt`
+/// mode does (`B = (1/π) Σ (T * g)_k L_k`, `T` the floor's cosine transfer at 4 bands), against
+/// a fine-grid integral of the exact visibility: under one sphere straight above it is also
+/// the closed form `1 − sin²α`; under 8 and 32 random spheres the mean error is 0.2% and
+/// 1.4% (order-4 truncation).
+#[test]
+fn floor_under_spheres_against_the_exact_occlusion() {
+    let bands = 4;
+    let shexp = ShExp::new(bands);
+    let table = LogCapTable::new(&shexp, 512, LOG_CLIP_RELATIVE);
+    let product = BlockedProduct::new(ShExp::new(bands), bands);
+    let grid = Grid::new(bands, 200, 400);
+    let up = DVec3::Y;
+    let transfer: Vec<f32> = grid.project(|d| d.dot(up).max(0.0)).iter().map(|&v| v as f32).collect();
+    let shade = |t: &[f32]| SQRT_4PI * f64::from(t[0]) / PI;
+    // One sphere straight above: closed form.
+    let (r, h) = (0.5, 2.0);
+    let one = [Blocker { centre: [0.0, h, 0.0], radius: r }];
+    let mut t = transfer.clone();
+    product.apply(&[DVec3::ZERO], &one, &table, ExpMethod::PsStar(2), 1.0, &mut [&mut t]);
+    let expected = 1.0 - (r / h).powi(2);
+    assert!((shade(&t) - expected).abs() < 0.01 * expected, "one sphere: {} vs {expected}", shade(&t));
+    let mut rng = SmallRng::seed_from_u64(29);
+    for (count, tolerance) in [(8, 0.01), (32, 0.04)] {
+        let blockers: Vec<Blocker> = (0..count)
+            .map(|_| Blocker {
+                centre: [rng.random_range(-3.0..3.0), rng.random_range(0.6..3.0), rng.random_range(-3.0..3.0)],
+                radius: rng.random_range(0.2..0.5),
+            })
+            .collect();
+        let receivers: Vec<DVec3> =
+            (0..40).map(|_| DVec3::new(rng.random_range(-2.0..2.0), 0.0, rng.random_range(-2.0..2.0))).collect();
+        let mut blocked: Vec<f32> = receivers.iter().flat_map(|_| transfer.clone()).collect();
+        product.apply(&receivers, &blockers, &table, ExpMethod::PsStar(2), 1.0, &mut [&mut blocked]);
+        let (mut error, mut total) = (0.0, 0.0);
+        for (i, x) in receivers.iter().enumerate() {
+            let exact = grid.project(|d| {
+                let hidden = blockers.iter().any(|b| {
+                    let to = DVec3::from(b.centre) - *x;
+                    d.dot(to) > 0.0 && to.length_squared() - d.dot(to).powi(2) <= b.radius * b.radius
+                });
+                if hidden { 0.0 } else { d.dot(up).max(0.0) }
+            })[0]
+                * SQRT_4PI
+                / PI;
+            error += (shade(&blocked[i * 16..(i + 1) * 16]) - exact).abs();
+            total += exact;
+        }
+        let relative = error / total;
+        eprintln!("{count} spheres: mean relative error {:.2}%", 100.0 * relative);
+        assert!(relative < tolerance, "{count} spheres: {relative}");
+    }
+}

@@ -6,6 +6,7 @@ use serde::{Deserialize, Serialize};
 use std::collections::BTreeSet;
 use std::sync::atomic::AtomicUsize;
 
+mod blockers_mode;
 mod disk_cache;
 mod rsl_mode;
 
@@ -48,6 +49,7 @@ const SCENE_ALL: &[&str] = &[
     "scene.rsl_self_visibility",
     "scene.rsl_occluders",
     "output.rsl_visibility",
+    "output.blocked_transport",
 ];
 const SKY_AFTER_SOURCE: &[&str] = &["sky.radiance", "sky.sh_unrotated", "sky.rotated_radiance", "sky.sh", "sky.haar"];
 
@@ -89,13 +91,13 @@ fn each_parameter_recomputes_exactly_its_stages() {
             "scene",
             "transport_bands",
             Int(3),
-            vec!["scene.transport_sh", "scene.transport_objects", "output.incident_sh"],
+            vec!["scene.transport_sh", "scene.transport_objects", "output.blocked_transport", "output.incident_sh"],
         ),
         (
             "scene",
             "transport_rays",
             Int(64),
-            vec!["scene.transport_sh", "scene.transport_objects", "output.incident_sh"],
+            vec!["scene.transport_sh", "scene.transport_objects", "output.blocked_transport", "output.incident_sh"],
         ),
         ("scene", "haar_resolution", Choice("8".into()), vec!["scene.transport_haar"]),
         ("scene", "occluder_resolution", Choice("16".into()), vec!["scene.rsl_occluders", "output.rsl_visibility"]),
@@ -226,7 +228,7 @@ fn each_parameter_recomputes_exactly_its_stages() {
     graph.set_param("scene", "tessellation", Int(12)).unwrap();
     let first = engine.evaluate(&graph, &CancelToken::default(), None);
     assert!(first.report.failed().is_empty(), "{:?}", first.report.failed());
-    assert_eq!(first.report.computed().len(), 29);
+    assert_eq!(first.report.computed().len(), 30);
     let again = engine.evaluate(&graph, &CancelToken::default(), None);
     assert!(ran(&again.report).is_empty(), "an unchanged graph recomputed {:?}", ran(&again.report));
     for (node, param, value, expected) in table {
@@ -685,9 +687,33 @@ fn planned_kinds_recompute_exactly_their_stages_too() {
             "blockers",
             "spheres",
             Spheres(vec![([0.0, 1.0, 0.0], 0.3), ([1.0, 1.0, 0.0], 0.2)]),
-            vec!["blockers.spheres"],
+            vec!["blockers.spheres", "output.blocked_transport", "output.incident_sh"],
         ),
-        ("blockers", "sh_bands", Int(6), vec!["blockers.spheres"]),
+        (
+            "blockers",
+            "offset",
+            Vec3([0.5, 0.0, 0.0]),
+            vec!["blockers.spheres", "output.blocked_transport", "output.incident_sh"],
+        ),
+        (
+            "blockers",
+            "strength",
+            Float(0.5),
+            vec!["blockers.spheres", "output.blocked_transport", "output.incident_sh"],
+        ),
+        (
+            "blockers",
+            "exponential",
+            Choice("hyb".into()),
+            vec!["blockers.spheres", "output.blocked_transport", "output.incident_sh"],
+        ),
+        // A new order rebuilds the tables too.
+        (
+            "blockers",
+            "sh_bands",
+            Int(6),
+            vec!["blockers.tables", "blockers.spheres", "output.blocked_transport", "output.incident_sh"],
+        ),
         // A new K is a cut of the same merge sequence (then the O(K) world lights and the
         // per-vertex visibility of the new lights).
         (
@@ -1009,6 +1035,7 @@ fn each_mode_and_view_evaluates_exactly_the_stages_it_reads() {
                 "scene.ray_scene",
                 "scene.transport_sh",
                 "material.sh_lobe",
+                "output.blocked_transport",
                 "output.incident_sh",
             ]),
         ),
@@ -1043,7 +1070,7 @@ fn each_mode_and_view_evaluates_exactly_the_stages_it_reads() {
         for s in eval.report.stages.iter().filter(|s| s.status == StageStatus::NotNeeded) {
             assert!(s.reasons[0].contains(&format!("mode {mode}")), "{}.{}: {:?}", s.node, s.stage, s.reasons);
         }
-        assert_eq!(eval.report.stages.len(), 29, "every stage is reported");
+        assert_eq!(eval.report.stages.len(), 30, "every stage is reported");
     }
 }
 
@@ -1082,6 +1109,7 @@ fn edits_the_current_view_does_not_read_schedule_nothing() {
             "scene.ray_scene",
             "scene.transport_sh",
             "material.sh_lobe",
+            "output.blocked_transport",
             "output.incident_sh"
         ])
     );

@@ -1,19 +1,62 @@
-//! Light gizmos in the viewport: every point light drawn where it is (filled when it lights
-//! the output, hollow when it is not linked), clicked to select its node, dragged to move it
-//! in the view plane (one undo step per drag).
+//! Gizmos in the viewport: every point light drawn where it is (filled when it lights the
+//! output, hollow when it is not linked), and every blocker sphere as its outline. A click
+//! selects the node; a drag moves the light or the sphere in the view plane (one undo step per
+//! drag).
 
 use super::*;
 
-/// Pointer distance, in points, within which a gizmo is hit.
+/// Pointer distance, in points, within which a light's gizmo (or a sphere's centre) is hit.
 const HIT_RADIUS: f32 = 12.0;
 
-pub(super) struct LightGizmo {
+/// What a gizmo stands for.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) enum GizmoTarget {
+    Light,
+    /// Sphere `index` of a blocker set, of `radius` metres.
+    Sphere {
+        index: usize,
+        radius: f64,
+    },
+}
+
+pub(super) struct Gizmo {
     pub id: String,
+    pub target: GizmoTarget,
+    /// World position (a sphere's centre with its set's offset).
     pub position: [f64; 3],
-    /// The light's colour at full brightness.
+    /// The light's colour at full brightness; the blocker port's colour for spheres.
     pub colour: Color32,
-    /// Whether it reaches the Output (else it lights nothing).
+    /// Whether it reaches the Output (else it lights or shadows nothing).
     pub linked: bool,
+}
+
+/// A gizmo by its node and, for a blocker set, which sphere.
+#[derive(Clone, Debug, PartialEq)]
+pub(super) struct GizmoId {
+    pub node: String,
+    pub sphere: Option<usize>,
+}
+
+impl Gizmo {
+    fn gizmo_id(&self) -> GizmoId {
+        let sphere = match self.target {
+            GizmoTarget::Light => None,
+            GizmoTarget::Sphere { index, .. } => Some(index),
+        };
+        GizmoId { node: self.id.clone(), sphere }
+    }
+
+    /// The sphere's outline radius in points (0 for a light).
+    fn screen_radius(&self, camera: &OrbitCamera, rect: egui::Rect) -> f32 {
+        let GizmoTarget::Sphere { radius, .. } = self.target else { return 0.0 };
+        let Some((_, depth)) =
+            camera.project(glam::DVec3::from(self.position), (rect.width().into(), rect.height().into()))
+        else {
+            return 0.0;
+        };
+        let tan = (camera.fov_y_deg.to_radians() / 2.0).tan();
+        (radius / (depth * tan) * f64::from(rect.height()) / 2.0) as f32
+    }
 }
 
 /// Where world point `p` is in the viewport `rect` seen by `camera`, if in front of it.
@@ -22,42 +65,67 @@ pub(super) fn screen_pos(camera: &OrbitCamera, rect: egui::Rect, p: [f64; 3]) ->
     Some(rect.min + egui::vec2(x as f32, y as f32))
 }
 
+/// The blocker port's colour in the graph.
+const SPHERE_COLOUR: Color32 = Color32::from_rgb(230, 170, 120);
+
 impl EditorApp {
-    /// The project's point lights.
-    pub(super) fn light_gizmos(&self) -> Vec<LightGizmo> {
-        let spec = lightloom_nodes::kinds::kind("PointLight").expect("PointLight kind");
+    /// The project's point lights and blocker spheres.
+    pub(super) fn gizmos(&self) -> Vec<Gizmo> {
         let graph = self.evaluator.last.as_ref().map(|(_, g)| g);
-        self.doc
-            .project
-            .nodes
-            .iter()
-            .filter(|n| n.kind == "PointLight")
-            .filter_map(|n| {
-                let value = |name: &str| spec.param(name).map(|s| inspector::param_value(&self.doc.project, &n.id, s));
-                let (Some(ParamValue::Vec3(position)), Some(ParamValue::Color(intensity))) =
-                    (value("position"), value("intensity"))
-                else {
-                    return None;
-                };
-                let peak = intensity.iter().cloned().fold(1e-9, f64::max);
-                let [r, g, b] = intensity.map(|c| (c / peak * 255.0).round().clamp(0.0, 255.0) as u8);
-                Some(LightGizmo {
-                    id: n.id.clone(),
-                    position,
-                    colour: Color32::from_rgb(r, g, b),
-                    linked: graph.is_some_and(|g| g.feeds_sink(&n.id)),
-                })
-            })
-            .collect()
+        let linked = |id: &str| graph.is_some_and(|g| g.feeds_sink(id));
+        let mut out = Vec::new();
+        for n in &self.doc.project.nodes {
+            let Some(spec) = lightloom_nodes::kinds::kind(&n.kind) else { continue };
+            let value = |name: &str| spec.param(name).map(|s| inspector::param_value(&self.doc.project, &n.id, s));
+            match n.kind.as_str() {
+                "PointLight" => {
+                    let (Some(ParamValue::Vec3(position)), Some(ParamValue::Color(intensity))) =
+                        (value("position"), value("intensity"))
+                    else {
+                        continue;
+                    };
+                    let peak = intensity.iter().cloned().fold(1e-9, f64::max);
+                    let [r, g, b] = intensity.map(|c| (c / peak * 255.0).round().clamp(0.0, 255.0) as u8);
+                    out.push(Gizmo {
+                        id: n.id.clone(),
+                        target: GizmoTarget::Light,
+                        position,
+                        colour: Color32::from_rgb(r, g, b),
+                        linked: linked(&n.id),
+                    });
+                }
+                "BlockerSpheres" => {
+                    let (Some(ParamValue::Spheres(spheres)), Some(ParamValue::Vec3(offset))) =
+                        (value("spheres"), value("offset"))
+                    else {
+                        continue;
+                    };
+                    for (index, (centre, radius)) in spheres.iter().enumerate() {
+                        out.push(Gizmo {
+                            id: n.id.clone(),
+                            target: GizmoTarget::Sphere { index, radius: *radius },
+                            position: [0, 1, 2].map(|k| centre[k] + offset[k]),
+                            colour: SPHERE_COLOUR,
+                            linked: linked(&n.id),
+                        });
+                    }
+                }
+                _ => {}
+            }
+        }
+        out
     }
 
-    /// The light whose gizmo is under `pos`.
-    pub(super) fn gizmo_at(&self, pos: egui::Pos2, rect: egui::Rect) -> Option<String> {
+    /// The gizmo under `pos`: a light within reach of its marker, a sphere within its outline
+    /// (the nearest centre wins).
+    pub(super) fn gizmo_at(&self, pos: egui::Pos2, rect: egui::Rect) -> Option<GizmoId> {
         let camera = self.viewport_camera(rect);
-        self.light_gizmos()
+        self.gizmos()
             .into_iter()
-            .filter_map(|g| Some((screen_pos(&camera, rect, g.position)?.distance(pos), g.id)))
-            .filter(|(d, _)| *d <= HIT_RADIUS)
+            .filter_map(|g| {
+                let d = screen_pos(&camera, rect, g.position)?.distance(pos);
+                (d <= HIT_RADIUS.max(g.screen_radius(&camera, rect))).then(|| (d, g.gizmo_id()))
+            })
             .min_by(|a, b| a.0.total_cmp(&b.0))
             .map(|(_, id)| id)
     }
@@ -68,28 +136,46 @@ impl EditorApp {
             Selection::Node(id) => Some(id.as_str()),
             _ => None,
         };
-        for g in self.light_gizmos() {
+        let hovered_id = hover.and_then(|p| self.gizmo_at(p, rect));
+        for g in self.gizmos() {
             let Some(at) = screen_pos(&camera, rect, g.position) else { continue };
             if !rect.contains(at) {
                 continue;
             }
-            let outline =
-                if selected == Some(g.id.as_str()) { Color32::from_rgb(255, 200, 80) } else { Color32::BLACK };
-            for i in 0..8 {
-                let angle = i as f32 * std::f32::consts::FRAC_PI_4;
-                let dir = egui::vec2(angle.cos(), angle.sin());
-                painter.line_segment([at + dir * 8.0, at + dir * 12.0], egui::Stroke::new(2.0, g.colour));
-            }
-            painter.circle_stroke(at, 6.5, egui::Stroke::new(2.0, outline));
-            if g.linked {
-                painter.circle_filled(at, 5.5, g.colour);
-            } else {
-                painter.circle_stroke(at, 5.0, egui::Stroke::new(1.5, g.colour));
-            }
-            let hovered = hover.is_some_and(|p| p.distance(at) <= HIT_RADIUS);
-            if hovered || selected == Some(g.id.as_str()) {
-                let text = if g.linked { g.id.clone() } else { format!("{} (not linked: lights nothing)", g.id) };
-                let galley = painter.layout_no_wrap(text, egui::FontId::proportional(12.0), Color32::WHITE);
+            let is_selected = selected == Some(g.id.as_str());
+            let outline = if is_selected { Color32::from_rgb(255, 200, 80) } else { Color32::BLACK };
+            let label = match g.target {
+                GizmoTarget::Light => {
+                    for i in 0..8 {
+                        let angle = i as f32 * std::f32::consts::FRAC_PI_4;
+                        let dir = egui::vec2(angle.cos(), angle.sin());
+                        painter.line_segment([at + dir * 8.0, at + dir * 12.0], egui::Stroke::new(2.0, g.colour));
+                    }
+                    painter.circle_stroke(at, 6.5, egui::Stroke::new(2.0, outline));
+                    if g.linked {
+                        painter.circle_filled(at, 5.5, g.colour);
+                    } else {
+                        painter.circle_stroke(at, 5.0, egui::Stroke::new(1.5, g.colour));
+                    }
+                    if g.linked { g.id.clone() } else { format!("{} (not linked: lights nothing)", g.id) }
+                }
+                GizmoTarget::Sphere { index, radius } => {
+                    let r = g.screen_radius(&camera, rect).max(3.0);
+                    let colour = if is_selected { outline } else { g.colour };
+                    let stroke = if g.linked {
+                        egui::Stroke::new(1.5, colour)
+                    } else {
+                        egui::Stroke::new(1.0, colour.gamma_multiply(0.5))
+                    };
+                    painter.circle_stroke(at, r + 1.0, egui::Stroke::new(1.0, Color32::from_black_alpha(140)));
+                    painter.circle_stroke(at, r, stroke);
+                    painter.circle_filled(at, 2.5, colour);
+                    let state = if g.linked { "" } else { " (not linked: shadows nothing)" };
+                    format!("{} sphere {} · r {radius:.2} m{state}", g.id, index + 1)
+                }
+            };
+            if hovered_id.as_ref() == Some(&g.gizmo_id()) || (is_selected && g.target == GizmoTarget::Light) {
+                let galley = painter.layout_no_wrap(label, egui::FontId::proportional(12.0), Color32::WHITE);
                 let corner = at + egui::vec2(14.0, -8.0);
                 painter.rect_filled(
                     egui::Rect::from_min_size(corner, galley.size()).expand(3.0),
@@ -101,31 +187,51 @@ impl EditorApp {
         }
     }
 
-    /// A primary drag that starts on a gizmo moves its light; returns whether it did.
+    /// A primary drag that starts on a gizmo moves its light or sphere; returns whether it did.
     pub(super) fn drag_gizmo(&mut self, ui: &egui::Ui, response: &egui::Response, rect: egui::Rect) -> bool {
         let alt = ui.input(|i| i.modifiers.alt);
         if response.drag_started_by(egui::PointerButton::Primary) && !alt {
             let origin = ui.input(|i| i.pointer.press_origin());
-            self.view.dragging_light = origin.and_then(|p| self.gizmo_at(p, rect));
-            if let Some(id) = &self.view.dragging_light {
-                self.selection = Selection::Node(id.clone());
+            self.view.dragging_gizmo = origin.and_then(|p| self.gizmo_at(p, rect));
+            if let Some(id) = &self.view.dragging_gizmo {
+                self.selection = Selection::Node(id.node.clone());
             }
         }
         if !response.dragged_by(egui::PointerButton::Primary) {
-            self.view.dragging_light = None;
+            self.view.dragging_gizmo = None;
             return false;
         }
-        let Some(id) = self.view.dragging_light.clone() else { return false };
+        let Some(id) = self.view.dragging_gizmo.clone() else { return false };
         let delta = ui.input(|i| i.pointer.delta());
-        let Some(gizmo) = self.light_gizmos().into_iter().find(|g| g.id == id) else { return false };
+        let Some(gizmo) = self.gizmos().into_iter().find(|g| g.gizmo_id() == id) else { return false };
+        if delta == egui::Vec2::ZERO {
+            return true;
+        }
         let camera = self.viewport_camera(rect);
-        let moved = camera.drag_point(
-            glam::DVec3::from(gizmo.position),
-            (f64::from(delta.x), f64::from(delta.y)),
-            f64::from(rect.height()),
-        );
-        if delta != egui::Vec2::ZERO
-            && let Err(e) = inspector::set_param(&mut self.doc, &id, "position", ParamValue::Vec3(moved.to_array()))
+        let moved = camera
+            .drag_point(
+                glam::DVec3::from(gizmo.position),
+                (f64::from(delta.x), f64::from(delta.y)),
+                f64::from(rect.height()),
+            )
+            .to_array();
+        let change = match id.sphere {
+            None => Some(("position", ParamValue::Vec3(moved))),
+            Some(index) => {
+                let spec = lightloom_nodes::kinds::kind("BlockerSpheres").expect("BlockerSpheres kind");
+                let param =
+                    |name: &str| inspector::param_value(&self.doc.project, &id.node, spec.param(name).expect("param"));
+                match (param("spheres"), param("offset")) {
+                    (ParamValue::Spheres(mut spheres), ParamValue::Vec3(offset)) if index < spheres.len() => {
+                        spheres[index].0 = [0, 1, 2].map(|k| moved[k] - offset[k]);
+                        Some(("spheres", ParamValue::Spheres(spheres)))
+                    }
+                    _ => None,
+                }
+            }
+        };
+        if let Some((name, value)) = change
+            && let Err(e) = inspector::set_param(&mut self.doc, &id.node, name, value)
         {
             self.log_error(e);
         }

@@ -174,8 +174,8 @@ struct ViewState {
     /// The error view's scale (the radiance difference of its top colour).
     error_scale: Option<f64>,
     selected_object: Option<usize>,
-    /// The light whose gizmo is being dragged.
-    dragging_light: Option<String>,
+    /// The gizmo (light or blocker sphere) being dragged.
+    dragging_gizmo: Option<gizmos::GizmoId>,
     /// The Scene node and the name of the object being dragged in the viewport.
     dragging_object: Option<(String, String)>,
 }
@@ -354,7 +354,7 @@ impl EditorApp {
                 error: None,
                 error_scale: None,
                 selected_object: None,
-                dragging_light: None,
+                dragging_gizmo: None,
                 dragging_object: None,
             },
             host,

@@ -778,7 +778,7 @@ fn a_light_gizmo_drag_moves_the_light() {
         })
         .unwrap();
     settle(&mut harness);
-    let light = harness.state().light_gizmos().pop().expect("a gizmo for the light");
+    let light = harness.state().gizmos().pop().expect("a gizmo for the light");
     assert!(light.linked, "the linked light is drawn as lighting the output");
     let rect = harness.state().viewport_rect;
     let camera = harness.state().viewport_camera(rect);
@@ -792,7 +792,7 @@ fn a_light_gizmo_drag_moves_the_light() {
 
     // Drag 80 points right and 30 up: the light follows the pointer at its depth.
     pointer_drag(&mut harness, egui::PointerButton::Primary, at, at + egui::vec2(80.0, -30.0));
-    let moved = harness.state().light_gizmos().pop().unwrap();
+    let moved = harness.state().gizmos().pop().unwrap();
     let now = gizmos::screen_pos(&camera, rect, moved.position).unwrap();
     assert!((now - (at + egui::vec2(80.0, -30.0))).length() < 3.0, "the gizmo follows the pointer: {at:?} → {now:?}");
     assert_eq!(harness.state().doc.undo_label(), Some(format!("Set {}.position", light.id).as_str()));
@@ -801,7 +801,7 @@ fn a_light_gizmo_drag_moves_the_light() {
     assert!((lit_after - lit_before).abs() > 0.2, "the lighting follows the light: {lit_before:.2} → {lit_after:.2}");
     // One undo puts it back.
     harness.state_mut().undo();
-    let back = harness.state().light_gizmos().pop().unwrap();
+    let back = harness.state().gizmos().pop().unwrap();
     assert_eq!(back.position, light.position);
     harness.render().unwrap().save(state_dir().join("light-gizmo.png")).unwrap();
 }
@@ -1034,4 +1034,71 @@ fn dragging_an_object_moves_it_and_shift_turns_it() {
     harness.state_mut().undo();
     harness.state_mut().undo();
     assert_eq!(objects(&harness)[sphere].translation, before[sphere].translation);
+}
+
+/// Blocker spheres as a user reaches them: added from the Add menu, linked to the Output's
+/// blockers input, shadowing the floor in the `sh_prt` mode; each sphere drawn as its outline
+/// in the viewport, and a drag moves it (the shadow follows), one undo step per drag.
+#[test]
+fn blocker_spheres_from_the_add_menu_shadow_and_drag() {
+    let mut harness = default_harness();
+    harness.get_by_role_and_label(Role::ComboBox, "Mode").click();
+    harness.run_steps(2);
+    harness.get_by_label_contains("Soft shadows and gloss").click();
+    harness.run_steps(2);
+    settle(&mut harness);
+    let unblocked = viewport_mean(&mut harness);
+    let before: Vec<String> = harness.state().doc.project.nodes.iter().map(|n| n.id.clone()).collect();
+    harness.get_by_label("Add").click();
+    harness.run_steps(2);
+    harness.get_by_label_contains("Blocker sphere set").click();
+    harness.run_steps(4);
+    let added = harness.state().doc.project.nodes.iter().find(|n| !before.contains(&n.id)).unwrap().id.clone();
+    // A large sphere over the floor in front of the objects.
+    inspector::set_param(
+        &mut harness.state_mut().doc,
+        &added,
+        "spheres",
+        ParamValue::Spheres(vec![([1.2, 1.0, 1.2], 0.6)]),
+    )
+    .unwrap();
+    harness.state_mut().doc.seal();
+    harness.state_mut().selection = Selection::Node("output".into());
+    harness.run_steps(3);
+    harness.get_by_role_and_label(Role::ComboBox, "blockers (Blockers)").click();
+    harness.run_steps(3);
+    harness.get_by_label(&format!("{added}.blockers")).click();
+    harness.step();
+    harness.key_press(egui::Key::Escape);
+    settle(&mut harness);
+    assert!(harness.state().problems().iter().all(|p| !p.starts_with("error")), "{:?}", harness.state().problems());
+    let shadowed = viewport_mean(&mut harness);
+    assert!(shadowed < unblocked - 0.3, "the sphere darkens the scene: {unblocked:.2} → {shadowed:.2}");
+    harness
+        .render()
+        .unwrap()
+        .save(state_dir().join("blocker-spheres.png"))
+        .expect("screenshot for a person to look at");
+
+    let sphere = harness.state().gizmos().into_iter().find(|g| g.id == added).expect("a gizmo for the sphere");
+    assert!(sphere.linked);
+    let rect = harness.state().viewport_rect;
+    let camera = harness.state().viewport_camera(rect);
+    let at = gizmos::screen_pos(&camera, rect, sphere.position).expect("in front of the camera");
+    assert!(harness.state().render_frame(rect).contains(at), "the sphere is in view");
+    // A drag that starts inside its outline (off its centre) moves it with the pointer.
+    let grab = at + egui::vec2(4.0, 3.0);
+    pointer_drag(&mut harness, egui::PointerButton::Primary, grab, grab + egui::vec2(-90.0, 20.0));
+    assert_eq!(harness.state().selection, Selection::Node(added.clone()));
+    let moved = harness.state().gizmos().into_iter().find(|g| g.id == added).unwrap();
+    let now = gizmos::screen_pos(&camera, rect, moved.position).unwrap();
+    assert!((now - (at + egui::vec2(-90.0, 20.0))).length() < 3.0, "the sphere follows the pointer: {at:?} → {now:?}");
+    assert_eq!(harness.state().doc.undo_label(), Some(format!("Set {added}.spheres").as_str()));
+    settle(&mut harness);
+    let after = viewport_mean(&mut harness);
+    assert!((after - shadowed).abs() > 0.05, "the shadow follows the sphere: {shadowed:.2} → {after:.2}");
+    harness.render().unwrap().save(state_dir().join("blocker-spheres-moved.png")).unwrap();
+    harness.state_mut().undo();
+    let back = harness.state().gizmos().into_iter().find(|g| g.id == added).unwrap();
+    assert_eq!(back.position, sphere.position);
 }

@@ -5,15 +5,18 @@ use super::*;
 
 impl EditorApp {
     pub(super) fn viewport_panel(&mut self, ui: &mut egui::Ui) {
+        // The panel as laid out: the view never reaches under the side panels, however wide
+        // the toolbar would like to be.
+        let panel = ui.max_rect();
         self.viewport_toolbar(ui);
-        let available = ui.available_size();
+        let available = egui::vec2((panel.right() - ui.cursor().left()).max(16.0), ui.available_height());
         let (rect, response) = ui.allocate_exact_size(available, egui::Sense::click_and_drag());
         self.viewport_rect = rect;
         self.navigate(ui, &response, rect);
-        let dragging_light = self.drag_gizmo(ui, &response, rect);
-        let dragging_object = !dragging_light && self.drag_object(ui, &response, rect);
+        let dragging_gizmo = self.drag_gizmo(ui, &response, rect);
+        let dragging_object = !dragging_gizmo && self.drag_object(ui, &response, rect);
         // While the view moves, draw at half resolution; the full frame follows on release.
-        let moving = (response.dragged() && !dragging_light && !dragging_object)
+        let moving = (response.dragged() && !dragging_gizmo && !dragging_object)
             || (response.hovered() && ui.input(|i| i.smooth_scroll_delta.y != 0.0));
         let scale = self.view.resolution_scale * ui.ctx().pixels_per_point() * if moving { 0.5 } else { 1.0 };
         let size = (((rect.width() * scale) as u32).clamp(16, 4096), ((rect.height() * scale) as u32).clamp(16, 4096));
@@ -87,8 +90,8 @@ impl EditorApp {
             && let Some(pos) = response.interact_pointer_pos()
         {
             match self.gizmo_at(pos, rect) {
-                Some(light) => {
-                    self.selection = Selection::Node(light);
+                Some(gizmo) => {
+                    self.selection = Selection::Node(gizmo.node);
                     self.view.selected_object = None;
                 }
                 None => self.pick(pos, rect),
@@ -106,8 +109,9 @@ impl EditorApp {
             inspector::param_value(&doc.project, &output, spec.param(name).expect("param"))
         };
         let mut changes: Vec<(&str, ParamValue)> = Vec::new();
-        // Two fixed rows (what is shown; the view), so the toolbar never reflows as labels change.
-        ui.horizontal(|ui| {
+        // Two rows (what is shown; the view), so the toolbar does not reflow as labels change;
+        // each wraps only when the panel is too narrow for it.
+        ui.horizontal_wrapped(|ui| {
             for (name, label) in [("view", "View"), ("mode", "Mode"), ("tonemap", "Tone map")] {
                 let ParamValue::Choice(current) = value(&self.doc, name) else { continue };
                 let lightloom_nodes::node_kind::ParamKind::Choice { options, labels, .. } =
@@ -133,7 +137,7 @@ impl EditorApp {
                 }
             }
         });
-        ui.horizontal(|ui| {
+        ui.horizontal_wrapped(|ui| {
             ui.label("Resolution");
             egui::ComboBox::from_id_salt("resolution")
                 .selected_text(format!("{:.0}%", self.view.resolution_scale * 100.0))

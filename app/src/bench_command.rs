@@ -15,6 +15,8 @@
 //! * The `rsl` mode on a 60k-vertex torus with one moving occluder and 30 square lights:
 //!   BRDF table builds, self-visibility and occluder-field precompute and their memory, the
 //!   CPU cost of a move (per-vertex visibility) and the GPU frame, beside the paper's Table 1.
+//! * Blocker spheres (`bench_blockers`): the thesis's Fig. 5.5 speed-up table and its scenes'
+//!   update rates, on the CPU.
 
 use crate::project_commands::{evaluate, fail_on_errors, output_request, upstream_of};
 use anyhow::{Result, anyhow};
@@ -41,7 +43,7 @@ pub struct BenchArgs {
     /// Frames timed per figure (the median is printed).
     #[arg(long, default_value_t = 5)]
     pub frames: usize,
-    /// Only these sections (default, fog, rsl, synthetic; all when empty).
+    /// Only these sections (default, fog, rsl, blockers, synthetic; all when empty).
     #[arg(long, value_delimiter = ',')]
     pub only: Vec<String>,
 }
@@ -88,6 +90,9 @@ pub fn run(args: &BenchArgs) -> Result<()> {
     if wanted("rsl") {
         rsl_figures();
         rsl_mode_figures(args, &gpu)?;
+    }
+    if wanted("blockers") {
+        crate::bench_blockers::blocker_figures();
     }
     if wanted("synthetic") {
         synthetic_figures(args, &gpu)?;

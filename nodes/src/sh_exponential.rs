@@ -539,5 +539,34 @@ impl BlockedProduct {
     }
 }
 
+/// Receivers grouped for clustered culling and partial recompute: by cells of a grid over
+/// their bounds (a 16th of the largest extent), at most `max` per part, in a fixed order.
+pub fn receiver_parts(positions: &[DVec3], max: usize) -> Vec<Vec<usize>> {
+    if positions.is_empty() {
+        return Vec::new();
+    }
+    let lo = positions.iter().fold(DVec3::splat(f64::INFINITY), |a, p| a.min(*p));
+    let hi = positions.iter().fold(DVec3::splat(f64::NEG_INFINITY), |a, p| a.max(*p));
+    let cell = ((hi - lo).max_element() / 16.0).max(1e-9);
+    let mut cells: std::collections::BTreeMap<[i64; 3], Vec<usize>> = Default::default();
+    for (i, p) in positions.iter().enumerate() {
+        let c = ((*p - lo) / cell).floor();
+        cells.entry([c.x as i64, c.y as i64, c.z as i64]).or_default().push(i);
+    }
+    cells.into_values().flat_map(|v| v.chunks(max.max(1)).map(<[usize]>::to_vec).collect::<Vec<_>>()).collect()
+}
+
+/// The blockers that may reach any of `points` (their bounding sphere against each sphere's
+/// influence radius).
+pub fn blockers_in_reach(points: &[DVec3], blockers: &[Blocker]) -> Vec<Blocker> {
+    let centre = points.iter().sum::<DVec3>() / points.len().max(1) as f64;
+    let radius = points.iter().map(|p| (*p - centre).length()).fold(0.0, f64::max);
+    blockers
+        .iter()
+        .filter(|b| (DVec3::from(b.centre) - centre).length() <= radius + b.influence_radius())
+        .copied()
+        .collect()
+}
+
 #[cfg(test)]
 mod tests;

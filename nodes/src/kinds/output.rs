@@ -274,25 +274,25 @@ fn incident_sh(ctx: &StageContext) -> Result<StageValue, StageError> {
     Ok(StageValue::new(crate::prt::incident_radiance(light, transport, ctx.cancel_token())?))
 }
 
-/// Receivers per memoised part of [`blocked_transport`]: a sphere's move recomputes only the
-/// parts within its reach.
-const BLOCKED_CHUNK: usize = 256;
+/// At most this many receivers per memoised part of [`blocked_transport`].
+const BLOCKED_PART: usize = 256;
 
-/// One part of the blocked transport (both SH vectors of [`BLOCKED_CHUNK`] receivers).
+/// One part of the blocked transport (both SH vectors of its receivers).
 #[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
-struct BlockedChunk {
+struct BlockedPart {
     visibility: Vec<f32>,
     transfer: Vec<f32>,
 }
-crate::stage_type!(BlockedChunk, "blocked transport part", encoding = 1, |v| (v.visibility.len() + v.transfer.len())
+crate::stage_type!(BlockedPart, "blocked transport part", encoding = 1, |v| (v.visibility.len() + v.transfer.len())
     * 4);
 
 /// The scene's SH transport with the blocker spheres' visibility multiplied in per receiver
-/// (Sun 2008 §5.2; pulled by `sh_prt`). Receivers go in parts of [`BLOCKED_CHUNK`], each
-/// memoised on its transport, its positions and the spheres within reach of its bounds, so
-/// moving one sphere recomputes only the parts it reached before or reaches now. Without
-/// blockers it is the scene's transport.
+/// (Sun 2008 §5.2; pulled by `sh_prt`). Receivers are clustered by space into parts
+/// (`sh_exponential::receiver_parts`), each memoised on its receivers, their transport and the
+/// spheres within reach of its bounds, so moving one sphere recomputes only the parts it
+/// reached before or reaches now. Without blockers it is the scene's transport.
 fn blocked_transport(ctx: &StageContext) -> Result<StageValue, StageError> {
+    use crate::sh_exponential::{BlockedProduct, blockers_in_reach, receiver_parts};
     use glam::DVec3;
     let transport = ctx.required_input::<crate::transport::ShTransport>("scene", "transport_sh")?;
     let Some(set) = ctx.input::<crate::kinds::blockers::BlockerSet>("blockers", "spheres")? else {
@@ -309,64 +309,52 @@ fn blocked_transport(ctx: &StageContext) -> Result<StageValue, StageError> {
             positions.len()
         )));
     }
-    let product = crate::sh_exponential::BlockedProduct::new(set.shexp(), transport.bands);
-    let mut out = transport.clone();
-    let chunks = positions.len().div_ceil(BLOCKED_CHUNK);
-    let parts: Vec<Result<Option<crate::engine::Memo<BlockedChunk>>, StageError>> = (0..chunks)
-        .into_par_iter()
-        .map(|c| {
-            let range = c * BLOCKED_CHUNK..((c + 1) * BLOCKED_CHUNK).min(positions.len());
-            let points = &positions[range.clone()];
-            let centre = points.iter().sum::<DVec3>() / points.len() as f64;
-            let radius = points.iter().map(|p| (*p - centre).length()).fold(0.0, f64::max);
-            let near: Vec<crate::sh_exponential::Blocker> = set
-                .blockers
-                .iter()
-                .filter(|b| (DVec3::from(b.centre) - centre).length() <= radius + b.influence_radius())
-                .copied()
-                .collect();
+    let product = BlockedProduct::new(set.shexp(), transport.bands);
+    let parts = receiver_parts(&positions, BLOCKED_PART);
+    let gather = |data: &[f32], indices: &[usize]| -> Vec<f32> {
+        indices.iter().flat_map(|&i| data[i * n..(i + 1) * n].iter().copied()).collect()
+    };
+    let computed: Vec<Result<Option<crate::engine::Memo<BlockedPart>>, StageError>> = parts
+        .par_iter()
+        .map(|indices| {
+            let points: Vec<DVec3> = indices.iter().map(|&i| positions[i]).collect();
+            let near = blockers_in_reach(&points, &set.blockers);
             if near.is_empty() {
                 return Ok(None);
             }
-            let (v, t) = (
-                &transport.visibility[range.start * n..range.end * n],
-                &transport.transfer[range.start * n..range.end * n],
-            );
+            let (v, t) = (gather(&transport.visibility, indices), gather(&transport.transfer, indices));
             let mut key = xxhash_rust::xxh3::Xxh3::new();
             key.update(
                 format!("blocked {} {} {:?} {}", transport.bands, set.bands(), set.method, set.strength).as_bytes(),
             );
-            key.update(
-                &postcard::to_allocvec(&(
-                    points.iter().map(|p| p.to_array()).collect::<Vec<_>>(),
-                    &near,
-                    &set.tables.log.zonal,
-                ))
-                .unwrap_or_default(),
-            );
-            key.update(bytemuck::cast_slice(v));
-            key.update(bytemuck::cast_slice(t));
+            let described =
+                (indices, points.iter().map(|p| p.to_array()).collect::<Vec<_>>(), &near, &set.tables.log.zonal);
+            key.update(&postcard::to_allocvec(&described).unwrap_or_default());
+            key.update(bytemuck::cast_slice(&v));
+            key.update(bytemuck::cast_slice(&t));
             ctx.memo(key.digest128(), || {
                 ctx.check_cancel()?;
-                let (mut visibility, mut transfer) = (v.to_vec(), t.to_vec());
+                let (mut visibility, mut transfer) = (v.clone(), t.clone());
                 product.apply(
-                    points,
+                    &points,
                     &near,
                     &set.tables.log,
                     set.method,
                     set.strength,
                     &mut [&mut visibility, &mut transfer],
                 );
-                Ok(BlockedChunk { visibility, transfer })
+                Ok(BlockedPart { visibility, transfer })
             })
             .map(Some)
         })
         .collect();
-    for (c, part) in parts.into_iter().enumerate() {
+    let mut out = transport.clone();
+    for (indices, part) in parts.iter().zip(computed) {
         if let Some(part) = part? {
-            let start = c * BLOCKED_CHUNK * n;
-            out.visibility[start..start + part.visibility.len()].copy_from_slice(&part.visibility);
-            out.transfer[start..start + part.transfer.len()].copy_from_slice(&part.transfer);
+            for (k, &i) in indices.iter().enumerate() {
+                out.visibility[i * n..(i + 1) * n].copy_from_slice(&part.visibility[k * n..(k + 1) * n]);
+                out.transfer[i * n..(i + 1) * n].copy_from_slice(&part.transfer[k * n..(k + 1) * n]);
+            }
         }
     }
     Ok(StageValue::new(out))

@@ -21,8 +21,8 @@ pub struct AccuracyArgs {
     /// SH band counts for the `sh_prt` rows (lighting and transport use the same count).
     #[arg(long, value_delimiter = ',', default_value = "2,3,4,6,8")]
     pub bands: Vec<usize>,
-    /// Top-only coefficient counts for the `wavelet_vertex` rows.
-    #[arg(long, value_delimiter = ',', default_value = "80,320")]
+    /// Top-only coefficient counts for the `wavelet_vertex` rows (none: `--wavelets` alone).
+    #[arg(long, value_delimiter = ',', num_args = 0.., default_value = "80,320")]
     pub wavelets: Vec<usize>,
     /// Square-light counts for the `rsl` rows (when an RSL decomposer feeds the Output).
     #[arg(long, value_delimiter = ',', default_value = "10,30,60,100")]

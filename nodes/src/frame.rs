@@ -431,7 +431,9 @@ impl FrameInputs {
             brdfs: (0..meshes.meshes.len()).map(|i| crate::brdf::Brdf::from_material(self.mesh_material(i))).collect(),
             environment,
             background: self.settings.background,
-            blockers: self.blockers.as_ref().map_or(&[], |b| b.blockers.as_slice()),
+            // Blocker spheres are opaque to the reference's rays; a set faded to strength 0
+            // casts nothing (fractional strengths are an artistic fade it does not model).
+            blockers: self.blockers.as_ref().filter(|b| b.strength > 0.0).map_or(&[], |b| b.blockers.as_slice()),
         };
         crate::reference::render(&rs, camera, size, self.settings.reference_samples, seed, cancel, progress)
             .map_err(|e| e.to_string())

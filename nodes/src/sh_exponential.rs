@@ -376,13 +376,19 @@ pub struct Blocker {
 pub const MIN_ANGULAR_RADIUS: f64 = 0.05;
 
 impl Blocker {
+    /// Whether `point` lies inside the sphere (there it hides everything).
+    pub fn contains(&self, point: DVec3) -> bool {
+        (DVec3::from(self.centre) - point).length_squared() <= self.radius * self.radius
+    }
+
     /// Distance beyond which the blocker is culled.
     pub fn influence_radius(&self) -> f64 {
         self.radius / MIN_ANGULAR_RADIUS.sin()
     }
 
     /// Adds `weight ×` this blocker's log visibility at `receiver` to `out` (O(n²)); false
-    /// when culled.
+    /// when culled. A receiver inside the sphere gets the hemisphere towards its centre (the
+    /// table ends at θ = π/2); [`BlockedProduct`] treats it as fully hidden instead.
     pub fn add_log(
         &self,
         receiver: DVec3,
@@ -503,6 +509,13 @@ impl BlockedProduct {
         method: ExpMethod,
         strength: f64,
     ) -> Option<Vec<f64>> {
+        if strength <= 0.0 {
+            return None;
+        }
+        // A receiver inside a sphere sees nothing (as the reference's rays do).
+        if blockers.iter().any(|b| b.contains(receiver)) {
+            return Some(vec![0.0; self.shexp.len()]);
+        }
         let mut scratch = LogScratch::new(table.bands);
         let mut f = vec![0.0; self.shexp.len()];
         let mut reached = false;

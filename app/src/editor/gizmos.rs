@@ -7,6 +7,8 @@ use super::*;
 
 /// Pointer distance, in points, within which a light's gizmo (or a sphere's centre) is hit.
 const HIT_RADIUS: f32 = 12.0;
+/// Distance from a sphere's outline, in points, within which it is hit.
+const RING_HIT: f32 = 5.0;
 
 /// What a gizmo stands for.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -116,15 +118,24 @@ impl EditorApp {
         out
     }
 
-    /// The gizmo under `pos`: a light within reach of its marker, a sphere within its outline
-    /// (the nearest centre wins).
+    /// The gizmo under `pos`: a light within reach of its marker, a sphere near its centre or
+    /// its outline (the nearest centre wins).
     pub(super) fn gizmo_at(&self, pos: egui::Pos2, rect: egui::Rect) -> Option<GizmoId> {
         let camera = self.viewport_camera(rect);
         self.gizmos()
             .into_iter()
             .filter_map(|g| {
                 let d = screen_pos(&camera, rect, g.position)?.distance(pos);
-                (d <= HIT_RADIUS.max(g.screen_radius(&camera, rect))).then(|| (d, g.gizmo_id()))
+                let hit = match g.target {
+                    GizmoTarget::Light => d <= HIT_RADIUS,
+                    // A sphere by its centre or its outline, so the objects it stands in for
+                    // stay pickable; never from inside it.
+                    GizmoTarget::Sphere { radius, .. } => {
+                        let inside = (camera.position() - glam::DVec3::from(g.position)).length() <= radius;
+                        !inside && (d <= HIT_RADIUS || (d - g.screen_radius(&camera, rect)).abs() <= RING_HIT)
+                    }
+                };
+                hit.then(|| (d, g.gizmo_id()))
             })
             .min_by(|a, b| a.0.total_cmp(&b.0))
             .map(|(_, id)| id)

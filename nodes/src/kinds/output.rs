@@ -311,6 +311,11 @@ fn blocked_transport(ctx: &StageContext) -> Result<StageValue, StageError> {
     }
     let product = BlockedProduct::new(set.shexp(), transport.bands);
     let parts = receiver_parts(&positions, BLOCKED_PART);
+    // What every part depends on besides its own receivers and spheres, hashed once.
+    let common = xxhash_rust::xxh3::xxh3_128(
+        &postcard::to_allocvec(&(transport.bands, set.bands(), set.method, set.strength, &set.tables))
+            .unwrap_or_default(),
+    );
     let gather = |data: &[f32], indices: &[usize]| -> Vec<f32> {
         indices.iter().flat_map(|&i| data[i * n..(i + 1) * n].iter().copied()).collect()
     };
@@ -324,11 +329,8 @@ fn blocked_transport(ctx: &StageContext) -> Result<StageValue, StageError> {
             }
             let (v, t) = (gather(&transport.visibility, indices), gather(&transport.transfer, indices));
             let mut key = xxhash_rust::xxh3::Xxh3::new();
-            key.update(
-                format!("blocked {} {} {:?} {}", transport.bands, set.bands(), set.method, set.strength).as_bytes(),
-            );
-            let described =
-                (indices, points.iter().map(|p| p.to_array()).collect::<Vec<_>>(), &near, &set.tables.log.zonal);
+            key.update(&common.to_le_bytes());
+            let described = (indices, points.iter().map(|p| p.to_array()).collect::<Vec<_>>(), &near);
             key.update(&postcard::to_allocvec(&described).unwrap_or_default());
             key.update(bytemuck::cast_slice(&v));
             key.update(bytemuck::cast_slice(&t));

@@ -331,3 +331,20 @@ fn floor_under_spheres_against_the_exact_occlusion() {
         assert!(relative < tolerance, "{count} spheres: {relative}");
     }
 }
+
+/// A receiver inside a sphere (a sphere dipping into the floor, or centred on the receiver)
+/// sees nothing, as the reference's rays do; at strength 0 the set casts nothing.
+#[test]
+fn a_receiver_inside_a_sphere_sees_nothing() {
+    let table = LogCapTable::new(&ShExp::new(4), 64, LOG_CLIP_RELATIVE);
+    let product = BlockedProduct::new(ShExp::new(4), 4);
+    for centre in [[0.0, 0.1, 0.0], [0.0, 0.0, 0.0]] {
+        let sphere = [Blocker { centre, radius: 0.3 }];
+        let mut t = vec![1.0f32; 16];
+        product.apply(&[DVec3::ZERO], &sphere, &table, ExpMethod::PsStar(2), 1.0, &mut [&mut t]);
+        assert!(t.iter().all(|v| *v == 0.0), "{centre:?}: {t:?}");
+        let mut faded = vec![1.0f32; 16];
+        product.apply(&[DVec3::ZERO], &sphere, &table, ExpMethod::PsStar(2), 0.0, &mut [&mut faded]);
+        assert!(faded.iter().all(|v| *v == 1.0), "{centre:?} at strength 0: {faded:?}");
+    }
+}

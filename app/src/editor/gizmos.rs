@@ -97,16 +97,16 @@ impl EditorApp {
                     });
                 }
                 "BlockerSpheres" => {
-                    let (Some(ParamValue::Spheres(spheres)), Some(ParamValue::Vec3(offset))) =
-                        (value("spheres"), value("offset"))
+                    let (Some(ParamValue::Spheres(spheres)), Some(transform)) =
+                        (value("spheres"), self.sphere_transform(&n.id))
                     else {
                         continue;
                     };
                     for (index, (centre, radius)) in spheres.iter().enumerate() {
                         out.push(Gizmo {
                             id: n.id.clone(),
-                            target: GizmoTarget::Sphere { index, radius: *radius },
-                            position: [0, 1, 2].map(|k| centre[k] + offset[k]),
+                            target: GizmoTarget::Sphere { index, radius: radius * transform.scale },
+                            position: transform.to_world(*centre).to_array(),
                             colour: SPHERE_COLOUR,
                             linked: linked(&n.id),
                         });
@@ -116,6 +116,18 @@ impl EditorApp {
             }
         }
         out
+    }
+
+    /// Where blocker set `node` puts its spheres (its offset, rotation and scale).
+    fn sphere_transform(&self, node: &str) -> Option<lightloom_nodes::kinds::blockers::SetTransform> {
+        let spec = lightloom_nodes::kinds::kind("BlockerSpheres")?;
+        let value = |name: &str| spec.param(name).map(|p| inspector::param_value(&self.doc.project, node, p));
+        let (Some(ParamValue::Vec3(offset)), Some(ParamValue::Vec3(rotation)), Some(ParamValue::Float(scale))) =
+            (value("offset"), value("rotation"), value("scale"))
+        else {
+            return None;
+        };
+        Some(lightloom_nodes::kinds::blockers::SetTransform::new(offset, rotation, scale))
     }
 
     /// The gizmo under `pos`: a light within reach of its marker, a sphere near its centre or
@@ -230,11 +242,11 @@ impl EditorApp {
             None => Some(("position", ParamValue::Vec3(moved))),
             Some(index) => {
                 let spec = lightloom_nodes::kinds::kind("BlockerSpheres").expect("BlockerSpheres kind");
-                let param =
-                    |name: &str| inspector::param_value(&self.doc.project, &id.node, spec.param(name).expect("param"));
-                match (param("spheres"), param("offset")) {
-                    (ParamValue::Spheres(mut spheres), ParamValue::Vec3(offset)) if index < spheres.len() => {
-                        spheres[index].0 = [0, 1, 2].map(|k| moved[k] - offset[k]);
+                let spheres =
+                    inspector::param_value(&self.doc.project, &id.node, spec.param("spheres").expect("param"));
+                match (spheres, self.sphere_transform(&id.node)) {
+                    (ParamValue::Spheres(mut spheres), Some(transform)) if index < spheres.len() => {
+                        spheres[index].0 = transform.to_set(glam::DVec3::from(moved));
                         Some(("spheres", ParamValue::Spheres(spheres)))
                     }
                     _ => None,

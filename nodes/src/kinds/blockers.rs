@@ -40,6 +40,33 @@ impl BlockerSet {
     }
 }
 
+/// A set's placement: its spheres are turned, scaled, then moved by the offset.
+#[derive(Clone, Copy, Debug)]
+pub struct SetTransform {
+    pub rotation: glam::DQuat,
+    pub scale: f64,
+    pub offset: DVec3,
+}
+
+impl SetTransform {
+    pub fn new(offset: [f64; 3], rotation_deg: [f64; 3], scale: f64) -> Self {
+        let [x, y, z] = rotation_deg.map(f64::to_radians);
+        let rotation =
+            glam::DQuat::from_rotation_y(y) * glam::DQuat::from_rotation_x(x) * glam::DQuat::from_rotation_z(z);
+        Self { rotation, scale, offset: DVec3::from(offset) }
+    }
+
+    /// A sphere centre as given, in the world.
+    pub fn to_world(&self, centre: [f64; 3]) -> DVec3 {
+        self.offset + self.rotation * (DVec3::from(centre) * self.scale)
+    }
+
+    /// The inverse of [`Self::to_world`].
+    pub fn to_set(&self, world: DVec3) -> [f64; 3] {
+        (self.rotation.inverse() * (world - self.offset) / self.scale).to_array()
+    }
+}
+
 /// Entries of the log-cap table over `θ ∈ [0, π/2]`.
 const LOG_TABLE_ENTRIES: usize = 512;
 
@@ -57,7 +84,7 @@ pub fn spec() -> NodeKindSpec {
                 label: "Spheres",
                 unit: "m",
                 kind: ParamKind::Spheres { default: vec![([0.0, 1.0, 0.0], 0.5)] },
-                doc: "Centres and radii, before the offset.",
+                doc: "Centres and radii in the set's own frame (before its rotation, scale and offset).",
             },
             ParamSpec {
                 name: "offset",
@@ -65,6 +92,20 @@ pub fn spec() -> NodeKindSpec {
                 unit: "m",
                 kind: ParamKind::Vec3 { min: -1e4, max: 1e4, default: [0.0; 3] },
                 doc: "Moves the whole set.",
+            },
+            ParamSpec {
+                name: "rotation",
+                label: "Rotation",
+                unit: "°",
+                kind: ParamKind::Vec3 { min: -360.0, max: 360.0, default: [0.0; 3] },
+                doc: "Turns the whole set about its origin (X, Y, Z Euler angles, applied Y·X·Z like objects).",
+            },
+            ParamSpec {
+                name: "scale",
+                label: "Scale",
+                unit: "",
+                kind: ParamKind::Float { min: 0.01, max: 100.0, default: 1.0 },
+                doc: "Scales the whole set (centres and radii) about its origin.",
             },
             ParamSpec {
                 name: "sh_bands",
@@ -110,7 +151,7 @@ pub fn spec() -> NodeKindSpec {
             StageSpec {
                 name: "spheres",
                 version: 2,
-                params: &["spheres", "offset", "exponential", "strength"],
+                params: &["spheres", "offset", "rotation", "scale", "exponential", "strength"],
                 stages: &["tables"],
                 inputs: &[],
                 persist: None,
@@ -138,7 +179,7 @@ fn spheres(ctx: &StageContext) -> Result<StageValue, StageError> {
     let ParamValue::Spheres(list) = ctx.value("spheres")? else {
         return Err(StageError::Internal("spheres".into()));
     };
-    let offset = DVec3::from(ctx.vec3("offset")?);
+    let transform = SetTransform::new(ctx.vec3("offset")?, ctx.vec3("rotation")?, ctx.float("scale")?);
     let method = match ctx.choice("exponential")? {
         "ps_star_8" => ExpMethod::PsStar(8),
         "hyb" => ExpMethod::Hyb,
@@ -147,7 +188,7 @@ fn spheres(ctx: &StageContext) -> Result<StageValue, StageError> {
     let blockers = list
         .iter()
         .filter(|(_, r)| *r > 0.0)
-        .map(|(c, r)| Blocker { centre: (DVec3::from(*c) + offset).to_array(), radius: *r })
+        .map(|(c, r)| Blocker { centre: transform.to_world(*c).to_array(), radius: r * transform.scale })
         .collect();
     Ok(StageValue::new(BlockerSet {
         blockers,
@@ -155,4 +196,22 @@ fn spheres(ctx: &StageContext) -> Result<StageValue, StageError> {
         strength: ctx.float("strength")?,
         tables: ctx.stage::<ShadowTables>("tables")?.clone(),
     }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The set's rotation, scale and offset place a sphere as a 90° turn about +Y, a doubling
+    /// and a move should, and `to_set` undoes `to_world` (what dragging a sphere relies on).
+    #[test]
+    fn the_set_transform_places_spheres_and_inverts() {
+        let t = SetTransform::new([1.0, 2.0, 3.0], [0.0, 90.0, 0.0], 2.0);
+        let world = t.to_world([1.0, 0.5, 0.0]);
+        assert!((world - DVec3::new(1.0, 3.0, 1.0)).length() < 1e-12, "{world}");
+        let t = SetTransform::new([-0.3, 0.7, 4.0], [20.0, -35.0, 110.0], 0.4);
+        let c = [0.9, -1.2, 0.25];
+        let back = t.to_set(t.to_world(c));
+        assert!(back.iter().zip(c).all(|(a, b)| (a - b).abs() < 1e-12), "{back:?}");
+    }
 }

@@ -703,6 +703,13 @@ fn planned_kinds_recompute_exactly_their_stages_too() {
         ),
         (
             "blockers",
+            "rotation",
+            Vec3([0.0, 30.0, 0.0]),
+            vec!["blockers.spheres", "output.blocked_transport", "output.incident_sh"],
+        ),
+        ("blockers", "scale", Float(1.5), vec!["blockers.spheres", "output.blocked_transport", "output.incident_sh"]),
+        (
+            "blockers",
             "exponential",
             Choice("hyb".into()),
             vec!["blockers.spheres", "output.blocked_transport", "output.incident_sh"],

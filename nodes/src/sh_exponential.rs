@@ -508,6 +508,7 @@ impl BlockedProduct {
         table: &LogCapTable,
         method: ExpMethod,
         strength: f64,
+        scratch: &mut LogScratch,
     ) -> Option<Vec<f64>> {
         if strength <= 0.0 {
             return None;
@@ -516,11 +517,10 @@ impl BlockedProduct {
         if blockers.iter().any(|b| b.contains(receiver)) {
             return Some(vec![0.0; self.shexp.len()]);
         }
-        let mut scratch = LogScratch::new(table.bands);
         let mut f = vec![0.0; self.shexp.len()];
         let mut reached = false;
         for blocker in blockers {
-            reached |= blocker.add_log(receiver, table, &self.basis, strength, &mut scratch, &mut f);
+            reached |= blocker.add_log(receiver, table, &self.basis, strength, scratch, &mut f);
         }
         reached.then(|| self.shexp.exp(&f, method))
     }
@@ -537,8 +537,9 @@ impl BlockedProduct {
         vectors: &mut [&mut [f32]],
     ) {
         let n = self.bands_t * self.bands_t;
+        let mut scratch = LogScratch::new(table.bands);
         for (i, x) in receivers.iter().enumerate() {
-            let Some(g) = self.visibility(*x, blockers, table, method, strength) else {
+            let Some(g) = self.visibility(*x, blockers, table, method, strength, &mut scratch) else {
                 continue;
             };
             for v in vectors.iter_mut() {

@@ -189,10 +189,10 @@ pub fn spec() -> NodeKindSpec {
             },
             StageSpec {
                 name: "blocked_transport",
-                version: 1,
+                version: 2,
                 params: &[],
                 stages: &[],
-                inputs: &[("scene", "transport_sh"), ("scene", "geometry"), ("blockers", "spheres")],
+                inputs: &[("scene", "transport_sh"), ("scene", "receivers"), ("blockers", "spheres")],
                 persist: None,
                 compute: blocked_transport,
             },
@@ -298,9 +298,8 @@ fn blocked_transport(ctx: &StageContext) -> Result<StageValue, StageError> {
     let Some(set) = ctx.input::<crate::kinds::blockers::BlockerSet>("blockers", "spheres")? else {
         return Ok(StageValue::new(transport.clone()));
     };
-    let meshes = ctx.required_input::<crate::mesh::MeshSet>("scene", "geometry")?;
-    let positions: Vec<DVec3> =
-        meshes.meshes.iter().flat_map(|m| m.positions.iter().map(|p| DVec3::from(p.map(f64::from)))).collect();
+    let receivers = ctx.required_input::<crate::transport::Receivers>("scene", "receivers")?;
+    let positions: Vec<DVec3> = receivers.positions.iter().map(|p| DVec3::from(p.map(f64::from))).collect();
     let n = transport.bands * transport.bands;
     if transport.transfer.len() != positions.len() * n || transport.visibility.len() != positions.len() * n {
         return Err(StageError::Failed(format!(

@@ -3,24 +3,12 @@
 
 use super::*;
 use crate::kinds::blockers::BlockerSet;
-use crate::kinds::output::frame_request;
 use crate::transport::ShTransport;
 use glam::DVec3;
 
 /// The default project on a floor of 4 × 4 tiles (10 m each), under a blocker set, in `sh_prt`.
 fn blockers_graph(spheres: Vec<([f64; 3], f64)>) -> Graph {
-    let mut project = default_project();
-    project.nodes.push(ProjectNode {
-        id: "blockers".into(),
-        kind: "BlockerSpheres".into(),
-        label: String::new(),
-        position: [0.0; 2],
-        params: BTreeMap::new(),
-    });
-    project
-        .links
-        .push(ProjectLink { from: ("blockers".into(), "blockers".into()), to: ("output".into(), "blockers".into()) });
-    let mut graph = project.graph(Path::new("p.ron")).unwrap();
+    let mut graph = default_graph_with("blockers", "BlockerSpheres", &[("blockers", "blockers", "output", "blockers")]);
     graph.set_param("blockers", "spheres", ParamValue::Spheres(spheres)).unwrap();
     let tiles = (0..16)
         .map(|i| {
@@ -33,18 +21,6 @@ fn blockers_graph(spheres: Vec<([f64; 3], f64)>) -> Graph {
     graph.set_param("scene", "transport_rays", ParamValue::Int(64)).unwrap();
     graph.set_param("output", "mode", ParamValue::Choice("sh_prt".into())).unwrap();
     graph
-}
-
-fn evaluate(engine: &Engine, graph: &Graph) -> Evaluation {
-    let eval = engine.evaluate_request(
-        graph,
-        &frame_request(graph, "output", false),
-        &CancelToken::default(),
-        None,
-        &|_, _| {},
-    );
-    assert!(eval.report.failed().is_empty(), "{:?}", eval.report.failed());
-    eval
 }
 
 fn report<'a>(eval: &'a Evaluation, node: &str, stage: &str) -> &'a crate::engine::StageReport {
@@ -60,7 +36,7 @@ fn a_sphere_move_recomputes_only_the_parts_it_reaches() {
     let mut spheres = vec![([0.0, 2.0, 0.0], 0.5), ([15.0, 1.0, 15.0], 0.3)];
     let mut graph = blockers_graph(spheres.clone());
     let engine = Engine::in_memory();
-    let first = evaluate(&engine, &graph);
+    let first = evaluate_frame(&engine, &graph);
     let blocked = value_of::<ShTransport>(&first, "output", "blocked_transport");
     let plain = value_of::<ShTransport>(&first, "scene", "transport_sh");
     let meshes = value_of::<crate::mesh::MeshSet>(&first, "scene", "geometry");
@@ -83,7 +59,7 @@ fn a_sphere_move_recomputes_only_the_parts_it_reaches() {
     assert_eq!(reused, 0);
     spheres[1].0 = [16.0, 1.0, 15.0];
     graph.set_param("blockers", "spheres", ParamValue::Spheres(spheres)).unwrap();
-    let second = evaluate(&engine, &graph);
+    let second = evaluate_frame(&engine, &graph);
     let ran = ran(&second.report);
     assert_eq!(ran, set(&["blockers.spheres", "output.blocked_transport", "output.incident_sh"]), "a sphere move");
     let (recomputed, kept) = parts(&second);

@@ -28,6 +28,39 @@ fn value_of<T: StageType + Clone>(eval: &Evaluation, node: &str, stage: &str) ->
     eval.value(node, stage).unwrap().expect::<T>().unwrap().clone()
 }
 
+/// The default project's graph with a `kind` node `id` added and `links`
+/// (`(from node, port, to node, port)`).
+fn default_graph_with(id: &str, kind: &str, links: &[(&str, &str, &str, &str)]) -> Graph {
+    let mut project = default_project();
+    project.nodes.push(ProjectNode {
+        id: id.into(),
+        kind: kind.into(),
+        label: String::new(),
+        position: [0.0; 2],
+        params: BTreeMap::new(),
+    });
+    project.links.extend(
+        links
+            .iter()
+            .map(|(a, p, b, q)| ProjectLink { from: ((*a).into(), (*p).into()), to: ((*b).into(), (*q).into()) }),
+    );
+    project.graph(Path::new("p.ron")).unwrap()
+}
+
+/// What drawing the Output `output` needs, evaluated as the editor requests it, with no stage
+/// failed.
+fn evaluate_frame(engine: &Engine, graph: &Graph) -> Evaluation {
+    let eval = engine.evaluate_request(
+        graph,
+        &crate::kinds::output::frame_request(graph, "output", false),
+        &CancelToken::default(),
+        None,
+        &|_, _| {},
+    );
+    assert!(eval.report.failed().is_empty(), "{:?}", eval.report.failed());
+    eval
+}
+
 fn set(names: &[&str]) -> BTreeSet<String> {
     names.iter().map(|s| s.to_string()).collect()
 }

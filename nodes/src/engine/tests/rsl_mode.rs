@@ -1,7 +1,6 @@
 //! The `rsl` mode through the engine: what moves recompute, and rotation invariance.
 
 use super::*;
-use crate::kinds::output::frame_request;
 use crate::rsl::brdf_sat::BrdfSat;
 use crate::rsl::shade::{LightVisibility, shade, shading_frame};
 use crate::rsl::{SquareLights, WorldLights};
@@ -9,21 +8,11 @@ use glam::{DMat3, DVec3};
 
 /// The default project with an RSL decomposer feeding the Output in `rsl` mode, kept small.
 fn rsl_graph(objects: Vec<SceneObject>) -> Graph {
-    let mut project = default_project();
-    project.nodes.push(ProjectNode {
-        id: "rsl".into(),
-        kind: "RslDecomposer".into(),
-        label: String::new(),
-        position: [0.0; 2],
-        params: BTreeMap::new(),
-    });
-    let link =
-        |a: &str, p: &str, b: &str, q: &str| ProjectLink { from: (a.into(), p.into()), to: (b.into(), q.into()) };
-    project.links.extend([
-        link("sky", "environment", "rsl", "environment"),
-        link("rsl", "square_lights", "output", "square_lights"),
-    ]);
-    let mut graph = project.graph(Path::new("p.ron")).unwrap();
+    let mut graph = default_graph_with(
+        "rsl",
+        "RslDecomposer",
+        &[("sky", "environment", "rsl", "environment"), ("rsl", "square_lights", "output", "square_lights")],
+    );
     graph.set_param("rsl", "cube_resolution", ParamValue::Choice("16".into())).unwrap();
     graph.set_param("rsl", "light_count", ParamValue::Int(16)).unwrap();
     graph.set_param("scene", "objects", ParamValue::Objects(objects)).unwrap();
@@ -43,18 +32,6 @@ fn objects() -> Vec<SceneObject> {
     ]
 }
 
-fn evaluate(engine: &Engine, graph: &Graph) -> Evaluation {
-    let eval = engine.evaluate_request(
-        graph,
-        &frame_request(graph, "output", false),
-        &CancelToken::default(),
-        None,
-        &|_, _| {},
-    );
-    assert!(eval.report.failed().is_empty(), "{:?}", eval.report.failed());
-    eval
-}
-
 fn reasons(eval: &Evaluation, stage: &str) -> Vec<String> {
     eval.report.stages.iter().find(|s| s.stage == stage).map(|s| s.reasons.clone()).unwrap_or_default()
 }
@@ -64,14 +41,14 @@ fn moving_and_turning_objects_casts_no_ray_and_rebuilds_no_table() {
     let engine = Engine::in_memory();
     let mut objects = objects();
     let mut graph = rsl_graph(objects.clone());
-    let first = evaluate(&engine, &graph);
+    let first = evaluate_frame(&engine, &graph);
     assert!(reasons(&first, "rsl_occluders").contains(&"3 part(s) computed, 0 reused".to_string()));
     let before = value_of::<LightVisibility>(&first, "output", "rsl_visibility");
     objects[1].translation = [1.0, 0.5, -1.0];
     objects[1].rotation_deg = [0.0, 30.0, 10.0];
     objects[2].rotation_deg = [10.0, 80.0, 0.0];
     graph.set_param("scene", "objects", ParamValue::Objects(objects)).unwrap();
-    let moved = evaluate(&engine, &graph);
+    let moved = evaluate_frame(&engine, &graph);
     assert_eq!(
         ran(&moved.report),
         set(&["scene.geometry", "scene.rsl_self_visibility", "scene.rsl_occluders", "output.rsl_visibility"]),
@@ -121,7 +98,7 @@ fn turning_the_environment_with_the_scene_leaves_shading_unchanged() {
     let camera = DVec3::new(0.5, 2.0, 4.0);
     let mut graph = rsl_graph(objects());
     graph.set_param("material", "model", ParamValue::Choice("ggx".into())).unwrap();
-    let first = evaluate(&engine, &graph);
+    let first = evaluate_frame(&engine, &graph);
     let base = cpu_shading(&first, camera);
     let yaw = 90.0f64;
     let turn = DMat3::from_rotation_y(yaw.to_radians());
@@ -141,7 +118,7 @@ fn turning_the_environment_with_the_scene_leaves_shading_unchanged() {
         .collect();
     graph.set_param("scene", "objects", ParamValue::Objects(turned)).unwrap();
     graph.set_param("sky", "rotation", ParamValue::Vec3([yaw, 0.0, 0.0])).unwrap();
-    let second = evaluate(&engine, &graph);
+    let second = evaluate_frame(&engine, &graph);
     assert!(
         ran(&second.report)
             .iter()
@@ -167,7 +144,7 @@ fn small_environment_turns_change_shading_smoothly() {
     let mut graph = rsl_graph(objects());
     let mut shading_at = |yaw: f64| {
         graph.set_param("sky", "rotation", ParamValue::Vec3([yaw, 0.0, 0.0])).unwrap();
-        cpu_shading(&evaluate(&engine, &graph), camera)
+        cpu_shading(&evaluate_frame(&engine, &graph), camera)
     };
     let base = shading_at(30.0);
     let peak = base.iter().map(|b| b.max_element()).fold(0.0, f64::max);

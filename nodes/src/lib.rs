@@ -9,6 +9,7 @@
 //!   nonlinear approximation and triple product integrals.
 //! - [`sat`]: summed-area tables.
 
+pub mod adaptive_sh;
 pub mod brdf;
 pub mod cubemap;
 pub mod engine;

@@ -43,7 +43,7 @@ pub struct BenchArgs {
     /// Frames timed per figure (the median is printed).
     #[arg(long, default_value_t = 5)]
     pub frames: usize,
-    /// Only these sections (default, fog, rsl, blockers, synthetic; all when empty).
+    /// Only these sections (default, fog, rsl, blockers, adaptive, synthetic; all when empty).
     #[arg(long, value_delimiter = ',')]
     pub only: Vec<String>,
 }
@@ -93,6 +93,9 @@ pub fn run(args: &BenchArgs) -> Result<()> {
     }
     if wanted("blockers") {
         crate::bench_blockers::blocker_figures();
+    }
+    if wanted("adaptive") {
+        crate::bench_adaptive::adaptive_figures();
     }
     if wanted("synthetic") {
         synthetic_figures(args, &gpu)?;

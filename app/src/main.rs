@@ -1,6 +1,7 @@
 //! `lightloom`: the node-based lighting design editor and its headless command line.
 
 mod accuracy_command;
+mod bench_adaptive;
 mod bench_blockers;
 mod bench_command;
 mod editor;

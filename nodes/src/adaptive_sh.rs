@@ -75,8 +75,9 @@ impl LightProducts {
         3 * ((level + 1) as u64).pow(4)
     }
 
-    /// The full product `R = L̂ V` on all bands, interleaved `k·3 + c`. `v` holds at least
-    /// `n` coefficients (higher ones are ignored).
+    /// The full product `R = L̂ V` on all bands, interleaved `k·3 + c`: one dense dot product
+    /// per row (faster here than the level-by-level kernel, which reads half of the symmetric
+    /// `L̂` but does two multiply-adds per entry read). `v` holds at least `n` coefficients.
     pub fn full(&self, v: &[f32], out: &mut [f32]) {
         let n = self.n;
         for (c, m) in self.matrices.iter().enumerate() {
@@ -86,33 +87,74 @@ impl LightProducts {
         }
     }
 
-    /// The product truncated to `level` (bands `0..=level` of both factors and the result).
-    fn base(&self, level: usize, v: &[f32], out: &mut [f32]) {
-        let (n, k) = (self.n, (level + 1) * (level + 1));
-        out.fill(0.0);
-        for (c, m) in self.matrices.iter().enumerate() {
-            for i in 0..k {
-                out[i * 3 + c] = dot(&m[i * n..i * n + k], &v[..k]);
+    /// The increment of `level` to a product truncated to `level - 1` (the notes' corrected
+    /// Algorithm 3), planar per channel into `d[c][..(level+1)²]`: new rows `i ∈ [l², (l+1)²)`
+    /// over every column `j < (l+1)²`, and for the old rows the new columns `j ∈ [l², (l+1)²)`
+    /// (`L̂` is symmetric, so those are rows too).
+    fn increment(&self, level: usize, v: &[f32], d: &mut Planar) {
+        let (n, lo, hi) = (self.n, level * level, (level + 1) * (level + 1));
+        for (m, d) in self.matrices.iter().zip(d.iter_mut()) {
+            let (old, new) = d.split_at_mut(lo);
+            old.fill(0.0);
+            // One pass over each new row serves both: its dot product with `v`, and (by
+            // symmetry) its share of the old rows' new columns.
+            for (i, out) in (lo..hi).zip(new.iter_mut()) {
+                let row = &m[i * n..i * n + hi];
+                let (head, tail) = row.split_at(lo);
+                let vi = v[i];
+                let mut acc = [0.0f32; 8];
+                let (hm, hv, hd) = (head.chunks_exact(8), v[..lo].chunks_exact(8), old.chunks_exact_mut(8));
+                let (rm, rv) = (hm.remainder(), hv.remainder());
+                let rest = lo - rm.len();
+                for ((mm, vv), dd) in hm.zip(hv).zip(hd) {
+                    for k in 0..8 {
+                        acc[k] += mm[k] * vv[k];
+                        dd[k] += mm[k] * vi;
+                    }
+                }
+                let mut sum = acc.iter().sum::<f32>();
+                for (k, (mm, vv)) in rm.iter().zip(rv).enumerate() {
+                    sum += mm * vv;
+                    old[rest + k] += mm * vi;
+                }
+                *out = sum + dot(tail, &v[lo..hi]);
             }
         }
     }
 
-    /// Raises a product truncated to `level - 1` to `level` (the notes' corrected Algorithm 3):
-    /// new rows `i ∈ [l², (l+1)²)` over every column `j < (l+1)²`, and for the old rows the new
-    /// columns `j ∈ [l², (l+1)²)`. `L̂` is symmetric, so the new columns are rows too.
-    fn raise(&self, level: usize, v: &[f32], out: &mut [f32]) {
-        let (n, lo, hi) = (self.n, level * level, (level + 1) * (level + 1));
-        for (c, m) in self.matrices.iter().enumerate() {
-            for i in lo..hi {
-                out[i * 3 + c] = dot(&m[i * n..i * n + hi], &v[..hi]);
-            }
-            for j in lo..hi {
-                let row = &m[j * n..j * n + lo];
-                let vj = v[j];
-                for (i, mij) in row.iter().enumerate() {
-                    out[i * 3 + c] += mij * vj;
+    /// Raises `r` (planar, at `from`) to `to`, adding the total change to `change`.
+    fn raise(&self, from: usize, to: usize, v: &[f32], r: &mut Planar, d: &mut Planar, change: &mut Planar) {
+        for level in from + 1..=to {
+            self.increment(level, v, d);
+            let used = (level + 1) * (level + 1);
+            for c in 0..3 {
+                for i in 0..used {
+                    r[c][i] += d[c][i];
+                    change[c][i] += d[c][i];
                 }
             }
+        }
+    }
+}
+
+/// Per channel, `n` coefficients.
+type Planar = [Vec<f32>; 3];
+
+fn planar(n: usize) -> Planar {
+    std::array::from_fn(|_| vec![0.0; n])
+}
+
+fn add_planar(r: &mut Planar, d: &Planar, used: usize) {
+    for (r, d) in r.iter_mut().zip(d) {
+        r[..used].iter_mut().zip(&d[..used]).for_each(|(r, d)| *r += d);
+    }
+}
+
+/// Interleaves the first `used` coefficients of `r` into `out` (`k·3 + c`).
+fn interleave(r: &Planar, used: usize, out: &mut [f32]) {
+    for c in 0..3 {
+        for i in 0..used {
+            out[i * 3 + c] = r[c][i];
         }
     }
 }
@@ -168,17 +210,18 @@ impl ShadingWeights {
         sum.into_iter().fold(0.0, f64::max).sqrt()
     }
 
-    /// View-averaged RMS of `a - b` where `b` holds only the first `b.len() / 3` coefficients.
-    fn rms_from_prefix(&self, a: &[f32], b: &[f32]) -> f64 {
-        let mut sum = [0.0f64; 3];
-        for (i, x) in a.chunks_exact(3).enumerate() {
-            let w = self.per_band[band_of(i)];
-            for c in 0..3 {
-                let d = (x[c] - b.get(i * 3 + c).copied().unwrap_or(0.0)) as f64;
-                sum[c] += w[c] as f64 * d * d;
+    /// View-averaged RMS of a planar change on its first `used` coefficients.
+    fn rms_planar(&self, d: &Planar, used: usize) -> f64 {
+        let mut worst = 0.0f32;
+        for (c, d) in d.iter().enumerate() {
+            let mut sum = 0.0f32;
+            for (l, w) in self.per_band.iter().enumerate() {
+                let band = &d[(l * l).min(used)..((l + 1) * (l + 1)).min(used)];
+                sum += w[c] * band.iter().map(|x| x * x).sum::<f32>();
             }
+            worst = worst.max(sum);
         }
-        sum.into_iter().fold(0.0, f64::max).sqrt()
+        (worst as f64).sqrt()
     }
 }
 
@@ -315,7 +358,6 @@ pub fn adaptive_incident(
     let (n, top) = (p.n, p.bands.saturating_sub(1).min(settings.level));
     let count = inputs.lobe_of.len();
     let base = BASE_LEVEL.min(top);
-    let base_len = (base + 1) * (base + 1) * 3;
     let mut coeffs = vec![0.0f32; count * n * 3];
     let mut levels = vec![u8::MAX; count];
     // Hysteresis: levels a vertex had in the previous evaluation are kept down to the lower
@@ -332,27 +374,31 @@ pub fn adaptive_incident(
         .map(|(chunk, (out, lv))| {
             cancel.check()?;
             let mut macs = 0u64;
-            let mut trial = vec![0.0f32; n * 3];
-            for (k, (r, level)) in out.chunks_exact_mut(n * 3).zip(lv.iter_mut()).enumerate() {
+            let (mut r, mut d) = (planar(n), planar(n));
+            for (k, (out, level)) in out.chunks_exact_mut(n * 3).zip(lv.iter_mut()).enumerate() {
                 let v = chunk * 256 + k;
                 let Some(lobe) = inputs.lobe_of[v] else { continue };
                 let weights = &inputs.weights[lobe as usize];
                 let vis = &inputs.visibility[v * inputs.stride..];
-                p.base(base, vis, r);
+                r.iter_mut().for_each(|x| x.fill(0.0));
+                for l in 0..=base {
+                    p.increment(l, vis, &mut d);
+                    let used = (l + 1) * (l + 1);
+                    add_planar(&mut r, &d, used);
+                }
                 macs += LightProducts::full_macs(base);
-                let base_r = r[..base_len].to_vec();
                 *level = base as u8;
                 for l in base + 1..=top {
-                    let used = (l + 1) * (l + 1) * 3;
-                    trial[..used].copy_from_slice(&r[..used]);
-                    p.raise(l, vis, &mut trial);
+                    p.increment(l, vis, &mut d);
                     macs += LightProducts::full_macs(l) - LightProducts::full_macs(l - 1);
-                    if weights.rms_from_prefix(&trial[..used], &r[..used]) < threshold_of(v, l) {
+                    let used = (l + 1) * (l + 1);
+                    if weights.rms_planar(&d, used) < threshold_of(v, l) {
                         break;
                     }
-                    r[..used].copy_from_slice(&trial[..used]);
+                    add_planar(&mut r, &d, used);
                     *level = l as u8;
                 }
+                interleave(&r, (*level as usize + 1).pow(2), out);
             }
             Ok::<_, StageError>(macs)
         })
@@ -393,20 +439,28 @@ pub fn adaptive_incident(
             }
             let computed: Vec<(u32, u8, Vec<f32>, bool, u64)> = candidates
                 .par_iter()
-                .map(|&(u, target)| {
-                    let u = u as usize;
-                    let current = &coeffs[u * n * 3..(u + 1) * n * 3];
-                    let vis = &inputs.visibility[u * inputs.stride..];
-                    let mut raised = current.to_vec();
-                    let from = levels[u] as usize;
-                    for l in from + 1..=target as usize {
-                        p.raise(l, vis, &mut raised);
-                    }
-                    let weights = &inputs.weights[inputs.lobe_of[u].unwrap_or(0) as usize];
-                    let significant = weights.rms(&raised, current) >= threshold_of(u, target as usize);
-                    let macs = LightProducts::full_macs(target as usize) - LightProducts::full_macs(from);
-                    (u as u32, target, raised, significant, macs)
-                })
+                .map_init(
+                    || (planar(n), planar(n), planar(n)),
+                    |(r, d, change), &(u, target)| {
+                        let u = u as usize;
+                        let current = &coeffs[u * n * 3..(u + 1) * n * 3];
+                        let vis = &inputs.visibility[u * inputs.stride..];
+                        for c in 0..3 {
+                            for i in 0..n {
+                                r[c][i] = current[i * 3 + c];
+                            }
+                            change[c].fill(0.0);
+                        }
+                        let from = levels[u] as usize;
+                        p.raise(from, target as usize, vis, r, d, change);
+                        let mut raised = vec![0.0f32; n * 3];
+                        interleave(r, n, &mut raised);
+                        let weights = &inputs.weights[inputs.lobe_of[u].unwrap_or(0) as usize];
+                        let significant = weights.rms_planar(change, n) >= threshold_of(u, target as usize);
+                        let macs = LightProducts::full_macs(target as usize) - LightProducts::full_macs(from);
+                        (u as u32, target, raised, significant, macs)
+                    },
+                )
                 .collect();
             frontier.clear();
             for (u, target, raised, significant, macs) in computed {
@@ -448,7 +502,8 @@ fn smooth_borders(coeffs: &mut [f32], levels: &[u8], adjacency: &Adjacency, n: u
     let count = levels.len();
     let below_top = |v: usize| levels[v] != u8::MAX && (levels[v] as usize) < top;
     let higher = |u: usize, v: usize| levels.get(u).is_some_and(|&l| l != u8::MAX && l > levels[v]);
-    let snapshot = coeffs.to_vec();
+    // Every mean is computed before any vertex changes.
+    let snapshot: &[f32] = coeffs;
     let tier1: Vec<(usize, Vec<f32>)> = (0..count)
         .into_par_iter()
         .filter(|&v| below_top(v))

@@ -95,12 +95,15 @@ fn raising_level_by_level_equals_the_truncated_product_at_every_level() {
     let v: Vec<f32> = (0..bands * bands).map(|_| rng.random_range(-1.0..1.0)).collect();
     let products = LightProducts::new(&light, bands);
     let n = bands * bands;
+    let (mut planar_r, mut d, mut change) = (planar(n), planar(n), planar(n));
     let mut r = vec![0.0f32; n * 3];
-    products.base(0, &v, &mut r);
     for level in 0..bands {
-        if level > 0 {
-            products.raise(level, &v, &mut r);
+        if level == 0 {
+            products.increment(0, &v, &mut planar_r);
+        } else {
+            products.raise(level - 1, level, &v, &mut planar_r, &mut d, &mut change);
         }
+        interleave(&planar_r, n, &mut r);
         let k = (level + 1) * (level + 1);
         // Lee's L̂ keeps every band of the light; the factors truncated are V and the result.
         let table = GauntTable::new(bands, level + 1, level + 1);

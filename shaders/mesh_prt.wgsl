@@ -6,21 +6,69 @@
 
 
 struct PrtParams {
-    // x: bands used (<= 8), y: transfer floats per vertex, z: incident floats per vertex,
-    // w: 1 when the incident radiance R is bound
+    // x: diffuse bands (<= 12), y: transfer floats per vertex, z: incident floats per vertex,
+    // w: bands of the incident radiance R (0 when none is bound; <= 12)
     counts: vec4<u32>,
     // Per material: diffuse albedo; glossy lobe weight (rgb, w = 1 when glossy); per-band
-    // lobe factors f_l, four per vector (material m: lobe[2m], lobe[2m + 1]).
+    // lobe factors f_l, four per vector (material m: lobe[3m .. 3m + 2]).
     albedo: array<vec4<f32>, 8>,
     specular: array<vec4<f32>, 8>,
-    lobe: array<vec4<f32>, 16>,
+    lobe: array<vec4<f32>, 24>,
     // Lighting L_k (rgb), index l*(l+1)+m.
-    light: array<vec4<f32>, 64>,
+    light: array<vec4<f32>, 144>,
 };
 
 @group(2) @binding(0) var<uniform> prt: PrtParams;
 @group(2) @binding(1) var<storage, read> transfer: array<f32>;
 @group(2) @binding(2) var<storage, read> incident: array<f32>;
+
+fn incident_rgb(ib: u32, k: i32) -> vec3<f32> {
+    let o = ib + u32(k) * 3u;
+    return vec3<f32>(incident[o], incident[o + 1u], incident[o + 2u]);
+}
+
+// sum_lm f_l R_lm Y_lm(r) over `bands`, with the basis from common.wgsl's recurrence evaluated
+// as it goes (no basis array, so high orders fit in registers).
+fn glossy_sum(r: vec3<f32>, bands: i32, ib: u32, material: u32) -> vec3<f32> {
+    var sum = vec3<f32>(0.0);
+    var c = 1.0;
+    var s = 0.0;
+    var p_mm = sqrt(1.0 / (4.0 * PI));
+    for (var m = 0; m < bands; m = m + 1) {
+        let mf = f32(m);
+        if (m > 0) {
+            p_mm = p_mm * sqrt((2.0 * mf + 1.0) / (2.0 * mf));
+            let nc = c * r.x - s * r.y;
+            let ns = c * r.y + s * r.x;
+            c = nc;
+            s = ns;
+        }
+        var p_prev = 0.0;
+        var p = p_mm;
+        for (var l = m; l < bands; l = l + 1) {
+            if (l == m + 1) {
+                p_prev = p;
+                p = sqrt(2.0 * mf + 3.0) * r.z * p_mm;
+            } else if (l > m + 1) {
+                let lf = f32(l);
+                let a = sqrt((4.0 * lf * lf - 1.0) / (lf * lf - mf * mf));
+                let b = sqrt(((lf - 1.0) * (lf - 1.0) - mf * mf) / (4.0 * (lf - 1.0) * (lf - 1.0) - 1.0));
+                let next = a * (r.z * p - b * p_prev);
+                p_prev = p;
+                p = next;
+            }
+            let f = prt.lobe[3u * material + u32(l / 4)][l % 4];
+            let base = l * (l + 1);
+            if (m == 0) {
+                sum = sum + f * p * incident_rgb(ib, base);
+            } else {
+                let k = p * sqrt(2.0);
+                sum = sum + f * k * (c * incident_rgb(ib, base + m) + s * incident_rgb(ib, base - m));
+            }
+        }
+    }
+    return sum;
+}
 
 struct VertexOut {
     @builtin(position) clip: vec4<f32>,
@@ -44,20 +92,11 @@ fn vs_main(v: MeshVertex, @builtin(vertex_index) index: u32) -> VertexOut {
     }
     let m = v.material;
     var color = prt.albedo[m].rgb * v.color * max(diffuse, vec3<f32>(0.0)) / PI;
-    if (prt.counts.w == 1u && prt.specular[m].w > 0.0) {
+    if (prt.counts.w > 0u && prt.specular[m].w > 0.0) {
         let n = normalize(v.normal);
         let view = normalize(globals.camera_pos.xyz - v.position);
         let r = reflect(-view, n);
-        let y = sh_basis(r, bands);
-        let ib = index * prt.counts.z;
-        var glossy = vec3<f32>(0.0);
-        for (var l = 0; l < bands; l = l + 1) {
-            let f = prt.lobe[2u * m + u32(l / 4)][l % 4];
-            for (var k = l * l; k < (l + 1) * (l + 1); k = k + 1) {
-                let o = ib + u32(k) * 3u;
-                glossy = glossy + f * y[k] * vec3<f32>(incident[o], incident[o + 1u], incident[o + 2u]);
-            }
-        }
+        let glossy = glossy_sum(r, i32(prt.counts.w), index * prt.counts.z, m);
         color = color + prt.specular[m].rgb * max(glossy, vec3<f32>(0.0)) * max(dot(n, r), 0.0);
     }
     out.color = color;

@@ -120,7 +120,9 @@ impl IrradianceSurfaces {
 /// `sh_prt`: shadowed diffuse transfer and glossy lobes on shadowed incident light, per vertex.
 #[derive(Clone, Debug)]
 pub struct PrtSurfaces {
-    /// [`crate::transport::ShTransport`] and [`crate::prt::IncidentSh`] per vertex.
+    /// [`crate::transport::ShTransport`] and [`crate::prt::IncidentSh`] per vertex (or
+    /// [`crate::adaptive_sh::AdaptiveIncident`]: read it with [`incident_sh`]; its bands may
+    /// be fewer than the transport's).
     pub transport: Keyed,
     pub incident: Keyed,
     /// The light the diffuse transfer sees (through fog when there is one), if any.
@@ -144,9 +146,10 @@ impl PrtSurfaces {
         vertices: usize,
     ) -> Result<Self, String> {
         let t = transport.value.expect::<crate::transport::ShTransport>().map_err(|e| e.to_string())?;
-        let r = incident.value.expect::<crate::prt::IncidentSh>().map_err(|e| e.to_string())?;
+        let r = incident_sh(&incident.value)?;
         let n = t.bands * t.bands;
-        if t.transfer.len() != vertices * n || (!r.coeffs.is_empty() && r.coeffs.len() != vertices * n * 3) {
+        let ni = r.bands * r.bands;
+        if t.transfer.len() != vertices * n || (!r.coeffs.is_empty() && r.coeffs.len() != vertices * ni * 3) {
             return Err(format!("the transport has {} receivers for {vertices} vertices", t.transfer.len() / n.max(1)));
         }
         let attenuation = fog.map_or([1.0; 3], |f| f.fog.attenuation);
@@ -166,6 +169,14 @@ impl PrtSurfaces {
             albedo: materials.iter().map(|m| m.material.albedo).collect(),
             glossy,
         })
+    }
+}
+
+/// Per-vertex incident radiance from `incident_sh` or, in `sh_adaptive`, `adaptive_incident`.
+pub fn incident_sh(value: &crate::engine::StageValue) -> Result<&crate::prt::IncidentSh, String> {
+    match value.get::<crate::adaptive_sh::AdaptiveIncident>() {
+        Some(a) => Ok(&a.incident),
+        None => value.expect::<crate::prt::IncidentSh>().map_err(|e| e.to_string()),
     }
 }
 

@@ -282,6 +282,7 @@ impl PortType {
             PortType::Scene => &[
                 "geometry",
                 "receivers",
+                "adjacency",
                 "texel_receivers",
                 "transport_sh",
                 "transport_local",

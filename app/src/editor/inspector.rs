@@ -200,6 +200,9 @@ impl Inspector<'_> {
                 });
             });
         for s in report.stages.iter().filter(|s| s.node == id) {
+            for line in &s.info {
+                ui.add(egui::Label::new(RichText::new(line).weak()).wrap());
+            }
             for w in &s.warnings {
                 ui.add(egui::Label::new(RichText::new(format!("⚠ {w}")).color(Color32::from_rgb(230, 180, 60))).wrap());
             }

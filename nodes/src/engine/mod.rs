@@ -116,13 +116,18 @@ pub enum EvalEvent {
     Finished,
 }
 
+/// An upstream node's id and the value of one of its stages.
+type Upstream<'a> = (&'a str, Arc<StageValue>);
+
 /// What a stage's computation sees: only what it declared it reads.
 pub struct StageContext<'a> {
     pub node_id: &'a str,
     pub stage: &'static str,
     params: BTreeMap<&'static str, &'a ParamValue>,
     stages: HashMap<&'static str, Arc<StageValue>>,
-    inputs: HashMap<(&'static str, &'static str), Arc<StageValue>>,
+    /// Per `(port, stage)`: the upstream nodes' values in link order (one unless the port
+    /// takes many links).
+    inputs: HashMap<(&'static str, &'static str), Vec<Upstream<'a>>>,
     project_dir: &'a Path,
     cancel: &'a CancelToken,
     events: Option<&'a Sender<EvalEvent>>,
@@ -133,6 +138,7 @@ pub struct StageContext<'a> {
     memo_hits: std::sync::atomic::AtomicUsize,
     memo_misses: std::sync::atomic::AtomicUsize,
     warnings: Mutex<Vec<String>>,
+    info: Mutex<Vec<String>>,
 }
 
 impl StageContext<'_> {
@@ -140,6 +146,11 @@ impl StageContext<'_> {
     /// downsampled): shown in the stage's report for as long as its result is used.
     pub fn warn(&self, message: impl Into<String>) {
         self.warnings.lock().unwrap().push(message.into());
+    }
+
+    /// A plain statement about the result (how accurate, how much work), shown beside the node.
+    pub fn inform(&self, message: impl Into<String>) {
+        self.info.lock().unwrap().push(message.into());
     }
 
     /// Caches a part of this stage's work under `key`, a hash of everything that part depends
@@ -262,12 +273,32 @@ impl StageContext<'_> {
     /// An upstream stage through an input port, as its type; `None` when the port is
     /// unconnected.
     pub fn input<T: StageType>(&self, port: &str, stage: &str) -> Result<Option<&T>, StageError> {
-        match self.inputs.iter().find(|((p, s), _)| *p == port && *s == stage) {
-            None => Ok(None),
-            Some((_, value)) => {
-                value.expect::<T>().map(Some).map_err(|e| StageError::Internal(format!("input `{port}.{stage}`: {e}")))
-            }
-        }
+        Ok(self.inputs_all::<T>(port, stage)?.into_iter().next().map(|(_, v)| v))
+    }
+
+    /// Every upstream node's stage through a port that takes many links, in link order, with
+    /// the upstream node's id.
+    pub fn inputs_all<T: StageType>(&self, port: &str, stage: &str) -> Result<Vec<(&str, &T)>, StageError> {
+        let Some((_, values)) = self.inputs.iter().find(|((p, s), _)| *p == port && *s == stage) else {
+            return Ok(Vec::new());
+        };
+        values
+            .iter()
+            .map(|(id, value)| {
+                value
+                    .expect::<T>()
+                    .map(|v| (*id, v))
+                    .map_err(|e| StageError::Internal(format!("input `{port}.{stage}`: {e}")))
+            })
+            .collect()
+    }
+
+    /// The value this stage last produced for this node in a finished evaluation (under any
+    /// key), while the memory cache still holds it: for results meant to be stable from one
+    /// edit to the next (hysteresis). `None` on the first evaluation.
+    pub fn previous<T: StageType>(&self) -> Option<Arc<StageValue>> {
+        let key = self.engine.last.lock().unwrap().get(&stage_slot(self.node_id, self.stage))?.key;
+        self.engine.memory.lock().unwrap().get(key).filter(|v| v.get::<T>().is_some())
     }
 
     /// Like [`StageContext::input`], for inputs the node cannot work without.
@@ -353,6 +384,9 @@ pub struct StageReport {
     /// Repairs and adjustments the stage made (also listed in the report's notes).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub warnings: Vec<String>,
+    /// What the stage says about its result (accuracy, work done).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub info: Vec<String>,
 }
 
 /// What an evaluation did.
@@ -449,6 +483,8 @@ pub struct Engine {
     file_hashes: Mutex<HashMap<PathBuf, (std::time::SystemTime, u64, u64)>>,
     /// Warnings of computed stages by key, repeated whenever the result is reused.
     stage_warnings: Mutex<HashMap<Key, Vec<String>>>,
+    /// Information lines of computed stages by key.
+    stage_info: Mutex<HashMap<Key, Vec<String>>>,
     /// Stages being computed, shared with newer evaluations that need the same key.
     flights: flight::Flights,
 }
@@ -458,7 +494,7 @@ struct Instance<'g> {
     node: &'g GraphNode,
     spec: &'g StageSpec,
     /// Indices of the instances it reads, with the label they are read under.
-    deps: Vec<(usize, DepLabel)>,
+    deps: Vec<(usize, DepLabel<'g>)>,
     key: Key,
     components: Vec<(key::Component, u64)>,
 }
@@ -479,9 +515,10 @@ fn stage_slot(node: &str, stage: &str) -> u64 {
 type Outcome = (Result<Arc<StageValue>, StageError>, StageStatus, f64, Vec<String>);
 
 #[derive(Clone, Copy)]
-enum DepLabel {
+enum DepLabel<'g> {
     Own(&'static str),
-    Input(&'static str, &'static str),
+    /// Port, stage and the upstream node.
+    Input(&'static str, &'static str, &'g str),
 }
 
 impl Engine {
@@ -493,6 +530,7 @@ impl Engine {
             failures: Mutex::new(HashMap::default()),
             file_hashes: Mutex::new(HashMap::default()),
             stage_warnings: Mutex::new(HashMap::default()),
+            stage_info: Mutex::new(HashMap::default()),
             flights: flight::Flights::default(),
         }
     }
@@ -616,6 +654,7 @@ impl Engine {
                         ms: 0.0,
                         error: None,
                         warnings: Vec::new(),
+                        info: Vec::new(),
                     });
                 }
                 continue;
@@ -630,8 +669,14 @@ impl Engine {
                 Vec::new()
             };
             notes.extend(warnings.iter().map(|w| format!("{}.{}: {w}", inst.node.id, inst.spec.name)));
+            let info = if value.is_ok() {
+                self.stage_info.lock().unwrap().get(&inst.key).cloned().unwrap_or_default()
+            } else {
+                Vec::new()
+            };
             report.stages.push(StageReport {
                 warnings,
+                info,
                 node: inst.node.id.clone(),
                 kind: Cow::Borrowed(inst.node.kind.name),
                 stage: Cow::Borrowed(inst.spec.name),
@@ -672,13 +717,26 @@ impl Engine {
                     deps.push((d, DepLabel::Own(own)));
                 }
                 for &(port, stage) in spec.inputs {
-                    match graph.upstream(&node.id, port) {
-                        Some(up) => {
-                            let d = index[&(up.id.as_str(), stage)];
-                            builder.add(key::Component::Input(port, stage), &instances[d].key.to_le_bytes());
-                            deps.push((d, DepLabel::Input(port, stage)));
+                    let many = node.kind.inputs.iter().any(|p| p.name == port && p.many);
+                    let upstream = if many {
+                        graph.upstream_all(&node.id, port)
+                    } else {
+                        Vec::from_iter(graph.upstream(&node.id, port))
+                    };
+                    if upstream.is_empty() {
+                        builder.add(key::Component::Input(port, stage), b"unconnected");
+                    }
+                    let mut bytes = Vec::new();
+                    for up in upstream {
+                        let d = index[&(up.id.as_str(), stage)];
+                        bytes.clear();
+                        bytes.extend_from_slice(&instances[d].key.to_le_bytes());
+                        // Which node a value came from matters where many are linked.
+                        if many {
+                            bytes.extend_from_slice(up.id.as_bytes());
                         }
-                        None => builder.add(key::Component::Input(port, stage), b"unconnected"),
+                        builder.add(key::Component::Input(port, stage), &bytes);
+                        deps.push((d, DepLabel::Input(port, stage, up.id.as_str())));
                     }
                 }
                 let (key, components) = builder.finish();
@@ -851,6 +909,7 @@ impl Engine {
             memo_hits: Default::default(),
             memo_misses: Default::default(),
             warnings: Default::default(),
+            info: Default::default(),
         };
         for (d, label) in &inst.deps {
             let value = results[*d].as_ref().unwrap().0.as_ref().unwrap().clone();
@@ -858,8 +917,8 @@ impl Engine {
                 DepLabel::Own(name) => {
                     ctx.stages.insert(name, value);
                 }
-                DepLabel::Input(port, stage) => {
-                    ctx.inputs.insert((port, stage), value);
+                DepLabel::Input(port, stage, from) => {
+                    ctx.inputs.entry((port, stage)).or_default().push((from, value));
                 }
             }
         }
@@ -877,6 +936,10 @@ impl Engine {
         }
         if outcome.is_ok() && !warnings.is_empty() {
             self.stage_warnings.lock().unwrap().insert(inst.key, warnings);
+        }
+        let info = ctx.info.into_inner().unwrap();
+        if outcome.is_ok() && !info.is_empty() {
+            self.stage_info.lock().unwrap().insert(inst.key, info);
         }
         let (hits, misses) = (ctx.memo_hits.into_inner(), ctx.memo_misses.into_inner());
         if hits + misses > 0 {

@@ -7,6 +7,8 @@ pub mod environment;
 pub mod fog;
 pub mod lights;
 pub mod output;
+mod output_adaptive;
+pub use output_adaptive::AdaptiveError;
 pub mod planned;
 pub mod rsl;
 pub mod scene;

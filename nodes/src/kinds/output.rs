@@ -28,6 +28,8 @@ crate::choice_enum! {
         ShIrradiance = "sh_irradiance",
         /// Shadowed SH transfer per vertex, glossy lobes on the shadowed incident radiance.
         ShPrt = "sh_prt",
+        /// High-order SH with locally adaptive products per vertex (Lee 2014).
+        ShAdaptive = "sh_adaptive",
         /// All-frequency local-frame triple product per vertex.
         WaveletVertex = "wavelet_vertex",
         /// The same, per pixel on objects with a visibility texture.
@@ -80,6 +82,12 @@ pub const MODE_LABELS: &[(&str, &str)] = &[
          fast; shadows and highlights are low-frequency (blurred). Precomputes once per scene.",
     ),
     (
+        "Sharper gloss, adaptive SH",
+        "As soft shadows and gloss, at high SH order (level 10: 121 coefficients) for sharper highlights: \
+         each vertex adds SH levels only while they still change its shading (Lee 2014), and the node \
+         shows the PSNR against computing every level. Raise the environment's and the scene's SH bands.",
+    ),
+    (
         "Sharp shadows, per vertex",
         "All-frequency lighting (wavelet triple product) per vertex: sharp sun shadows and highlights \
          on finely tessellated meshes. Each lighting change recomputes per-vertex products (about a second \
@@ -125,7 +133,8 @@ pub fn spec() -> NodeKindSpec {
                 kind: ParamKind::Choice { options: Mode::NAMES, default: "sh_prt", labels: MODE_LABELS },
                 doc: "sh_irradiance: unshadowed diffuse lighting from the environment's SH, per pixel (Sun 2008 \
                       eq. 2.20). sh_prt: shadowed diffuse transfer plus glossy lobes on the shadowed incident \
-                      radiance, per vertex. wavelet_vertex: all-frequency triple \
+                      radiance, per vertex. sh_adaptive: the same at high SH order, each vertex adding SH \
+                      levels only while they change its shading (Lee 2014). wavelet_vertex: all-frequency triple \
                       product in each vertex's local frame (Ma et al. eq. 7), 80 or 320 top-only coefficients. \
                       wavelet_pixel: the same, per pixel on objects with a \
                       visibility texture (sharp shadows and reflections on coarse meshes). rsl: the square lights \
@@ -176,8 +185,11 @@ pub fn spec() -> NodeKindSpec {
                 kind: ParamKind::Int { min: 1, max: 65536, default: 64 },
                 doc: "Samples per pixel of the reference (each: one environment and one BRDF sample, MIS).",
             },
-        ],
-        stages: vec![
+        ]
+        .into_iter()
+        .chain(super::output_adaptive::params())
+        .collect(),
+        stages: [
             StageSpec {
                 name: "settings",
                 version: 1,
@@ -247,7 +259,10 @@ pub fn spec() -> NodeKindSpec {
                 persist: None,
                 compute: rsl_visibility,
             },
-        ],
+        ]
+        .into_iter()
+        .chain(super::output_adaptive::stages())
+        .collect(),
         previews: Vec::new(),
         availability: Availability::Ready,
     }
@@ -502,9 +517,12 @@ pub fn mode_stages(graph: &Graph, output: &str, mode: Mode) -> Vec<StageRef> {
     let upstream = |port: &str| graph.upstream(output, port).map(|n| n.id.clone());
     if let Some(scene) = upstream("scene") {
         stages.push(StageRef::new(&scene, "geometry"));
-        if mode == Mode::ShPrt {
+        if matches!(mode, Mode::ShPrt | Mode::ShAdaptive) {
             stages.push(StageRef::new(&scene, "transport_sh"));
             stages.push(StageRef::new(output, "blocked_transport"));
+        }
+        if mode == Mode::ShAdaptive {
+            stages.push(StageRef::new(&scene, "adjacency"));
         }
         if mode == Mode::Rsl {
             stages.push(StageRef::new(&scene, "rsl_self_visibility"));
@@ -523,7 +541,7 @@ pub fn mode_stages(graph: &Graph, output: &str, mode: Mode) -> Vec<StageRef> {
     for material in graph.upstream_all(output, "material") {
         stages.push(StageRef::new(&material.id, "material"));
         match mode {
-            Mode::ShPrt => stages.push(StageRef::new(&material.id, "sh_lobe")),
+            Mode::ShPrt | Mode::ShAdaptive => stages.push(StageRef::new(&material.id, "sh_lobe")),
             Mode::WaveletVertex | Mode::WaveletPixel => stages.push(StageRef::new(&material.id, "local_table")),
             Mode::Rsl => stages.push(StageRef::new(&material.id, "rsl_tables")),
             Mode::ShIrradiance => {}
@@ -538,6 +556,7 @@ pub fn mode_stages(graph: &Graph, output: &str, mode: Mode) -> Vec<StageRef> {
     match mode {
         Mode::ShIrradiance => {}
         Mode::ShPrt => stages.push(StageRef::new(output, "incident_sh")),
+        Mode::ShAdaptive => stages.push(StageRef::new(output, "adaptive_incident")),
         Mode::WaveletVertex => stages.push(StageRef::new(output, "local_products")),
         Mode::WaveletPixel => {
             stages.push(StageRef::new(output, "local_products"));
@@ -573,7 +592,12 @@ pub fn frame_request(graph: &Graph, output: &str, picking: bool) -> Request {
             first.push(StageRef::new(&blockers.id, "spheres"));
         }
     }
-    if mode.is_shadowed() {
+    if mode == Mode::ShAdaptive {
+        // The PSNR against the full product comes after the frame.
+        Request::new(format!("output `{output}`: unshadowed preview"), first)
+            .then(format!("output `{output}`: mode {mode}"), mode_stages(graph, output, mode))
+            .then(format!("output `{output}`: error of mode {mode}"), vec![StageRef::new(output, "adaptive_error")])
+    } else if mode.is_shadowed() {
         Request::new(format!("output `{output}`: unshadowed preview"), first)
             .then(format!("output `{output}`: mode {mode}"), mode_stages(graph, output, mode))
     } else {
@@ -622,7 +646,7 @@ impl FrameInputs {
                 node: node.id.clone(),
                 material: typed(&keyed(&node.id, "material")?, "material")?,
             });
-            if mode == Mode::ShPrt {
+            if matches!(mode, Mode::ShPrt | Mode::ShAdaptive) {
                 lobes.push(Some(typed(&keyed(&node.id, "sh_lobe")?, "sh_lobe")?));
             }
             if mode.is_wavelet() {
@@ -664,9 +688,9 @@ impl FrameInputs {
             .as_ref()
             .is_some_and(|p| p.value.get::<crate::triple_product::LocalProducts>().is_some_and(|p| p.cells == 0));
         let surfaces = match mode {
-            Mode::ShPrt => Surfaces::Prt(PrtSurfaces::new(
+            Mode::ShPrt | Mode::ShAdaptive => Surfaces::Prt(PrtSurfaces::new(
                 keyed(output, "blocked_transport")?,
-                keyed(output, "incident_sh")?,
+                keyed(output, if mode == Mode::ShAdaptive { "adaptive_incident" } else { "incident_sh" })?,
                 light,
                 fogged,
                 &materials,
@@ -700,11 +724,12 @@ impl FrameInputs {
             None => Vec::new(),
         };
         let mut ignored_inputs = Vec::new();
-        if settings.mode != Mode::ShPrt
+        if !matches!(settings.mode, Mode::ShPrt | Mode::ShAdaptive)
             && let Some(n) = upstream("blockers")
         {
             ignored_inputs.push(format!(
-                "`blockers` (from `{n}`) shadow the sh_prt mode only (the reference traces them in every mode)"
+                "`blockers` (from `{n}`) shadow the SH modes sh_prt and sh_adaptive only (the reference traces them \
+                 in every mode)"
             ));
         }
         let blockers = match upstream("blockers") {
@@ -827,7 +852,7 @@ fn lobe_limits(
                 "{mode} draws diffuse light only: {lobe} is not shown; sh_prt shows lobes up to about Phong \
                  {sh_limit:.0}, the wavelet modes up to about Phong {cell_limit:.0}"
             )),
-            Mode::ShPrt if exponent > sh_limit => Some(format!(
+            Mode::ShPrt | Mode::ShAdaptive if exponent > sh_limit => Some(format!(
                 "{lobe} is sharper than {bands} SH bands show (about Phong {sh_limit:.0}): it is drawn broader and \
                  dimmer; raise the Scene's transport SH bands, or use wavelet_pixel (to about Phong {cell_limit:.0})"
             )),

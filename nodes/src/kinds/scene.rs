@@ -240,6 +240,15 @@ pub fn spec() -> NodeKindSpec {
                 compute: receivers,
             },
             StageSpec {
+                name: "adjacency",
+                version: 1,
+                params: &[],
+                stages: &["geometry"],
+                inputs: &[],
+                persist: None,
+                compute: adjacency,
+            },
+            StageSpec {
                 name: "ray_scene",
                 version: 1,
                 params: &[],
@@ -362,6 +371,15 @@ fn geometry(ctx: &StageContext) -> Result<StageValue, StageError> {
 fn receivers(ctx: &StageContext) -> Result<StageValue, StageError> {
     let meshes = ctx.stage::<crate::mesh::MeshSet>("geometry")?;
     Ok(StageValue::new(Receivers::from_meshes(meshes)))
+}
+
+/// Vertex neighbours over the triangles, in the receivers' order (the adaptive SH mode's
+/// region-of-interest search walks it).
+fn adjacency(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let meshes = ctx.stage::<crate::mesh::MeshSet>("geometry")?;
+    Ok(StageValue::new(crate::adaptive_sh::Adjacency::from_triangles(
+        meshes.meshes.iter().map(|m| (m.positions.len(), m.indices.as_slice())),
+    )))
 }
 
 fn ray_scene(ctx: &StageContext) -> Result<StageValue, StageError> {

@@ -10,7 +10,7 @@ use lightloom_nodes::frame::{MAX_MATERIALS, PrtSurfaces};
 pub(crate) const SHADER: (&str, &str) = ("mesh_prt.wgsl", include_str!("../../../shaders/mesh_prt.wgsl"));
 
 /// Transport bands the shader evaluates (higher bands of the transport are dropped).
-pub const MAX_PRT_BANDS: usize = 8;
+pub const MAX_PRT_BANDS: usize = 12;
 
 /// `mesh_prt.wgsl` `PrtParams`.
 #[repr(C)]
@@ -19,7 +19,7 @@ pub(crate) struct PrtParams {
     pub(crate) counts: [u32; 4],
     pub(crate) albedo: [[f32; 4]; MAX_MATERIALS],
     pub(crate) specular: [[f32; 4]; MAX_MATERIALS],
-    pub(crate) lobe: [[f32; 4]; 2 * MAX_MATERIALS],
+    pub(crate) lobe: [[f32; 4]; 3 * MAX_MATERIALS],
     pub(crate) light: [[f32; 4]; MAX_PRT_BANDS * MAX_PRT_BANDS],
 }
 
@@ -52,7 +52,7 @@ impl Pass for PrtPass {
 
     fn prepare(&mut self, gpu: &GpuContext, data: &PrtSurfaces) -> Result<(), RenderError> {
         let t = stage_value::<lightloom_nodes::transport::ShTransport>(&data.transport)?;
-        let r = stage_value::<lightloom_nodes::prt::IncidentSh>(&data.incident)?;
+        let r = lightloom_nodes::frame::incident_sh(&data.incident.value).map_err(RenderError::Invalid)?;
         let keys = (data.transport.key, data.incident.key);
         if self.bound.as_ref().is_none_or(|(k, _)| *k != keys) {
             let transfer = storage_buffer(gpu, "prt-transfer", &t.transfer);
@@ -71,7 +71,8 @@ impl Pass for PrtPass {
         let n = t.bands * t.bands;
         let bands = t.bands.min(MAX_PRT_BANDS);
         let mut params: PrtParams = bytemuck::Zeroable::zeroed();
-        params.counts = [bands as u32, n as u32, (n * 3) as u32, !r.coeffs.is_empty() as u32];
+        let glossy_bands = if r.coeffs.is_empty() { 0 } else { r.bands.min(MAX_PRT_BANDS) };
+        params.counts = [bands as u32, n as u32, (r.bands * r.bands * 3) as u32, glossy_bands as u32];
         for (dst, albedo) in params.albedo.iter_mut().zip(&data.albedo) {
             *dst = vec4(*albedo, 1.0);
         }
@@ -79,7 +80,7 @@ impl Pass for PrtPass {
             if let Some(lobe) = lobe {
                 params.specular[i] = vec4(lobe.weight, 1.0);
                 for (l, f) in lobe.factors.iter().enumerate().take(MAX_PRT_BANDS) {
-                    params.lobe[2 * i + l / 4][l % 4] = *f as f32;
+                    params.lobe[3 * i + l / 4][l % 4] = *f as f32;
                 }
             }
         }

@@ -6,6 +6,7 @@ use serde::{Deserialize, Serialize};
 use std::collections::BTreeSet;
 use std::sync::atomic::AtomicUsize;
 
+mod adaptive_mode;
 mod blockers_mode;
 mod disk_cache;
 mod rsl_mode;
@@ -72,6 +73,7 @@ const SKY_ALL: &[&str] =
 const SCENE_ALL: &[&str] = &[
     "scene.geometry",
     "scene.receivers",
+    "scene.adjacency",
     "scene.ray_scene",
     "scene.texel_receivers",
     "scene.transport_objects",
@@ -83,12 +85,24 @@ const SCENE_ALL: &[&str] = &[
     "scene.rsl_occluders",
     "output.rsl_visibility",
     "output.blocked_transport",
+    "output.adaptive_incident",
+    "output.adaptive_error",
 ];
 const SKY_AFTER_SOURCE: &[&str] = &["sky.radiance", "sky.sh_unrotated", "sky.rotated_radiance", "sky.sh", "sky.haar"];
 
 /// Edits of the rotated lighting or the receivers also recompute the wavelet mode's products.
 fn with_lighting(stages: &[&'static str]) -> Vec<&'static str> {
-    [stages, &["output.incident_sh", "output.local_products", "output.texel_irradiance"]].concat()
+    [
+        stages,
+        &[
+            "output.incident_sh",
+            "output.local_products",
+            "output.texel_irradiance",
+            "output.adaptive_incident",
+            "output.adaptive_error",
+        ],
+    ]
+    .concat()
 }
 
 #[test]
@@ -106,7 +120,18 @@ fn each_parameter_recomputes_exactly_its_stages() {
         ("sky", "exposure", Float(1.0), with_lighting(&[SKY_AFTER_SOURCE, &["sky.radiance_scale"]].concat())),
         ("sky", "tint", Color([1.0, 0.9, 0.8]), with_lighting(&[SKY_AFTER_SOURCE, &["sky.radiance_scale"]].concat())),
         ("sky", "resolution", Choice("32".into()), with_lighting(SKY_AFTER_SOURCE)),
-        ("sky", "sh_bands", Int(3), vec!["sky.sh_unrotated", "sky.sh", "output.incident_sh"]),
+        (
+            "sky",
+            "sh_bands",
+            Int(3),
+            vec![
+                "sky.sh_unrotated",
+                "sky.sh",
+                "output.incident_sh",
+                "output.adaptive_incident",
+                "output.adaptive_error",
+            ],
+        ),
         ("sky", "wavelet_terms", Int(64), vec!["sky.haar"]),
         ("sky", "sun_elevation", Float(20.0), with_lighting(SKY_ALL)),
         ("sky", "sun_azimuth", Float(-30.0), with_lighting(SKY_ALL)),
@@ -124,13 +149,27 @@ fn each_parameter_recomputes_exactly_its_stages() {
             "scene",
             "transport_bands",
             Int(3),
-            vec!["scene.transport_sh", "scene.transport_objects", "output.blocked_transport", "output.incident_sh"],
+            vec![
+                "scene.transport_sh",
+                "scene.transport_objects",
+                "output.blocked_transport",
+                "output.incident_sh",
+                "output.adaptive_incident",
+                "output.adaptive_error",
+            ],
         ),
         (
             "scene",
             "transport_rays",
             Int(64),
-            vec!["scene.transport_sh", "scene.transport_objects", "output.blocked_transport", "output.incident_sh"],
+            vec![
+                "scene.transport_sh",
+                "scene.transport_objects",
+                "output.blocked_transport",
+                "output.incident_sh",
+                "output.adaptive_incident",
+                "output.adaptive_error",
+            ],
         ),
         ("scene", "haar_resolution", Choice("8".into()), vec!["scene.transport_haar"]),
         ("scene", "occluder_resolution", Choice("16".into()), vec!["scene.rsl_occluders", "output.rsl_visibility"]),
@@ -155,6 +194,8 @@ fn each_parameter_recomputes_exactly_its_stages() {
                 "material.material",
                 "material.preview",
                 "material.sh_lobe",
+                "output.adaptive_incident",
+                "output.adaptive_error",
                 "material.local_table",
                 "material.rsl_tables",
             ],
@@ -167,6 +208,8 @@ fn each_parameter_recomputes_exactly_its_stages() {
                 "material.material",
                 "material.preview",
                 "material.sh_lobe",
+                "output.adaptive_incident",
+                "output.adaptive_error",
                 "material.local_table",
                 "material.rsl_tables",
             ],
@@ -179,6 +222,8 @@ fn each_parameter_recomputes_exactly_its_stages() {
                 "material.material",
                 "material.preview",
                 "material.sh_lobe",
+                "output.adaptive_incident",
+                "output.adaptive_error",
                 "material.local_table",
                 "material.rsl_tables",
             ],
@@ -191,6 +236,8 @@ fn each_parameter_recomputes_exactly_its_stages() {
                 "material.material",
                 "material.preview",
                 "material.sh_lobe",
+                "output.adaptive_incident",
+                "output.adaptive_error",
                 "material.local_table",
                 "material.rsl_tables",
             ],
@@ -203,6 +250,8 @@ fn each_parameter_recomputes_exactly_its_stages() {
                 "material.material",
                 "material.preview",
                 "material.sh_lobe",
+                "output.adaptive_incident",
+                "output.adaptive_error",
                 "material.local_table",
                 "material.rsl_tables",
             ],
@@ -215,6 +264,8 @@ fn each_parameter_recomputes_exactly_its_stages() {
                 "material.material",
                 "material.preview",
                 "material.sh_lobe",
+                "output.adaptive_incident",
+                "output.adaptive_error",
                 "material.local_table",
                 "material.rsl_tables",
             ],
@@ -227,13 +278,20 @@ fn each_parameter_recomputes_exactly_its_stages() {
                 "material.material",
                 "material.preview",
                 "material.sh_lobe",
+                "output.adaptive_incident",
+                "output.adaptive_error",
                 "material.local_table",
                 "material.rsl_tables",
             ],
         ),
         // Setting the current value (the default project's shadowed mode) recomputes nothing.
         ("output", "mode", Choice("wavelet_pixel".into()), vec![]),
-        ("output", "exposure", Float(-1.0), vec!["output.settings"]),
+        (
+            "output",
+            "exposure",
+            Float(-1.0),
+            vec!["output.settings", "output.adaptive_incident", "output.adaptive_error"],
+        ),
         ("output", "tonemap", Choice("reinhard".into()), vec!["output.settings"]),
         ("output", "background", Bool(false), vec!["output.settings"]),
         ("output", "view", Choice("error".into()), vec!["output.settings"]),
@@ -242,6 +300,11 @@ fn each_parameter_recomputes_exactly_its_stages() {
         // draw them, so switching modes recomputes only the settings.
         ("output", "mode", Choice("sh_irradiance".into()), vec!["output.settings"]),
         ("output", "wavelet_terms", Choice("80".into()), vec!["output.local_products", "output.texel_irradiance"]),
+        ("output", "adaptive_level", Int(3), vec!["output.adaptive_incident", "output.adaptive_error"]),
+        ("output", "adaptive_threshold", Float(0.1), vec!["output.adaptive_incident", "output.adaptive_error"]),
+        ("output", "adaptive_refine", Bool(false), vec!["output.adaptive_incident", "output.adaptive_error"]),
+        ("output", "adaptive_smooth", Bool(false), vec!["output.adaptive_incident", "output.adaptive_error"]),
+        ("output", "adaptive_hysteresis", Float(0.9), vec!["output.adaptive_incident", "output.adaptive_error"]),
         (
             "material",
             "roughness",
@@ -250,6 +313,8 @@ fn each_parameter_recomputes_exactly_its_stages() {
                 "material.material",
                 "material.preview",
                 "material.sh_lobe",
+                "output.adaptive_incident",
+                "output.adaptive_error",
                 "material.local_table",
                 "material.rsl_tables",
             ],
@@ -261,7 +326,7 @@ fn each_parameter_recomputes_exactly_its_stages() {
     graph.set_param("scene", "tessellation", Int(12)).unwrap();
     let first = engine.evaluate(&graph, &CancelToken::default(), None);
     assert!(first.report.failed().is_empty(), "{:?}", first.report.failed());
-    assert_eq!(first.report.computed().len(), 30);
+    assert_eq!(first.report.computed().len(), 33);
     let again = engine.evaluate(&graph, &CancelToken::default(), None);
     assert!(ran(&again.report).is_empty(), "an unchanged graph recomputed {:?}", ran(&again.report));
     for (node, param, value, expected) in table {
@@ -720,39 +785,87 @@ fn planned_kinds_recompute_exactly_their_stages_too() {
             "blockers",
             "spheres",
             Spheres(vec![([0.0, 1.0, 0.0], 0.3), ([1.0, 1.0, 0.0], 0.2)]),
-            vec!["blockers.spheres", "output.blocked_transport", "output.incident_sh"],
+            vec![
+                "blockers.spheres",
+                "output.blocked_transport",
+                "output.incident_sh",
+                "output.adaptive_incident",
+                "output.adaptive_error",
+            ],
         ),
         (
             "blockers",
             "offset",
             Vec3([0.5, 0.0, 0.0]),
-            vec!["blockers.spheres", "output.blocked_transport", "output.incident_sh"],
+            vec![
+                "blockers.spheres",
+                "output.blocked_transport",
+                "output.incident_sh",
+                "output.adaptive_incident",
+                "output.adaptive_error",
+            ],
         ),
         (
             "blockers",
             "strength",
             Float(0.5),
-            vec!["blockers.spheres", "output.blocked_transport", "output.incident_sh"],
+            vec![
+                "blockers.spheres",
+                "output.blocked_transport",
+                "output.incident_sh",
+                "output.adaptive_incident",
+                "output.adaptive_error",
+            ],
         ),
         (
             "blockers",
             "rotation",
             Vec3([0.0, 30.0, 0.0]),
-            vec!["blockers.spheres", "output.blocked_transport", "output.incident_sh"],
+            vec![
+                "blockers.spheres",
+                "output.blocked_transport",
+                "output.incident_sh",
+                "output.adaptive_incident",
+                "output.adaptive_error",
+            ],
         ),
-        ("blockers", "scale", Float(1.5), vec!["blockers.spheres", "output.blocked_transport", "output.incident_sh"]),
+        (
+            "blockers",
+            "scale",
+            Float(1.5),
+            vec![
+                "blockers.spheres",
+                "output.blocked_transport",
+                "output.incident_sh",
+                "output.adaptive_incident",
+                "output.adaptive_error",
+            ],
+        ),
         (
             "blockers",
             "exponential",
             Choice("hyb".into()),
-            vec!["blockers.spheres", "output.blocked_transport", "output.incident_sh"],
+            vec![
+                "blockers.spheres",
+                "output.blocked_transport",
+                "output.incident_sh",
+                "output.adaptive_incident",
+                "output.adaptive_error",
+            ],
         ),
         // A new order rebuilds the tables too.
         (
             "blockers",
             "sh_bands",
             Int(6),
-            vec!["blockers.tables", "blockers.spheres", "output.blocked_transport", "output.incident_sh"],
+            vec![
+                "blockers.tables",
+                "blockers.spheres",
+                "output.blocked_transport",
+                "output.incident_sh",
+                "output.adaptive_incident",
+                "output.adaptive_error",
+            ],
         ),
         // A new K is a cut of the same merge sequence (then the O(K) world lights and the
         // per-vertex visibility of the new lights).
@@ -800,6 +913,7 @@ fn planned_kinds_recompute_exactly_their_stages_too() {
                 SKY_AFTER_SOURCE,
                 &["sky.radiance_scale", "rsl.world_lights"],
                 &["output.incident_sh", "output.local_products", "output.texel_irradiance"],
+                &["output.adaptive_incident", "output.adaptive_error"],
             ]
             .concat(),
         ),
@@ -818,6 +932,8 @@ fn planned_kinds_recompute_exactly_their_stages_too() {
                 "output.incident_sh",
                 "output.local_products",
                 "output.texel_irradiance",
+                "output.adaptive_incident",
+                "output.adaptive_error",
             ],
         ),
     ];
@@ -1079,6 +1195,20 @@ fn each_mode_and_view_evaluates_exactly_the_stages_it_reads() {
                 "output.incident_sh",
             ]),
         ),
+        (
+            "sh_adaptive",
+            "approximation",
+            with(&[
+                "scene.receivers",
+                "scene.adjacency",
+                "scene.ray_scene",
+                "scene.transport_sh",
+                "material.sh_lobe",
+                "output.blocked_transport",
+                "output.adaptive_incident",
+                "output.adaptive_error",
+            ]),
+        ),
         ("wavelet_vertex", "approximation", wavelet_vertex.clone()),
         (
             "wavelet_pixel",
@@ -1110,7 +1240,7 @@ fn each_mode_and_view_evaluates_exactly_the_stages_it_reads() {
         for s in eval.report.stages.iter().filter(|s| s.status == StageStatus::NotNeeded) {
             assert!(s.reasons[0].contains(&format!("mode {mode}")), "{}.{}: {:?}", s.node, s.stage, s.reasons);
         }
-        assert_eq!(eval.report.stages.len(), 30, "every stage is reported");
+        assert_eq!(eval.report.stages.len(), 33, "every stage is reported");
     }
 }
 

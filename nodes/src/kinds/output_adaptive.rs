@@ -1,0 +1,220 @@
+//! The Output's `sh_adaptive` mode: high-order SH lighting with Lee 2014's locally adaptive
+//! products ([`crate::adaptive_sh`]). Its parameters and stages, kept apart from the other
+//! modes'.
+
+use crate::adaptive_sh::{
+    AdaptiveIncident, AdaptiveInputs, AdaptiveSettings, Adjacency, LightProducts, ShadingWeights, adaptive_incident,
+    full_incident, view_mse, view_psnr,
+};
+use crate::engine::{StageContext, StageError, StageValue};
+use crate::node_kind::{ParamKind, ParamSpec, StageSpec};
+use crate::prt::GlossyLobe;
+use crate::sh::ShRgb;
+use crate::transport::ShTransport;
+use serde::{Deserialize, Serialize};
+
+const PARAMS: &[&str] =
+    &["adaptive_level", "adaptive_threshold", "adaptive_refine", "adaptive_smooth", "adaptive_hysteresis", "exposure"];
+const INPUTS: &[(&str, &str)] =
+    &[("environment", "sh"), ("scene", "geometry"), ("scene", "adjacency"), ("material", "sh_lobe")];
+
+pub fn params() -> Vec<ParamSpec> {
+    vec![
+        ParamSpec {
+            name: "adaptive_level",
+            label: "SH level",
+            unit: "",
+            kind: ParamKind::Int { min: 2, max: 15, default: 10 },
+            doc: "High-order SH mode: highest SH level of the glossy lighting (level 10 = 121 coefficients). \
+                  Limited by the environment's and the scene's SH bands (level = bands - 1).",
+        },
+        ParamSpec {
+            name: "adaptive_threshold",
+            label: "Adaptive threshold",
+            unit: "of white",
+            kind: ParamKind::Float { min: 0.0, max: 1.0, default: 0.005 },
+            doc: "High-order SH mode: a vertex stops adding SH levels when the next one changes its glossy \
+                  shading by less than this fraction of display white (averaged over view directions). 0 \
+                  computes every level everywhere; larger is faster and less accurate. The node shows the \
+                  PSNR against the full computation.",
+        },
+        ParamSpec {
+            name: "adaptive_refine",
+            label: "Refine borders",
+            unit: "",
+            kind: ParamKind::Bool { default: true },
+            doc: "High-order SH mode: search outward from vertices of higher level and raise neighbours that \
+                  stopped too early.",
+        },
+        ParamSpec {
+            name: "adaptive_smooth",
+            label: "Smooth borders",
+            unit: "",
+            kind: ParamKind::Bool { default: true },
+            doc: "High-order SH mode: blend the higher levels two vertex rings outward where the level changes, \
+                  so no seam shows.",
+        },
+        ParamSpec {
+            name: "adaptive_hysteresis",
+            label: "Hysteresis",
+            unit: "",
+            kind: ParamKind::Float { min: 0.0, max: 1.0, default: 0.5 },
+            doc: "High-order SH mode: a vertex keeps a level it had in the previous frame until that level's \
+                  change falls below this fraction of the threshold (1: no hysteresis). Stops levels \
+                  flickering while the lighting moves.",
+        },
+    ]
+}
+
+pub fn stages() -> Vec<StageSpec> {
+    vec![
+        StageSpec {
+            name: "adaptive_incident",
+            version: 1,
+            params: PARAMS,
+            stages: &["blocked_transport"],
+            inputs: INPUTS,
+            persist: None,
+            compute: adaptive_stage,
+        },
+        StageSpec {
+            name: "adaptive_error",
+            version: 1,
+            params: PARAMS,
+            stages: &["blocked_transport", "adaptive_incident"],
+            inputs: INPUTS,
+            persist: None,
+            compute: error_stage,
+        },
+    ]
+}
+
+/// How the adaptive product went against the full one.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct AdaptiveError {
+    pub psnr_db: f64,
+    /// Multiply-adds of the adaptive product over the full product's.
+    pub work: f64,
+    pub full_ms: f64,
+}
+crate::stage_type!(AdaptiveError, "adaptive SH error", |_v| 24);
+
+/// Everything both stages read, resolved.
+struct Setup<'a> {
+    products: LightProducts,
+    transport: &'a ShTransport,
+    adjacency: &'a Adjacency,
+    lobe_of: Vec<Option<u16>>,
+    weights: Vec<ShadingWeights>,
+    settings: AdaptiveSettings,
+    white: f64,
+}
+
+impl Setup<'_> {
+    fn inputs<'s>(&'s self, previous: Option<&'s [u8]>) -> AdaptiveInputs<'s> {
+        AdaptiveInputs {
+            products: &self.products,
+            visibility: &self.transport.visibility,
+            stride: self.transport.bands * self.transport.bands,
+            lobe_of: &self.lobe_of,
+            weights: &self.weights,
+            adjacency: self.adjacency,
+            previous_levels: previous,
+        }
+    }
+}
+
+/// `None` without an environment.
+fn setup<'a>(ctx: &'a StageContext) -> Result<Option<Setup<'a>>, StageError> {
+    let transport = ctx.stage::<ShTransport>("blocked_transport")?;
+    let Some(light) = ctx.input::<ShRgb>("environment", "sh")? else { return Ok(None) };
+    let meshes = ctx.required_input::<crate::mesh::MeshSet>("scene", "geometry")?;
+    let adjacency = ctx.required_input::<Adjacency>("scene", "adjacency")?;
+    let materials = ctx.inputs_all::<GlossyLobe>("material", "sh_lobe")?;
+    let level = (ctx.int("adaptive_level")? as usize).min(light.bands.min(transport.bands).saturating_sub(1));
+    let bands = level + 1;
+    let vertices = adjacency.offsets.len().saturating_sub(1);
+    if transport.visibility.len() != vertices * transport.bands * transport.bands {
+        return Err(StageError::Failed(format!(
+            "the transport has {} receivers for {vertices} vertices",
+            transport.visibility.len() / (transport.bands * transport.bands).max(1)
+        )));
+    }
+    // Per material (link order, as the frame assigns them): its weights, if glossy.
+    let mut weights = Vec::new();
+    let slots: Vec<Option<u16>> = materials
+        .iter()
+        .map(|(_, lobe)| {
+            (!lobe.factors.is_empty()).then(|| {
+                weights.push(ShadingWeights::new(&lobe.factors, lobe.weight, bands));
+                (weights.len() - 1) as u16
+            })
+        })
+        .collect();
+    let mut lobe_of = Vec::with_capacity(vertices);
+    for mesh in &meshes.meshes {
+        let material =
+            materials.iter().position(|(id, _)| !mesh.material.is_empty() && *id == mesh.material).unwrap_or(0);
+        lobe_of.extend(std::iter::repeat_n(slots.get(material).copied().flatten(), mesh.positions.len()));
+    }
+    lobe_of.resize(vertices, None);
+    let white = 2f64.powf(-ctx.float("exposure")?);
+    let settings = AdaptiveSettings {
+        threshold: ctx.float("adaptive_threshold")? * white,
+        level,
+        refine: ctx.boolean("adaptive_refine")?,
+        smooth: ctx.boolean("adaptive_smooth")?,
+        hysteresis: ctx.float("adaptive_hysteresis")?,
+    };
+    Ok(Some(Setup {
+        products: LightProducts::new(light, bands),
+        transport,
+        adjacency,
+        lobe_of,
+        weights,
+        settings,
+        white,
+    }))
+}
+
+/// Per-vertex incident radiance at adaptive levels; the previous result's levels give the
+/// hysteresis.
+fn adaptive_stage(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let Some(setup) = setup(ctx)? else { return Ok(StageValue::new(AdaptiveIncident::default())) };
+    let previous = ctx.previous::<AdaptiveIncident>();
+    let previous_levels = previous.as_ref().and_then(|p| p.get::<AdaptiveIncident>()).map(|p| p.levels.as_slice());
+    let result = adaptive_incident(&setup.inputs(previous_levels), &setup.settings, ctx.cancel_token())?;
+    let s = &result.stats;
+    if s.glossy > 0 {
+        ctx.inform(format!(
+            "level {}: {:.0}% of the full product's work; {:.0}% of glossy vertices at the top level, {} raised by \
+             the border search",
+            setup.settings.level,
+            100.0 * s.macs as f64 / s.full_macs.max(1) as f64,
+            100.0 * s.roi as f64 / s.glossy as f64,
+            s.refined
+        ));
+    }
+    Ok(StageValue::new(result))
+}
+
+/// The full product, for the PSNR of the adaptive one (pulled after the frame is drawn).
+fn error_stage(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let Some(setup) = setup(ctx)? else { return Ok(StageValue::new(AdaptiveError::default())) };
+    let adaptive = ctx.stage::<AdaptiveIncident>("adaptive_incident")?;
+    let start = std::time::Instant::now();
+    let full = full_incident(&setup.inputs(None), ctx.cancel_token())?;
+    let full_ms = start.elapsed().as_secs_f64() * 1e3;
+    let psnr_db = view_psnr(view_mse(&adaptive.incident, &full, &setup.lobe_of, &setup.weights), setup.white);
+    let work = adaptive.stats.macs as f64 / adaptive.stats.full_macs.max(1) as f64;
+    if adaptive.stats.glossy > 0 {
+        ctx.inform(format!(
+            "PSNR {psnr_db:.1} dB against the full level-{} product ({full_ms:.0} ms), averaged over view \
+             directions with white at the exposure",
+            setup.settings.level
+        ));
+    } else {
+        ctx.inform("no glossy material: the high-order product has nothing to do");
+    }
+    Ok(StageValue::new(AdaptiveError { psnr_db, work, full_ms }))
+}

@@ -108,6 +108,8 @@ struct Setup<'a> {
     weights: Vec<ShadingWeights>,
     settings: AdaptiveSettings,
     white: f64,
+    /// The level asked for, when the SH bands of the environment or the scene allow less.
+    limited_from: Option<usize>,
 }
 
 impl Setup<'_> {
@@ -131,13 +133,23 @@ fn setup<'a>(ctx: &'a StageContext) -> Result<Option<Setup<'a>>, StageError> {
     let meshes = ctx.required_input::<crate::mesh::MeshSet>("scene", "geometry")?;
     let adjacency = ctx.required_input::<Adjacency>("scene", "adjacency")?;
     let materials = ctx.inputs_all::<GlossyLobe>("material", "sh_lobe")?;
-    let level = (ctx.int("adaptive_level")? as usize).min(light.bands.min(transport.bands).saturating_sub(1));
+    let wanted = ctx.int("adaptive_level")? as usize;
+    let level = wanted.min(light.bands.min(transport.bands).saturating_sub(1));
     let bands = level + 1;
     let vertices = adjacency.offsets.len().saturating_sub(1);
     if transport.visibility.len() != vertices * transport.bands * transport.bands {
         return Err(StageError::Failed(format!(
             "the transport has {} receivers for {vertices} vertices",
             transport.visibility.len() / (transport.bands * transport.bands).max(1)
+        )));
+    }
+    let bytes = vertices as u64 * (bands * bands) as u64 * 12;
+    if bytes > crate::limits::MAX_INCIDENT_BYTES {
+        return Err(StageError::Failed(format!(
+            "level {level} on {vertices} vertices needs {:.1} GiB of incident radiance (at most {:.0} GiB): lower \
+             the SH level or the Scene's tessellation",
+            bytes as f64 / (1u64 << 30) as f64,
+            crate::limits::MAX_INCIDENT_BYTES as f64 / (1u64 << 30) as f64
         )));
     }
     // Per material (link order, as the frame assigns them): its weights, if glossy.
@@ -174,6 +186,7 @@ fn setup<'a>(ctx: &'a StageContext) -> Result<Option<Setup<'a>>, StageError> {
         weights,
         settings,
         white,
+        limited_from: (wanted > level).then_some(wanted),
     }))
 }
 
@@ -185,6 +198,14 @@ fn adaptive_stage(ctx: &StageContext) -> Result<StageValue, StageError> {
     let previous_levels = previous.as_ref().and_then(|p| p.get::<AdaptiveIncident>()).map(|p| p.levels.as_slice());
     let result = adaptive_incident(&setup.inputs(previous_levels), &setup.settings, ctx.cancel_token())?;
     let s = &result.stats;
+    if let Some(wanted) = setup.limited_from {
+        ctx.inform(format!(
+            "level {} of the {wanted} asked for: raise the environment's SH bands and the Scene's transport SH \
+             bands to {} for it",
+            setup.settings.level,
+            wanted + 1
+        ));
+    }
     if s.glossy > 0 {
         ctx.inform(format!(
             "level {}: {:.0}% of the full product's work; {:.0}% of glossy vertices at the top level, {} raised by \

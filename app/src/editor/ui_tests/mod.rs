@@ -8,6 +8,8 @@ use egui_kittest::Harness;
 use egui_kittest::kittest::Queryable;
 use std::path::Path;
 
+mod adaptive;
+
 fn state_dir() -> PathBuf {
     document::test_state_dir()
 }

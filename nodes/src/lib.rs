@@ -37,6 +37,7 @@ pub mod sh;
 pub mod sh_exponential;
 pub mod single_scattering;
 pub mod sky;
+pub mod sphere_set;
 pub mod transport;
 pub mod triple_product;
 pub mod wavelet;

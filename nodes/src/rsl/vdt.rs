@@ -76,7 +76,7 @@ pub fn visible_fraction(d: f64, edge: f64, ramp: Ramp) -> f64 {
 const FAR: f64 = 1e12;
 
 /// One row of the lower-envelope transform: `out[q] = min_p (q − p)² + f[p]`.
-fn transform_1d(f: &[f64], out: &mut [f64], v: &mut [usize], z: &mut [f64]) {
+pub(crate) fn transform_1d(f: &[f64], out: &mut [f64], v: &mut [usize], z: &mut [f64]) {
     let n = f.len();
     let mut k = 0;
     v[0] = 0;

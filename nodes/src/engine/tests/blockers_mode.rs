@@ -67,3 +67,33 @@ fn a_sphere_move_recomputes_only_the_parts_it_reaches() {
     let set_value = value_of::<BlockerSet>(&second, "blockers", "spheres");
     assert_eq!(set_value.blockers.len(), 2);
 }
+
+/// A set fitted to a closed glTF model (the 1 m textured box of the shared assets): one
+/// sphere is its inscribed ball, leaving `1 − π/6` of the cube uncovered, and says so; 60
+/// spheres leave less, and shadow the `sh_prt` frame through the set's transform.
+#[test]
+fn a_set_fitted_to_a_gltf_box_reports_its_coverage() {
+    let model = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../shared/assets/gltf/assimp-glTF2/BoxTextured-glTF/BoxTextured.gltf");
+    assert!(model.is_file(), "the shared assets are expected beside the checkout at {}", model.display());
+    let mut graph = blockers_graph(vec![]);
+    graph.set_param("blockers", "fit_model", ParamValue::Path(model.display().to_string())).unwrap();
+    graph.set_param("blockers", "fit_count", ParamValue::Int(1)).unwrap();
+    graph.set_param("blockers", "offset", ParamValue::Vec3([0.0, 2.0, 0.0])).unwrap();
+    let engine = Engine::in_memory();
+    let one = evaluate_frame(&engine, &graph);
+    let fit = value_of::<crate::sphere_set::SphereSetFit>(&one, "blockers", "fitted");
+    assert_eq!(fit.spheres.len(), 1);
+    let expected = 1.0 - std::f64::consts::PI / 6.0;
+    assert!((fit.uncovered - expected).abs() < 0.05, "{} against {expected}", fit.uncovered);
+    assert!(report(&one, "blockers", "fitted").info.iter().any(|l| l.contains("uncovered")));
+    let set = value_of::<BlockerSet>(&one, "blockers", "spheres");
+    let centre = DVec3::from(set.blockers[0].centre);
+    assert!((centre - DVec3::new(0.0, 2.0, 0.0)).length() < 0.05, "the fit is placed by the offset: {centre}");
+    graph.set_param("blockers", "fit_count", ParamValue::Int(60)).unwrap();
+    let sixty = evaluate_frame(&engine, &graph);
+    let more = value_of::<crate::sphere_set::SphereSetFit>(&sixty, "blockers", "fitted");
+    assert_eq!(more.spheres.len(), 60);
+    assert!(more.uncovered < fit.uncovered / 2.0, "{} after {}", more.uncovered, fit.uncovered);
+    assert_eq!(value_of::<BlockerSet>(&sixty, "blockers", "spheres").blockers.len(), 60);
+}

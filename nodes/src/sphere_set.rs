@@ -86,9 +86,9 @@ pub fn fit_spheres(
         let votes = directions
             .iter()
             .filter(|&&d| {
-                scene.closest(Vec3A::from(p.as_vec3()), Vec3A::from(d.as_vec3())).is_some_and(|(_, t)| {
-                    normals.get(t as usize).is_some_and(|n| n.dot(d) > 0.0)
-                })
+                scene
+                    .closest(Vec3A::from(p.as_vec3()), Vec3A::from(d.as_vec3()))
+                    .is_some_and(|(_, t)| normals.get(t as usize).is_some_and(|n| n.dot(d) > 0.0))
             })
             .count();
         votes >= 3
@@ -141,7 +141,13 @@ pub fn fit_spheres(
                         continue;
                     }
                     let (u, v, w) = (x as isize + dx, y as isize + dy, z as isize + dz);
-                    if u < 0 || v < 0 || w < 0 || u as usize >= dims[0] || v as usize >= dims[1] || w as usize >= dims[2] {
+                    if u < 0
+                        || v < 0
+                        || w < 0
+                        || u as usize >= dims[0]
+                        || v as usize >= dims[1]
+                        || w as usize >= dims[2]
+                    {
                         continue;
                     }
                     let j = index(u as usize, v as usize, w as usize);
@@ -222,7 +228,12 @@ fn mark(i: usize, covered: &mut [bool], dims: [usize; 3], r: f64) {
                     continue;
                 }
                 let (u, v, w) = (x as isize + dx, y as isize + dy, z as isize + dz);
-                if u >= 0 && v >= 0 && w >= 0 && (u as usize) < dims[0] && (v as usize) < dims[1] && (w as usize) < dims[2]
+                if u >= 0
+                    && v >= 0
+                    && w >= 0
+                    && (u as usize) < dims[0]
+                    && (v as usize) < dims[1]
+                    && (w as usize) < dims[2]
                 {
                     covered[(w as usize * dims[1] + v as usize) * dims[0] + u as usize] = true;
                 }

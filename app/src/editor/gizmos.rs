@@ -14,10 +14,12 @@ const RING_HIT: f32 = 5.0;
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(super) enum GizmoTarget {
     Light,
-    /// Sphere `index` of a blocker set, of `radius` metres.
+    /// Sphere `index` of a blocker set, of `radius` metres; `fitted` when the set is fitted to a
+    /// model (its spheres come from the fit, and a drag moves the whole set).
     Sphere {
         index: usize,
         radius: f64,
+        fitted: bool,
     },
 }
 
@@ -97,15 +99,29 @@ impl EditorApp {
                     });
                 }
                 "BlockerSpheres" => {
-                    let (Some(ParamValue::Spheres(spheres)), Some(transform)) =
+                    let (Some(ParamValue::Spheres(hand)), Some(transform)) =
                         (value("spheres"), self.sphere_transform(&n.id))
                     else {
                         continue;
                     };
+                    // A set fitted to a model shows the fitted spheres of the last evaluation.
+                    let fitted = matches!(value("fit_model"), Some(ParamValue::Path(p)) if !p.is_empty());
+                    let spheres = if fitted {
+                        self.evaluator
+                            .last
+                            .as_ref()
+                            .and_then(|(e, _)| e.value(&n.id, "fitted").ok())
+                            .and_then(|v| {
+                                v.get::<lightloom_nodes::sphere_set::SphereSetFit>().map(|f| f.spheres.clone())
+                            })
+                            .unwrap_or_default()
+                    } else {
+                        hand
+                    };
                     for (index, (centre, radius)) in spheres.iter().enumerate() {
                         out.push(Gizmo {
                             id: n.id.clone(),
-                            target: GizmoTarget::Sphere { index, radius: radius * transform.scale },
+                            target: GizmoTarget::Sphere { index, radius: radius * transform.scale, fitted },
                             position: transform.to_world(*centre).to_array(),
                             colour: SPHERE_COLOUR,
                             linked: linked(&n.id),
@@ -182,7 +198,7 @@ impl EditorApp {
                     }
                     if g.linked { g.id.clone() } else { format!("{} (not linked: lights nothing)", g.id) }
                 }
-                GizmoTarget::Sphere { index, radius } => {
+                GizmoTarget::Sphere { index, radius, fitted } => {
                     let r = g.screen_radius(&camera, rect).max(3.0);
                     let colour = if is_selected { outline } else { g.colour };
                     let stroke = if g.linked {
@@ -194,7 +210,8 @@ impl EditorApp {
                     painter.circle_stroke(at, r, stroke);
                     painter.circle_filled(at, 2.5, colour);
                     let state = if g.linked { "" } else { " (not linked: shadows nothing)" };
-                    format!("{} sphere {} · r {radius:.2} m{state}", g.id, index + 1)
+                    let what = if fitted { "fitted sphere" } else { "sphere" };
+                    format!("{} {what} {} · r {radius:.2} m{state}", g.id, index + 1)
                 }
             };
             if hovered_id.as_ref() == Some(&g.gizmo_id()) || (is_selected && g.target == GizmoTarget::Light) {
@@ -240,6 +257,13 @@ impl EditorApp {
             .to_array();
         let change = match id.sphere {
             None => Some(("position", ParamValue::Vec3(moved))),
+            Some(_) if matches!(gizmo.target, GizmoTarget::Sphere { fitted: true, .. }) => {
+                // A fitted sphere moves its whole set.
+                self.sphere_transform(&id.node).map(|t| {
+                    let offset = t.offset + glam::DVec3::from(moved) - glam::DVec3::from(gizmo.position);
+                    ("offset", ParamValue::Vec3(offset.to_array()))
+                })
+            }
             Some(index) => {
                 let spec = lightloom_nodes::kinds::kind("BlockerSpheres").expect("BlockerSpheres kind");
                 let spheres =

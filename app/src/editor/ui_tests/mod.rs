@@ -9,6 +9,7 @@ use egui_kittest::kittest::Queryable;
 use std::path::Path;
 
 mod adaptive;
+mod fitted_spheres;
 
 fn state_dir() -> PathBuf {
     document::test_state_dir()

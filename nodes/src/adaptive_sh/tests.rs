@@ -276,6 +276,7 @@ fn hysteresis_lowers_level_flips_under_a_slow_rotation() {
         total
     };
     let (without, with) = (flips(&mut f, 1.0), flips(&mut f, 0.5));
+    eprintln!("level changes over 5 turns of 0.05 rad: {without} without hysteresis, {with} with 0.5");
     assert!(without > 0, "the levels should move under rotation");
     assert!(with * 2 <= without, "flips with hysteresis {with}, without {without}");
 }

@@ -69,6 +69,24 @@ pub fn adaptive_figures() {
     }
     let (name, light) = environments().into_iter().next().expect("one environment");
     let white = white_level(&light, &transport, &receivers);
+    println!(
+        "  Lee's protocol on {name}: the environment turns 3.6 degrees per frame (a turn in 10 s at 10 fps), each \
+         frame starting from the last one's levels; level 10, median of frames 2-12:"
+    );
+    for (threshold, exponent) in [(0.005, PHONG_EXPONENT), (0.01, PHONG_EXPONENT), (0.005, 8.0), (0.01, 8.0)] {
+        let row = rotating(&light, &transport, &adjacency, white, Case { exponent, ..Case::new(11, threshold) });
+        println!(
+            "    Phong {exponent}, threshold {threshold}: full {:.0} ms ({:.1} fps), adaptive {:.0} ms ({:.1} fps): \
+             {:.2}x ({:.0}% of the products) at {:.1} dB",
+            row.full_ms,
+            1e3 / row.full_ms,
+            row.adaptive_ms,
+            1e3 / row.adaptive_ms,
+            row.full_ms / row.adaptive_ms,
+            row.work * 100.0,
+            row.psnr
+        );
+    }
     for exponent in [8.0, 16.0] {
         for threshold in [0.005, 0.01] {
             let row = measure(&light, &transport, &adjacency, white, Case { exponent, ..Case::new(11, threshold) });
@@ -253,4 +271,62 @@ fn measure(light: &ShRgb, transport: &ShTransport, adjacency: &Adjacency, white:
     let psnr = view_psnr(view_mse(&adaptive.incident, &full, &lobe_of, &weights), white);
     let work = adaptive.stats.macs as f64 / adaptive.stats.full_macs.max(1) as f64;
     Row { full_ms, adaptive_ms, psnr, per_level: adaptive.stats.per_level, refined: adaptive.stats.refined, work }
+}
+
+/// Twelve frames of a turning environment, each adaptive frame starting from the previous
+/// frame's levels: median times of frames 2-12, and the last frame's PSNR and work.
+fn rotating(light: &ShRgb, transport: &ShTransport, adjacency: &Adjacency, white: f64, case: Case) -> Row {
+    let Case { bands, threshold, refine, exponent } = case;
+    let weights = vec![weights(bands, exponent)];
+    let lobe_of = vec![Some(0u16); adjacency.offsets.len() - 1];
+    let cancel = CancelToken::default();
+    let settings =
+        AdaptiveSettings { threshold: threshold * white, level: bands - 1, refine, smooth: refine, hysteresis: 0.5 };
+    let median = |mut v: Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let (mut full_times, mut adaptive_times) = (Vec::new(), Vec::new());
+    let mut previous: Option<Vec<u8>> = None;
+    let mut last = None;
+    for frame in 0..12 {
+        let turn = glam::DMat3::from_rotation_y((3.6 * frame as f64).to_radians());
+        let start = Instant::now();
+        let turned = lightloom_nodes::sh::rotation::ShRotation::new(TOP_BANDS, turn).apply_rgb(light);
+        let products = LightProducts::new(&turned, bands);
+        let inputs = AdaptiveInputs {
+            products: &products,
+            visibility: &transport.visibility,
+            stride: TOP_BANDS * TOP_BANDS,
+            lobe_of: &lobe_of,
+            weights: &weights,
+            adjacency,
+            previous_levels: previous.as_deref(),
+        };
+        let adaptive = adaptive_incident(&inputs, &settings, &cancel).expect("adaptive");
+        let adaptive_ms = start.elapsed().as_secs_f64() * 1e3;
+        let start = Instant::now();
+        let turned = lightloom_nodes::sh::rotation::ShRotation::new(TOP_BANDS, turn).apply_rgb(light);
+        let products = LightProducts::new(&turned, bands);
+        let full = full_incident(&AdaptiveInputs { products: &products, previous_levels: None, ..inputs }, &cancel)
+            .expect("full");
+        let full_ms = start.elapsed().as_secs_f64() * 1e3;
+        if frame > 0 {
+            full_times.push(full_ms);
+            adaptive_times.push(adaptive_ms);
+        }
+        previous = Some(adaptive.levels.clone());
+        last = Some((adaptive, full));
+    }
+    let (adaptive, full) = last.expect("frames ran");
+    let psnr = view_psnr(view_mse(&adaptive.incident, &full, &lobe_of, &weights), white);
+    let work = adaptive.stats.macs as f64 / adaptive.stats.full_macs.max(1) as f64;
+    Row {
+        full_ms: median(full_times),
+        adaptive_ms: median(adaptive_times),
+        psnr,
+        per_level: adaptive.stats.per_level,
+        refined: adaptive.stats.refined,
+        work,
+    }
 }

@@ -122,6 +122,16 @@ impl LightProducts {
         }
     }
 
+    /// The product truncated to `level`, planar, by dense rows (zeros above).
+    fn block(&self, level: usize, v: &[f32], r: &mut Planar) {
+        let (n, k) = (self.n, (level + 1) * (level + 1));
+        for (m, r) in self.matrices.iter().zip(r.iter_mut()) {
+            for (i, out) in r.iter_mut().enumerate() {
+                *out = if i < k { dot(&m[i * n..i * n + k], &v[..k]) } else { 0.0 };
+            }
+        }
+    }
+
     /// Raises `r` (planar, at `from`) to `to`, adding the total change to `change`.
     fn raise(&self, from: usize, to: usize, v: &[f32], r: &mut Planar, d: &mut Planar, change: &mut Planar) {
         for level in from + 1..=to {
@@ -226,7 +236,7 @@ impl ShadingWeights {
 }
 
 /// The knobs of the adaptive product.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct AdaptiveSettings {
     /// A vertex leaves the ROI when its accumulated change since the base is below this
     /// (radiance units; the view-averaged RMS of its glossy shading). 0: the full product;
@@ -267,6 +277,8 @@ pub struct AdaptiveIncident {
     /// Per vertex: its level (`u8::MAX` for vertices without a glossy lobe).
     pub levels: Vec<u8>,
     pub stats: AdaptiveStats,
+    /// What it was computed with (a later evaluation reuses its levels only under the same).
+    pub settings: Option<AdaptiveSettings>,
 }
 
 /// Vertex neighbours in compressed rows: vertex `v`'s are `neighbours[offsets[v]..offsets[v+1]]`.
@@ -324,7 +336,8 @@ pub struct AdaptiveInputs<'a> {
     pub lobe_of: &'a [Option<u16>],
     pub weights: &'a [ShadingWeights],
     pub adjacency: &'a Adjacency,
-    /// The previous evaluation's levels, for hysteresis.
+    /// The previous evaluation's levels (under the same settings, the lighting having moved),
+    /// for hysteresis and as the starting level of each vertex.
     pub previous_levels: Option<&'a [u8]>,
 }
 
@@ -366,7 +379,11 @@ pub fn adaptive_incident(
         let kept = inputs.previous_levels.and_then(|p| p.get(v)).is_some_and(|&p| p != u8::MAX && level <= p as usize);
         if kept { settings.threshold * settings.hysteresis.clamp(0.0, 1.0) } else { settings.threshold }
     };
-    // Phase 1: per vertex, raise the level while the change since the base is significant.
+    let previous = inputs.previous_levels.filter(|p| p.len() == count);
+    // Phase 1: per vertex, raise the level while each level's change is significant. With the
+    // previous evaluation's level `q` (temporal coherence: the lighting moved a little), levels
+    // below `q` are taken at once as a dense block (the fast kernel) and only `q` itself and
+    // above are tested, so a vertex drops at most one level per evaluation.
     let macs: u64 = coeffs
         .par_chunks_mut(n * 3 * 256)
         .zip(levels.par_chunks_mut(256))
@@ -380,15 +397,15 @@ pub fn adaptive_incident(
                 let Some(lobe) = inputs.lobe_of[v] else { continue };
                 let weights = &inputs.weights[lobe as usize];
                 let vis = &inputs.visibility[v * inputs.stride..];
-                r.iter_mut().for_each(|x| x.fill(0.0));
-                for l in 0..=base {
-                    p.increment(l, vis, &mut d);
-                    let used = (l + 1) * (l + 1);
-                    add_planar(&mut r, &d, used);
-                }
-                macs += LightProducts::full_macs(base);
-                *level = base as u8;
-                for l in base + 1..=top {
+                let start = previous
+                    .map(|p| p[v])
+                    .filter(|&q| q != u8::MAX)
+                    .map_or(base, |q| (q as usize).clamp(base + 1, top.max(base + 1)) - 1)
+                    .min(top);
+                p.block(start, vis, &mut r);
+                macs += LightProducts::full_macs(start);
+                *level = start as u8;
+                for l in start + 1..=top {
                     p.increment(l, vis, &mut d);
                     macs += LightProducts::full_macs(l) - LightProducts::full_macs(l - 1);
                     let used = (l + 1) * (l + 1);
@@ -491,7 +508,7 @@ pub fn adaptive_incident(
             *c += 1;
         }
     }
-    Ok(AdaptiveIncident { incident: IncidentSh { bands: p.bands, coeffs }, levels, stats })
+    Ok(AdaptiveIncident { incident: IncidentSh { bands: p.bands, coeffs }, levels, stats, settings: Some(*settings) })
 }
 
 /// Tier 1 (vertices with a neighbour of a higher level: the border of some level's ROI) gets
@@ -502,34 +519,47 @@ fn smooth_borders(coeffs: &mut [f32], levels: &[u8], adjacency: &Adjacency, n: u
     let count = levels.len();
     let below_top = |v: usize| levels[v] != u8::MAX && (levels[v] as usize) < top;
     let higher = |u: usize, v: usize| levels.get(u).is_some_and(|&l| l != u8::MAX && l > levels[v]);
-    // Every mean is computed before any vertex changes.
+    // Interleaved floats from the first coefficient above a vertex's level, and up to a level.
+    let above = |v: usize| (levels[v] as usize + 1).pow(2) * 3;
+    let upto = |level: u8| (level as usize + 1).pow(2) * 3;
+    // Every mean is computed before any vertex changes; each covers only the coefficients a
+    // vertex lacks and its neighbours have (`(start, values)`).
     let snapshot: &[f32] = coeffs;
-    let tier1: Vec<(usize, Vec<f32>)> = (0..count)
+    let tier1: Vec<(usize, Band)> = (0..count)
         .into_par_iter()
         .filter(|&v| below_top(v))
         .filter_map(|v| {
-            let pick = |u: usize| higher(u, v).then(|| &snapshot[u * n * 3..(u + 1) * n * 3]);
-            mean_of(adjacency.of(v), n, pick).map(|m| (v, m))
+            let from = above(v);
+            let parts = adjacency.of(v).iter().map(|&u| u as usize).filter(|&u| higher(u, v)).map(|u| {
+                let base = u * n * 3;
+                (from, &snapshot[base + from..base + upto(levels[u])])
+            });
+            mean_of(from, parts).map(|m| (v, m))
         })
         .collect();
     let mut means: Vec<Option<usize>> = vec![None; count];
     for (k, (v, _)) in tier1.iter().enumerate() {
         means[*v] = Some(k);
     }
-    let tier2: Vec<(usize, Vec<f32>)> = (0..count)
+    let tier2: Vec<(usize, Band)> = (0..count)
         .into_par_iter()
         .filter(|&v| below_top(v) && means[v].is_none())
         .filter_map(|v| {
-            let pick = |u: usize| means.get(u).copied().flatten().map(|k| tier1[k].1.as_slice());
-            mean_of(adjacency.of(v), n, pick).map(|m| (v, m))
+            let from = above(v);
+            let parts =
+                adjacency.of(v).iter().filter_map(|&u| means.get(u as usize).copied().flatten()).filter_map(|k| {
+                    let (start, values) = &tier1[k].1;
+                    let skip = from.saturating_sub(*start);
+                    (skip < values.len()).then(|| (start + skip, &values[skip..]))
+                });
+            mean_of(from, parts).map(|m| (v, m))
         })
         .collect();
     let mut changed = 0;
     for (tier, weight) in [(&tier1, 2.0 / 3.0), (&tier2, 1.0 / 3.0)] {
-        for (v, mean) in tier.iter() {
-            let from = (levels[*v] as usize + 1).pow(2) * 3;
-            let r = &mut coeffs[v * n * 3..(v + 1) * n * 3];
-            for (x, m) in r[from..].iter_mut().zip(&mean[from..]) {
+        for (v, (start, values)) in tier.iter() {
+            let r = &mut coeffs[v * n * 3 + start..v * n * 3 + start + values.len()];
+            for (x, m) in r.iter_mut().zip(values) {
                 *x += weight * m;
             }
             changed += 1;
@@ -538,17 +568,23 @@ fn smooth_borders(coeffs: &mut [f32], levels: &[u8], adjacency: &Adjacency, n: u
     changed
 }
 
-/// The mean of the vectors `pick` gives for the vertices `from` (`None` when it gives none).
-fn mean_of<'a>(from: &[u32], n: usize, pick: impl Fn(usize) -> Option<&'a [f32]>) -> Option<Vec<f32>> {
-    let mut sum = vec![0.0f32; n * 3];
+/// A run of interleaved coefficients from a start index.
+type Band = (usize, Vec<f32>);
+
+/// The mean, from index `from`, of runs of coefficients each given with its start (missing
+/// entries count as zeros); `None` without any run.
+fn mean_of<'a>(from: usize, parts: impl Iterator<Item = (usize, &'a [f32])>) -> Option<Band> {
+    let mut sum: Vec<f32> = Vec::new();
     let mut k = 0;
-    for &u in from {
-        if let Some(x) = pick(u as usize) {
-            sum.iter_mut().zip(x).for_each(|(s, x)| *s += x);
-            k += 1;
+    for (start, values) in parts {
+        let offset = start - from;
+        if sum.len() < offset + values.len() {
+            sum.resize(offset + values.len(), 0.0);
         }
+        sum[offset..offset + values.len()].iter_mut().zip(values).for_each(|(s, x)| *s += x);
+        k += 1;
     }
-    (k > 0).then(|| sum.into_iter().map(|s| s / k as f32).collect())
+    (k > 0).then(|| (from, sum.into_iter().map(|s| s / k as f32).collect()))
 }
 
 /// Mean square of the view-averaged glossy difference between two per-vertex incident

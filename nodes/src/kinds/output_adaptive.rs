@@ -195,7 +195,13 @@ fn setup<'a>(ctx: &'a StageContext) -> Result<Option<Setup<'a>>, StageError> {
 fn adaptive_stage(ctx: &StageContext) -> Result<StageValue, StageError> {
     let Some(setup) = setup(ctx)? else { return Ok(StageValue::new(AdaptiveIncident::default())) };
     let previous = ctx.previous::<AdaptiveIncident>();
-    let previous_levels = previous.as_ref().and_then(|p| p.get::<AdaptiveIncident>()).map(|p| p.levels.as_slice());
+    // The previous levels carry over while only the lighting or the geometry's values move;
+    // new settings start afresh.
+    let previous_levels = previous
+        .as_ref()
+        .and_then(|p| p.get::<AdaptiveIncident>())
+        .filter(|p| p.settings == Some(setup.settings))
+        .map(|p| p.levels.as_slice());
     let result = adaptive_incident(&setup.inputs(previous_levels), &setup.settings, ctx.cancel_token())?;
     let s = &result.stats;
     if let Some(wanted) = setup.limited_from {

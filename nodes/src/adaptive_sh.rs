@@ -8,10 +8,10 @@
 //! * **Multi-level filtering** (Algorithm 1, with the notes' corrections): every glossy vertex
 //!   gets the base level ([`BASE_LEVEL`]); then level by level the products of the next band
 //!   are added incrementally (Algorithm 3 in the notes' corrected form: new rows over all
-//!   columns, new columns for the old rows). A vertex leaves the region of interest (ROI)
-//!   when its accumulated change since the base, as its shading sees it, falls below the
-//!   threshold; the insignificant level is not kept, so threshold ∞ is the base image and
-//!   threshold 0 the full one.
+//!   columns, new columns for the old rows). A vertex stops rising (leaves that level's region
+//!   of interest, ROI) at the first level whose own change, as its shading sees it, is below
+//!   the threshold; that level is not kept, so threshold ∞ is the base image and threshold 0
+//!   the full one.
 //! * **Region-of-interest refinement** (§5.2.1): a breadth-first search from the ROI computes
 //!   its neighbours to the full level and adds those whose change is significant.
 //! * **Smoothing** (§5.2.2): two tiers outside the ROI get the ROI's higher bands,
@@ -238,9 +238,8 @@ impl ShadingWeights {
 /// The knobs of the adaptive product.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct AdaptiveSettings {
-    /// A vertex leaves the ROI when its accumulated change since the base is below this
-    /// (radiance units; the view-averaged RMS of its glossy shading). 0: the full product;
-    /// infinite: the base level.
+    /// A vertex stops at the first level whose own change is below this (radiance units; the
+    /// view-averaged RMS of its glossy shading). 0: the full product; infinite: the base level.
     pub threshold: f64,
     /// Highest level (`bands - 1`).
     pub level: usize,
@@ -375,11 +374,11 @@ pub fn adaptive_incident(
     let mut levels = vec![u8::MAX; count];
     // Hysteresis: levels a vertex had in the previous evaluation are kept down to the lower
     // threshold.
-    let threshold_of = |v: usize, level: usize| {
-        let kept = inputs.previous_levels.and_then(|p| p.get(v)).is_some_and(|&p| p != u8::MAX && level <= p as usize);
-        if kept { settings.threshold * settings.hysteresis.clamp(0.0, 1.0) } else { settings.threshold }
-    };
     let previous = inputs.previous_levels.filter(|p| p.len() == count);
+    let threshold_of = |v: usize, level: usize| {
+        let kept = previous.is_some_and(|p| p[v] != u8::MAX && level <= p[v] as usize);
+        if kept { settings.threshold * settings.hysteresis.clamp(0.05, 1.0) } else { settings.threshold }
+    };
     // Phase 1: per vertex, raise the level while each level's change is significant. With the
     // previous evaluation's level `q` (temporal coherence: the lighting moved a little), levels
     // below `q` are taken at once as a dense block (the fast kernel) and only `q` itself and
@@ -482,11 +481,12 @@ pub fn adaptive_incident(
             frontier.clear();
             for (u, target, raised, significant, macs) in computed {
                 let u = u as usize;
-                // Computed either way: keep it.
                 stats.macs += macs;
-                coeffs[u * n * 3..(u + 1) * n * 3].copy_from_slice(&raised);
-                levels[u] = target;
+                // An insignificant raise is dropped, as an insignificant level is in phase 1
+                // (keeping it would ratchet the levels up from one evaluation to the next).
                 if significant {
+                    coeffs[u * n * 3..(u + 1) * n * 3].copy_from_slice(&raised);
+                    levels[u] = target;
                     stats.refined += 1;
                     frontier.push(u as u32);
                 }

@@ -219,14 +219,7 @@ fn fitted(ctx: &StageContext) -> Result<StageValue, StageError> {
     }
     let meshes = crate::mesh::MeshSet { meshes: model.meshes };
     let (count, resolution) = (ctx.int("fit_count")? as usize, ctx.int("fit_resolution")? as usize);
-    let fit = crate::sphere_set::fit_spheres(&meshes, count, resolution, ctx.cancel_token())?;
-    ctx.inform(format!(
-        "{} spheres leave {:.1}% of the model's volume uncovered (grid of {:.3} m voxels)",
-        fit.spheres.len(),
-        100.0 * fit.uncovered,
-        fit.voxel
-    ));
-    Ok(StageValue::new(fit))
+    Ok(StageValue::new(crate::sphere_set::fit_spheres(&meshes, count, resolution, ctx.cancel_token())?))
 }
 
 fn spheres(ctx: &StageContext) -> Result<StageValue, StageError> {
@@ -235,6 +228,15 @@ fn spheres(ctx: &StageContext) -> Result<StageValue, StageError> {
     };
     let fit = ctx.stage::<crate::sphere_set::SphereSetFit>("fitted")?;
     let list = if fit.spheres.is_empty() { hand } else { &fit.spheres };
+    // Said here rather than by the fit, which may come from the disk cache without its report.
+    if !fit.spheres.is_empty() {
+        ctx.inform(format!(
+            "{} spheres leave {:.1}% of the model's volume uncovered (grid of {:.3} m voxels)",
+            fit.spheres.len(),
+            100.0 * fit.uncovered,
+            fit.voxel
+        ));
+    }
     let transform = SetTransform::new(ctx.vec3("offset")?, ctx.vec3("rotation")?, ctx.float("scale")?);
     let method = match ctx.choice("exponential")? {
         "ps_star_8" => ExpMethod::PsStar(8),

@@ -24,9 +24,10 @@ pub fn params() -> Vec<ParamSpec> {
             name: "adaptive_level",
             label: "SH level",
             unit: "",
-            kind: ParamKind::Int { min: 2, max: 15, default: 10 },
-            doc: "High-order SH mode: highest SH level of the glossy lighting (level 10 = 121 coefficients). \
-                  Limited by the environment's and the scene's SH bands (level = bands - 1).",
+            kind: ParamKind::Int { min: 2, max: 11, default: 10 },
+            doc: "High-order SH mode: highest SH level of the glossy lighting (level 10 = 121 coefficients; the \
+                  viewport draws up to 11). Limited by the environment's and the scene's SH bands (level = \
+                  bands - 1).",
         },
         ParamSpec {
             name: "adaptive_threshold",
@@ -58,10 +59,10 @@ pub fn params() -> Vec<ParamSpec> {
             name: "adaptive_hysteresis",
             label: "Hysteresis",
             unit: "",
-            kind: ParamKind::Float { min: 0.0, max: 1.0, default: 0.5 },
+            kind: ParamKind::Float { min: 0.05, max: 1.0, default: 0.5 },
             doc: "High-order SH mode: a vertex keeps a level it had in the previous frame until that level's \
-                  change falls below this fraction of the threshold (1: no hysteresis). Stops levels \
-                  flickering while the lighting moves.",
+                  change falls below this fraction of the threshold, and starts from it (1: no hysteresis, \
+                  every frame computed afresh). Stops levels flickering while the lighting moves.",
         },
     ]
 }
@@ -195,12 +196,13 @@ fn setup<'a>(ctx: &'a StageContext) -> Result<Option<Setup<'a>>, StageError> {
 fn adaptive_stage(ctx: &StageContext) -> Result<StageValue, StageError> {
     let Some(setup) = setup(ctx)? else { return Ok(StageValue::new(AdaptiveIncident::default())) };
     let previous = ctx.previous::<AdaptiveIncident>();
-    // The previous levels carry over while only the lighting or the geometry's values move;
-    // new settings start afresh.
+    // With hysteresis the previous result's levels carry over to the next evaluation (under the
+    // same settings and vertex count), so the result depends on the edits before it, as
+    // hysteresis must; at 1 (none) every evaluation starts afresh and matches a fresh render.
     let previous_levels = previous
         .as_ref()
         .and_then(|p| p.get::<AdaptiveIncident>())
-        .filter(|p| p.settings == Some(setup.settings))
+        .filter(|p| setup.settings.hysteresis < 1.0 && p.settings == Some(setup.settings))
         .map(|p| p.levels.as_slice());
     let result = adaptive_incident(&setup.inputs(previous_levels), &setup.settings, ctx.cancel_token())?;
     let s = &result.stats;

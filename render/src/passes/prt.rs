@@ -55,6 +55,17 @@ impl Pass for PrtPass {
         let r = lightloom_nodes::frame::incident_sh(&data.incident.value).map_err(RenderError::Invalid)?;
         let keys = (data.transport.key, data.incident.key);
         if self.bound.as_ref().is_none_or(|(k, _)| *k != keys) {
+            let limit = gpu.device.limits().max_storage_buffer_binding_size as u64;
+            let bytes = (r.coeffs.len() as u64 * 4).max(t.transfer.len() as u64 * 4);
+            if bytes > limit {
+                return Err(RenderError::Invalid(format!(
+                    "the SH modes need {} MiB of per-vertex coefficients here ({} bands), but this GPU binds at most \
+                     {} MiB: lower the SH level or bands, or the tessellation",
+                    bytes >> 20,
+                    r.bands.max(t.bands),
+                    limit >> 20
+                )));
+            }
             let transfer = storage_buffer(gpu, "prt-transfer", &t.transfer);
             let incident = storage_buffer(gpu, "prt-incident", &r.coeffs);
             let bind_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {

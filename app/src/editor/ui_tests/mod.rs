@@ -943,7 +943,8 @@ fn square_lights_from_the_add_menu_to_the_viewport() {
         assert!(!rect.intersects(theirs), "{added} at {rect:?} covers {other} at {theirs:?}");
     }
     harness.get_by_role_and_label(Role::ComboBox, "environment (Environment)").click();
-    harness.run_steps(3);
+    // The popup can take a few frames to lay out while the new node's previews evaluate.
+    harness.run_steps(6);
     harness.get_by_label("sky.environment").click();
     harness.step();
     harness.state_mut().selection = Selection::Node("output".into());

@@ -69,3 +69,20 @@ fn threshold_edits_rerun_only_the_product_and_a_turn_reports_level_changes() {
     let turned = value_of::<AdaptiveIncident>(&evaluate_frame(&engine, &graph), "output", "adaptive_incident");
     assert!(turned.stats.flips.is_some(), "the previous levels were read");
 }
+
+/// Without hysteresis (1) the mode keeps no state: after an environment turn the result equals
+/// a fresh engine's. With hysteresis the turn starts from the previous levels.
+#[test]
+fn without_hysteresis_a_turn_equals_a_fresh_evaluation() {
+    let mut graph = adaptive_graph(0.02);
+    graph.set_param("output", "adaptive_hysteresis", ParamValue::Float(1.0)).unwrap();
+    let engine = Engine::in_memory();
+    evaluate_frame(&engine, &graph);
+    graph.set_param("sky", "rotation", ParamValue::Vec3([35.0, 0.0, 0.0])).unwrap();
+    let turned = value_of::<AdaptiveIncident>(&evaluate_frame(&engine, &graph), "output", "adaptive_incident");
+    let fresh =
+        value_of::<AdaptiveIncident>(&evaluate_frame(&Engine::in_memory(), &graph), "output", "adaptive_incident");
+    assert_eq!(turned.stats.flips, None, "no previous levels were read");
+    assert_eq!(turned.levels, fresh.levels);
+    assert_eq!(turned.incident, fresh.incident);
+}

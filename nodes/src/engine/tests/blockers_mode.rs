@@ -86,7 +86,7 @@ fn a_set_fitted_to_a_gltf_box_reports_its_coverage() {
     assert_eq!(fit.spheres.len(), 1);
     let expected = 1.0 - std::f64::consts::PI / 6.0;
     assert!((fit.uncovered - expected).abs() < 0.05, "{} against {expected}", fit.uncovered);
-    assert!(report(&one, "blockers", "fitted").info.iter().any(|l| l.contains("uncovered")));
+    assert!(report(&one, "blockers", "spheres").info.iter().any(|l| l.contains("uncovered")));
     let set = value_of::<BlockerSet>(&one, "blockers", "spheres");
     let centre = DVec3::from(set.blockers[0].centre);
     assert!((centre - DVec3::new(0.0, 2.0, 0.0)).length() < 0.05, "the fit is placed by the offset: {centre}");

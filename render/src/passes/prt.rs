@@ -55,7 +55,7 @@ impl Pass for PrtPass {
         let r = lightloom_nodes::frame::incident_sh(&data.incident.value).map_err(RenderError::Invalid)?;
         let keys = (data.transport.key, data.incident.key);
         if self.bound.as_ref().is_none_or(|(k, _)| *k != keys) {
-            let limit = gpu.device.limits().max_storage_buffer_binding_size as u64;
+            let limit = gpu.device.limits().max_storage_buffer_binding_size;
             let bytes = (r.coeffs.len() as u64 * 4).max(t.transfer.len() as u64 * 4);
             if bytes > limit {
                 return Err(RenderError::Invalid(format!(

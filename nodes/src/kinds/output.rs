@@ -830,7 +830,12 @@ fn lobe_limits(
         Some(ParamValue::Int(v)) => *v,
         _ => default,
     };
-    let bands = int(scene, "transport_bands", 6).clamp(1, 16) as usize;
+    let mut bands = int(scene, "transport_bands", 6).clamp(1, 16) as usize;
+    if mode == Mode::ShAdaptive {
+        // The glossy lobe is drawn at the adaptive level, within the environment's bands.
+        let env = graph.upstream(output, "environment").map(|n| int(&n.id, "sh_bands", 4) as usize).unwrap_or(bands);
+        bands = bands.min(env).min(int(output, "adaptive_level", 10) as usize + 1).clamp(1, 12);
+    }
     let cells = match graph.node(output).and_then(|n| n.params.get("wavelet_terms")) {
         Some(ParamValue::Choice(c)) => c.parse().unwrap_or(320),
         _ => 320,
@@ -854,7 +859,8 @@ fn lobe_limits(
             )),
             Mode::ShPrt | Mode::ShAdaptive if exponent > sh_limit => Some(format!(
                 "{lobe} is sharper than {bands} SH bands show (about Phong {sh_limit:.0}): it is drawn broader and \
-                 dimmer; raise the Scene's transport SH bands, or use wavelet_pixel (to about Phong {cell_limit:.0})"
+                 dimmer; raise the SH bands (the Scene's transport; in sh_adaptive also the environment's and the level), or use \
+                 wavelet_pixel (to about Phong {cell_limit:.0})"
             )),
             Mode::WaveletVertex | Mode::WaveletPixel if exponent > cell_limit => Some(format!(
                 "{lobe} is sharper than {cells} wavelet cells show (about Phong {cell_limit:.0}): it is spread over \

@@ -86,3 +86,14 @@ fn without_hysteresis_a_turn_equals_a_fresh_evaluation() {
     assert_eq!(turned.levels, fresh.levels);
     assert_eq!(turned.incident, fresh.incident);
 }
+
+/// The sharpness warning judges the adaptive mode by the bands it draws: the environment's
+/// two bands here, though the scene's transport has eight.
+#[test]
+fn the_sharpness_warning_counts_the_environments_bands() {
+    let mut graph = adaptive_graph(0.0);
+    graph.set_param("sky", "sh_bands", ParamValue::Int(2)).unwrap();
+    let eval = evaluate_frame(&Engine::in_memory(), &graph);
+    let frame = crate::kinds::output::FrameInputs::gather(&eval, &graph, "output").unwrap();
+    assert!(frame.lobe_limits.iter().any(|(_, m)| m.contains("than 2 SH bands")), "{:?}", frame.lobe_limits);
+}

@@ -46,6 +46,7 @@ fn registry() -> &'static [NodeKindSpec] {
         stages: vec![stage("a", &[], &[("in", "medium")]), stage("b", &["a"], &[]), stage("medium", &["b"], &[])],
         previews: Vec::new(),
         availability: Availability::Ready,
+        relevant: lightloom_nodes::node_kind::always_relevant,
     }]))
 }
 

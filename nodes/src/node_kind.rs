@@ -356,6 +356,14 @@ pub struct NodeKindSpec {
     /// Pictures the graph editor shows in the node (none for most kinds).
     pub previews: Vec<PreviewSpec>,
     pub availability: Availability,
+    /// Whether parameter `name` matters, given the node's parameter values (the inspector
+    /// shows only those; evaluation reads every parameter regardless).
+    pub relevant: fn(&dyn Fn(&str) -> Option<ParamValue>, &str) -> bool,
+}
+
+/// For kinds whose every parameter always matters.
+pub fn always_relevant(_: &dyn Fn(&str) -> Option<ParamValue>, _: &str) -> bool {
+    true
 }
 
 impl NodeKindSpec {

@@ -141,8 +141,11 @@ impl Inspector<'_> {
         }
         self.inputs_section(ui, id, kind);
         ui.separator();
+        let project = &self.doc.project;
+        let value = |name: &str| kind.param(name).map(|p| param_value(project, id, p));
+        let shown: Vec<&ParamSpec> = kind.params.iter().filter(|p| (kind.relevant)(&value, p.name)).collect();
         egui::Grid::new(("params", id)).num_columns(2).striped(true).show(ui, |ui| {
-            for spec in &kind.params {
+            for spec in shown {
                 if matches!(spec.kind, ParamKind::Objects { .. } | ParamKind::Spheres { .. }) {
                     continue;
                 }

@@ -193,6 +193,7 @@ pub fn spec() -> NodeKindSpec {
         ],
         previews: Vec::new(),
         availability: Availability::Ready,
+        relevant: crate::node_kind::always_relevant,
     }
 }
 

@@ -142,6 +142,7 @@ pub fn spec() -> NodeKindSpec {
             caption: "f·cos θi in the plane of incidence (each curve scaled to its peak)",
         }],
         availability: Availability::Ready,
+        relevant: crate::node_kind::always_relevant,
     }
 }
 

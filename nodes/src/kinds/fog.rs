@@ -115,6 +115,7 @@ pub fn spec() -> NodeKindSpec {
             caption: "a point light 10 m away seen through this fog (airlight, eq. 3.16)",
         }],
         availability: Availability::Ready,
+        relevant: crate::node_kind::always_relevant,
     }
 }
 

@@ -265,6 +265,21 @@ pub fn spec() -> NodeKindSpec {
         .collect(),
         previews: Vec::new(),
         availability: Availability::Ready,
+        relevant: relevant_to_mode,
+    }
+}
+
+/// The wavelet and adaptive-SH settings matter only in their modes (the inspector hides them
+/// elsewhere).
+fn relevant_to_mode(value: &dyn Fn(&str) -> Option<ParamValue>, name: &str) -> bool {
+    let mode = match value("mode") {
+        Some(ParamValue::Choice(c)) => c.parse().unwrap_or(Mode::ShIrradiance),
+        _ => return true,
+    };
+    match name {
+        "wavelet_terms" => mode.is_wavelet(),
+        n if n.starts_with("adaptive_") => mode == Mode::ShAdaptive,
+        _ => true,
     }
 }
 

@@ -57,5 +57,6 @@ pub fn area_light_painter_spec() -> NodeKindSpec {
         }],
         previews: Vec::new(),
         availability: Availability::Planned("painted area lights are not computed or drawn"),
+        relevant: crate::node_kind::always_relevant,
     }
 }

@@ -33,8 +33,10 @@ fn the_adaptive_sh_mode_shows_its_psnr_and_the_threshold_trades_it() {
     harness.state_mut().selection = Selection::Node("output".into());
     harness.run_steps(3);
     let fine = psnr_line(&harness).expect("the PSNR is reported");
-    // The inspector shows it to the user.
+    // The inspector shows it to the user, beside this mode's settings.
     harness.get_by_label_contains("PSNR");
+    harness.get_by_label("Adaptive threshold");
+    assert!(harness.query_by_label("Wavelet coefficients").is_none(), "the wavelet setting is hidden here");
     harness.render().unwrap().save(state_dir().join("adaptive-sh.png")).expect("screenshot for a person to look at");
     inspector::set_param(&mut harness.state_mut().doc, "output", "adaptive_threshold", ParamValue::Float(0.1)).unwrap();
     harness.state_mut().doc.seal();

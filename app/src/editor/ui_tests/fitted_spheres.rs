@@ -29,6 +29,7 @@ fn a_set_fitted_to_a_model_draws_its_spheres_and_drags_as_one() {
     harness.state_mut().doc.seal();
     harness.state_mut().selection = Selection::Node("output".into());
     harness.run_steps(3);
+    assert!(harness.query_by_label("Adaptive threshold").is_none(), "sh_prt's inspector hides the adaptive settings");
     harness.get_by_role_and_label(Role::ComboBox, "blockers (Blockers)").click();
     harness.run_steps(3);
     harness.get_by_label(&format!("{added}.blockers")).click();

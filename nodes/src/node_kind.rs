@@ -358,8 +358,11 @@ pub struct NodeKindSpec {
     pub availability: Availability,
     /// Whether parameter `name` matters, given the node's parameter values (the inspector
     /// shows only those; evaluation reads every parameter regardless).
-    pub relevant: fn(&dyn Fn(&str) -> Option<ParamValue>, &str) -> bool,
+    pub relevant: RelevantFn,
 }
+
+/// Reads the node's parameter values (by name) and says whether parameter `name` matters.
+pub type RelevantFn = fn(&dyn Fn(&str) -> Option<ParamValue>, &str) -> bool;
 
 /// For kinds whose every parameter always matters.
 pub fn always_relevant(_: &dyn Fn(&str) -> Option<ParamValue>, _: &str) -> bool {

@@ -980,9 +980,20 @@ impl Engine {
             None => vec!["first evaluation".into()],
             Some(prev) if prev.key == inst.key => vec!["not in the memory cache".into()],
             Some(prev) => {
-                let old: HashMap<key::Component, u64> = prev.components.iter().copied().collect();
-                let changed: Vec<String> = inst
-                    .components
+                // A port with many links contributes one component per link: compare them
+                // together, once per label.
+                let per_label = |components: &[(key::Component, u64)]| {
+                    let mut out: Vec<(key::Component, u64)> = Vec::new();
+                    for &(label, hash) in components {
+                        match out.iter_mut().find(|(l, _)| *l == label) {
+                            Some(entry) => entry.1 = entry.1.rotate_left(7) ^ hash,
+                            None => out.push((label, hash)),
+                        }
+                    }
+                    out
+                };
+                let old: HashMap<key::Component, u64> = per_label(&prev.components).into_iter().collect();
+                let changed: Vec<String> = per_label(&inst.components)
                     .iter()
                     .filter(|(label, hash)| old.get(label) != Some(hash))
                     .map(|(label, _)| format!("{label} changed"))

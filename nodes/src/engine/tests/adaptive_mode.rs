@@ -97,3 +97,16 @@ fn the_sharpness_warning_counts_the_environments_bands() {
     let frame = crate::kinds::output::FrameInputs::gather(&eval, &graph, "output").unwrap();
     assert!(frame.lobe_limits.iter().any(|(_, m)| m.contains("than 2 SH bands")), "{:?}", frame.lobe_limits);
 }
+
+/// An edit of one of several linked materials is reported once, as the `material` input.
+#[test]
+fn an_edit_of_one_linked_material_is_one_reason() {
+    let mut graph = adaptive_graph(0.02);
+    let engine = Engine::in_memory();
+    evaluate_frame(&engine, &graph);
+    graph.set_param("gloss", "albedo", ParamValue::Color([0.2, 0.3, 0.4])).unwrap();
+    let eval = evaluate_frame(&engine, &graph);
+    let reasons =
+        &eval.report.stages.iter().find(|s| s.node == "output" && s.stage == "adaptive_incident").unwrap().reasons;
+    assert_eq!(reasons.iter().filter(|r| r.contains("material")).count(), 1, "{reasons:?}");
+}

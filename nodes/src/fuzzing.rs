@@ -34,6 +34,8 @@ pub fn gltf(bytes: &[u8]) {
     if let Ok(scene) = crate::gltf_import::import(&path) {
         let meshes = crate::mesh::MeshSet { meshes: scene.meshes };
         let _ = crate::raycast::RayScene::build(&meshes);
+        // Blocker sets fit spheres to models: a coarse fit must refuse or succeed, never panic.
+        let _ = crate::sphere_set::fit_spheres(&meshes, 8, 16, &crate::engine::CancelToken::default());
     }
 }
 
@@ -46,6 +48,7 @@ pub fn disk_entry(bytes: &[u8]) {
         Codec::of::<crate::transport::SphericalTransport>(),
         Codec::of::<crate::triple_product::LocalProducts>(),
         Codec::of::<Vec<crate::single_scattering::FTable>>(),
+        Codec::of::<crate::sphere_set::SphereSetFit>(),
     ];
     let codec = &codecs[*pick as usize % codecs.len()];
     let dir = scratch_dir().join("cache");

@@ -24,6 +24,19 @@ struct MeshVertex {
 const PI: f32 = 3.14159265358979;
 const MAX_COEFFS: i32 = 64;
 
+// One step in l of the normalised associated-Legendre recurrence at fixed m (l > m): from
+// p = P_{l-1}^m and p_prev = P_{l-2}^m (unused at l = m + 1, where p = P_m^m) to P_l^m.
+fn legendre_next(l: i32, m: i32, z: f32, p: f32, p_prev: f32) -> f32 {
+    let mf = f32(m);
+    if (l == m + 1) {
+        return sqrt(2.0 * mf + 3.0) * z * p;
+    }
+    let lf = f32(l);
+    let a = sqrt((4.0 * lf * lf - 1.0) / (lf * lf - mf * mf));
+    let b = sqrt(((lf - 1.0) * (lf - 1.0) - mf * mf) / (4.0 * (lf - 1.0) * (lf - 1.0) - 1.0));
+    return a * (z * p - b * p_prev);
+}
+
 // Real orthonormal SH without the Condon-Shortley phase, by the normalised associated-Legendre
 // recurrence of nodes/src/sh/mod.rs (ShBasis::eval).
 fn sh_basis(n: vec3<f32>, bands: i32) -> array<f32, MAX_COEFFS> {
@@ -43,14 +56,8 @@ fn sh_basis(n: vec3<f32>, bands: i32) -> array<f32, MAX_COEFFS> {
         var p_prev = 0.0;
         var p = p_mm;
         for (var l = m; l < bands; l = l + 1) {
-            if (l == m + 1) {
-                p_prev = p;
-                p = sqrt(2.0 * mf + 3.0) * n.z * p_mm;
-            } else if (l > m + 1) {
-                let lf = f32(l);
-                let a = sqrt((4.0 * lf * lf - 1.0) / (lf * lf - mf * mf));
-                let b = sqrt(((lf - 1.0) * (lf - 1.0) - mf * mf) / (4.0 * (lf - 1.0) * (lf - 1.0) - 1.0));
-                let next = a * (n.z * p - b * p_prev);
+            if (l > m) {
+                let next = legendre_next(l, m, n.z, p, p_prev);
                 p_prev = p;
                 p = next;
             }

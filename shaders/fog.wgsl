@@ -155,14 +155,8 @@ fn fog_environment_sum(dir: vec3<f32>, irradiance: bool) -> vec3<f32> {
         var p_prev = 0.0;
         var p = p_mm;
         for (var l = m; l < bands; l = l + 1) {
-            if (l == m + 1) {
-                p_prev = p;
-                p = sqrt(2.0 * mf + 3.0) * dir.z * p_mm;
-            } else if (l > m + 1) {
-                let lf = f32(l);
-                let a = sqrt((4.0 * lf * lf - 1.0) / (lf * lf - mf * mf));
-                let b = sqrt(((lf - 1.0) * (lf - 1.0) - mf * mf) / (4.0 * (lf - 1.0) * (lf - 1.0) - 1.0));
-                let next = a * (dir.z * p - b * p_prev);
+            if (l > m) {
+                let next = legendre_next(l, m, dir.z, p, p_prev);
                 p_prev = p;
                 p = next;
             }

@@ -215,11 +215,34 @@ impl Case {
     }
 }
 
+/// What every relight of a measurement shares.
+struct Parts<'a> {
+    transport: &'a ShTransport,
+    lobe_of: &'a [Option<u16>],
+    weights: &'a [ShadingWeights],
+    adjacency: &'a Adjacency,
+}
+
+impl<'a> Parts<'a> {
+    fn inputs(&self, products: &'a LightProducts, previous: Option<&'a [u8]>) -> AdaptiveInputs<'a> {
+        AdaptiveInputs {
+            products,
+            visibility: &self.transport.visibility,
+            stride: TOP_BANDS * TOP_BANDS,
+            lobe_of: self.lobe_of,
+            weights: self.weights,
+            adjacency: self.adjacency,
+            previous_levels: previous,
+        }
+    }
+}
+
 /// Median of three relights each way.
 fn measure(light: &ShRgb, transport: &ShTransport, adjacency: &Adjacency, white: f64, case: Case) -> Row {
     let Case { bands, threshold, refine, exponent } = case;
     let weights = vec![weights(bands, exponent)];
     let lobe_of = vec![Some(0u16); adjacency.offsets.len() - 1];
+    let parts = Parts { transport, lobe_of: &lobe_of, weights: &weights, adjacency };
     let cancel = CancelToken::default();
     let median = |mut v: Vec<f64>| {
         v.sort_by(f64::total_cmp);
@@ -231,15 +254,7 @@ fn measure(light: &ShRgb, transport: &ShTransport, adjacency: &Adjacency, white:
             .map(|_| {
                 let start = Instant::now();
                 let products = LightProducts::new(light, bands);
-                let inputs = AdaptiveInputs {
-                    products: &products,
-                    visibility: &transport.visibility,
-                    stride: TOP_BANDS * TOP_BANDS,
-                    lobe_of: &lobe_of,
-                    weights: &weights,
-                    adjacency,
-                    previous_levels: None,
-                };
+                let inputs = parts.inputs(&products, None);
                 full = Some(full_incident(&inputs, &cancel).expect("full"));
                 start.elapsed().as_secs_f64() * 1e3
             })
@@ -253,15 +268,7 @@ fn measure(light: &ShRgb, transport: &ShTransport, adjacency: &Adjacency, white:
             .map(|_| {
                 let start = Instant::now();
                 let products = LightProducts::new(light, bands);
-                let inputs = AdaptiveInputs {
-                    products: &products,
-                    visibility: &transport.visibility,
-                    stride: TOP_BANDS * TOP_BANDS,
-                    lobe_of: &lobe_of,
-                    weights: &weights,
-                    adjacency,
-                    previous_levels: None,
-                };
+                let inputs = parts.inputs(&products, None);
                 adaptive = Some(adaptive_incident(&inputs, &settings, &cancel).expect("adaptive"));
                 start.elapsed().as_secs_f64() * 1e3
             })
@@ -279,6 +286,7 @@ fn rotating(light: &ShRgb, transport: &ShTransport, adjacency: &Adjacency, white
     let Case { bands, threshold, refine, exponent } = case;
     let weights = vec![weights(bands, exponent)];
     let lobe_of = vec![Some(0u16); adjacency.offsets.len() - 1];
+    let parts = Parts { transport, lobe_of: &lobe_of, weights: &weights, adjacency };
     let cancel = CancelToken::default();
     let settings =
         AdaptiveSettings { threshold: threshold * white, level: bands - 1, refine, smooth: refine, hysteresis: 0.5 };
@@ -294,22 +302,13 @@ fn rotating(light: &ShRgb, transport: &ShTransport, adjacency: &Adjacency, white
         let start = Instant::now();
         let turned = lightloom_nodes::sh::rotation::ShRotation::new(TOP_BANDS, turn).apply_rgb(light);
         let products = LightProducts::new(&turned, bands);
-        let inputs = AdaptiveInputs {
-            products: &products,
-            visibility: &transport.visibility,
-            stride: TOP_BANDS * TOP_BANDS,
-            lobe_of: &lobe_of,
-            weights: &weights,
-            adjacency,
-            previous_levels: previous.as_deref(),
-        };
+        let inputs = parts.inputs(&products, previous.as_deref());
         let adaptive = adaptive_incident(&inputs, &settings, &cancel).expect("adaptive");
         let adaptive_ms = start.elapsed().as_secs_f64() * 1e3;
         let start = Instant::now();
         let turned = lightloom_nodes::sh::rotation::ShRotation::new(TOP_BANDS, turn).apply_rgb(light);
         let products = LightProducts::new(&turned, bands);
-        let full = full_incident(&AdaptiveInputs { products: &products, previous_levels: None, ..inputs }, &cancel)
-            .expect("full");
+        let full = full_incident(&parts.inputs(&products, None), &cancel).expect("full");
         let full_ms = start.elapsed().as_secs_f64() * 1e3;
         if frame > 0 {
             full_times.push(full_ms);

@@ -129,38 +129,12 @@ pub fn fit_spheres(
     };
     let cells: Vec<usize> = (0..inside.len()).into_par_iter().filter(|&i| inside[i] && medial(i)).collect();
     // Voxels a sphere covers: the inside ones whose centre it contains.
+    // Voxels a sphere covers: the inside ones whose centre it contains.
     let covered_by = |i: usize, covered: &[bool]| -> usize {
-        let (x, y, z) = (i % dims[0], (i / dims[0]) % dims[1], i / (dims[0] * dims[1]));
-        let r = radius_of(i) / voxel;
-        let reach = r.floor() as isize;
         let mut n = 0;
-        for dz in -reach..=reach {
-            for dy in -reach..=reach {
-                for dx in -reach..=reach {
-                    if ((dx * dx + dy * dy + dz * dz) as f64) > r * r {
-                        continue;
-                    }
-                    let (u, v, w) = (x as isize + dx, y as isize + dy, z as isize + dz);
-                    if u < 0
-                        || v < 0
-                        || w < 0
-                        || u as usize >= dims[0]
-                        || v as usize >= dims[1]
-                        || w as usize >= dims[2]
-                    {
-                        continue;
-                    }
-                    let j = index(u as usize, v as usize, w as usize);
-                    if inside[j] && !covered[j] {
-                        n += 1;
-                    }
-                }
-            }
-        }
+        for_ball(i, dims, radius_of(i) / voxel, |j| n += usize::from(inside[j] && !covered[j]));
         n
     };
-    // Lazy greedy: a max-heap of (gain, candidate); a popped gain is re-evaluated and kept only
-    // if it still beats the next one.
     // Starting gains are upper bounds (a ball's volume in voxels, grown by half a diagonal),
     // so the lazy greedy never passes over a better sphere.
     let bound = |i: usize| {
@@ -181,7 +155,7 @@ pub fn fit_spheres(
             heap.push((gain, i));
             continue;
         }
-        mark(i, &mut covered, dims, radius_of(i) / voxel);
+        for_ball(i, dims, radius_of(i) / voxel, |j| covered[j] = true);
         chosen.push(i);
     }
     let covered_inside = covered.iter().zip(&inside).filter(|(c, i)| **c && **i).count();
@@ -217,8 +191,8 @@ const NEIGHBOURS: [(isize, isize, isize); 26] = {
     out
 };
 
-/// Marks the voxels whose centres lie within `r` voxels of voxel `i`'s centre.
-fn mark(i: usize, covered: &mut [bool], dims: [usize; 3], r: f64) {
+/// Calls `f` with every voxel whose centre lies within `r` voxels of voxel `i`'s centre.
+fn for_ball(i: usize, dims: [usize; 3], r: f64, mut f: impl FnMut(usize)) {
     let (x, y, z) = (i % dims[0], (i / dims[0]) % dims[1], i / (dims[0] * dims[1]));
     let reach = r.floor() as isize;
     for dz in -reach..=reach {
@@ -235,7 +209,7 @@ fn mark(i: usize, covered: &mut [bool], dims: [usize; 3], r: f64) {
                     && (v as usize) < dims[1]
                     && (w as usize) < dims[2]
                 {
-                    covered[(w as usize * dims[1] + v as usize) * dims[0] + u as usize] = true;
+                    f((w as usize * dims[1] + v as usize) * dims[0] + u as usize);
                 }
             }
         }

@@ -92,7 +92,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
         rsl_mode_figures(args, &gpu)?;
     }
     if wanted("blockers") {
-        crate::bench_blockers::blocker_figures();
+        crate::bench_blockers::blocker_figures(&gpu);
     }
     if wanted("adaptive") {
         crate::bench_adaptive::adaptive_figures();

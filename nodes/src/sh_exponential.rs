@@ -573,12 +573,15 @@ pub fn receiver_parts(positions: &[DVec3], max: usize) -> Vec<Vec<usize>> {
 /// The blockers that may reach any of `points` (their bounding sphere against each sphere's
 /// influence radius).
 pub fn blockers_in_reach(points: &[DVec3], blockers: &[Blocker]) -> Vec<Blocker> {
+    spheres_in_reach(points, blockers).into_iter().map(|i| blockers[i]).collect()
+}
+
+/// Indices of [`blockers_in_reach`], in order.
+pub fn spheres_in_reach(points: &[DVec3], blockers: &[Blocker]) -> Vec<usize> {
     let centre = points.iter().sum::<DVec3>() / points.len().max(1) as f64;
     let radius = points.iter().map(|p| (*p - centre).length()).fold(0.0, f64::max);
-    blockers
-        .iter()
-        .filter(|b| (DVec3::from(b.centre) - centre).length() <= radius + b.influence_radius())
-        .copied()
+    (0..blockers.len())
+        .filter(|&i| (DVec3::from(blockers[i].centre) - centre).length() <= radius + blockers[i].influence_radius())
         .collect()
 }
 

@@ -6,6 +6,7 @@ pub mod capture;
 pub mod device;
 pub mod packing;
 mod passes;
+pub mod shexp;
 pub mod viewport;
 
 pub use capture::{CapturedFrame, write_exr, write_png};

@@ -105,7 +105,7 @@ impl PassSetup<'_> {
 
 /// The shared WGSL every scene pass includes, in order: the camera uniform, the vertex layout
 /// and the SH basis (`common.wgsl`), then the medium and point lights (`fog.wgsl`).
-const SHADER_PRELUDE: [&str; 2] =
+pub(crate) const SHADER_PRELUDE: [&str; 2] =
     [include_str!("../../../shaders/common.wgsl"), include_str!("../../../shaders/fog.wgsl")];
 
 /// Every scene pass's shader (checked by `shaders_compose_and_match_the_rust_uniforms`).
@@ -359,5 +359,38 @@ mod layout_tests {
         check!(wavelet, "WaveletParams", wavelet::WaveletParams, [counts, albedo, specular, texels]);
         check!(rsl, "RslParams", rsl::RslParams, [counts, albedo, specular, layouts]);
         check!(tone, "ToneParams", tonemap::ToneParams, [params]);
+        // The blocker kernel is a compute shader after common.wgsl alone.
+        let source = format!("{}\n{}", SHADER_PRELUDE[0], include_str!("../../../shaders/shexp.wgsl"));
+        let shexp = naga::front::wgsl::parse_str(&source).unwrap_or_else(|e| panic!("{}", e.emit_to_string(&source)));
+        naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::all())
+            .validate(&shexp)
+            .unwrap_or_else(|e| panic!("shexp.wgsl does not validate: {e:?}"));
+        check!(
+            &shexp,
+            "ShexpParams",
+            crate::shexp::ShexpParams,
+            [
+                receivers,
+                bands_b,
+                bands_t,
+                vectors_per_receiver,
+                series_degree,
+                table_entries,
+                ol_bins,
+                gaunt_bb_count,
+                gaunt_tb_count,
+                offset_blockers,
+                offset_parts,
+                offset_log,
+                offset_ol,
+                offset_gaunt_bb,
+                offset_gaunt_tb,
+                row_stride,
+                strength,
+                ol_max_norm,
+                ol_halving,
+                min_sin
+            ]
+        );
     }
 }

@@ -24,10 +24,7 @@ fn the_adaptive_sh_mode_shows_its_psnr_and_the_threshold_trades_it() {
         inspector::set_param(&mut harness.state_mut().doc, node, name, value).unwrap();
     }
     harness.state_mut().doc.seal();
-    harness.get_by_role_and_label(Role::ComboBox, "Mode").click();
-    harness.run_steps(2);
-    harness.get_by_label_contains("Sharper gloss, adaptive SH").click();
-    harness.run_steps(2);
+    pick(&mut harness, "Mode", "Sharper gloss, adaptive SH");
     settle(&mut harness);
     assert!(harness.state().problems().iter().all(|p| !p.starts_with("error")), "{:?}", harness.state().problems());
     harness.state_mut().selection = Selection::Node("output".into());

@@ -9,10 +9,7 @@ fn a_set_fitted_to_a_model_draws_its_spheres_and_drags_as_one() {
         .join("../../shared/assets/gltf/assimp-glTF2/BoxTextured-glTF/BoxTextured.gltf");
     assert!(model.is_file(), "the shared assets are expected beside the checkout at {}", model.display());
     let mut harness = default_harness();
-    harness.get_by_role_and_label(Role::ComboBox, "Mode").click();
-    harness.run_steps(2);
-    harness.get_by_label_contains("Soft shadows and gloss").click();
-    harness.run_steps(2);
+    pick(&mut harness, "Mode", "Soft shadows and gloss");
     let before: Vec<String> = harness.state().doc.project.nodes.iter().map(|n| n.id.clone()).collect();
     harness.get_by_label("Add").click();
     harness.run_steps(2);
@@ -30,10 +27,7 @@ fn a_set_fitted_to_a_model_draws_its_spheres_and_drags_as_one() {
     harness.state_mut().selection = Selection::Node("output".into());
     harness.run_steps(3);
     assert!(harness.query_by_label("Adaptive threshold").is_none(), "sh_prt's inspector hides the adaptive settings");
-    harness.get_by_role_and_label(Role::ComboBox, "blockers (Blockers)").click();
-    harness.run_steps(3);
-    harness.get_by_label(&format!("{added}.blockers")).click();
-    harness.step();
+    pick(&mut harness, "blockers (Blockers)", &format!("{added}.blockers"));
     harness.key_press(egui::Key::Escape);
     settle(&mut harness);
     let spheres: Vec<_> = harness.state().gizmos().into_iter().filter(|g| g.id == added).collect();

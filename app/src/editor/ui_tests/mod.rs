@@ -67,6 +67,46 @@ fn settle(harness: &mut Harness<'_, EditorApp>) {
     harness.step();
 }
 
+/// Opens the combo box labelled `combo` and clicks its entry labelled `item`, else the one
+/// whose label contains it (the popup's, not a label that was there before it opened). A
+/// pointer click lands where the widget was last drawn, so a layout that moves under it (a
+/// preview arriving) can miss; the popup is reopened until the entry shows, at most three
+/// times.
+fn pick(harness: &mut Harness<'_, EditorApp>, combo: &str, item: &str) {
+    let counts =
+        |h: &Harness<'_, EditorApp>| (h.query_all_by_label(item).count(), h.query_all_by_label_contains(item).count());
+    for _ in 0..3 {
+        let before = counts(harness);
+        harness.get_by_role_and_label(Role::ComboBox, combo).click();
+        for _ in 0..12 {
+            harness.step();
+            if counts(harness) == before {
+                continue;
+            }
+            // A popup's first frame only sizes it: its entries are where they will be drawn
+            // once it has been laid out for real.
+            harness.run_steps(2);
+            let now = counts(harness);
+            let entry = if now.0 > before.0 {
+                harness.query_all_by_label(item).last()
+            } else if now.1 > before.1 {
+                harness.query_all_by_label_contains(item).last()
+            } else {
+                None
+            };
+            if let Some(entry) = entry {
+                entry.click();
+                harness.run_steps(2);
+                return;
+            }
+        }
+        // Closed or never opened: let the layout settle before trying again.
+        harness.key_press(egui::Key::Escape);
+        harness.run_steps(2);
+    }
+    panic!("the {combo:?} list shows no entry {item:?}");
+}
+
 /// Mean sRGB value of the viewport's render frame in a screenshot.
 fn viewport_mean(harness: &mut Harness<'_, EditorApp>) -> f64 {
     let rect = harness.state().render_frame(harness.state().viewport_rect).shrink(1.0);
@@ -142,10 +182,7 @@ fn add_link_edit_undo_save_and_reopen() {
     // Link: select the Output node, link its `lights` input from the inspector.
     harness.state_mut().selection = Selection::Node("output".into());
     settle(&mut harness);
-    harness.get_by_role_and_label(Role::ComboBox, "lights (Lights)").click();
-    harness.run_steps(3);
-    harness.get_by_label(&format!("{}.lights", added.id)).click();
-    harness.step();
+    pick(&mut harness, "lights (Lights)", &format!("{}.lights", added.id));
     let linked = harness
         .state()
         .doc
@@ -736,10 +773,7 @@ fn a_gltf_model_is_an_object_in_the_list_and_framed() {
     assert!(lo[1].abs() < 1e-4 && (lo[0] + hi[0]).abs() < 1e-4 && (lo[2] + hi[2]).abs() < 1e-4, "{lo:?} {hi:?}");
     // The Objects list shows it, with its size; units set a uniform scale.
     harness.get_by_label_contains("1.00 × 1.00 × 1.00 m");
-    harness.get_by_role_and_label(Role::ComboBox, "Units").click();
-    harness.run_steps(2);
-    harness.get_by_label("centimetres").click();
-    harness.run_steps(2);
+    pick(&mut harness, "Units", "centimetres");
     let objects = match edits::node(&harness.state().doc.project, "scene").and_then(|n| n.params.get("objects")) {
         Some(ParamValue::Objects(o)) => o.clone(),
         _ => panic!("the scene lists objects"),
@@ -942,23 +976,15 @@ fn square_lights_from_the_add_menu_to_the_viewport() {
         let theirs = harness.state().graph.node_rect(other).expect("drawn");
         assert!(!rect.intersects(theirs), "{added} at {rect:?} covers {other} at {theirs:?}");
     }
-    harness.get_by_role_and_label(Role::ComboBox, "environment (Environment)").click();
-    // The popup can take a few frames to lay out while the new node's previews evaluate.
-    harness.run_steps(6);
-    harness.get_by_label("sky.environment").click();
-    harness.step();
+    // Its previews evaluate first, so the inspector's layout holds still under the pointer.
+    settle(&mut harness);
+    pick(&mut harness, "environment (Environment)", "sky.environment");
     harness.state_mut().selection = Selection::Node("output".into());
     harness.run_steps(3);
-    harness.get_by_role_and_label(Role::ComboBox, "square_lights (SquareLights)").click();
-    harness.run_steps(3);
-    harness.get_by_label(&format!("{added}.square_lights")).click();
-    harness.step();
+    pick(&mut harness, "square_lights (SquareLights)", &format!("{added}.square_lights"));
     harness.key_press(egui::Key::Escape);
     harness.step();
-    harness.get_by_role_and_label(Role::ComboBox, "Mode").click();
-    harness.run_steps(2);
-    harness.get_by_label_contains("Square lights, movable objects (rsl)").click();
-    harness.run_steps(2);
+    pick(&mut harness, "Mode", "Square lights, movable objects (rsl)");
     settle(&mut harness);
     let frame = harness.state().view.frame.clone().expect("a frame");
     assert_eq!(frame.mode, lightloom_nodes::kinds::output::Mode::Rsl, "pending: {:?}", frame.pending);
@@ -1046,10 +1072,7 @@ fn dragging_an_object_moves_it_and_shift_turns_it() {
 #[test]
 fn blocker_spheres_from_the_add_menu_shadow_and_drag() {
     let mut harness = default_harness();
-    harness.get_by_role_and_label(Role::ComboBox, "Mode").click();
-    harness.run_steps(2);
-    harness.get_by_label_contains("Soft shadows and gloss").click();
-    harness.run_steps(2);
+    pick(&mut harness, "Mode", "Soft shadows and gloss");
     settle(&mut harness);
     let unblocked = viewport_mean(&mut harness);
     let before: Vec<String> = harness.state().doc.project.nodes.iter().map(|n| n.id.clone()).collect();
@@ -1069,10 +1092,7 @@ fn blocker_spheres_from_the_add_menu_shadow_and_drag() {
     harness.state_mut().doc.seal();
     harness.state_mut().selection = Selection::Node("output".into());
     harness.run_steps(3);
-    harness.get_by_role_and_label(Role::ComboBox, "blockers (Blockers)").click();
-    harness.run_steps(3);
-    harness.get_by_label(&format!("{added}.blockers")).click();
-    harness.step();
+    pick(&mut harness, "blockers (Blockers)", &format!("{added}.blockers"));
     harness.key_press(egui::Key::Escape);
     settle(&mut harness);
     assert!(harness.state().problems().iter().all(|p| !p.starts_with("error")), "{:?}", harness.state().problems());

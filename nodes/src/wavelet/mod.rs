@@ -3,12 +3,15 @@
 //! - [`cube_haar`]: the 2D non-standard Haar transform on each cube face (Ng et al. 2003/2004,
 //!   summarised in Sun 2008 §2.2 eqs. 2.14–2.16) with the triple product integral by
 //!   tripling coefficients.
+//! - [`affine`]: affine double and triple products of 1D and 2D Haar functions, the light
+//!   propagation of near-field area lights (Sun 2008 ch. 4).
 //! - [`spherical`]: Ma et al.'s spherical Haar basis on the subdivided icosahedron
 //!   (`ma-triple-product-local-frame.txt` §3.1) with its tripling coefficient theorem.
 //!
 //! Both store nonlinear approximations as [`SparseVector`]s: the `N` coefficients of largest
 //! area-weighted magnitude.
 
+pub mod affine;
 pub mod cube_haar;
 pub mod spherical;
 

@@ -21,6 +21,7 @@ pub mod gltf_import;
 pub mod kinds;
 pub mod limits;
 pub mod mesh;
+pub mod near_field;
 pub mod node_kind;
 pub mod picture;
 pub mod preview;

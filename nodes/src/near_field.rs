@@ -1,0 +1,278 @@
+//! Near-field relighting by textured planar area lights (Sun 2008 §4.5), on the affine Haar
+//! products of [`crate::wavelet::affine`].
+//!
+//! - **Light.** A horizontal rectangle at height `h`, facing down, spanning `[x₀, x₀ + w₁]` ×
+//!   `[z₀, z₀ + w₂]`, with an angularly uniform radiance texture `F` on `[0, 1)²`.
+//! - **Top face (§4.5.4).** Directions from a receiver are parameterised by their intercept
+//!   `v` with the plane one unit above it: `ω = (v₁, 1, v₂)/√(1 + |v|²)`. The face keeps
+//!   `v ∈ [−a/2, a/2]²` (`a` the face size) at `order²` cells, `v̂ = v/a + ½ ∈ [0, 1)²`.
+//! - **Propagation (Eq. 4.34).** A receiver at depth `z = h − y` below the light sees
+//!   `L(v̂) = F(s v̂ + o)` per axis with `s = z a / w`, `o = (x − x₀ − z a/2)/w` (the notes'
+//!   normalisation), so its light on the face is `L_k = Σ_i F_i D_ik(s, o)` (Eq. 4.35).
+//! - **Transport.** `T̂(v̂) = a² V(ω) max(0, ω·n) (1 + |v|²)^{−3/2}` per cell (the Jacobian
+//!   `dω = a² dv̂ / (1 + |v|²)^{3/2}` folded in), in 2D Haar. The irradiance is then the
+//!   double product `E = Σ_k L_k T_k` (Eq. 4.36); a Lambertian surface reflects `ρ E / π`.
+//! - **Compression (§4.5.5).** The source keeps its largest coefficients (per channel, by
+//!   magnitude, which is L²-optimal for an orthonormal basis); the target keeps all nonzero
+//!   `L_k` (found by the breakpoint fan-out) or a fraction picked by the constant-light
+//!   prediction `L̃_k = D_{φk₁} D_{φk₂}` (Eq. 4.38), ties coarse first.
+
+use crate::wavelet::affine::{Affine, haar_forward_2d, level_offset};
+use glam::DVec3;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+/// The expanded top face: `order × order` cells over `v ∈ [−size/2, size/2]²`.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct TopFace {
+    pub order: usize,
+    pub size: f64,
+}
+
+impl TopFace {
+    /// The plane-intercept `v` at face coordinates `v̂ ∈ [0, 1)²`.
+    fn intercept(&self, v_hat: [f64; 2]) -> [f64; 2] {
+        v_hat.map(|c| (c - 0.5) * self.size)
+    }
+
+    /// `T̂` at `v̂` for a receiver with normal `n`, before visibility.
+    fn weight(&self, v_hat: [f64; 2], normal: DVec3) -> (DVec3, f64) {
+        let [v1, v2] = self.intercept(v_hat);
+        let q = 1.0 + v1 * v1 + v2 * v2;
+        let direction = DVec3::new(v1, 1.0, v2) / q.sqrt();
+        let cosine = direction.dot(normal).max(0.0);
+        (direction, self.size * self.size * cosine * q.powf(-1.5))
+    }
+}
+
+/// Per receiver, the transport on the top face in 2D Haar (`order²` coefficients each).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct FaceTransport {
+    pub face: TopFace,
+    pub coefficients: Vec<f32>,
+}
+
+crate::stage_type!(FaceTransport, "top-face transport", |v| v.coefficients.len() * 4 + 32);
+
+impl FaceTransport {
+    pub fn receivers(&self) -> usize {
+        self.coefficients.len() / (self.face.order * self.face.order).max(1)
+    }
+
+    fn of(&self, receiver: usize) -> &[f32] {
+        let n = self.face.order * self.face.order;
+        &self.coefficients[receiver * n..(receiver + 1) * n]
+    }
+}
+
+/// The transport of each receiver (`positions`, unit `normals`): each cell's `T̂` averaged over
+/// `samples²` points, the points' rays tested with `unoccluded(origin, direction)`.
+pub fn face_transport(
+    face: TopFace,
+    positions: &[DVec3],
+    normals: &[DVec3],
+    samples: usize,
+    unoccluded: impl Fn(DVec3, DVec3) -> bool + Sync,
+) -> FaceTransport {
+    let n = face.order;
+    let samples = samples.max(1);
+    let coefficients = positions
+        .par_iter()
+        .zip(normals)
+        .flat_map_iter(|(&x, &normal)| {
+            let mut cells = vec![0.0; n * n];
+            for (c, cell) in cells.iter_mut().enumerate() {
+                let mut sum = 0.0;
+                for k in 0..samples * samples {
+                    let v_hat = [
+                        ((c % n) as f64 + ((k % samples) as f64 + 0.5) / samples as f64) / n as f64,
+                        ((c / n) as f64 + ((k / samples) as f64 + 0.5) / samples as f64) / n as f64,
+                    ];
+                    let (direction, weight) = face.weight(v_hat, normal);
+                    if weight > 0.0 && unoccluded(x, direction) {
+                        sum += weight;
+                    }
+                }
+                *cell = sum / (samples * samples) as f64;
+            }
+            haar_forward_2d(&mut cells, n);
+            cells.into_iter().map(|c| c as f32)
+        })
+        .collect();
+    FaceTransport { face, coefficients }
+}
+
+/// A light texture's kept Haar coefficients: `((i₁, i₂), rgb)`, the union of each channel's
+/// largest, in index order.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct LightSource {
+    pub order: usize,
+    pub coefficients: Vec<((u16, u16), [f32; 3])>,
+    /// `‖F_kept‖² / ‖F‖²` over the three channels (Parseval).
+    pub retained_energy: f64,
+}
+
+crate::stage_type!(LightSource, "area light coefficients", |v| v.coefficients.len() * 16 + 32);
+
+/// The 2D Haar transform of an `order × order` linear RGB texture (row `y` along `z`), keeping
+/// each channel's `keep` largest coefficients (all when `keep ≥ order²`).
+pub fn light_source(texture: &[[f64; 3]], order: usize, keep: usize) -> LightSource {
+    let mut channels: [Vec<f64>; 3] = std::array::from_fn(|c| texture.iter().map(|t| t[c]).collect());
+    let mut kept = vec![false; order * order];
+    let (mut total, mut retained) = (0.0, 0.0);
+    for channel in &mut channels {
+        haar_forward_2d(channel, order);
+        let mut ranked: Vec<usize> = (0..channel.len()).filter(|&i| channel[i] != 0.0).collect();
+        ranked.sort_by(|&a, &b| channel[b].abs().total_cmp(&channel[a].abs()).then(a.cmp(&b)));
+        for &i in ranked.iter().take(keep) {
+            kept[i] = true;
+        }
+        total += channel.iter().map(|v| v * v).sum::<f64>();
+    }
+    let coefficients: Vec<((u16, u16), [f32; 3])> = (0..order * order)
+        .filter(|&i| kept[i])
+        .map(|i| ((i % order) as u16, (i / order) as u16))
+        .map(|(i1, i2)| {
+            let k = usize::from(i2) * order + usize::from(i1);
+            ((i1, i2), std::array::from_fn(|c| channels[c][k] as f32))
+        })
+        .collect();
+    for channel in &channels {
+        retained += (0..order * order).filter(|&i| kept[i]).map(|i| channel[i] * channel[i]).sum::<f64>();
+    }
+    let retained_energy = if total > 0.0 { retained / total } else { 1.0 };
+    LightSource { order, coefficients, retained_energy }
+}
+
+/// Where a light is: its plane's height and its rectangle's corner and extent on `x` and `z`.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct LightPlacement {
+    pub height: f64,
+    pub corner: [f64; 2],
+    pub extent: [f64; 2],
+}
+
+impl LightPlacement {
+    /// A `width × depth` light centred over `(x, z)`.
+    pub fn centred(height: f64, centre: [f64; 2], size: [f64; 2]) -> Self {
+        Self { height, corner: [centre[0] - size[0] / 2.0, centre[1] - size[1] / 2.0], extent: size }
+    }
+
+    /// The per-axis affine maps from a receiver's top face to the texture; `None` for a
+    /// receiver on or above the light's plane (it receives nothing).
+    pub fn maps(&self, face: &TopFace, x: DVec3) -> Option<[Affine; 2]> {
+        let depth = self.height - x.y;
+        if depth <= 0.0 {
+            return None;
+        }
+        let along = [x.x, x.z];
+        Some(std::array::from_fn(|q| Affine {
+            s: depth * face.size / self.extent[q],
+            o: (along[q] - self.corner[q] - depth * face.size / 2.0) / self.extent[q],
+        }))
+    }
+}
+
+/// Which propagated coefficients `L_k` enter the shading.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub enum TargetKeep {
+    /// Every nonzero `L_k`.
+    All,
+    /// This fraction of the face's coefficients, ranked by the constant-light prediction.
+    Predicted(f64),
+}
+
+/// The light on a receiver's top face, `L_{k₁k₂}` for every face coefficient
+/// (`k₂·order + k₁`), by the two separable steps of §4.5.5 over the fan-out only.
+pub fn propagate(source: &LightSource, maps: [Affine; 2], face_order: usize) -> Vec<[f64; 3]> {
+    let (n_src, n) = (source.order, face_order);
+    let mut targets = Vec::new();
+    // Step 1: Z_{i₂k₁} = Σ_{i₁} F_{i₁i₂} D_{i₁k₁}.
+    let mut step1 = vec![[0.0; 3]; n_src * n];
+    let mut touched = vec![false; n_src * n];
+    let mut rows = Vec::new();
+    for &((i1, i2), f) in &source.coefficients {
+        maps[0].targets(usize::from(i1), n, &mut targets);
+        for &k1 in &targets {
+            let d = maps[0].coupling(usize::from(i1), k1);
+            let at = usize::from(i2) * n + k1;
+            if !touched[at] {
+                touched[at] = true;
+                rows.push(at);
+            }
+            for c in 0..3 {
+                step1[at][c] += d * f64::from(f[c]);
+            }
+        }
+    }
+    // Step 2: L_{k₁k₂} = Σ_{i₂} Z_{i₂k₁} D_{i₂k₂}, in a fixed order (deterministic sums).
+    rows.sort_unstable();
+    let mut light = vec![[0.0; 3]; n * n];
+    for at in rows {
+        let (i2, k1) = (at / n, at % n);
+        maps[1].targets(i2, n, &mut targets);
+        for &k2 in &targets {
+            let d = maps[1].coupling(i2, k2);
+            for c in 0..3 {
+                light[k2 * n + k1][c] += d * step1[at][c];
+            }
+        }
+    }
+    light
+}
+
+/// The face coefficients `keep` keeps, by the constant-light prediction (Eq. 4.38):
+/// `|D_{φk₁}(s₁, o₁) D_{φk₂}(s₂, o₂)|` largest first, ties coarse first.
+pub fn predicted_targets(maps: [Affine; 2], face_order: usize, fraction: f64) -> Vec<usize> {
+    let n = face_order;
+    let count = ((fraction.clamp(0.0, 1.0) * (n * n) as f64).round() as usize).min(n * n);
+    let axis: [Vec<f64>; 2] = std::array::from_fn(|q| (0..n).map(|k| maps[q].coupling(0, k).abs()).collect());
+    let level = |k: usize| level_offset(k).map_or(0, |(l, _)| l + 1);
+    let mut order: Vec<usize> = (0..n * n).collect();
+    order.sort_by(|&a, &b| {
+        let (pa, pb) = (axis[0][a % n] * axis[1][a / n], axis[0][b % n] * axis[1][b / n]);
+        pb.total_cmp(&pa).then(level(a % n).max(level(a / n)).cmp(&level(b % n).max(level(b / n)))).then(a.cmp(&b))
+    });
+    order.truncate(count);
+    order
+}
+
+/// Irradiance `E = Σ_k L_k T_k` (RGB) at each receiver from one light; 0 above its plane.
+pub fn irradiance(
+    source: &LightSource,
+    placement: &LightPlacement,
+    transport: &FaceTransport,
+    positions: &[DVec3],
+    keep: TargetKeep,
+) -> Vec<[f64; 3]> {
+    let face = transport.face;
+    positions
+        .par_iter()
+        .enumerate()
+        .map(|(r, &x)| {
+            let Some(maps) = placement.maps(&face, x) else {
+                return [0.0; 3];
+            };
+            let light = propagate(source, maps, face.order);
+            let t = transport.of(r);
+            let mut e = [0.0; 3];
+            let mut add = |k: usize| {
+                for c in 0..3 {
+                    e[c] += light[k][c] * f64::from(t[k]);
+                }
+            };
+            match keep {
+                TargetKeep::All => (0..light.len()).for_each(&mut add),
+                TargetKeep::Predicted(fraction) => {
+                    let mut kept = predicted_targets(maps, face.order, fraction);
+                    kept.sort_unstable();
+                    kept.into_iter().for_each(&mut add);
+                }
+            }
+            e
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,230 @@
+use super::*;
+
+/// The notes' synthetic scene (§5.8): 15 × 15 floor receivers over [−1.5, 1.5]², a light
+/// textured smoothly, one blocker sphere.
+struct Scene {
+    positions: Vec<DVec3>,
+    normals: Vec<DVec3>,
+    sphere: (DVec3, f64),
+}
+
+fn floor(side: usize, half: f64) -> Scene {
+    let positions: Vec<DVec3> = (0..side * side)
+        .map(|i| {
+            let t = |k: usize| -half + 2.0 * half * k as f64 / (side - 1) as f64;
+            DVec3::new(t(i % side), 0.0, t(i / side))
+        })
+        .collect();
+    let normals = vec![DVec3::Y; positions.len()];
+    Scene { positions, normals, sphere: (DVec3::new(0.35, 0.45, -0.2), 0.2) }
+}
+
+fn unoccluded(sphere: (DVec3, f64)) -> impl Fn(DVec3, DVec3) -> bool + Sync {
+    move |origin: DVec3, direction: DVec3| {
+        let to = sphere.0 - origin;
+        let along = to.dot(direction);
+        along <= 0.0 || to.length_squared() - along * along > sphere.1 * sphere.1
+    }
+}
+
+/// A smooth, positive RGB texture.
+fn smooth_texture(order: usize) -> Vec<[f64; 3]> {
+    (0..order * order)
+        .map(|k| {
+            let (u, v) = (((k % order) as f64 + 0.5) / order as f64, ((k / order) as f64 + 0.5) / order as f64);
+            let w = 1.0 + 0.5 * (std::f64::consts::TAU * u).sin() * (std::f64::consts::PI * v).cos();
+            [w, 0.8 * w + 0.2 * u, 1.2 - 0.4 * v]
+        })
+        .collect()
+}
+
+/// Irradiance by direct integration over the light's surface, `samples²` points:
+/// `Σ F V cos θ_x cos θ_l / r² dA`; the texture is piecewise constant as the Haar side sees it.
+fn reference(
+    texture: &[[f64; 3]],
+    order: usize,
+    light: &LightPlacement,
+    x: DVec3,
+    normal: DVec3,
+    visible: &(impl Fn(DVec3, DVec3) -> bool + Sync),
+    samples: usize,
+) -> [f64; 3] {
+    let area = light.extent[0] * light.extent[1] / (samples * samples) as f64;
+    let mut e = [0.0; 3];
+    for k in 0..samples * samples {
+        let u = [((k % samples) as f64 + 0.5) / samples as f64, ((k / samples) as f64 + 0.5) / samples as f64];
+        let p = DVec3::new(
+            light.corner[0] + u[0] * light.extent[0],
+            light.height,
+            light.corner[1] + u[1] * light.extent[1],
+        );
+        let to = p - x;
+        let r2 = to.length_squared();
+        let direction = to / r2.sqrt();
+        let cos_x = direction.dot(normal);
+        if cos_x <= 0.0 || direction.y <= 0.0 || !visible(x, direction) {
+            continue;
+        }
+        let texel = texture[((u[1] * order as f64) as usize) * order + (u[0] * order as f64) as usize];
+        let weight = cos_x * direction.y / r2 * area;
+        for c in 0..3 {
+            e[c] += texel[c] * weight;
+        }
+    }
+    e
+}
+
+fn relative_l2(a: &[[f64; 3]], b: &[[f64; 3]]) -> f64 {
+    let (mut num, mut den) = (0.0, 0.0);
+    for (x, y) in a.iter().zip(b) {
+        for c in 0..3 {
+            num += (x[c] - y[c]).powi(2);
+            den += y[c] * y[c];
+        }
+    }
+    (num / den).sqrt()
+}
+
+/// Relative L² error against direct integration (256² light samples) per face size.
+fn face_size_sweep(light: LightPlacement) -> Vec<(f64, f64)> {
+    let order = 32;
+    let scene = floor(15, 1.5);
+    let visible = unoccluded(scene.sphere);
+    let texture = smooth_texture(order);
+    let truth: Vec<[f64; 3]> = scene
+        .positions
+        .par_iter()
+        .zip(&scene.normals)
+        .map(|(x, n)| reference(&texture, order, &light, *x, *n, &visible, 256))
+        .collect();
+    let source = light_source(&texture, order, order * order);
+    assert!((source.retained_energy - 1.0).abs() < 1e-12);
+    let mut errors = Vec::new();
+    for size in [2.0, 3.0, 4.0, 6.0, 10.0] {
+        let face = TopFace { order, size };
+        let transport = face_transport(face, &scene.positions, &scene.normals, 2, &visible);
+        let e = irradiance(&source, &light, &transport, &scene.positions, TargetKeep::All);
+        errors.push((size, relative_l2(&e, &truth)));
+    }
+    eprintln!("face size sweep (size, relative L2) under {light:?}: {errors:?}");
+    errors
+}
+
+/// Notes §5.8: against direct integration over a 2 × 2 light at height 1 (order 32), the face
+/// size gives the U-shaped error: a = 2 misses the light's edges for off-centre receivers and
+/// is clearly worse than a = 4, which is within a few percent, and a = 10 loses visibility
+/// resolution.
+#[test]
+fn face_size_sweep_against_direct_integration() {
+    let errors = face_size_sweep(LightPlacement::centred(1.0, [0.0, 0.0], [2.0, 2.0]));
+    let at = |a: f64| errors.iter().find(|e| e.0 == a).unwrap().1;
+    assert!(at(2.0) > 3.0 * at(4.0), "a = 2 should be clearly worse than a = 4: {errors:?}");
+    assert!(at(4.0) < 0.03, "a = 4 within a few percent: {errors:?}");
+    assert!(at(10.0) > at(6.0), "a large face loses visibility resolution at fixed order: {errors:?}");
+    // Seen from this floor a 1 × 1 light at height 2 lies inside even the a = 2 face, so only
+    // the resolution term is left: the error grows with the face.
+    let errors = face_size_sweep(LightPlacement::centred(2.0, [0.0, 0.0], [1.0, 1.0]));
+    assert!(errors.windows(2).all(|w| w[1].1 > w[0].1) && errors[0].1 < 0.01, "{errors:?}");
+}
+
+/// Notes §5.7: keeping fewer source coefficients loses energy monotonically (Parseval), all
+/// of them is exact, and 1% of a smooth light or 30% of the predicted targets stays close
+/// to the uncompressed shading.
+#[test]
+fn compression_trades_coefficients_for_error() {
+    let order = 32;
+    let scene = floor(9, 1.5);
+    let visible = unoccluded(scene.sphere);
+    let texture = smooth_texture(order);
+    let light = LightPlacement::centred(1.0, [0.0, 0.0], [2.0, 2.0]);
+    let face = TopFace { order, size: 4.0 };
+    let transport = face_transport(face, &scene.positions, &scene.normals, 1, &visible);
+    let full_source = light_source(&texture, order, order * order);
+    let exact = irradiance(&full_source, &light, &transport, &scene.positions, TargetKeep::All);
+    let mut last_energy = 0.0;
+    for keep in [1, 10, 50, 200, 1024] {
+        let source = light_source(&texture, order, keep);
+        assert!(source.retained_energy >= last_energy, "energy kept grows with the count");
+        last_energy = source.retained_energy;
+    }
+    assert!((last_energy - 1.0).abs() < 1e-12);
+    let one_percent = light_source(&texture, order, 10);
+    let e = irradiance(&one_percent, &light, &transport, &scene.positions, TargetKeep::All);
+    let source_error = relative_l2(&e, &exact);
+    eprintln!("1% of the source: {source_error:.4} ({:.5} of the energy)", one_percent.retained_energy);
+    assert!(source_error < 0.05, "1% of the source: {source_error}");
+    let e = irradiance(&full_source, &light, &transport, &scene.positions, TargetKeep::Predicted(0.3));
+    let target_error = relative_l2(&e, &exact);
+    let e20 = irradiance(&full_source, &light, &transport, &scene.positions, TargetKeep::Predicted(0.2));
+    eprintln!("targets by prediction: 30% {target_error:.4}, 20% {:.4}", relative_l2(&e20, &exact));
+    assert!(target_error < 0.03, "30% of the targets: {target_error}");
+    let e = irradiance(&full_source, &light, &transport, &scene.positions, TargetKeep::Predicted(1.0));
+    assert!(relative_l2(&e, &exact) < 1e-6, "all targets by prediction is the exact shading");
+}
+
+/// Notes §5.9: receivers on or above the light's plane get nothing; the penumbra widens as the
+/// light grows; a shrinking light at constant power tends to a point light.
+#[test]
+fn physical_sanity() {
+    let order = 32;
+    let face = TopFace { order, size: 4.0 };
+    let constant = vec![[1.0; 3]; order * order];
+    let above = [DVec3::new(0.0, 2.5, 0.0), DVec3::new(0.3, 2.0, 0.0)];
+    let light = LightPlacement::centred(2.0, [0.0, 0.0], [1.0, 1.0]);
+    let transport = face_transport(face, &above, &[DVec3::Y; 2], 1, |_, _| true);
+    let source = light_source(&constant, order, order * order);
+    let e = irradiance(&source, &light, &transport, &above, TargetKeep::All);
+    assert!(e.iter().all(|e| *e == [0.0; 3]), "{e:?}");
+
+    // A line of receivers under the sphere: count those in partial shadow.
+    let line: Vec<DVec3> = (0..161).map(|i| DVec3::new(-0.8 + 0.01 * i as f64, 0.0, 0.0)).collect();
+    let normals = vec![DVec3::Y; line.len()];
+    let sphere = (DVec3::new(0.0, 0.6, 0.0), 0.15);
+    let shadowed = face_transport(face, &line, &normals, 2, unoccluded(sphere));
+    let open = face_transport(face, &line, &normals, 2, |_, _| true);
+    let penumbra = |size: f64| {
+        let light = LightPlacement::centred(1.2, [0.0, 0.0], [size, size]);
+        let lit = irradiance(&source, &light, &shadowed, &line, TargetKeep::All);
+        let free = irradiance(&source, &light, &open, &line, TargetKeep::All);
+        lit.iter().zip(&free).filter(|(l, f)| (0.1..0.9).contains(&(l[0] / f[0]))).count()
+    };
+    let (small, large) = (penumbra(0.2), penumbra(1.0));
+    assert!(large > small + 10, "penumbra receivers: {small} under a 0.2 m light, {large} under 1 m");
+
+    // Constant power P: radiance P / w². A point light of intensity P straight down gives
+    // E = P cos θ_x cos θ_l / r². The receiver sees the light's centre through the centre of
+    // face cell (13, 17), where the cell's transport is sampled, so the limit is exact.
+    let power = 3.0;
+    let cell_centre = |k: f64| 4.0 * ((k + 0.5) / order as f64 - 0.5);
+    let x = DVec3::new(-1.5 * cell_centre(13.0), 0.0, -1.5 * cell_centre(17.0));
+    let to = DVec3::new(0.0, 1.5, 0.0) - x;
+    let point = power * (to.y / to.length()).powi(2) / to.length_squared();
+    let transport = face_transport(TopFace { order, size: 4.0 }, &[x], &[DVec3::Y], 1, |_, _| true);
+    let mut errors = Vec::new();
+    for w in [0.8, 0.2, 0.05] {
+        let light = LightPlacement::centred(1.5, [0.0, 0.0], [w, w]);
+        let source = light_source(&vec![[power / (w * w); 3]; order * order], order, order * order);
+        let e = irradiance(&source, &light, &transport, &[x], TargetKeep::All)[0][0];
+        errors.push(((e - point) / point).abs());
+    }
+    eprintln!("shrinking light against the point light: {errors:?}");
+    assert!(errors[0] > errors[1] && errors[1] > errors[2] && errors[2] < 1e-3, "towards the point light: {errors:?}");
+}
+
+/// Notes §5.10: the shading is the same bits on one thread as on many.
+#[test]
+fn one_thread_and_many_give_the_same_bits() {
+    let order = 16;
+    let scene = floor(12, 1.5);
+    let visible = unoccluded(scene.sphere);
+    let texture = smooth_texture(order);
+    let light = LightPlacement::centred(1.0, [0.2, -0.1], [1.5, 2.0]);
+    let run = || {
+        let transport = face_transport(TopFace { order, size: 3.0 }, &scene.positions, &scene.normals, 2, &visible);
+        let source = light_source(&texture, order, 40);
+        irradiance(&source, &light, &transport, &scene.positions, TargetKeep::Predicted(0.25))
+    };
+    let single = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap().install(run);
+    let many = rayon::ThreadPoolBuilder::new().num_threads(4).build().unwrap().install(run);
+    assert!(single.iter().zip(&many).all(|(a, b)| a.map(f64::to_bits) == b.map(f64::to_bits)));
+}

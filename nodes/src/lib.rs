@@ -19,6 +19,7 @@ pub mod frame;
 pub mod fuzzing;
 pub mod gltf_import;
 pub mod kinds;
+pub mod light_texture;
 pub mod limits;
 pub mod mesh;
 pub mod near_field;

@@ -39,6 +39,28 @@ pub fn gltf(bytes: &[u8]) {
     }
 }
 
+/// A painted light: the first byte picks a paint log (RON, replayed at 32²) or an image file
+/// (PNG, EXR, HDR) imported into one, as the area light painter's `texture` stage does.
+pub fn light_texture(bytes: &[u8]) {
+    use crate::light_texture::{PaintOp, load_image, render};
+    let Some((pick, rest)) = bytes.split_first() else { return };
+    let result = match pick % 4 {
+        0 => {
+            let Ok(text) = std::str::from_utf8(rest) else { return };
+            let Ok(ops) = ron::from_str::<Vec<PaintOp>>(text) else { return };
+            render(&ops, 32, &mut |_| Err("no files here".into()))
+        }
+        k => {
+            let path = scratch_file(["", "light.png", "light.exr", "light.hdr"][k as usize], rest);
+            let import = PaintOp::Import { path: path.display().to_string(), intensity: 1.0 };
+            render(&[import], 32, &mut |p| load_image(Path::new(p)))
+        }
+    };
+    if let Ok(texture) = result {
+        assert!(texture.emission().iter().flatten().all(|v| v.is_finite()), "a replayed light is not finite");
+    }
+}
+
 /// A disk-cache entry decoded as each persisted type the first byte picks.
 pub fn disk_entry(bytes: &[u8]) {
     use crate::engine::Codec;

@@ -24,6 +24,7 @@ pub mod limits;
 pub mod mesh;
 pub mod near_field;
 pub mod node_kind;
+pub mod paint;
 pub mod picture;
 pub mod preview;
 pub mod project;

@@ -6,103 +6,11 @@
 //! Coordinates are the light's `[0, 1)²` (`u` along the light's width, `v` along its depth),
 //! resolution-independent, so the same log renders at 32², 64² or 128².
 
+pub use crate::paint::{Blend, MAX_DABS, MAX_OPERATIONS, PaintOp, Shape};
 use serde::{Deserialize, Serialize};
 
 /// Texture sides the painter renders at.
 pub const RESOLUTIONS: [usize; 3] = [32, 64, 128];
-/// Operations a log may hold, and dabs a stroke may hold: bounds on replay time.
-pub const MAX_OPERATIONS: usize = 10_000;
-pub const MAX_DABS: usize = 100_000;
-
-/// How a stroke's colour combines with the texture under it.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-pub enum Blend {
-    /// Replace, by the brush's coverage.
-    Mix,
-    Add,
-    Multiply,
-}
-
-/// An emission shape: the mask outside it is zero.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-pub enum Shape {
-    Rectangle,
-    Disc,
-}
-
-/// One edit of the texture.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub enum PaintOp {
-    /// Dabs of a round brush at `points`; `radius` in light units, `hardness` the share of
-    /// the radius at full strength (the rest falls off smoothly).
-    Stroke { points: Vec<[f64; 2]>, radius: f64, hardness: f64, colour: [f64; 3], intensity: f64, blend: Blend },
-    /// The same brush lowering the emission mask.
-    Erase { points: Vec<[f64; 2]>, radius: f64, hardness: f64 },
-    /// The whole texture set to one radiance.
-    Fill { colour: [f64; 3], intensity: f64 },
-    /// A Gaussian blur of this standard deviation (light units).
-    Blur { sigma: f64 },
-    /// An image file (EXR, HDR, PNG; relative to the project), resampled over the light and
-    /// scaled by `intensity`.
-    Import { path: String, intensity: f64 },
-    /// The content moved, scaled about the centre and turned (degrees), with zero radiance
-    /// where nothing maps.
-    Warp { offset: [f64; 2], scale: f64, angle: f64 },
-    /// The mask cut to a shape inscribed in the light.
-    Reshape { shape: Shape },
-}
-
-impl PaintOp {
-    /// Checks ranges; the error names the problem.
-    pub fn check(&self) -> Result<(), String> {
-        let finite = |v: f64, what: &str| {
-            if v.is_finite() { Ok(()) } else { Err(format!("the {what} of a paint operation is {v}")) }
-        };
-        let brush = |points: &[[f64; 2]], radius: f64, hardness: f64| -> Result<(), String> {
-            if points.len() > MAX_DABS {
-                return Err(format!("a stroke has {} dabs; at most {MAX_DABS}", points.len()));
-            }
-            points.iter().flatten().try_for_each(|v| finite(*v, "stroke point"))?;
-            finite(radius, "brush radius")?;
-            if !(1e-4..=2.0).contains(&radius) {
-                return Err(format!("brush radius {radius} is outside 0.0001..=2 (light units)"));
-            }
-            if !(0.0..=1.0).contains(&hardness) {
-                return Err(format!("brush hardness {hardness} is outside 0..=1"));
-            }
-            Ok(())
-        };
-        let radiance = |colour: &[f64; 3], intensity: f64| -> Result<(), String> {
-            colour.iter().chain([&intensity]).try_for_each(|v| finite(*v, "colour or intensity"))?;
-            if colour.iter().any(|c| *c < 0.0) || !(0.0..=1e6).contains(&intensity) {
-                return Err("paint colour must be non-negative and intensity within 0..=1e6".into());
-            }
-            Ok(())
-        };
-        match self {
-            PaintOp::Stroke { points, radius, hardness, colour, intensity, .. } => {
-                brush(points, *radius, *hardness)?;
-                radiance(colour, *intensity)
-            }
-            PaintOp::Erase { points, radius, hardness } => brush(points, *radius, *hardness),
-            PaintOp::Fill { colour, intensity } => radiance(colour, *intensity),
-            PaintOp::Blur { sigma } => {
-                finite(*sigma, "blur")?;
-                if (0.0..=1.0).contains(sigma) { Ok(()) } else { Err(format!("blur {sigma} is outside 0..=1")) }
-            }
-            PaintOp::Import { intensity, .. } => radiance(&[1.0; 3], *intensity),
-            PaintOp::Warp { offset, scale, angle } => {
-                offset.iter().chain([scale, angle]).try_for_each(|v| finite(*v, "warp"))?;
-                if (1e-3..=1e3).contains(scale) {
-                    Ok(())
-                } else {
-                    Err(format!("warp scale {scale} is outside 0.001..=1000"))
-                }
-            }
-            PaintOp::Reshape { .. } => Ok(()),
-        }
-    }
-}
 
 /// The rendered texture: linear RGB radiance and the emission mask, `side²` texels each
 /// (row `y` at `y·side`, `u` along the row).
@@ -135,6 +43,49 @@ pub struct Image {
     pub pixels: Vec<[f64; 3]>,
 }
 
+/// Texel operations a replay may take (about a second): a log beyond it is refused.
+pub const MAX_REPLAY_WORK: f64 = 2e9;
+
+/// Texel operations replaying `op` at `side²` takes, about.
+pub fn replay_work(op: &PaintOp, side: usize) -> f64 {
+    let texels = (side * side) as f64;
+    let dabs = |points: &[[f64; 2]], radius: f64| {
+        let across = (2.0 * radius * side as f64 + 2.0).powi(2).min(texels);
+        points.len() as f64 * across + texels
+    };
+    match op {
+        PaintOp::Stroke { points, radius, .. } | PaintOp::Erase { points, radius, .. } => dabs(points, *radius),
+        PaintOp::Blur { sigma } => texels * 2.0 * (6.0 * sigma * side as f64 + 1.0),
+        _ => texels,
+    }
+}
+
+/// An image file for [`PaintOp::Import`]: EXR and HDR as stored (linear), PNG and the other
+/// formats of the `image` crate through sRGB; bounded in bytes and pixels.
+pub fn load_image(path: &std::path::Path) -> Result<Image, String> {
+    let extension = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
+    if matches!(extension.as_str(), "exr" | "hdr") {
+        let loaded = crate::envmap_io::load_equirect(path).map_err(|e| e.to_string())?;
+        let image = loaded.image;
+        let pixels = image.pixels.iter().map(|p| [f64::from(p[0]), f64::from(p[1]), f64::from(p[2])]).collect();
+        return Ok(Image { width: image.width, height: image.height, pixels });
+    }
+    let named = |e: &dyn std::fmt::Display| format!("{}: {e}", path.display());
+    crate::limits::check_regular_file(path, crate::limits::MAX_FILE_BYTES).map_err(|e| named(&e))?;
+    let reader = image::ImageReader::open(path).and_then(|r| r.with_guessed_format()).map_err(|e| named(&e))?;
+    let (width, height) = reader.into_dimensions().map_err(|e| named(&e))?;
+    if u64::from(width) * u64::from(height) > crate::limits::MAX_IMAGE_PIXELS {
+        return Err(named(&format!("{width} × {height} pixels is too large to paint with")));
+    }
+    let decoded = image::open(path).map_err(|e| named(&e))?.to_rgb32f();
+    let to_linear = |c: f32| {
+        let c = f64::from(c);
+        if c <= 0.04045 { c / 12.92 } else { ((c + 0.055) / 1.055).powf(2.4) }
+    };
+    let pixels = decoded.pixels().map(|p| [to_linear(p[0]), to_linear(p[1]), to_linear(p[2])]).collect();
+    Ok(Image { width: width as usize, height: height as usize, pixels })
+}
+
 /// Replays `ops` at `side²` onto a white, fully emitting texture. `load` decodes an imported
 /// image by its path.
 pub fn render(
@@ -148,10 +99,23 @@ pub fn render(
     if ops.len() > MAX_OPERATIONS {
         return Err(format!("the paint log has {} operations; at most {MAX_OPERATIONS}", ops.len()));
     }
-    let mut texture = LightTexture { side, radiance: vec![[1.0; 3]; side * side], mask: vec![1.0; side * side] };
+    let mut work = 0.0;
     for op in ops {
         op.check()?;
+        work += replay_work(op, side);
+    }
+    if work > MAX_REPLAY_WORK {
+        return Err(format!(
+            "the paint log would take too long to replay at {side}² ({work:.1e} texel operations; at most \
+             {MAX_REPLAY_WORK:.0e}): blur less, use fewer or smaller strokes, or a smaller texture"
+        ));
+    }
+    let mut texture = LightTexture { side, radiance: vec![[1.0; 3]; side * side], mask: vec![1.0; side * side] };
+    let ceiling = f64::from(crate::limits::MAX_RADIANCE);
+    for op in ops {
         apply(&mut texture, op, load)?;
+        // Repeated multiplies and adds stay finite; imports are repaired and clamped already.
+        texture.radiance.iter_mut().flatten().for_each(|v| *v = v.clamp(0.0, ceiling));
     }
     Ok(texture)
 }

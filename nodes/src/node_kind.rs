@@ -23,6 +23,8 @@ pub enum ParamValue {
     Objects(Vec<crate::scene_object::SceneObject>),
     /// Spheres `(centre, radius)` (blocker sphere sets).
     Spheres(Vec<([f64; 3], f64)>),
+    /// A light texture's paint operations, in order.
+    Paint(Vec<crate::paint::PaintOp>),
 }
 
 impl ParamValue {
@@ -32,6 +34,7 @@ impl ParamValue {
         match self {
             ParamValue::Path(p) if !p.is_empty() => vec![p.as_str()],
             ParamValue::Objects(objects) => objects.iter().filter_map(|o| o.file()).collect(),
+            ParamValue::Paint(ops) => ops.iter().filter_map(|op| op.file()).collect(),
             _ => Vec::new(),
         }
     }
@@ -41,6 +44,7 @@ impl ParamValue {
         match self {
             ParamValue::Path(p) if !p.is_empty() => vec![p],
             ParamValue::Objects(objects) => objects.iter_mut().filter_map(|o| o.file_mut()).collect(),
+            ParamValue::Paint(ops) => ops.iter_mut().filter_map(|op| op.file_mut()).collect(),
             _ => Vec::new(),
         }
     }
@@ -56,6 +60,7 @@ impl ParamValue {
             ParamValue::Path(_) => "Path",
             ParamValue::Objects(_) => "Objects",
             ParamValue::Spheres(_) => "Spheres",
+            ParamValue::Paint(_) => "Paint",
         }
     }
 
@@ -83,8 +88,8 @@ impl ParamValue {
             ParamKind::Color { .. } => ParamValue::Color(triple(text)?),
             ParamKind::Choice { .. } => ParamValue::Choice(text.to_string()),
             ParamKind::Path { .. } => ParamValue::Path(text.to_string()),
-            ParamKind::Objects { .. } | ParamKind::Spheres { .. } => {
-                return Err("object lists cannot be set from the command line; edit the project".into());
+            ParamKind::Objects { .. } | ParamKind::Spheres { .. } | ParamKind::Paint => {
+                return Err("lists cannot be set from the command line; edit the project".into());
             }
         })
     }
@@ -100,6 +105,7 @@ impl fmt::Display for ParamValue {
             ParamValue::Choice(v) | ParamValue::Path(v) => write!(f, "{v}"),
             ParamValue::Objects(v) => write!(f, "{} object(s)", v.len()),
             ParamValue::Spheres(v) => write!(f, "{} sphere(s)", v.len()),
+            ParamValue::Paint(v) => write!(f, "{} paint operation(s)", v.len()),
         }
     }
 }
@@ -148,6 +154,8 @@ pub enum ParamKind {
     Spheres {
         default: Vec<([f64; 3], f64)>,
     },
+    /// A light texture's paint log (starts empty: a white light).
+    Paint,
 }
 
 /// A parameter of a node kind.
@@ -173,6 +181,7 @@ impl ParamSpec {
             ParamKind::Path { .. } => ParamValue::Path(String::new()),
             ParamKind::Objects { default } => ParamValue::Objects(default.clone()),
             ParamKind::Spheres { default } => ParamValue::Spheres(default.clone()),
+            ParamKind::Paint => ParamValue::Paint(Vec::new()),
         }
     }
 
@@ -230,6 +239,14 @@ impl ParamSpec {
                     }
                 }
             }
+            (ParamKind::Paint, ParamValue::Paint(ops)) => {
+                if ops.len() > crate::paint::MAX_OPERATIONS {
+                    return Err(format!("{} paint operations; at most {}", ops.len(), crate::paint::MAX_OPERATIONS));
+                }
+                for op in ops {
+                    op.check()?;
+                }
+            }
             (kind, value) => {
                 return Err(format!("expected {}, found {}", kind_name(kind), value.type_name()));
             }
@@ -249,6 +266,7 @@ fn kind_name(kind: &ParamKind) -> &'static str {
         ParamKind::Path { .. } => "Path",
         ParamKind::Objects { .. } => "Objects",
         ParamKind::Spheres { .. } => "Spheres",
+        ParamKind::Paint => "Paint",
     }
 }
 
@@ -263,8 +281,10 @@ pub enum PortType {
     Scene,
     /// A participating medium (fog).
     Medium,
-    /// Local lights (point lights, painted area lights).
+    /// Point lights.
     Lights,
+    /// A painted planar area light.
+    AreaLight,
     /// Sphere sets that cast soft shadows.
     Blockers,
     /// Rotatable square lights decomposed from an environment.
@@ -292,6 +312,7 @@ impl PortType {
             ],
             PortType::Medium => &["medium", "f_tables", "g_tables"],
             PortType::Lights => &["lights"],
+            PortType::AreaLight => &["texture", "source", "placement", "light"],
             PortType::Blockers => &["spheres"],
             PortType::SquareLights => &["square_lights", "turned_lights", "world_lights"],
         }

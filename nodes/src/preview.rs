@@ -24,7 +24,7 @@ pub fn display_rgb8(linear: [f64; 3], scale: f64) -> [u8; 4] {
 }
 
 /// Exposure that maps the mean luminance to middle grey (0.18 before the tone curve).
-fn auto_scale(values: impl Iterator<Item = [f64; 3]>) -> f64 {
+pub fn auto_scale(values: impl Iterator<Item = [f64; 3]>) -> f64 {
     let (sum, n) = values.fold((0.0, 0usize), |(s, n), c| (s + luminance(c).max(0.0), n + 1));
     let mean = sum / n.max(1) as f64;
     if mean > 1e-12 && mean.is_finite() { 0.18 / mean } else { 1.0 }

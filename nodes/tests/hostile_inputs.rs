@@ -258,3 +258,35 @@ fn disk_cache_entries_mutated_every_way_never_panic() {
     let n = replay(fuzzing::disk_entry, inputs);
     assert!(n > 500, "{n} inputs");
 }
+
+#[test]
+fn painted_lights_mutated_every_way_never_panic() {
+    let mut rng = SmallRng::seed_from_u64(5);
+    let mut inputs = committed("light_texture");
+    let log = r#"[Fill(colour: (1.0, 0.5, 0.2), intensity: 3.0), Stroke(points: [(0.2, 0.3), (0.5, 0.5)], radius: 0.1, hardness: 0.5, colour: (4.0, 4.0, 1.0), intensity: 2.0, blend: Add), Erase(points: [(0.9, 0.9)], radius: 0.05, hardness: 1.0), Blur(sigma: 0.02), Warp(offset: (0.1, 0.0), scale: 0.8, angle: 30.0), Reshape(shape: Disc)]"#;
+    for (label, mutant) in text_mutants("paint log", log, 300, &mut rng) {
+        inputs.push((label, [vec![0u8], mutant].concat()));
+    }
+    // Logs within every per-operation bound whose replay would take too long, and values that
+    // would overflow.
+    let heavy = format!("[{}]", vec!["Blur(sigma: 1.0)"; 400].join(", "));
+    let overflow = format!("[{}]", vec!["Fill(colour: (1e300, 1.0, 1.0), intensity: 1e6)"; 3].join(", "));
+    let multiply = format!(
+        "[{}]",
+        vec!["Stroke(points: [(0.5, 0.5)], radius: 2.0, hardness: 1.0, colour: (1e300, 1e300, 1e300), intensity: 1e6, blend: Multiply)"; 20]
+            .join(", ")
+    );
+    for text in [heavy, overflow, multiply] {
+        inputs.push((text.chars().take(40).collect(), [vec![0u8], text.into_bytes()].concat()));
+    }
+    // Images: a small PNG, mutated, and the shared environment maps' formats.
+    let mut png = Vec::new();
+    let image = image::RgbImage::from_fn(16, 8, |x, y| image::Rgb([(x * 16) as u8, (y * 32) as u8, 128]));
+    image.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png).unwrap();
+    for (label, mutant) in byte_mutants("light.png", &png, 200, &mut rng) {
+        inputs.push((label, [vec![1u8], mutant].concat()));
+    }
+    inputs.push(("png".into(), [vec![1u8], png].concat()));
+    let n = replay(fuzzing::light_texture, inputs);
+    assert!(n > 500, "{n} inputs");
+}

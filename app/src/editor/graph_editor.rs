@@ -91,6 +91,7 @@ pub fn port_color(ty: PortType) -> Color32 {
         PortType::Scene => Color32::from_rgb(90, 150, 230),
         PortType::Medium => Color32::from_rgb(170, 170, 200),
         PortType::Lights => Color32::from_rgb(240, 130, 70),
+        PortType::AreaLight => Color32::from_rgb(250, 200, 120),
         PortType::Blockers => Color32::from_rgb(150, 110, 90),
         PortType::SquareLights => Color32::from_rgb(200, 120, 200),
     }
@@ -459,7 +460,7 @@ pub fn add_list(ui: &mut egui::Ui, query: &mut String, compatible: Option<(PortT
     for k in &matches {
         let label = match k.availability {
             Availability::Ready => k.label.to_string(),
-            Availability::Planned(missing) => format!("{} (parameters only: {missing})", k.label),
+            Availability::Planned(missing) => format!("{} ({missing})", k.label),
         };
         if ui.button(label).on_hover_text(k.doc).clicked() {
             chosen = Some(k.name.to_string());
@@ -558,19 +559,19 @@ impl SnarlViewer<String> for Viewer<'_> {
             Availability::Planned(missing) => Some(missing),
             Availability::Ready => None,
         });
-        let (color, word) = match planned {
-            Some(_) => (Color32::from_gray(140), "parameters only"),
-            None => status_color(status),
-        };
+        let (color, word) = status_color(status);
         let feeds_output = self.feeds_output(&id);
         ui.horizontal(|ui| {
             let (rect, response) = ui.allocate_exact_size(egui::vec2(10.0, 10.0), egui::Sense::hover());
             ui.painter().circle_filled(rect.center(), 4.5, color);
             let hover = match (planned, status) {
-                (Some(missing), _) => format!("parameters only: {missing}"),
-                (None, Some(NodeStatus::Error(m))) => format!("error: {m}"),
-                (None, Some(NodeStatus::Running(stage, f))) => format!("running {stage} ({:.0}%)", f * 100.0),
+                (_, Some(NodeStatus::Error(m))) => format!("error: {m}"),
+                (_, Some(NodeStatus::Running(stage, f))) => format!("running {stage} ({:.0}%)", f * 100.0),
                 _ => word.to_string(),
+            };
+            let hover = match planned {
+                Some(missing) => format!("{hover}; {missing}"),
+                None => hover,
             };
             response.on_hover_text(hover);
             let title = RichText::new(self.title(&id)).strong();
@@ -636,7 +637,7 @@ impl SnarlViewer<String> for Viewer<'_> {
             }
             if let Some(kind) = self.kind(&id) {
                 if let Availability::Planned(missing) = kind.availability {
-                    ui.weak(format!("parameters only: {missing}"));
+                    ui.weak(missing);
                 }
                 if let Some(evaluation) = self.evaluation {
                     self.previews.show(ui, &id, kind, evaluation);

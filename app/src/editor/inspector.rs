@@ -109,6 +109,9 @@ pub struct Inspector<'a> {
     pub limits: Vec<String>,
     pub requests: Vec<InspectorRequest>,
     pub errors: Vec<String>,
+    /// The painting canvas (area lights) and the evaluation whose texture it shows.
+    pub canvas: &'a mut super::paint_canvas::PaintCanvas,
+    pub evaluation: Option<&'a lightloom_nodes::engine::Evaluation>,
 }
 
 impl Inspector<'_> {
@@ -146,7 +149,7 @@ impl Inspector<'_> {
         let shown: Vec<&ParamSpec> = kind.params.iter().filter(|p| (kind.relevant)(&value, p.name)).collect();
         egui::Grid::new(("params", id)).num_columns(2).striped(true).show(ui, |ui| {
             for spec in shown {
-                if matches!(spec.kind, ParamKind::Objects { .. } | ParamKind::Spheres { .. }) {
+                if matches!(spec.kind, ParamKind::Objects { .. } | ParamKind::Spheres { .. } | ParamKind::Paint) {
                     continue;
                 }
                 let label = ui.label(spec.label).on_hover_text(spec.doc);
@@ -158,6 +161,10 @@ impl Inspector<'_> {
             match spec.kind {
                 ParamKind::Objects { .. } => self.objects_widget(ui, id, spec),
                 ParamKind::Spheres { .. } => self.spheres_widget(ui, id, spec),
+                ParamKind::Paint => {
+                    let errors = self.canvas.show(ui, self.doc, id, self.evaluation);
+                    self.errors.extend(errors);
+                }
                 _ => {}
             }
         }

@@ -14,6 +14,7 @@ pub mod inspector;
 pub mod jobs;
 mod menus;
 pub mod orbit;
+pub mod paint_canvas;
 pub mod previews;
 pub mod viewport;
 mod viewport_panel;
@@ -186,6 +187,7 @@ pub struct EditorApp {
     pub graph: GraphEditor,
     pub selection: Selection,
     previews: Previews,
+    paint_canvas: paint_canvas::PaintCanvas,
     view: ViewState,
     host: Option<ViewportHost>,
     host_error: Option<String>,
@@ -341,6 +343,7 @@ impl EditorApp {
             graph: GraphEditor::default(),
             selection: Selection::None,
             previews: Previews::default(),
+            paint_canvas: Default::default(),
             view: ViewState {
                 camera,
                 camera_name,
@@ -801,6 +804,8 @@ impl EditorApp {
                 .unwrap_or_default(),
             requests: Vec::new(),
             errors: Vec::new(),
+            canvas: &mut self.paint_canvas,
+            evaluation: self.evaluator.last.as_ref().map(|(e, _)| e.as_ref()),
         };
         inspector.show(ui, &id);
         let (requests, errors) = (inspector.requests, inspector.errors);

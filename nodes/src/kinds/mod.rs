@@ -1,6 +1,7 @@
 //! Every node kind: parameters, ports and stages. The math lives in the technique modules
 //! (`sh`, `wavelet`, …); a kind's stages only wire parameters to it.
 
+pub mod area_light;
 pub mod blockers;
 pub mod brdf;
 pub mod environment;
@@ -9,7 +10,6 @@ pub mod lights;
 pub mod output;
 mod output_adaptive;
 pub use output_adaptive::AdaptiveError;
-pub mod planned;
 pub mod rsl;
 pub mod scene;
 
@@ -27,7 +27,7 @@ pub fn registry() -> &'static [NodeKindSpec] {
             output::spec(),
             fog::spec(),
             lights::point_light_spec(),
-            planned::area_light_painter_spec(),
+            area_light::spec(),
             rsl::spec(),
             blockers::spec(),
         ]

@@ -110,6 +110,13 @@ fn bad_logs_are_refused_and_replay_is_deterministic() {
     let long = vec![PaintOp::Blur { sigma: 0.0 }; MAX_OPERATIONS + 1];
     assert!(refused(&long).contains("operations"));
     assert!(render(&[], 48, &mut no_files).unwrap_err().contains("not 48"));
+    // Each operation within bounds, the whole too slow to replay: refused before any work.
+    let heavy = vec![PaintOp::Blur { sigma: 1.0 }; 400];
+    assert!(render(&heavy, 128, &mut no_files).unwrap_err().contains("too long to replay"));
+    // Values that would overflow stay finite.
+    let huge = PaintOp::Fill { colour: [1e300; 3], intensity: 1e6 };
+    let t = render(&[huge.clone(), huge], 32, &mut no_files).unwrap();
+    assert!(t.radiance.iter().flatten().all(|v| v.is_finite()));
     let ops = [
         PaintOp::Fill { colour: [0.2, 0.4, 1.0], intensity: 3.0 },
         PaintOp::Stroke {

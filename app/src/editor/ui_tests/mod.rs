@@ -9,6 +9,7 @@ use egui_kittest::kittest::Queryable;
 use std::path::Path;
 
 mod adaptive;
+mod area_light;
 mod fitted_spheres;
 
 fn state_dir() -> PathBuf {

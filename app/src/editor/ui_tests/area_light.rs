@@ -1,0 +1,71 @@
+//! The area light painter as a user meets it: added from the Add menu, its inspector shows
+//! the light's texture as a canvas, a drag paints one stroke (one undo step), and the texture
+//! the engine renders changes with it.
+
+use super::*;
+use lightloom_nodes::light_texture::{LightTexture, PaintOp};
+
+fn paint_log(harness: &Harness<'_, EditorApp>, node: &str) -> Vec<PaintOp> {
+    match edits::node(&harness.state().doc.project, node).and_then(|n| n.params.get("paint")) {
+        Some(ParamValue::Paint(ops)) => ops.clone(),
+        _ => Vec::new(),
+    }
+}
+
+fn texture_mean(harness: &Harness<'_, EditorApp>, node: &str) -> f64 {
+    let evaluation = &harness.state().evaluator.last.as_ref().expect("an evaluation").0;
+    let value = evaluation.value(node, "texture").expect("the texture stage ran");
+    let texture = value.expect::<LightTexture>().unwrap();
+    texture.emission().iter().map(|c| c[0] + c[1] + c[2]).sum::<f64>() / texture.emission().len() as f64
+}
+
+#[test]
+fn painting_on_the_canvas_adds_one_undoable_stroke() {
+    let mut harness = default_harness();
+    let before: Vec<String> = harness.state().doc.project.nodes.iter().map(|n| n.id.clone()).collect();
+    harness.get_by_label("Add").click();
+    harness.run_steps(2);
+    harness.get_by_label_contains("Area light painter").click();
+    harness.run_steps(4);
+    let added = harness.state().doc.project.nodes.iter().find(|n| !before.contains(&n.id)).unwrap().id.clone();
+    assert_eq!(harness.state().selection, Selection::Node(added.clone()));
+    settle(&mut harness);
+    harness.run_steps(2);
+    let white = texture_mean(&harness, &added);
+    assert!((white - 3.0).abs() < 1e-9, "a new light is white: {white}");
+    harness.get_by_label_contains("Paint: 0 operations");
+
+    // A dark stroke across the middle of the canvas.
+    harness.state_mut().paint_canvas.colour = [0.0, 0.0, 0.0];
+    harness.state_mut().paint_canvas.hardness = 1.0;
+    let rect = harness.state().paint_canvas.last_rect.expect("the canvas is drawn");
+    pointer_drag(
+        &mut harness,
+        egui::PointerButton::Primary,
+        rect.lerp_inside(egui::vec2(0.2, 0.5)),
+        rect.lerp_inside(egui::vec2(0.8, 0.5)),
+    );
+    let ops = paint_log(&harness, &added);
+    assert_eq!(ops.len(), 1, "one stroke: {ops:?}");
+    let PaintOp::Stroke { points, .. } = &ops[0] else { panic!("a stroke: {ops:?}") };
+    assert!(points.iter().all(|p| (p[1] - 0.5).abs() < 0.02), "{points:?}");
+    // Dabs a quarter radius apart, however fast the pointer moved.
+    assert!(points.windows(2).all(|w| (w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1]) <= 0.06 / 4.0 + 1e-9), "{points:?}");
+    assert!((points[0][0] - 0.2).abs() < 0.05 && (points.last().unwrap()[0] - 0.8).abs() < 0.05, "{points:?}");
+    assert_eq!(harness.state().doc.undo_label(), Some("Paint stroke"));
+    settle(&mut harness);
+    harness.run_steps(2);
+    let painted = texture_mean(&harness, &added);
+    assert!(painted < white - 0.2, "the stroke darkens the light: {white} → {painted}");
+    harness.get_by_label_contains("Paint: 1 operation");
+    harness
+        .render()
+        .unwrap()
+        .save(state_dir().join("area_light_canvas.png"))
+        .expect("screenshot for a person to look at");
+
+    harness.state_mut().undo();
+    settle(&mut harness);
+    assert!(paint_log(&harness, &added).is_empty(), "undo removes the stroke");
+    assert!((texture_mean(&harness, &added) - white).abs() < 1e-9);
+}

@@ -1,0 +1,253 @@
+//! Area light painter: a horizontal planar light facing down, with a painted radiance texture
+//! (`crate::light_texture`), compressed in 2D Haar for near-field relighting by affine wavelet
+//! products (`crate::near_field`, Sun 2008 §4.5).
+//!
+//! Stages follow the notes' dirty rules (§6): a stroke reruns `texture` and `source` only;
+//! moving or resizing reruns `placement` only; intensity and tint are a scale in `light`.
+
+use crate::engine::{StageContext, StageError, StageValue};
+use crate::light_texture::{LightTexture, PaintOp, load_image, render};
+use crate::near_field::{LightPlacement, LightSource, TargetKeep, TopFace, light_source};
+use crate::node_kind::{Availability, NodeKindSpec, ParamKind, ParamSpec, ParamValue, PortSpec, PortType, StageSpec};
+use crate::picture::Preview;
+use serde::{Deserialize, Serialize};
+
+crate::stage_type!(LightPlacement, "area light placement", |_v| 48);
+crate::stage_type!(AreaLight, "area light", |v| v.source.coefficients.len() * 16 + 96);
+
+/// Everything the relighting needs of one light.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct AreaLight {
+    pub source: LightSource,
+    /// The rectangle the (turned) texture was resampled into.
+    pub placement: LightPlacement,
+    /// Intensity × tint: the shading scales by it.
+    pub scale: [f64; 3],
+    pub face: TopFace,
+    pub keep: TargetKeep,
+}
+
+pub fn spec() -> NodeKindSpec {
+    let float = |name, label, unit, min, max, default, doc| ParamSpec {
+        name,
+        label,
+        unit,
+        kind: ParamKind::Float { min, max, default },
+        doc,
+    };
+    NodeKindSpec {
+        name: "AreaLightPainter",
+        label: "Area light painter",
+        doc: "A planar light facing down with a painted radiance texture, for near-field shadows and highlights \
+              (affine wavelet products, Sun 2008 ch. 4). Paint, move, resize and recolour it; the texture is kept \
+              as its paint operations.",
+        inputs: vec![],
+        outputs: vec![PortSpec { name: "area_light", ty: PortType::AreaLight, required: false, many: false }],
+        params: vec![
+            ParamSpec {
+                name: "resolution",
+                label: "Texture",
+                unit: "texels",
+                kind: ParamKind::Choice {
+                    options: &["32", "64", "128"],
+                    default: "64",
+                    labels: &[
+                        ("32 × 32", "coarse detail, fastest"),
+                        ("64 × 64", ""),
+                        ("128 × 128", "fine detail; more coefficients to keep"),
+                    ],
+                },
+                doc: "Side of the light's texture.",
+            },
+            ParamSpec {
+                name: "paint",
+                label: "Paint",
+                unit: "",
+                kind: ParamKind::Paint,
+                doc: "The light's paint operations in order (strokes, erase, fill, blur, imported images, warps, \
+                      shapes), replayed onto a white light.",
+            },
+            ParamSpec {
+                name: "position",
+                label: "Centre",
+                unit: "m",
+                kind: ParamKind::Vec3 { min: -1e4, max: 1e4, default: [0.0, 2.0, 0.0] },
+                doc: "Centre of the light; its height is the light's plane.",
+            },
+            float("width", "Width", "m", 1e-3, 1e3, 1.0, "Extent along x."),
+            float("depth", "Depth", "m", 1e-3, 1e3, 1.0, "Extent along z."),
+            float("angle", "Turn", "°", -360.0, 360.0, 0.0, "Turn about the vertical, in the light's plane."),
+            float("intensity", "Intensity", "", 0.0, 1e6, 10.0, "Radiance scale of the texture."),
+            ParamSpec {
+                name: "tint",
+                label: "Tint",
+                unit: "",
+                kind: ParamKind::Color { max: 1e3, default: [1.0, 1.0, 1.0] },
+                doc: "Colour the texture is multiplied by.",
+            },
+            float(
+                "source_keep",
+                "Texture detail kept",
+                "%",
+                0.01,
+                100.0,
+                2.0,
+                "Share of the texture's wavelet coefficients kept per channel (the largest).",
+            ),
+            float(
+                "target_keep",
+                "Lighting detail kept",
+                "%",
+                1.0,
+                100.0,
+                30.0,
+                "Share of each receiver's top-face coefficients shaded, picked by how a constant light would \
+                 reach it; 100% shades them all.",
+            ),
+            float(
+                "face_size",
+                "Face size",
+                "",
+                1.0,
+                20.0,
+                4.0,
+                "Width of the receivers' top face in units of height (3–4 covers a light well; larger faces \
+                 reach grazing light but resolve shadows more coarsely).",
+            ),
+        ],
+        stages: vec![
+            StageSpec {
+                name: "texture",
+                version: 1,
+                params: &["resolution", "paint"],
+                stages: &[],
+                inputs: &[],
+                persist: None,
+                compute: texture,
+            },
+            StageSpec {
+                name: "source",
+                version: 1,
+                params: &["source_keep", "angle", "width", "depth"],
+                stages: &["texture"],
+                inputs: &[],
+                persist: None,
+                compute: source,
+            },
+            StageSpec {
+                name: "placement",
+                version: 1,
+                params: &["position", "width", "depth", "angle"],
+                stages: &[],
+                inputs: &[],
+                persist: None,
+                compute: placement,
+            },
+            StageSpec {
+                name: "light",
+                version: 1,
+                params: &["intensity", "tint", "target_keep", "face_size"],
+                stages: &["source", "placement"],
+                inputs: &[],
+                persist: None,
+                compute: light,
+            },
+        ],
+        previews: vec![crate::node_kind::PreviewSpec {
+            stages: &["texture"],
+            make: |v| Some(Preview::Image(texture_preview(v[0].get()?))),
+            size: [96.0, 96.0],
+            caption: "the light's emission, seen from below (auto-exposed)",
+        }],
+        availability: Availability::Planned("the viewport does not draw area lights"),
+        relevant: crate::node_kind::always_relevant,
+    }
+}
+
+fn texture_preview(texture: &LightTexture) -> crate::picture::PreviewImage {
+    let emission = texture.emission();
+    let scale = crate::preview::auto_scale(emission.iter().copied());
+    crate::picture::PreviewImage {
+        width: texture.side,
+        height: texture.side,
+        rgba: emission.iter().map(|&c| crate::preview::display_rgb8(c, scale)).collect(),
+    }
+}
+
+fn paint_log<'a>(ctx: &'a StageContext) -> Result<&'a [PaintOp], StageError> {
+    match ctx.value("paint")? {
+        ParamValue::Paint(ops) => Ok(ops),
+        other => Err(StageError::Internal(format!("paint holds {}", other.type_name()))),
+    }
+}
+
+fn texture(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let side: usize = ctx.choice("resolution")?.parse().map_err(|_| StageError::Internal("resolution".into()))?;
+    let dir = ctx.project_dir();
+    let texture = render(paint_log(ctx)?, side, &mut |path| load_image(&dir.join(path))).map_err(StageError::Failed)?;
+    Ok(StageValue::new(texture))
+}
+
+/// The bounding rectangle of a `width × depth` light turned by `angle` degrees.
+fn turned_extent(width: f64, depth: f64, angle: f64) -> [f64; 2] {
+    let (sin, cos) = angle.to_radians().sin_cos();
+    [width * cos.abs() + depth * sin.abs(), width * sin.abs() + depth * cos.abs()]
+}
+
+/// The emission resampled into the turned light's bounding rectangle (zero outside the light),
+/// then in 2D Haar with the largest coefficients kept.
+fn source(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let texture = ctx.stage::<LightTexture>("texture")?;
+    let (width, depth, angle) = (ctx.float("width")?, ctx.float("depth")?, ctx.float("angle")?);
+    let n = texture.side;
+    let emission = texture.emission();
+    let turned = if angle.rem_euclid(360.0) == 0.0 {
+        emission
+    } else {
+        let extent = turned_extent(width, depth, angle);
+        let (sin, cos) = angle.to_radians().sin_cos();
+        (0..n * n)
+            .map(|k| {
+                // A texel of the bounding rectangle, in metres from the centre, turned back
+                // into the light's own frame.
+                let x = (((k % n) as f64 + 0.5) / n as f64 - 0.5) * extent[0];
+                let z = (((k / n) as f64 + 0.5) / n as f64 - 0.5) * extent[1];
+                let (u, v) = ((cos * x + sin * z) / width + 0.5, (-sin * x + cos * z) / depth + 0.5);
+                if (0.0..1.0).contains(&u) && (0.0..1.0).contains(&v) {
+                    emission[((v * n as f64) as usize).min(n - 1) * n + ((u * n as f64) as usize).min(n - 1)]
+                } else {
+                    [0.0; 3]
+                }
+            })
+            .collect()
+    };
+    let keep = ((ctx.float("source_keep")? / 100.0 * (n * n) as f64).ceil() as usize).clamp(1, n * n);
+    let source = light_source(&turned, n, keep);
+    ctx.inform(format!(
+        "{} of {} coefficients kept per channel: {:.2}% of the texture's energy",
+        keep,
+        n * n,
+        100.0 * source.retained_energy
+    ));
+    Ok(StageValue::new(source))
+}
+
+fn placement(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let [x, height, z] = ctx.vec3("position")?;
+    let extent = turned_extent(ctx.float("width")?, ctx.float("depth")?, ctx.float("angle")?);
+    Ok(StageValue::new(LightPlacement::centred(height, [x, z], extent)))
+}
+
+fn light(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let intensity = ctx.float("intensity")?;
+    let tint = ctx.vec3("tint")?;
+    let target = ctx.float("target_keep")?;
+    let keep = if target >= 100.0 { TargetKeep::All } else { TargetKeep::Predicted(target / 100.0) };
+    Ok(StageValue::new(AreaLight {
+        source: ctx.stage::<LightSource>("source")?.clone(),
+        placement: *ctx.stage::<LightPlacement>("placement")?,
+        scale: tint.map(|t| t * intensity),
+        face: TopFace { order: 32, size: ctx.float("face_size")? },
+        keep,
+    }))
+}

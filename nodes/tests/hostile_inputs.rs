@@ -270,7 +270,7 @@ fn painted_lights_mutated_every_way_never_panic() {
     // Logs within every per-operation bound whose replay would take too long, and values that
     // would overflow.
     let heavy = format!("[{}]", vec!["Blur(sigma: 1.0)"; 400].join(", "));
-    let overflow = format!("[{}]", vec!["Fill(colour: (1e300, 1.0, 1.0), intensity: 1e6)"; 3].join(", "));
+    let overflow = format!("[{}]", ["Fill(colour: (1e300, 1.0, 1.0), intensity: 1e6)"; 3].join(", "));
     let multiply = format!(
         "[{}]",
         vec!["Stroke(points: [(0.5, 0.5)], radius: 2.0, hardness: 1.0, colour: (1e300, 1e300, 1e300), intensity: 1e6, blend: Multiply)"; 20]

@@ -43,7 +43,7 @@ pub struct BenchArgs {
     /// Frames timed per figure (the median is printed).
     #[arg(long, default_value_t = 5)]
     pub frames: usize,
-    /// Only these sections (default, fog, rsl, blockers, adaptive, synthetic; all when empty).
+    /// Only these sections (default, fog, rsl, blockers, adaptive, area, synthetic; all when empty).
     #[arg(long, value_delimiter = ',')]
     pub only: Vec<String>,
 }
@@ -96,6 +96,9 @@ pub fn run(args: &BenchArgs) -> Result<()> {
     }
     if wanted("adaptive") {
         crate::bench_adaptive::adaptive_figures();
+    }
+    if wanted("area") {
+        crate::bench_area::area_light_figures();
     }
     if wanted("synthetic") {
         synthetic_figures(args, &gpu)?;

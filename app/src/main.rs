@@ -2,6 +2,7 @@
 
 mod accuracy_command;
 mod bench_adaptive;
+mod bench_area;
 mod bench_blockers;
 mod bench_command;
 mod editor;

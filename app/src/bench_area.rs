@@ -1,0 +1,80 @@
+//! `lightloom bench --only area`: near-field relighting by a painted area light (Sun 2008
+//! §4.5) on a 200 × 200 floor (40,000 receivers), order 32, face size 4:
+//!
+//! * vertex relights per second at keep 1% / 20% and 5% / 40% (thesis: about 1.5 M/s at 1% / 20%
+//!   on 8 cores of 2008; our goal is 1.5 M/s on these 2 cores);
+//! * a stroke to new shading: replaying the paint log, the Haar transform and the propagation
+//!   (goal: under 100 ms of CPU work);
+//! * a light move: the propagation alone;
+//! * the transport precompute per vertex (unoccluded rays here: the time is the face sampling
+//!   and the Haar transform, not ray casting) and its memory.
+
+use glam::DVec3;
+use lightloom_nodes::light_texture::{Blend, PaintOp, render};
+use lightloom_nodes::near_field::{LightPlacement, TargetKeep, TopFace, face_transport, irradiance, light_source};
+use std::time::Instant;
+
+pub fn area_light_figures() {
+    let side = 200;
+    let positions: Vec<DVec3> = (0..side * side)
+        .map(|i| DVec3::new(-3.0 + 6.0 * (i % side) as f64 / side as f64, 0.0, -3.0 + 6.0 * (i / side) as f64 / side as f64))
+        .collect();
+    let normals = vec![DVec3::Y; positions.len()];
+    let face = TopFace { order: 32, size: 4.0 };
+    let start = Instant::now();
+    let transport = face_transport(face, &positions, &normals, 1, |_, _| true);
+    let precompute = start.elapsed().as_secs_f64();
+    println!(
+        "Area light, {} receivers, order 32 (thesis: ~1.5 M relights/s at 1%/20% on 8 cores, 2008; goal 1.5 M/s on 2 cores):",
+        positions.len()
+    );
+    println!(
+        "  transport: {:.1} us per vertex ({:.2} s), {} bytes per vertex (1024 coefficients, f32)",
+        precompute / positions.len() as f64 * 1e6,
+        precompute,
+        face.order * face.order * 4
+    );
+    let mut ops = vec![PaintOp::Fill { colour: [1.0, 0.9, 0.7], intensity: 5.0 }];
+    let placement = LightPlacement::centred(2.0, [0.0, 0.0], [1.5, 1.0]);
+    let mut no_files = |_: &str| Err("no files".to_string());
+    for (source_pct, target_pct) in [(1.0, 20.0), (5.0, 40.0), (100.0, 100.0)] {
+        let texture = render(&ops, 32, &mut no_files).expect("a valid log");
+        let keep = ((source_pct / 100.0 * 1024.0) as f64).ceil() as usize;
+        let source = light_source(&texture.emission(), 32, keep);
+        let target = if target_pct >= 100.0 { TargetKeep::All } else { TargetKeep::Predicted(target_pct / 100.0) };
+        let start = Instant::now();
+        let e = irradiance(&source, &placement, &transport, &positions, target);
+        let seconds = start.elapsed().as_secs_f64();
+        std::hint::black_box(e);
+        println!(
+            "  keep {source_pct}% / {target_pct}%: {:.0} ms per relight = {:.2} M relights/s ({} source coefficients)",
+            seconds * 1e3,
+            positions.len() as f64 / seconds / 1e6,
+            source.coefficients.len()
+        );
+    }
+    // A stroke: replay, transform, propagate (1% / 20%).
+    ops.push(PaintOp::Stroke {
+        points: (0..40).map(|i| [0.2 + 0.015 * i as f64, 0.4]).collect(),
+        radius: 0.08,
+        hardness: 0.4,
+        colour: [0.2, 0.3, 1.0],
+        intensity: 8.0,
+        blend: Blend::Mix,
+    });
+    let start = Instant::now();
+    let texture = render(&ops, 32, &mut no_files).expect("a valid log");
+    let source = light_source(&texture.emission(), 32, 11);
+    let texture_ms = start.elapsed().as_secs_f64() * 1e3;
+    let e = irradiance(&source, &placement, &transport, &positions, TargetKeep::Predicted(0.2));
+    let stroke_ms = start.elapsed().as_secs_f64() * 1e3;
+    std::hint::black_box(e);
+    let moved = LightPlacement::centred(2.2, [0.3, -0.2], [1.5, 1.0]);
+    let start = Instant::now();
+    std::hint::black_box(irradiance(&source, &moved, &transport, &positions, TargetKeep::Predicted(0.2)));
+    let move_ms = start.elapsed().as_secs_f64() * 1e3;
+    println!(
+        "  stroke to new shading: {stroke_ms:.0} ms ({texture_ms:.1} ms replay and transform) (goal < 100 ms); light move: \
+         {move_ms:.0} ms"
+    );
+}

@@ -17,7 +17,9 @@ use std::time::Instant;
 pub fn area_light_figures() {
     let side = 200;
     let positions: Vec<DVec3> = (0..side * side)
-        .map(|i| DVec3::new(-3.0 + 6.0 * (i % side) as f64 / side as f64, 0.0, -3.0 + 6.0 * (i / side) as f64 / side as f64))
+        .map(|i| {
+            DVec3::new(-3.0 + 6.0 * (i % side) as f64 / side as f64, 0.0, -3.0 + 6.0 * (i / side) as f64 / side as f64)
+        })
         .collect();
     let normals = vec![DVec3::Y; positions.len()];
     let face = TopFace { order: 32, size: 4.0 };
@@ -34,7 +36,23 @@ pub fn area_light_figures() {
         precompute,
         face.order * face.order * 4
     );
-    let mut ops = vec![PaintOp::Fill { colour: [1.0, 0.9, 0.7], intensity: 5.0 }];
+    // A painted light: a warm fill, three coloured strokes, a soft blur, a disc.
+    let stroke = |y: f64, colour: [f64; 3]| PaintOp::Stroke {
+        points: (0..30).map(|i| [0.15 + 0.025 * i as f64, y + 0.1 * (i as f64 * 0.4).sin()]).collect(),
+        radius: 0.06,
+        hardness: 0.3,
+        colour,
+        intensity: 6.0,
+        blend: Blend::Mix,
+    };
+    let mut ops = vec![
+        PaintOp::Fill { colour: [1.0, 0.9, 0.7], intensity: 5.0 },
+        stroke(0.3, [1.0, 0.3, 0.2]),
+        stroke(0.5, [0.2, 1.0, 0.4]),
+        stroke(0.7, [0.3, 0.4, 1.0]),
+        PaintOp::Blur { sigma: 0.01 },
+        PaintOp::Reshape { shape: lightloom_nodes::light_texture::Shape::Disc },
+    ];
     let placement = LightPlacement::centred(2.0, [0.0, 0.0], [1.5, 1.0]);
     let mut no_files = |_: &str| Err("no files".to_string());
     for (source_pct, target_pct) in [(1.0, 20.0), (5.0, 40.0), (100.0, 100.0)] {
@@ -64,7 +82,7 @@ pub fn area_light_figures() {
     });
     let start = Instant::now();
     let texture = render(&ops, 32, &mut no_files).expect("a valid log");
-    let source = light_source(&texture.emission(), 32, 11);
+    let source = light_source(&texture.emission(), 32, 11); // 1%
     let texture_ms = start.elapsed().as_secs_f64() * 1e3;
     let e = irradiance(&source, &placement, &transport, &positions, TargetKeep::Predicted(0.2));
     let stroke_ms = start.elapsed().as_secs_f64() * 1e3;

@@ -182,18 +182,46 @@ pub enum TargetKeep {
     Predicted(f64),
 }
 
+/// Reusable buffers for [`propagate_into`] (one per thread).
+pub struct Propagation {
+    step1: Vec<[f64; 3]>,
+    touched: Vec<bool>,
+    rows: Vec<usize>,
+    targets: Vec<usize>,
+    /// `L_{k₁k₂}` at `k₂·order + k₁`, valid after [`propagate_into`].
+    pub light: Vec<[f64; 3]>,
+}
+
+impl Propagation {
+    pub fn new(source_order: usize, face_order: usize) -> Self {
+        Self {
+            step1: vec![[0.0; 3]; source_order * face_order],
+            touched: vec![false; source_order * face_order],
+            rows: Vec::new(),
+            targets: Vec::new(),
+            light: vec![[0.0; 3]; face_order * face_order],
+        }
+    }
+}
+
 /// The light on a receiver's top face, `L_{k₁k₂}` for every face coefficient
 /// (`k₂·order + k₁`), by the two separable steps of §4.5.5 over the fan-out only.
 pub fn propagate(source: &LightSource, maps: [Affine; 2], face_order: usize) -> Vec<[f64; 3]> {
-    let (n_src, n) = (source.order, face_order);
-    let mut targets = Vec::new();
-    // Step 1: Z_{i₂k₁} = Σ_{i₁} F_{i₁i₂} D_{i₁k₁}.
-    let mut step1 = vec![[0.0; 3]; n_src * n];
-    let mut touched = vec![false; n_src * n];
-    let mut rows = Vec::new();
+    let mut scratch = Propagation::new(source.order, face_order);
+    propagate_into(source, maps, face_order, &mut scratch);
+    scratch.light
+}
+
+/// [`propagate`] into reused buffers.
+pub fn propagate_into(source: &LightSource, maps: [Affine; 2], face_order: usize, scratch: &mut Propagation) {
+    let n = face_order;
+    let Propagation { step1, touched, rows, targets, light } = scratch;
+    light.iter_mut().for_each(|l| *l = [0.0; 3]);
+    // Step 1: Z_{i₂k₁} = Σ_{i₁} F_{i₁i₂} D_{i₁k₁}; `rows` lists the entries it touched.
+    rows.clear();
     for &((i1, i2), f) in &source.coefficients {
-        maps[0].targets(usize::from(i1), n, &mut targets);
-        for &k1 in &targets {
+        maps[0].targets(usize::from(i1), n, targets);
+        for &k1 in targets.iter() {
             let d = maps[0].coupling(usize::from(i1), k1);
             let at = usize::from(i2) * n + k1;
             if !touched[at] {
@@ -206,35 +234,77 @@ pub fn propagate(source: &LightSource, maps: [Affine; 2], face_order: usize) -> 
         }
     }
     // Step 2: L_{k₁k₂} = Σ_{i₂} Z_{i₂k₁} D_{i₂k₂}, in a fixed order (deterministic sums).
+    // Rows sorted by `i₂·n + k₁` come grouped by `i₂`: its couplings are computed once.
     rows.sort_unstable();
-    let mut light = vec![[0.0; 3]; n * n];
-    for at in rows {
+    let mut couplings: Vec<(usize, f64)> = Vec::new();
+    let mut current = usize::MAX;
+    for &at in rows.iter() {
         let (i2, k1) = (at / n, at % n);
-        maps[1].targets(i2, n, &mut targets);
-        for &k2 in &targets {
-            let d = maps[1].coupling(i2, k2);
+        if i2 != current {
+            current = i2;
+            maps[1].targets(i2, n, targets);
+            couplings.clear();
+            couplings.extend(targets.iter().map(|&k2| (k2, maps[1].coupling(i2, k2))));
+        }
+        let z = step1[at];
+        for &(k2, d) in &couplings {
+            let l = &mut light[k2 * n + k1];
             for c in 0..3 {
-                light[k2 * n + k1][c] += d * step1[at][c];
+                l[c] += d * z[c];
             }
         }
+        step1[at] = [0.0; 3];
+        touched[at] = false;
     }
-    light
 }
 
-/// The face coefficients `keep` keeps, by the constant-light prediction (Eq. 4.38):
-/// `|D_{φk₁}(s₁, o₁) D_{φk₂}(s₂, o₂)|` largest first, ties coarse first.
+/// Coarseness of a 1D index: 0 for `φ`, `l + 1` for a wavelet at level `l`.
+fn coarseness(k: usize) -> u32 {
+    level_offset(k).map_or(0, |(l, _)| l + 1)
+}
+
+/// The face coefficients `fraction` keeps, by the constant-light prediction (Eq. 4.38):
+/// `|D_{φk₁}(s₁, o₁) D_{φk₂}(s₂, o₂)|` largest first, ties (the zero predictions among
+/// them) coarse first, then by index. Only the at most `(2L + 1)²` nonzero predictions are
+/// ranked; the rest follow in coarse-first order.
 pub fn predicted_targets(maps: [Affine; 2], face_order: usize, fraction: f64) -> Vec<usize> {
     let n = face_order;
     let count = ((fraction.clamp(0.0, 1.0) * (n * n) as f64).round() as usize).min(n * n);
-    let axis: [Vec<f64>; 2] = std::array::from_fn(|q| (0..n).map(|k| maps[q].coupling(0, k).abs()).collect());
-    let level = |k: usize| level_offset(k).map_or(0, |(l, _)| l + 1);
-    let mut order: Vec<usize> = (0..n * n).collect();
-    order.sort_by(|&a, &b| {
-        let (pa, pb) = (axis[0][a % n] * axis[1][a / n], axis[0][b % n] * axis[1][b / n]);
-        pb.total_cmp(&pa).then(level(a % n).max(level(a / n)).cmp(&level(b % n).max(level(b / n)))).then(a.cmp(&b))
-    });
-    order.truncate(count);
-    order
+    let mut axis: [Vec<(usize, f64)>; 2] = [Vec::new(), Vec::new()];
+    let mut targets = Vec::new();
+    for q in 0..2 {
+        maps[q].targets(0, n, &mut targets);
+        axis[q] = targets.iter().map(|&k| (k, maps[q].coupling(0, k).abs())).filter(|(_, d)| *d > 0.0).collect();
+    }
+    let mut ranked: Vec<(f64, u32, usize)> = axis[1]
+        .iter()
+        .flat_map(|&(k2, d2)| {
+            axis[0].iter().map(move |&(k1, d1)| (d1 * d2, coarseness(k1).max(coarseness(k2)), k2 * n + k1))
+        })
+        .filter(|(p, _, _)| *p > 0.0)
+        .collect();
+    ranked.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
+    let mut kept: Vec<usize> = ranked.iter().take(count).map(|r| r.2).collect();
+    if kept.len() < count {
+        let mut chosen = vec![false; n * n];
+        kept.iter().for_each(|&k| chosen[k] = true);
+        // Coarse first: every index whose coarser axis is at `c`, in index order.
+        'fill: for c in 0..=n.max(1).ilog2() {
+            let span = (1usize << c).min(n);
+            for k2 in 0..span {
+                for k1 in 0..span {
+                    if coarseness(k1).max(coarseness(k2)) != c || chosen[k2 * n + k1] {
+                        continue;
+                    }
+                    kept.push(k2 * n + k1);
+                    if kept.len() == count {
+                        break 'fill;
+                    }
+                }
+            }
+        }
+    }
+    kept
 }
 
 /// Irradiance `E = Σ_k L_k T_k` (RGB) at each receiver from one light; 0 above its plane.
@@ -249,28 +319,31 @@ pub fn irradiance(
     positions
         .par_iter()
         .enumerate()
-        .map(|(r, &x)| {
-            let Some(maps) = placement.maps(&face, x) else {
-                return [0.0; 3];
-            };
-            let light = propagate(source, maps, face.order);
-            let t = transport.of(r);
-            let mut e = [0.0; 3];
-            let mut add = |k: usize| {
-                for c in 0..3 {
-                    e[c] += light[k][c] * f64::from(t[k]);
+        .map_init(
+            || Propagation::new(source.order, face.order),
+            |scratch, (r, &x)| {
+                let Some(maps) = placement.maps(&face, x) else {
+                    return [0.0; 3];
+                };
+                propagate_into(source, maps, face.order, scratch);
+                let t = transport.of(r);
+                let mut e = [0.0; 3];
+                let mut add = |k: usize| {
+                    for c in 0..3 {
+                        e[c] += scratch.light[k][c] * f64::from(t[k]);
+                    }
+                };
+                match keep {
+                    TargetKeep::All => (0..face.order * face.order).for_each(&mut add),
+                    TargetKeep::Predicted(fraction) => {
+                        let mut kept = predicted_targets(maps, face.order, fraction);
+                        kept.sort_unstable();
+                        kept.into_iter().for_each(&mut add);
+                    }
                 }
-            };
-            match keep {
-                TargetKeep::All => (0..light.len()).for_each(&mut add),
-                TargetKeep::Predicted(fraction) => {
-                    let mut kept = predicted_targets(maps, face.order, fraction);
-                    kept.sort_unstable();
-                    kept.into_iter().for_each(&mut add);
-                }
-            }
-            e
-        })
+                e
+            },
+        )
         .collect()
 }
 

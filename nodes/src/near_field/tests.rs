@@ -228,3 +228,26 @@ fn one_thread_and_many_give_the_same_bits() {
     let many = rayon::ThreadPoolBuilder::new().num_threads(4).build().unwrap().install(run);
     assert!(single.iter().zip(&many).all(|(a, b)| a.map(f64::to_bits) == b.map(f64::to_bits)));
 }
+
+/// The fast target pick equals ranking every face coefficient by its prediction, ties coarse
+/// first then by index (the definition).
+#[test]
+fn predicted_targets_equal_the_full_ranking() {
+    use crate::wavelet::affine::Affine;
+    let n = 32;
+    let coarseness = |k: usize| if k == 0 { 0 } else { k.ilog2() + 1 };
+    for (s1, o1, s2, o2) in [(0.7, 0.1, 1.3, -0.2), (4.0, -1.2, 3.0, -0.9), (0.2, 0.4, 0.25, 0.3)] {
+        let maps = [Affine { s: s1, o: o1 }, Affine { s: s2, o: o2 }];
+        let mut all: Vec<usize> = (0..n * n).collect();
+        let p = |k: usize| (maps[0].coupling(0, k % n) * maps[1].coupling(0, k / n)).abs();
+        all.sort_by(|&a, &b| {
+            p(b).total_cmp(&p(a))
+                .then(coarseness(a % n).max(coarseness(a / n)).cmp(&coarseness(b % n).max(coarseness(b / n))))
+                .then(a.cmp(&b))
+        });
+        for fraction in [0.01, 0.05, 0.2, 0.3, 1.0] {
+            let count = (fraction * (n * n) as f64).round() as usize;
+            assert_eq!(predicted_targets(maps, n, fraction), all[..count].to_vec(), "{maps:?} at {fraction}");
+        }
+    }
+}

@@ -88,16 +88,20 @@ impl Affine {
         match (level_offset(i), level_offset(j)) {
             (_, None) => self.integral(i, 0.0, 1.0),
             (None, Some((l, t))) => {
-                let (x0, x1) = support(l, t);
-                let xm = 0.5 * (x0 + x1);
-                f64::from(1u32 << l).sqrt() * (self.integral(0, x0, xm) - self.integral(0, xm, x1))
+                // φ(s v + o) is 1 on [a, b]: ∫_a^b ψ_j = 2^{−l/2} [Λ(2^l b − t) − Λ(2^l a − t)],
+                // exactly 0 where ψ_j's support lies inside or outside [a, b].
+                let (a, b) = ((-self.o / self.s).max(0.0), ((1.0 - self.o) / self.s).min(1.0));
+                if b <= a {
+                    return 0.0;
+                }
+                let scale = f64::from(1u32 << l);
+                (tent(scale * b - f64::from(t)) - tent(scale * a - f64::from(t))) / scale.sqrt()
             }
             (Some((li, ti)), Some((lj, tj))) => {
-                let (li, lj) = (f64::from(li), f64::from(lj));
-                let ratio = (lj - li).exp2();
+                let ratio = 2f64.powi(lj as i32 - li as i32);
                 let r = 0.5 * ratio / self.s;
-                let c = (ratio * f64::from(ti) - lj.exp2() * self.o + 0.5 * ratio) / self.s - f64::from(tj);
-                ((li - lj) / 2.0).exp2() * canonical_coupling(r, c)
+                let c = (ratio * f64::from(ti) - f64::from(1u32 << lj) * self.o + 0.5 * ratio) / self.s - f64::from(tj);
+                canonical_coupling(r, c) / ratio.sqrt()
             }
         }
     }
@@ -133,15 +137,15 @@ impl Affine {
     /// `D_ij = 0`): at most 3 per level, `2` for a scaling source (notes §1.6).
     pub fn targets(&self, i: usize, size: usize, out: &mut Vec<usize>) {
         out.clear();
-        let breaks: &[f64] = match level_offset(i) {
-            None => &[0.0, 1.0],
+        let (breaks, count) = match level_offset(i) {
+            None => ([0.0, 1.0, 1.0], 2),
             Some((l, t)) => {
                 let h = 0.5 / f64::from(1u32 << l);
                 let x0 = f64::from(t) * 2.0 * h;
-                &[x0, x0 + h, x0 + 2.0 * h]
+                ([x0, x0 + h, x0 + 2.0 * h], 3)
             }
         };
-        let in_v: Vec<f64> = breaks.iter().map(|b| (b - self.o) / self.s).collect();
+        let in_v = &breaks.map(|b| (b - self.o) / self.s)[..count];
         let (lo, hi) = (in_v[0], in_v[in_v.len() - 1]);
         if hi <= 0.0 || lo >= 1.0 {
             return;
@@ -151,7 +155,7 @@ impl Affine {
         for l in 0..levels {
             let cells = f64::from(1u32 << l);
             let first = out.len();
-            for v in &in_v {
+            for v in in_v {
                 let x = v * cells;
                 let t = x.floor();
                 if t < 0.0 || t >= cells || x == t {

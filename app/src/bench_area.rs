@@ -57,7 +57,7 @@ pub fn area_light_figures() {
     let mut no_files = |_: &str| Err("no files".to_string());
     for (source_pct, target_pct) in [(1.0, 20.0), (5.0, 40.0), (100.0, 100.0)] {
         let texture = render(&ops, 32, &mut no_files).expect("a valid log");
-        let keep = ((source_pct / 100.0 * 1024.0) as f64).ceil() as usize;
+        let keep = (source_pct / 100.0 * 1024.0f64).ceil() as usize;
         let source = light_source(&texture.emission(), 32, keep);
         let target = if target_pct >= 100.0 { TargetKeep::All } else { TargetKeep::Predicted(target_pct / 100.0) };
         let start = Instant::now();

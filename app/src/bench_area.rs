@@ -55,7 +55,7 @@ pub fn area_light_figures() {
     ];
     let placement = LightPlacement::centred(2.0, [0.0, 0.0], [1.5, 1.0]);
     let mut no_files = |_: &str| Err("no files".to_string());
-    for (source_pct, target_pct) in [(1.0, 20.0), (5.0, 40.0), (100.0, 100.0)] {
+    for (source_pct, target_pct) in [(1.0, 20.0), (1.0, 100.0), (5.0, 40.0), (100.0, 100.0)] {
         let texture = render(&ops, 32, &mut no_files).expect("a valid log");
         let keep = (source_pct / 100.0 * 1024.0f64).ceil() as usize;
         let source = light_source(&texture.emission(), 32, keep);

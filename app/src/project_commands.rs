@@ -460,7 +460,7 @@ pub fn info(args: &InfoArgs) -> Result<()> {
         let kind = lightloom_nodes::kinds::kind(&node.kind).expect("validated");
         let status = match kind.availability {
             Availability::Ready => String::new(),
-            Availability::Planned(missing) => format!("  (technique not available: {missing})"),
+            Availability::Planned(missing) => format!("  ({missing})"),
         };
         println!("  {:<12} {:<18} {} parameter(s) set{status}", node.id, node.kind, node.params.len());
     }

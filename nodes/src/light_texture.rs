@@ -43,6 +43,9 @@ pub struct Image {
     pub pixels: Vec<[f64; 3]>,
 }
 
+/// Pixels an imported image may have (a light texture is at most 128²; 4096² is ample).
+pub const MAX_IMPORT_PIXELS: u64 = 4096 * 4096;
+
 /// Texel operations a replay may take (about a second): a log beyond it is refused.
 pub const MAX_REPLAY_WORK: f64 = 2e9;
 
@@ -67,6 +70,14 @@ pub fn load_image(path: &std::path::Path) -> Result<Image, String> {
     if matches!(extension.as_str(), "exr" | "hdr") {
         let loaded = crate::envmap_io::load_equirect(path).map_err(|e| e.to_string())?;
         let image = loaded.image;
+        if (image.width * image.height) as u64 > MAX_IMPORT_PIXELS {
+            return Err(format!(
+                "{}: {} × {} pixels is too large to paint with (at most {MAX_IMPORT_PIXELS})",
+                path.display(),
+                image.width,
+                image.height
+            ));
+        }
         let pixels = image.pixels.iter().map(|p| [f64::from(p[0]), f64::from(p[1]), f64::from(p[2])]).collect();
         return Ok(Image { width: image.width, height: image.height, pixels });
     }
@@ -74,7 +85,7 @@ pub fn load_image(path: &std::path::Path) -> Result<Image, String> {
     crate::limits::check_regular_file(path, crate::limits::MAX_FILE_BYTES).map_err(|e| named(&e))?;
     let reader = image::ImageReader::open(path).and_then(|r| r.with_guessed_format()).map_err(|e| named(&e))?;
     let (width, height) = reader.into_dimensions().map_err(|e| named(&e))?;
-    if u64::from(width) * u64::from(height) > crate::limits::MAX_IMAGE_PIXELS {
+    if u64::from(width) * u64::from(height) > MAX_IMPORT_PIXELS {
         return Err(named(&format!("{width} × {height} pixels is too large to paint with")));
     }
     let decoded = image::open(path).map_err(|e| named(&e))?.to_rgb32f();
@@ -112,8 +123,32 @@ pub fn render(
     }
     let mut texture = LightTexture { side, radiance: vec![[1.0; 3]; side * side], mask: vec![1.0; side * side] };
     let ceiling = f64::from(crate::limits::MAX_RADIANCE);
+    // Each imported file is decoded once, and its pixels count against the same budget.
+    let mut images: std::collections::HashMap<String, std::rc::Rc<Image>> = Default::default();
+    let mut cached = |path: &str| -> Result<std::rc::Rc<Image>, String> {
+        if let Some(image) = images.get(path) {
+            return Ok(image.clone());
+        }
+        let image = std::rc::Rc::new(load(path)?);
+        images.insert(path.to_string(), image.clone());
+        Ok(image)
+    };
     for op in ops {
-        apply(&mut texture, op, load)?;
+        let image = match op {
+            PaintOp::Import { path, .. } => {
+                let image = cached(path)?;
+                work += (image.width * image.height) as f64;
+                if work > MAX_REPLAY_WORK {
+                    return Err(format!(
+                        "the paint log's imported images are too large to replay ({work:.1e} texel and pixel \
+                         operations; at most {MAX_REPLAY_WORK:.0e}): import smaller images or fewer of them"
+                    ));
+                }
+                Some(image)
+            }
+            _ => None,
+        };
+        apply(&mut texture, op, image.as_deref())?;
         // Repeated multiplies and adds stay finite; imports are repaired and clamped already.
         texture.radiance.iter_mut().flatten().for_each(|v| *v = v.clamp(0.0, ceiling));
     }
@@ -154,11 +189,8 @@ fn stroke_coverage(texture: &LightTexture, points: &[[f64; 2]], radius: f64, har
     coverage
 }
 
-fn apply(
-    texture: &mut LightTexture,
-    op: &PaintOp,
-    load: &mut dyn FnMut(&str) -> Result<Image, String>,
-) -> Result<(), String> {
+/// Applies one operation; `image` is the decoded file of an import.
+fn apply(texture: &mut LightTexture, op: &PaintOp, image: Option<&Image>) -> Result<(), String> {
     let n = texture.side;
     match op {
         PaintOp::Stroke { points, radius, hardness, colour, intensity, blend } => {
@@ -209,7 +241,7 @@ fn apply(
             }
         }
         PaintOp::Import { path, intensity } => {
-            let image = load(path)?;
+            let image = image.ok_or_else(|| format!("`{path}` was not loaded"))?;
             if image.width == 0 || image.height == 0 || image.pixels.len() != image.width * image.height {
                 return Err(format!("`{path}` holds no image"));
             }

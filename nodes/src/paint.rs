@@ -82,8 +82,8 @@ impl PaintOp {
         };
         let radiance = |colour: &[f64; 3], intensity: f64| -> Result<(), String> {
             colour.iter().chain([&intensity]).try_for_each(|v| finite(*v, "colour or intensity"))?;
-            if colour.iter().any(|c| *c < 0.0) || !(0.0..=1e6).contains(&intensity) {
-                return Err("paint colour must be non-negative and intensity within 0..=1e6".into());
+            if colour.iter().any(|c| !(0.0..=1e6).contains(c)) || !(0.0..=1e6).contains(&intensity) {
+                return Err("paint colour components and intensity must be within 0..=1e6".into());
             }
             Ok(())
         };

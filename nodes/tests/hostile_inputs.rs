@@ -273,7 +273,7 @@ fn painted_lights_mutated_every_way_never_panic() {
     let overflow = format!("[{}]", ["Fill(colour: (1e300, 1.0, 1.0), intensity: 1e6)"; 3].join(", "));
     let multiply = format!(
         "[{}]",
-        vec!["Stroke(points: [(0.5, 0.5)], radius: 2.0, hardness: 1.0, colour: (1e300, 1e300, 1e300), intensity: 1e6, blend: Multiply)"; 20]
+        vec!["Stroke(points: [(0.5, 0.5)], radius: 0.1, hardness: 1.0, colour: (1e6, 1e6, 1e6), intensity: 1e6, blend: Multiply)"; 20]
             .join(", ")
     );
     for text in [heavy, overflow, multiply] {

@@ -246,7 +246,9 @@ impl GpuBlockedProduct {
         let packed: Vec<f32> = vectors.iter().flat_map(|v| v.iter().copied()).collect();
         let limit = gpu.device.limits().max_storage_buffer_binding_size as usize;
         let bytes = packed.len() * 4;
-        if bytes > limit || words.len() * 4 > limit {
+        let visibility_bytes = positions.len() * VISIBILITY_STRIDE * 4;
+        let buffer_limit = gpu.device.limits().max_buffer_size as usize;
+        if [bytes, words.len() * 4, visibility_bytes].iter().any(|b| *b > limit.min(buffer_limit)) {
             return Err(RenderError::Invalid(format!(
                 "the blocker product's {} MiB of transport exceed this GPU's storage binding of {} MiB; lower the \
                  scene's SH order or its vertex count",

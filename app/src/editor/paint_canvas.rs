@@ -150,7 +150,7 @@ impl PaintCanvas {
         evaluation: Option<&Evaluation>,
         errors: &mut Vec<String>,
     ) {
-        let (rect, response) = ui.allocate_exact_size(egui::vec2(CANVAS, CANVAS), egui::Sense::drag());
+        let (rect, response) = ui.allocate_exact_size(egui::vec2(CANVAS, CANVAS), egui::Sense::click_and_drag());
         self.last_rect = Some(rect);
         let painter = ui.painter_at(rect);
         painter.rect_filled(rect, 0.0, Color32::from_gray(20));
@@ -169,7 +169,22 @@ impl PaintCanvas {
         let to_light = |p: egui::Pos2| -> [f64; 2] {
             [f64::from((p.x - rect.left()) / rect.width()), f64::from((p.y - rect.top()) / rect.height())]
         };
-        if let Some(pointer) = response.interact_pointer_pos() {
+        // A stroke starts where the button went down; a stroke left over from a drag that
+        // ended elsewhere (the canvas scrolled away) is dropped.
+        if response.drag_started() {
+            self.stroke.clear();
+            if let Some(origin) = ui.input(|i| i.pointer.press_origin()) {
+                self.stroke.push(to_light(origin));
+            }
+        }
+        if response.clicked()
+            && let Some(at) = response.interact_pointer_pos()
+        {
+            self.stroke = vec![to_light(at)];
+        }
+        if let Some(pointer) = response.interact_pointer_pos()
+            && self.stroke.len() < lightloom_nodes::paint::MAX_DABS
+        {
             let at = to_light(pointer);
             // Dabs a quarter radius apart, filled in along fast moves.
             let spacing = self.radius / 4.0;
@@ -180,7 +195,8 @@ impl PaintCanvas {
                     Some(last) => {
                         let distance = (at[0] - last[0]).hypot(at[1] - last[1]);
                         let steps = if distance < spacing { 0 } else { (distance / spacing).ceil() as usize };
-                        for k in 1..=steps.min(lightloom_nodes::paint::MAX_DABS) {
+                        let room = lightloom_nodes::paint::MAX_DABS - self.stroke.len();
+                        for k in 1..=steps.min(room) {
                             let t = k as f64 / steps as f64;
                             self.stroke.push([last[0] + t * (at[0] - last[0]), last[1] + t * (at[1] - last[1])]);
                         }
@@ -196,7 +212,7 @@ impl PaintCanvas {
         if let Some(hover) = response.hover_pos() {
             painter.circle_stroke(hover, brush, Stroke::new(1.0, Color32::from_gray(200)));
         }
-        if response.drag_stopped() && !self.stroke.is_empty() {
+        if (response.drag_stopped() || response.clicked()) && !self.stroke.is_empty() {
             let points = std::mem::take(&mut self.stroke);
             let (label, op) = match self.tool {
                 Tool::Paint => (

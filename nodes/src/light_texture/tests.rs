@@ -104,7 +104,7 @@ fn bad_logs_are_refused_and_replay_is_deterministic() {
     let refused = |ops: &[PaintOp]| render(ops, 32, &mut no_files).unwrap_err();
     assert!(refused(&[dab([0.5, f64::NAN], 0.1, 1.0, [1.0; 3], Blend::Mix)]).contains("stroke point"));
     assert!(refused(&[dab([0.5, 0.5], 50.0, 1.0, [1.0; 3], Blend::Mix)]).contains("brush radius"));
-    assert!(refused(&[PaintOp::Fill { colour: [-1.0, 0.0, 0.0], intensity: 1.0 }]).contains("non-negative"));
+    assert!(refused(&[PaintOp::Fill { colour: [-1.0, 0.0, 0.0], intensity: 1.0 }]).contains("within 0..=1e6"));
     assert!(refused(&[PaintOp::Warp { offset: [0.0; 2], scale: 0.0, angle: 0.0 }]).contains("warp scale"));
     assert!(refused(&[PaintOp::Import { path: "gone.exr".into(), intensity: 1.0 }]).contains("no file gone.exr"));
     let long = vec![PaintOp::Blur { sigma: 0.0 }; MAX_OPERATIONS + 1];
@@ -113,8 +113,21 @@ fn bad_logs_are_refused_and_replay_is_deterministic() {
     // Each operation within bounds, the whole too slow to replay: refused before any work.
     let heavy = vec![PaintOp::Blur { sigma: 1.0 }; 400];
     assert!(render(&heavy, 128, &mut no_files).unwrap_err().contains("too long to replay"));
+    // Colours beyond range are refused; the largest allowed stay finite where the brush
+    // does not reach (0 × ∞ would be NaN).
+    assert!(refused(&[dab([0.5, 0.5], 0.1, 1.0, [1e303, 1.0, 1.0], Blend::Mix)]).contains("within 0..=1e6"));
+    let bright = PaintOp::Stroke {
+        points: vec![[0.5, 0.5]],
+        radius: 0.1,
+        hardness: 1.0,
+        colour: [1e6; 3],
+        intensity: 1e6,
+        blend: Blend::Multiply,
+    };
+    let t = render(&[PaintOp::Fill { colour: [0.0; 3], intensity: 1.0 }, bright], 32, &mut no_files).unwrap();
+    assert!(t.radiance.iter().flatten().all(|v| v.is_finite()));
     // Values that would overflow stay finite.
-    let huge = PaintOp::Fill { colour: [1e300; 3], intensity: 1e6 };
+    let huge = PaintOp::Fill { colour: [1e6; 3], intensity: 1e6 };
     let t = render(&[huge.clone(), huge], 32, &mut no_files).unwrap();
     assert!(t.radiance.iter().flatten().all(|v| v.is_finite()));
     let ops = [

@@ -68,4 +68,14 @@ fn painting_on_the_canvas_adds_one_undoable_stroke() {
     settle(&mut harness);
     assert!(paint_log(&harness, &added).is_empty(), "undo removes the stroke");
     assert!((texture_mean(&harness, &added) - white).abs() < 1e-9);
+
+    // A click paints one dab where it lands.
+    pointer_click(&mut harness, rect.lerp_inside(egui::vec2(0.25, 0.75)));
+    let ops = paint_log(&harness, &added);
+    assert_eq!(ops.len(), 1, "{ops:?}");
+    let PaintOp::Stroke { points, .. } = &ops[0] else { panic!("a stroke: {ops:?}") };
+    assert!(
+        points.len() == 1 && (points[0][0] - 0.25).abs() < 0.01 && (points[0][1] - 0.75).abs() < 0.01,
+        "{points:?}"
+    );
 }

@@ -1,7 +1,7 @@
 //! Gizmos in the viewport: every point light drawn where it is (filled when it lights the
-//! output, hollow when it is not linked), and every blocker sphere as its outline. A click
-//! selects the node; a drag moves the light or the sphere in the view plane (one undo step per
-//! drag).
+//! output, hollow when it is not linked), every blocker sphere as its outline, and every
+//! painted area light as its rectangle with a centre handle. A click selects the node; a drag
+//! moves the light, the sphere or the area light in the view plane (one undo step per drag).
 
 use super::*;
 
@@ -14,6 +14,12 @@ const RING_HIT: f32 = 5.0;
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(super) enum GizmoTarget {
     Light,
+    /// A painted area light's rectangle (metres), turned by `angle` degrees about the vertical.
+    AreaLight {
+        width: f64,
+        depth: f64,
+        angle: f64,
+    },
     /// Sphere `index` of a blocker set, of `radius` metres; `fitted` when the set is fitted to a
     /// model (its spheres come from the fit, and a drag moves the whole set).
     Sphere {
@@ -44,7 +50,7 @@ pub(super) struct GizmoId {
 impl Gizmo {
     fn gizmo_id(&self) -> GizmoId {
         let sphere = match self.target {
-            GizmoTarget::Light => None,
+            GizmoTarget::Light | GizmoTarget::AreaLight { .. } => None,
             GizmoTarget::Sphere { index, .. } => Some(index),
         };
         GizmoId { node: self.id.clone(), sphere }
@@ -93,6 +99,30 @@ impl EditorApp {
                     out.push(Gizmo {
                         id: n.id.clone(),
                         target: GizmoTarget::Light,
+                        position,
+                        colour: Color32::from_rgb(r, g, b),
+                        linked: linked(&n.id),
+                    });
+                }
+                "AreaLightPainter" => {
+                    let (Some(ParamValue::Vec3(position)), Some(ParamValue::Color(tint))) =
+                        (value("position"), value("tint"))
+                    else {
+                        continue;
+                    };
+                    let float = |name: &str| match value(name) {
+                        Some(ParamValue::Float(v)) => v,
+                        _ => 0.0,
+                    };
+                    let peak = tint.iter().cloned().fold(1e-9, f64::max);
+                    let [r, g, b] = tint.map(|c| (c / peak * 255.0).round().clamp(0.0, 255.0) as u8);
+                    out.push(Gizmo {
+                        id: n.id.clone(),
+                        target: GizmoTarget::AreaLight {
+                            width: float("width"),
+                            depth: float("depth"),
+                            angle: float("angle"),
+                        },
                         position,
                         colour: Color32::from_rgb(r, g, b),
                         linked: linked(&n.id),
@@ -155,7 +185,7 @@ impl EditorApp {
             .filter_map(|g| {
                 let d = screen_pos(&camera, rect, g.position)?.distance(pos);
                 let hit = match g.target {
-                    GizmoTarget::Light => d <= HIT_RADIUS,
+                    GizmoTarget::Light | GizmoTarget::AreaLight { .. } => d <= HIT_RADIUS,
                     // A sphere by its centre or its outline, so the objects it stands in for
                     // stay pickable; never from inside it.
                     GizmoTarget::Sphere { radius, .. } => {
@@ -197,6 +227,27 @@ impl EditorApp {
                         painter.circle_stroke(at, 5.0, egui::Stroke::new(1.5, g.colour));
                     }
                     if g.linked { g.id.clone() } else { format!("{} (not linked: lights nothing)", g.id) }
+                }
+                GizmoTarget::AreaLight { width, depth, angle } => {
+                    let (sin, cos) = angle.to_radians().sin_cos();
+                    let corners: Option<Vec<egui::Pos2>> = [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)]
+                        .iter()
+                        .map(|(u, v)| {
+                            let (x, z) = (u * width / 2.0, v * depth / 2.0);
+                            let p = g.position;
+                            screen_pos(&camera, rect, [p[0] + cos * x + sin * z, p[1], p[2] - sin * x + cos * z])
+                        })
+                        .collect();
+                    let colour = if is_selected { outline } else { g.colour };
+                    if let Some(mut corners) = corners {
+                        corners.push(corners[0]);
+                        painter.add(egui::Shape::line(corners.clone(), egui::Stroke::new(3.0, Color32::BLACK)));
+                        painter.add(egui::Shape::line(corners, egui::Stroke::new(1.5, colour)));
+                    }
+                    let handle = egui::Rect::from_center_size(at, egui::vec2(9.0, 9.0));
+                    painter.rect_filled(handle.expand(1.5), 1.0, Color32::BLACK);
+                    painter.rect_filled(handle, 1.0, colour);
+                    format!("{} · {width:.2} × {depth:.2} m area light (the viewport does not draw its light)", g.id)
                 }
                 GizmoTarget::Sphere { index, radius, fitted } => {
                     let r = g.screen_radius(&camera, rect).max(3.0);

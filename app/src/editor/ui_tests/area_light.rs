@@ -79,3 +79,40 @@ fn painting_on_the_canvas_adds_one_undoable_stroke() {
         "{points:?}"
     );
 }
+
+/// The light is drawn in the viewport as its rectangle with a centre handle; dragging the
+/// handle moves it (one undo step).
+#[test]
+fn the_area_light_shows_in_the_viewport_and_drags() {
+    let mut harness = default_harness();
+    let before: Vec<String> = harness.state().doc.project.nodes.iter().map(|n| n.id.clone()).collect();
+    harness.get_by_label("Add").click();
+    harness.run_steps(2);
+    harness.get_by_label_contains("Area light painter").click();
+    harness.run_steps(4);
+    let added = harness.state().doc.project.nodes.iter().find(|n| !before.contains(&n.id)).unwrap().id.clone();
+    inspector::set_param(&mut harness.state_mut().doc, &added, "position", ParamValue::Vec3([0.5, 1.5, 0.5])).unwrap();
+    harness.state_mut().doc.seal();
+    settle(&mut harness);
+    let gizmo = harness.state().gizmos().into_iter().find(|g| g.id == added).expect("the area light has a gizmo");
+    assert!(matches!(gizmo.target, gizmos::GizmoTarget::AreaLight { width: 1.0, depth: 1.0, .. }));
+    let rect = harness.state().viewport_rect;
+    let camera = harness.state().viewport_camera(rect);
+    let at = gizmos::screen_pos(&camera, rect, gizmo.position).expect("in front of the camera");
+    assert!(harness.state().render_frame(rect).contains(at), "the handle is in view at {at:?}");
+    harness
+        .render()
+        .unwrap()
+        .save(state_dir().join("area_light_gizmo.png"))
+        .expect("screenshot for a person to look at");
+    pointer_drag(&mut harness, egui::PointerButton::Primary, at, at + egui::vec2(80.0, 0.0));
+    let position = match edits::node(&harness.state().doc.project, &added).and_then(|n| n.params.get("position")) {
+        Some(ParamValue::Vec3(p)) => *p,
+        other => panic!("position: {other:?}"),
+    };
+    assert!(
+        (position[0] - 0.5).abs() > 0.1 || (position[2] - 0.5).abs() > 0.1,
+        "the drag moves the light: {position:?}"
+    );
+    assert_eq!(harness.state().doc.undo_label(), Some(format!("Set {added}.position").as_str()));
+}

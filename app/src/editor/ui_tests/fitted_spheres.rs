@@ -37,7 +37,7 @@ fn a_set_fitted_to_a_model_draws_its_spheres_and_drags_as_one() {
     let camera = harness.state().viewport_camera(rect);
     let radius = |g: &gizmos::Gizmo| match g.target {
         gizmos::GizmoTarget::Sphere { radius, .. } => radius,
-        gizmos::GizmoTarget::Light => 0.0,
+        _ => 0.0,
     };
     let biggest = spheres.iter().max_by(|a, b| radius(a).total_cmp(&radius(b))).unwrap();
     let at = gizmos::screen_pos(&camera, rect, biggest.position).expect("in front of the camera");

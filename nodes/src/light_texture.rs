@@ -29,10 +29,43 @@ impl LightTexture {
         self.radiance.iter().zip(&self.mask).map(|(c, m)| c.map(|v| v * m)).collect()
     }
 
+    /// The emission of a `width × depth` light turned by `angle` degrees about its centre,
+    /// resampled (nearest texel) over its axis-aligned bounding rectangle
+    /// ([`turned_extent`]) at the same resolution; zero outside the light.
+    pub fn turned(&self, width: f64, depth: f64, angle: f64) -> Vec<[f64; 3]> {
+        let emission = self.emission();
+        if angle.rem_euclid(360.0) == 0.0 {
+            return emission;
+        }
+        let n = self.side;
+        let extent = turned_extent(width, depth, angle);
+        let (sin, cos) = angle.to_radians().sin_cos();
+        (0..n * n)
+            .map(|k| {
+                // A texel of the bounding rectangle, in metres from the centre, turned back
+                // into the light's own frame.
+                let c = self.centre(k);
+                let (x, z) = ((c[0] - 0.5) * extent[0], (c[1] - 0.5) * extent[1]);
+                let (u, v) = ((cos * x + sin * z) / width + 0.5, (-sin * x + cos * z) / depth + 0.5);
+                if (0.0..1.0).contains(&u) && (0.0..1.0).contains(&v) {
+                    emission[((v * n as f64) as usize).min(n - 1) * n + ((u * n as f64) as usize).min(n - 1)]
+                } else {
+                    [0.0; 3]
+                }
+            })
+            .collect()
+    }
+
     fn centre(&self, k: usize) -> [f64; 2] {
         let s = self.side as f64;
         [((k % self.side) as f64 + 0.5) / s, ((k / self.side) as f64 + 0.5) / s]
     }
+}
+
+/// The axis-aligned bounding rectangle of a `width × depth` light turned by `angle` degrees.
+pub fn turned_extent(width: f64, depth: f64, angle: f64) -> [f64; 2] {
+    let (sin, cos) = angle.to_radians().sin_cos();
+    [width * cos.abs() + depth * sin.abs(), width * sin.abs() + depth * cos.abs()]
 }
 
 /// A decoded image for [`PaintOp::Import`]: `width × height` linear RGB, row-major, top row
@@ -89,10 +122,7 @@ pub fn load_image(path: &std::path::Path) -> Result<Image, String> {
         return Err(named(&format!("{width} × {height} pixels is too large to paint with")));
     }
     let decoded = image::open(path).map_err(|e| named(&e))?.to_rgb32f();
-    let to_linear = |c: f32| {
-        let c = f64::from(c);
-        if c <= 0.04045 { c / 12.92 } else { ((c + 0.055) / 1.055).powf(2.4) }
-    };
+    let to_linear = |c: f32| crate::preview::srgb_to_linear(f64::from(c));
     let pixels = decoded.pixels().map(|p| [to_linear(p[0]), to_linear(p[1]), to_linear(p[2])]).collect();
     Ok(Image { width: width as usize, height: height as usize, pixels })
 }

@@ -170,6 +170,17 @@ pub struct ParamSpec {
 }
 
 impl ParamSpec {
+    /// A number within `min..=max`.
+    pub fn float(
+        name: &'static str,
+        label: &'static str,
+        unit: &'static str,
+        (min, max, default): (f64, f64, f64),
+        doc: &'static str,
+    ) -> Self {
+        Self { name, label, unit, kind: ParamKind::Float { min, max, default }, doc }
+    }
+
     pub fn default_value(&self) -> ParamValue {
         match &self.kind {
             ParamKind::Float { default, .. } => ParamValue::Float(*default),

@@ -12,6 +12,11 @@ fn luminance(c: [f64; 3]) -> f64 {
     0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]
 }
 
+/// The sRGB transfer function inverted: an encoded value in `[0, 1]` to linear.
+pub fn srgb_to_linear(c: f64) -> f64 {
+    if c <= 0.04045 { c / 12.92 } else { ((c + 0.055) / 1.055).powf(2.4) }
+}
+
 /// Reinhard on `scale × linear`, then the sRGB transfer function.
 pub fn display_rgb8(linear: [f64; 3], scale: f64) -> [u8; 4] {
     let encode = |v: f64| {

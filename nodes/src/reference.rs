@@ -12,6 +12,7 @@ use crate::brdf::Brdf;
 use crate::cubemap::{self, CubeMap, FACES};
 use crate::engine::{CancelToken, StageError};
 use crate::mesh::MeshSet;
+use crate::preview::srgb_to_linear;
 use crate::raycast::RayScene;
 use glam::{DMat3, DVec3, Vec3A};
 use rand::{Rng, SeedableRng, rngs::SmallRng};
@@ -414,10 +415,6 @@ pub fn error_ramp(t: f64) -> [f64; 3] {
     let t = t.clamp(0.0, 1.0) * (RAMP.len() - 1) as f64;
     let (i, f) = ((t.floor() as usize).min(RAMP.len() - 2), t - t.floor().min((RAMP.len() - 2) as f64));
     [0, 1, 2].map(|c| RAMP[i][c] * (1.0 - f) + RAMP[i + 1][c] * f)
-}
-
-fn srgb_to_linear(c: f64) -> f64 {
-    if c <= 0.04045 { c / 12.92 } else { ((c + 0.055) / 1.055).powf(2.4) }
 }
 
 #[cfg(test)]

@@ -49,6 +49,23 @@ pub(crate) fn read_texture(
         wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
     );
     queue.submit(Some(encoder.finish()));
+    read_mapped(device, &buffer, |data| {
+        let mut out = Vec::with_capacity((unpadded * height) as usize);
+        for row in 0..height {
+            let start = (row * padded) as usize;
+            out.extend_from_slice(&data[start..start + unpadded as usize]);
+        }
+        out
+    })
+}
+
+/// Maps a `MAP_READ` buffer whose copy has been submitted, waits for it, hands its bytes to
+/// `read`, and unmaps it.
+pub(crate) fn read_mapped<T>(
+    device: &wgpu::Device,
+    buffer: &wgpu::Buffer,
+    read: impl FnOnce(&[u8]) -> T,
+) -> Result<T, RenderError> {
     let slice = buffer.slice(..);
     let (tx, rx) = std::sync::mpsc::channel();
     slice.map_async(wgpu::MapMode::Read, move |r| {
@@ -57,11 +74,7 @@ pub(crate) fn read_texture(
     device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| RenderError::Readback(e.to_string()))?;
     rx.recv().map_err(|e| RenderError::Readback(e.to_string()))?.map_err(|e| RenderError::Readback(e.to_string()))?;
     let data = slice.get_mapped_range().map_err(|e| RenderError::Readback(e.to_string()))?;
-    let mut out = Vec::with_capacity((unpadded * height) as usize);
-    for row in 0..height {
-        let start = (row * padded) as usize;
-        out.extend_from_slice(&data[start..start + unpadded as usize]);
-    }
+    let out = read(&data);
     drop(data);
     buffer.unmap();
     Ok(out)

@@ -151,21 +151,16 @@ impl GpuBlockedProduct {
             label: Some("shexp.wgsl"),
             source: wgpu::ShaderSource::Wgsl(source.into()),
         });
-        let buffer = |binding, ty| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: wgpu::ShaderStages::COMPUTE,
-            ty: wgpu::BindingType::Buffer { ty, has_dynamic_offset: false, min_binding_size: None },
-            count: None,
-        };
-        use wgpu::BufferBindingType as B;
+        use crate::passes::entry;
+        let compute = wgpu::ShaderStages::COMPUTE;
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("shexp"),
             entries: &[
-                buffer(0, B::Uniform),
-                buffer(1, B::Storage { read_only: true }),
-                buffer(2, B::Storage { read_only: true }),
-                buffer(3, B::Storage { read_only: false }),
-                buffer(4, B::Storage { read_only: false }),
+                entry::uniform(0, compute),
+                entry::storage(1, compute),
+                entry::storage(2, compute),
+                entry::storage_read_write(3, compute),
+                entry::storage_read_write(4, compute),
             ],
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -315,24 +310,12 @@ impl GpuBlockedProduct {
         let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("shexp copy") });
         encoder.copy_buffer_to_buffer(&vector_buffer, 0, &readback, 0, bytes as u64);
         gpu.queue.submit([encoder.finish()]);
-        let slice = readback.slice(..);
-        let (sender, receiver) = std::sync::mpsc::channel();
-        slice.map_async(wgpu::MapMode::Read, move |r| {
-            let _ = sender.send(r);
-        });
-        gpu.wait()?;
-        receiver
-            .recv()
-            .map_err(|e| RenderError::Readback(e.to_string()))?
-            .map_err(|e| RenderError::Readback(e.to_string()))?;
-        {
-            let mapped = slice.get_mapped_range().map_err(|e| RenderError::Readback(e.to_string()))?;
-            let values: &[f32] = bytemuck::cast_slice(&mapped);
+        crate::capture::read_mapped(device, &readback, |mapped| {
+            let values: &[f32] = bytemuck::cast_slice(mapped);
             for (v, chunk) in vectors.iter_mut().zip(values.chunks(positions.len() * n_t)) {
                 v.copy_from_slice(chunk);
             }
-        }
-        readback.unmap();
+        })?;
         timings.readback = start.elapsed();
         Ok(timings)
     }

@@ -75,6 +75,13 @@ pub(super) fn screen_pos(camera: &OrbitCamera, rect: egui::Rect, p: [f64; 3]) ->
     Some(rect.min + egui::vec2(x as f32, y as f32))
 }
 
+/// A light's colour scaled so its brightest channel is full.
+fn full_brightness(rgb: [f64; 3]) -> Color32 {
+    let peak = rgb.iter().cloned().fold(1e-9, f64::max);
+    let [r, g, b] = rgb.map(|c| (c / peak * 255.0).round().clamp(0.0, 255.0) as u8);
+    Color32::from_rgb(r, g, b)
+}
+
 /// The blocker port's colour in the graph.
 const SPHERE_COLOUR: Color32 = Color32::from_rgb(230, 170, 120);
 
@@ -94,13 +101,11 @@ impl EditorApp {
                     else {
                         continue;
                     };
-                    let peak = intensity.iter().cloned().fold(1e-9, f64::max);
-                    let [r, g, b] = intensity.map(|c| (c / peak * 255.0).round().clamp(0.0, 255.0) as u8);
                     out.push(Gizmo {
                         id: n.id.clone(),
                         target: GizmoTarget::Light,
                         position,
-                        colour: Color32::from_rgb(r, g, b),
+                        colour: full_brightness(intensity),
                         linked: linked(&n.id),
                     });
                 }
@@ -114,8 +119,6 @@ impl EditorApp {
                         Some(ParamValue::Float(v)) => v,
                         _ => 0.0,
                     };
-                    let peak = tint.iter().cloned().fold(1e-9, f64::max);
-                    let [r, g, b] = tint.map(|c| (c / peak * 255.0).round().clamp(0.0, 255.0) as u8);
                     out.push(Gizmo {
                         id: n.id.clone(),
                         target: GizmoTarget::AreaLight {
@@ -124,7 +127,7 @@ impl EditorApp {
                             angle: float("angle"),
                         },
                         position,
-                        colour: Color32::from_rgb(r, g, b),
+                        colour: full_brightness(tint),
                         linked: linked(&n.id),
                     });
                 }

@@ -8,7 +8,7 @@
 //! aspect; it is a 2D Haar transform of at most 128², well under a millisecond at 64²).
 
 use crate::engine::{StageContext, StageError, StageValue};
-use crate::light_texture::{LightTexture, PaintOp, load_image, render};
+use crate::light_texture::{LightTexture, PaintOp, load_image, render, turned_extent};
 use crate::near_field::{LightPlacement, LightSource, TargetKeep, TopFace, light_source};
 use crate::node_kind::{Availability, NodeKindSpec, ParamKind, ParamSpec, ParamValue, PortSpec, PortType, StageSpec};
 use crate::picture::Preview;
@@ -30,13 +30,6 @@ pub struct AreaLight {
 }
 
 pub fn spec() -> NodeKindSpec {
-    let float = |name, label, unit, min, max, default, doc| ParamSpec {
-        name,
-        label,
-        unit,
-        kind: ParamKind::Float { min, max, default },
-        doc,
-    };
     NodeKindSpec {
         name: "AreaLightPainter",
         label: "Area light painter",
@@ -76,10 +69,16 @@ pub fn spec() -> NodeKindSpec {
                 kind: ParamKind::Vec3 { min: -1e4, max: 1e4, default: [0.0, 2.0, 0.0] },
                 doc: "Centre of the light; its height is the light's plane.",
             },
-            float("width", "Width", "m", 1e-3, 1e3, 1.0, "Extent along x."),
-            float("depth", "Depth", "m", 1e-3, 1e3, 1.0, "Extent along z."),
-            float("angle", "Turn", "°", -360.0, 360.0, 0.0, "Turn about the vertical, in the light's plane."),
-            float("intensity", "Intensity", "", 0.0, 1e6, 10.0, "Radiance scale of the texture."),
+            ParamSpec::float("width", "Width", "m", (1e-3, 1e3, 1.0), "Extent along x."),
+            ParamSpec::float("depth", "Depth", "m", (1e-3, 1e3, 1.0), "Extent along z."),
+            ParamSpec::float(
+                "angle",
+                "Turn",
+                "°",
+                (-360.0, 360.0, 0.0),
+                "Turn about the vertical, in the light's plane.",
+            ),
+            ParamSpec::float("intensity", "Intensity", "", (0.0, 1e6, 10.0), "Radiance scale of the texture."),
             ParamSpec {
                 name: "tint",
                 label: "Tint",
@@ -87,32 +86,26 @@ pub fn spec() -> NodeKindSpec {
                 kind: ParamKind::Color { max: 1e3, default: [1.0, 1.0, 1.0] },
                 doc: "Colour the texture is multiplied by.",
             },
-            float(
+            ParamSpec::float(
                 "source_keep",
                 "Texture detail kept",
                 "%",
-                0.01,
-                100.0,
-                2.0,
+                (0.01, 100.0, 2.0),
                 "Share of the texture's wavelet coefficients kept per channel (the largest).",
             ),
-            float(
+            ParamSpec::float(
                 "target_keep",
                 "Lighting detail kept",
                 "%",
-                1.0,
-                100.0,
-                30.0,
+                (1.0, 100.0, 30.0),
                 "Share of each receiver's top-face coefficients shaded, picked by how a constant light would \
                  reach it; 100% shades them all.",
             ),
-            float(
+            ParamSpec::float(
                 "face_size",
                 "Face size",
                 "",
-                1.0,
-                20.0,
-                4.0,
+                (1.0, 20.0, 4.0),
                 "Width of the receivers' top face in units of height (3–4 covers a light well; larger faces \
                  reach grazing light but resolve shadows more coarsely).",
             ),
@@ -190,39 +183,13 @@ fn texture(ctx: &StageContext) -> Result<StageValue, StageError> {
     Ok(StageValue::new(texture))
 }
 
-/// The bounding rectangle of a `width × depth` light turned by `angle` degrees.
-fn turned_extent(width: f64, depth: f64, angle: f64) -> [f64; 2] {
-    let (sin, cos) = angle.to_radians().sin_cos();
-    [width * cos.abs() + depth * sin.abs(), width * sin.abs() + depth * cos.abs()]
-}
-
 /// The emission resampled into the turned light's bounding rectangle (zero outside the light),
 /// then in 2D Haar with the largest coefficients kept.
 fn source(ctx: &StageContext) -> Result<StageValue, StageError> {
     let texture = ctx.stage::<LightTexture>("texture")?;
     let (width, depth, angle) = (ctx.float("width")?, ctx.float("depth")?, ctx.float("angle")?);
     let n = texture.side;
-    let emission = texture.emission();
-    let turned = if angle.rem_euclid(360.0) == 0.0 {
-        emission
-    } else {
-        let extent = turned_extent(width, depth, angle);
-        let (sin, cos) = angle.to_radians().sin_cos();
-        (0..n * n)
-            .map(|k| {
-                // A texel of the bounding rectangle, in metres from the centre, turned back
-                // into the light's own frame.
-                let x = (((k % n) as f64 + 0.5) / n as f64 - 0.5) * extent[0];
-                let z = (((k / n) as f64 + 0.5) / n as f64 - 0.5) * extent[1];
-                let (u, v) = ((cos * x + sin * z) / width + 0.5, (-sin * x + cos * z) / depth + 0.5);
-                if (0.0..1.0).contains(&u) && (0.0..1.0).contains(&v) {
-                    emission[((v * n as f64) as usize).min(n - 1) * n + ((u * n as f64) as usize).min(n - 1)]
-                } else {
-                    [0.0; 3]
-                }
-            })
-            .collect()
-    };
+    let turned = texture.turned(width, depth, angle);
     let keep = ((ctx.float("source_keep")? / 100.0 * (n * n) as f64).ceil() as usize).clamp(1, n * n);
     let source = light_source(&turned, n, keep);
     ctx.inform(format!(

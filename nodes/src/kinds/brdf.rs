@@ -40,13 +40,6 @@ impl Default for Material {
 pub const MODELS: &[&str] = &["lambert", "phong", "blinn_phong", "ggx", "ggx_anisotropic", "ward"];
 
 pub fn spec() -> NodeKindSpec {
-    let float = |name, label, unit, min, max, default, doc| ParamSpec {
-        name,
-        label,
-        unit,
-        kind: ParamKind::Float { min, max, default },
-        doc,
-    };
     NodeKindSpec {
         name: "BrdfEditor",
         label: "BRDF editor",
@@ -75,16 +68,26 @@ pub fn spec() -> NodeKindSpec {
                 kind: ParamKind::Color { max: 1.0, default: [1.0; 3] },
                 doc: "Tint of the specular lobe (its strength is Fresnel F0).",
             },
-            float("roughness", "Roughness", "", 0.01, 1.0, 0.4, "GGX/Ward roughness (alpha = roughness²)."),
-            float("exponent", "Exponent", "", 1.0, 10000.0, 64.0, "Phong/Blinn-Phong exponent."),
-            float("anisotropy", "Anisotropy", "", -1.0, 1.0, 0.0, "Stretch of the lobe along the tangent."),
-            float(
+            ParamSpec::float(
+                "roughness",
+                "Roughness",
+                "",
+                (0.01, 1.0, 0.4),
+                "GGX/Ward roughness (alpha = roughness²).",
+            ),
+            ParamSpec::float("exponent", "Exponent", "", (1.0, 10000.0, 64.0), "Phong/Blinn-Phong exponent."),
+            ParamSpec::float(
+                "anisotropy",
+                "Anisotropy",
+                "",
+                (-1.0, 1.0, 0.0),
+                "Stretch of the lobe along the tangent.",
+            ),
+            ParamSpec::float(
                 "f0",
                 "Fresnel F0",
                 "",
-                0.0,
-                1.0,
-                0.04,
+                (0.0, 1.0, 0.04),
                 "Specular reflectance at normal incidence: Schlick's Fresnel for GGX, the lobe's weight for Phong, Blinn-Phong and Ward.",
             ),
         ],

@@ -177,8 +177,17 @@ pub(crate) mod entry {
     }
 
     pub fn storage(binding: u32, visibility: ShaderStages) -> wgpu::BindGroupLayoutEntry {
+        storage_buffer(binding, visibility, true)
+    }
+
+    /// A storage buffer a compute pass writes.
+    pub fn storage_read_write(binding: u32, visibility: ShaderStages) -> wgpu::BindGroupLayoutEntry {
+        storage_buffer(binding, visibility, false)
+    }
+
+    fn storage_buffer(binding: u32, visibility: ShaderStages, read_only: bool) -> wgpu::BindGroupLayoutEntry {
         let ty = wgpu::BindingType::Buffer {
-            ty: wgpu::BufferBindingType::Storage { read_only: true },
+            ty: wgpu::BufferBindingType::Storage { read_only },
             has_dynamic_offset: false,
             min_binding_size: None,
         };

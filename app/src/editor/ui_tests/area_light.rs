@@ -22,12 +22,7 @@ fn texture_mean(harness: &Harness<'_, EditorApp>, node: &str) -> f64 {
 #[test]
 fn painting_on_the_canvas_adds_one_undoable_stroke() {
     let mut harness = default_harness();
-    let before: Vec<String> = harness.state().doc.project.nodes.iter().map(|n| n.id.clone()).collect();
-    harness.get_by_label("Add").click();
-    harness.run_steps(2);
-    harness.get_by_label_contains("Area light painter").click();
-    harness.run_steps(4);
-    let added = harness.state().doc.project.nodes.iter().find(|n| !before.contains(&n.id)).unwrap().id.clone();
+    let added = add_from_menu(&mut harness, "Area light painter");
     assert_eq!(harness.state().selection, Selection::Node(added.clone()));
     settle(&mut harness);
     harness.run_steps(2);
@@ -85,12 +80,7 @@ fn painting_on_the_canvas_adds_one_undoable_stroke() {
 #[test]
 fn the_area_light_shows_in_the_viewport_and_drags() {
     let mut harness = default_harness();
-    let before: Vec<String> = harness.state().doc.project.nodes.iter().map(|n| n.id.clone()).collect();
-    harness.get_by_label("Add").click();
-    harness.run_steps(2);
-    harness.get_by_label_contains("Area light painter").click();
-    harness.run_steps(4);
-    let added = harness.state().doc.project.nodes.iter().find(|n| !before.contains(&n.id)).unwrap().id.clone();
+    let added = add_from_menu(&mut harness, "Area light painter");
     inspector::set_param(&mut harness.state_mut().doc, &added, "position", ParamValue::Vec3([0.5, 1.5, 0.5])).unwrap();
     harness.state_mut().doc.seal();
     settle(&mut harness);

@@ -10,12 +10,7 @@ fn a_set_fitted_to_a_model_draws_its_spheres_and_drags_as_one() {
     assert!(model.is_file(), "the shared assets are expected beside the checkout at {}", model.display());
     let mut harness = default_harness();
     pick(&mut harness, "Mode", "Soft shadows and gloss");
-    let before: Vec<String> = harness.state().doc.project.nodes.iter().map(|n| n.id.clone()).collect();
-    harness.get_by_label("Add").click();
-    harness.run_steps(2);
-    harness.get_by_label_contains("Blocker sphere set").click();
-    harness.run_steps(4);
-    let added = harness.state().doc.project.nodes.iter().find(|n| !before.contains(&n.id)).unwrap().id.clone();
+    let added = add_from_menu(&mut harness, "Blocker sphere set");
     for (name, value) in [
         ("fit_model", ParamValue::Path(model.display().to_string())),
         ("fit_count", ParamValue::Int(12)),

@@ -68,6 +68,16 @@ fn settle(harness: &mut Harness<'_, EditorApp>) {
     harness.step();
 }
 
+/// Adds a node from the Add menu by (part of) its entry's label; returns its id.
+fn add_from_menu(harness: &mut Harness<'_, EditorApp>, entry: &str) -> String {
+    let before: Vec<String> = harness.state().doc.project.nodes.iter().map(|n| n.id.clone()).collect();
+    harness.get_by_label("Add").click();
+    harness.run_steps(2);
+    harness.get_by_label_contains(entry).click();
+    harness.run_steps(4);
+    harness.state().doc.project.nodes.iter().find(|n| !before.contains(&n.id)).expect("a node was added").id.clone()
+}
+
 /// Opens the combo box labelled `combo` and clicks its entry labelled `item`, else the one
 /// whose label contains it (the popup's, not a label that was there before it opened). A
 /// pointer click lands where the widget was last drawn, so a layout that moves under it (a
@@ -965,11 +975,7 @@ fn a_sample_opens_from_the_file_menu() {
 fn square_lights_from_the_add_menu_to_the_viewport() {
     let mut harness = default_harness();
     let before: Vec<String> = harness.state().doc.project.nodes.iter().map(|n| n.id.clone()).collect();
-    harness.get_by_label("Add").click();
-    harness.run_steps(2);
-    harness.get_by_label_contains("RSL decomposer").click();
-    harness.run_steps(4);
-    let added = harness.state().doc.project.nodes.iter().find(|n| !before.contains(&n.id)).unwrap().id.clone();
+    let added = add_from_menu(&mut harness, "RSL decomposer");
     assert_eq!(harness.state().selection, Selection::Node(added.clone()));
     // It lands clear of the other nodes, measured as drawn (with its previews it is wide).
     let rect = harness.state().graph.node_rect(&added).expect("drawn");
@@ -1076,12 +1082,7 @@ fn blocker_spheres_from_the_add_menu_shadow_and_drag() {
     pick(&mut harness, "Mode", "Soft shadows and gloss");
     settle(&mut harness);
     let unblocked = viewport_mean(&mut harness);
-    let before: Vec<String> = harness.state().doc.project.nodes.iter().map(|n| n.id.clone()).collect();
-    harness.get_by_label("Add").click();
-    harness.run_steps(2);
-    harness.get_by_label_contains("Blocker sphere set").click();
-    harness.run_steps(4);
-    let added = harness.state().doc.project.nodes.iter().find(|n| !before.contains(&n.id)).unwrap().id.clone();
+    let added = add_from_menu(&mut harness, "Blocker sphere set");
     // A large sphere over the floor in front of the objects.
     inspector::set_param(
         &mut harness.state_mut().doc,

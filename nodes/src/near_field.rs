@@ -22,6 +22,9 @@ use glam::DVec3;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
+/// Cells per side of the receivers' top face (the thesis's 32 × 32).
+pub const FACE_ORDER: usize = 32;
+
 /// The expanded top face: `order × order` cells over `v ∈ [−size/2, size/2]²`.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct TopFace {

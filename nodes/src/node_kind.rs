@@ -314,6 +314,7 @@ impl PortType {
                 "geometry",
                 "receivers",
                 "adjacency",
+                "ray_scene",
                 "texel_receivers",
                 "transport_sh",
                 "transport_local",
@@ -323,7 +324,7 @@ impl PortType {
             ],
             PortType::Medium => &["medium", "f_tables", "g_tables"],
             PortType::Lights => &["lights"],
-            PortType::AreaLight => &["texture", "source", "placement", "light"],
+            PortType::AreaLight => &["texture", "source", "placement", "face", "light"],
             PortType::Blockers => &["spheres"],
             PortType::SquareLights => &["square_lights", "turned_lights", "world_lights"],
         }

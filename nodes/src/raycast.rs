@@ -22,6 +22,8 @@ pub struct RayScene {
     original: Vec<u32>,
     /// Offset used to leave a surface: scales with the scene's size.
     epsilon: f32,
+    /// Hash of the triangles (what memoised ray results depend on).
+    fingerprint: u128,
 }
 
 /// Identity: two scenes are equal only if they are the same object.
@@ -68,8 +70,15 @@ impl RayScene {
         let extent =
             if triangles.is_empty() { 1.0 } else { (hi - lo).max_element().max(lo.abs().max(hi.abs()).max_element()) };
         let epsilon = (extent * 2e-5).max(1e-6);
+        let mut hasher = xxhash_rust::xxh3::Xxh3::new();
+        for t in &triangles {
+            for v in [t.v0, t.v1, t.v2] {
+                hasher.update(bytemuck::cast_slice(&v.to_array()));
+            }
+        }
+        let fingerprint = hasher.digest128();
         if triangles.is_empty() {
-            return Self { bvh: CwBvh::default(), triangles: Vec::new(), original, epsilon };
+            return Self { bvh: CwBvh::default(), triangles: Vec::new(), original, epsilon, fingerprint };
         }
         let bvh = obvhs::cwbvh::builder::build_cwbvh_from_tris(
             &triangles,
@@ -79,11 +88,16 @@ impl RayScene {
         let ordered: Vec<RtTriangle> =
             bvh.primitive_indices.iter().map(|&i| RtTriangle::from(&triangles[i as usize])).collect();
         let original = bvh.primitive_indices.iter().map(|&i| original[i as usize]).collect();
-        Self { bvh, triangles: ordered, original, epsilon }
+        Self { bvh, triangles: ordered, original, epsilon, fingerprint }
     }
 
     pub fn triangle_count(&self) -> usize {
         self.triangles.len()
+    }
+
+    /// A hash of the triangles, equal for scenes built from the same geometry.
+    pub fn fingerprint(&self) -> u128 {
+        self.fingerprint
     }
 
     /// Scene-relative offset used by [`RayScene::leave_surface`].

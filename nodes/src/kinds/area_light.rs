@@ -9,11 +9,12 @@
 
 use crate::engine::{StageContext, StageError, StageValue};
 use crate::light_texture::{LightTexture, PaintOp, load_image, render, turned_extent};
-use crate::near_field::{LightPlacement, LightSource, TargetKeep, TopFace, light_source};
+use crate::near_field::{FACE_ORDER, LightPlacement, LightSource, TargetKeep, TopFace, light_source};
 use crate::node_kind::{Availability, NodeKindSpec, ParamKind, ParamSpec, ParamValue, PortSpec, PortType, StageSpec};
 use crate::picture::Preview;
 use serde::{Deserialize, Serialize};
 
+crate::stage_type!(TopFace, "top face", |_v| 16);
 crate::stage_type!(LightPlacement, "area light placement", |_v| 48);
 crate::stage_type!(AreaLight, "area light", |v| v.source.coefficients.len() * 16 + 96);
 
@@ -139,10 +140,19 @@ pub fn spec() -> NodeKindSpec {
                 compute: placement,
             },
             StageSpec {
-                name: "light",
+                name: "face",
                 version: 1,
-                params: &["intensity", "tint", "target_keep", "face_size"],
-                stages: &["source", "placement"],
+                params: &["face_size"],
+                stages: &[],
+                inputs: &[],
+                persist: None,
+                compute: face,
+            },
+            StageSpec {
+                name: "light",
+                version: 2,
+                params: &["intensity", "tint", "target_keep"],
+                stages: &["source", "placement", "face"],
                 inputs: &[],
                 persist: None,
                 compute: light,
@@ -154,7 +164,7 @@ pub fn spec() -> NodeKindSpec {
             size: [96.0, 96.0],
             caption: "the light's emission, seen from below (auto-exposed)",
         }],
-        availability: Availability::Planned("the viewport does not draw area lights"),
+        availability: Availability::Ready,
         relevant: crate::node_kind::always_relevant,
     }
 }
@@ -207,6 +217,11 @@ fn placement(ctx: &StageContext) -> Result<StageValue, StageError> {
     Ok(StageValue::new(LightPlacement::centred(height, [x, z], extent)))
 }
 
+/// The receivers' top face: lights with equal faces share the Output's transport.
+fn face(ctx: &StageContext) -> Result<StageValue, StageError> {
+    Ok(StageValue::new(TopFace { order: FACE_ORDER, size: ctx.float("face_size")? }))
+}
+
 fn light(ctx: &StageContext) -> Result<StageValue, StageError> {
     let intensity = ctx.float("intensity")?;
     let tint = ctx.vec3("tint")?;
@@ -216,7 +231,7 @@ fn light(ctx: &StageContext) -> Result<StageValue, StageError> {
         source: ctx.stage::<LightSource>("source")?.clone(),
         placement: *ctx.stage::<LightPlacement>("placement")?,
         scale: tint.map(|t| t * intensity),
-        face: TopFace { order: 32, size: ctx.float("face_size")? },
+        face: *ctx.stage::<TopFace>("face")?,
         keep,
     }))
 }

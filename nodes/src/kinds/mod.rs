@@ -9,6 +9,7 @@ pub mod fog;
 pub mod lights;
 pub mod output;
 mod output_adaptive;
+pub mod output_area;
 pub use output_adaptive::AdaptiveError;
 pub mod rsl;
 pub mod scene;

@@ -123,6 +123,7 @@ pub fn spec() -> NodeKindSpec {
             input("lights", PortType::Lights, false),
             input("blockers", PortType::Blockers, false),
             input("square_lights", PortType::SquareLights, false),
+            super::output_area::input(),
         ],
         outputs: vec![],
         params: vec![
@@ -262,6 +263,7 @@ pub fn spec() -> NodeKindSpec {
         ]
         .into_iter()
         .chain(super::output_adaptive::stages())
+        .chain(super::output_area::stages())
         .collect(),
         previews: Vec::new(),
         availability: Availability::Ready,
@@ -607,7 +609,7 @@ pub fn frame_request(graph: &Graph, output: &str, picking: bool) -> Request {
             first.push(StageRef::new(&blockers.id, "spheres"));
         }
     }
-    if mode == Mode::ShAdaptive {
+    let request = if mode == Mode::ShAdaptive {
         // The PSNR against the full product comes after the frame.
         Request::new(format!("output `{output}`: unshadowed preview"), first)
             .then(format!("output `{output}`: mode {mode}"), mode_stages(graph, output, mode))
@@ -617,6 +619,12 @@ pub fn frame_request(graph: &Graph, output: &str, picking: bool) -> Request {
             .then(format!("output `{output}`: mode {mode}"), mode_stages(graph, output, mode))
     } else {
         Request::new(format!("output `{output}`: mode {mode}"), first)
+    };
+    // Area lights trace their own transport: frames show without them until it is ready.
+    if graph.upstream_all(output, "area_lights").is_empty() {
+        request
+    } else {
+        request.then(format!("output `{output}`: area lights"), vec![StageRef::new(output, "area_irradiance")])
     }
 }
 

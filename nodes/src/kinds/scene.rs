@@ -400,7 +400,7 @@ fn transport_inputs<'a>(ctx: &'a StageContext, receivers: &str) -> Result<(&'a R
 
 /// Refuses a precompute of more than [`crate::limits::MAX_TOTAL_RAYS`] rays, saying which
 /// parameters to lower.
-fn check_ray_budget(receivers: usize, per_receiver: usize, lower: &str) -> Result<(), StageError> {
+pub(super) fn check_ray_budget(receivers: usize, per_receiver: usize, lower: &str) -> Result<(), StageError> {
     let total = receivers as u64 * per_receiver as u64;
     if total > crate::limits::MAX_TOTAL_RAYS {
         return Err(StageError::Failed(format!(

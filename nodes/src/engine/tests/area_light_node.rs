@@ -4,6 +4,7 @@
 use super::*;
 use crate::kinds::area_light::AreaLight;
 use crate::light_texture::{Blend, LightTexture, PaintOp};
+use glam::DVec3;
 
 fn area_stages(eval: &Evaluation) -> BTreeSet<String> {
     ran(&eval.report).into_iter().filter(|s| s.starts_with("area.")).collect()
@@ -17,7 +18,7 @@ fn edits_rerun_only_their_stages() {
     let mut graph = default_graph_with("area", "AreaLightPainter", &[]);
     let cancel = CancelToken::default();
     let first = engine.evaluate(&graph, &cancel, None);
-    assert_eq!(area_stages(&first), set(&["area.texture", "area.source", "area.placement", "area.light"]));
+    assert_eq!(area_stages(&first), set(&["area.texture", "area.source", "area.placement", "area.face", "area.light"]));
     let light = value_of::<AreaLight>(&first, "area", "light");
     assert!((light.source.retained_energy - 1.0).abs() < 1e-12);
     assert_eq!(light.source.coefficients.len(), 1, "a constant light is its DC coefficient");
@@ -79,4 +80,139 @@ fn an_imported_image_paints_the_light() {
     let failed = eval.report.failed();
     let texture = failed.iter().find(|s| s.node == "area" && s.stage == "texture").expect("the texture fails");
     assert!(format!("{:?}", texture).contains("no-such-image.exr"), "{texture:?}");
+}
+
+/// A 4 m floor with a sphere of radius 0.5 resting at the origin, under white 1 × 1 lights
+/// (`area`, then `area1`, …) at height 2 linked to the Output, drawn in `sh_irradiance` (the
+/// cheapest mode).
+fn lit_floor_graph(lights: usize) -> Graph {
+    let mut project = default_project();
+    for l in 0..lights {
+        let id = if l == 0 { "area".to_string() } else { format!("area{l}") };
+        project.nodes.push(ProjectNode {
+            id: id.clone(),
+            kind: "AreaLightPainter".into(),
+            label: String::new(),
+            position: [0.0; 2],
+            params: BTreeMap::new(),
+        });
+        project
+            .links
+            .push(ProjectLink { from: (id, "area_light".into()), to: ("output".into(), "area_lights".into()) });
+    }
+    let mut graph = project.graph(Path::new("p.ron")).unwrap();
+    let objects = vec![
+        SceneObject::new("floor", Shape::Plane { size: 4.0 }),
+        SceneObject::new("ball", Shape::Sphere { radius: 0.5 }).at([0.0, 0.5, 0.0]),
+    ];
+    graph.set_param("scene", "objects", ParamValue::Objects(objects)).unwrap();
+    graph.set_param("scene", "tessellation", ParamValue::Int(96)).unwrap();
+    graph.set_param("output", "mode", ParamValue::Choice("sh_irradiance".into())).unwrap();
+    graph
+}
+
+/// Irradiance at floor point `x` from a constant light of radiance `radiance` on the square
+/// `[c − w/2, c + w/2]²` at height `h`, with the sphere (centre `s`, radius `r`) blocking, by
+/// a midpoint rule over the light's surface: `E = ∫ L cos θ cos θ' V / d² dA`.
+fn direct_irradiance(x: DVec3, (h, c, w): (f64, [f64; 2], f64), radiance: f64, (s, r): (DVec3, f64)) -> f64 {
+    let n = 160;
+    let da = (w / n as f64).powi(2);
+    let mut e = 0.0;
+    for i in 0..n * n {
+        let p = DVec3::new(
+            c[0] - w / 2.0 + (i % n) as f64 * w / n as f64 + w / (2 * n) as f64,
+            h,
+            c[1] - w / 2.0 + (i / n) as f64 * w / n as f64 + w / (2 * n) as f64,
+        );
+        let d = p - x;
+        let dist2 = d.length_squared();
+        let dir = d / dist2.sqrt();
+        // The segment x → p misses the sphere when its closest approach is beyond r.
+        let t = (s - x).dot(dir).clamp(0.0, dist2.sqrt());
+        if (x + dir * t - s).length() < r {
+            continue;
+        }
+        e += radiance * dir.y * dir.y / dist2 * da;
+    }
+    e
+}
+
+/// The viewport's area-light path through the engine: floor vertices against direct
+/// integration over the light (with the sphere's shadow), and the notes' §6 dirty rules: a
+/// move or a stroke casts no ray and reruns only the propagation; intensity rescales exactly
+/// from the memoised sums; a second light with the same face shares the traced transport.
+#[test]
+fn area_lights_light_the_floor_like_direct_integration() {
+    use crate::kinds::output_area::{AreaIrradiance, AreaTransport};
+    let engine = Engine::in_memory();
+    let mut graph = lit_floor_graph(1);
+    let first = evaluate_frame(&engine, &graph);
+    assert!(ran(&first.report).contains("output.area_transport"));
+    let receivers = value_of::<crate::transport::Receivers>(&first, "scene", "receivers");
+    let e = value_of::<AreaIrradiance>(&first, "output", "area_irradiance").irradiance;
+    assert_eq!(e.len(), receivers.len());
+    // Floor vertices (the first mesh) within 1.5 m of the centre, against direct integration.
+    let floor = receivers.mesh_offsets[1];
+    let ball = (DVec3::new(0.0, 0.5, 0.0), 0.5);
+    let (mut err2, mut ref2, mut checked) = (0.0, 0.0, 0);
+    for i in 0..floor {
+        let (x, _) = receivers.point(i);
+        // The vertex at the ball's contact point lies inside the faceted ball: skipped.
+        if x.x.abs() > 1.5 || x.z.abs() > 1.5 || x.length() < 0.05 {
+            continue;
+        }
+        let reference = direct_irradiance(x, (2.0, [0.0, 0.0], 1.0), 10.0, ball);
+        let ours = f64::from(e[i][0]);
+        assert!((e[i][0] - e[i][2]).abs() <= 1e-6 * e[i][0].abs().max(1.0), "a white light is grey");
+        err2 += (ours - reference).powi(2);
+        ref2 += reference * reference;
+        checked += 1;
+    }
+    let relative = (err2 / ref2).sqrt();
+    assert!(checked > 50, "{checked} floor vertices checked");
+    // One ray per top-face cell: 2.9% here (4 rays per cell: 1.2%).
+    assert!(relative < 0.04, "relative L2 error {relative:.4} against direct integration");
+    // A vertex under the ball is in full shadow; one at 1 m from it is lit.
+    let nearest = |p: DVec3| {
+        (0..floor)
+            .min_by(|&a, &b| (receivers.point(a).0 - p).length().total_cmp(&(receivers.point(b).0 - p).length()))
+            .unwrap()
+    };
+    assert!(e[nearest(DVec3::new(0.15, 0.0, 0.0))][0] < 0.02 * e[nearest(DVec3::new(1.0, 0.0, 0.0))][0]);
+    // The ball's underside (normal down) gets nothing from a light above.
+    let underside = (floor..receivers.len()).find(|&i| receivers.point(i).1.y < -0.9).unwrap();
+    assert_eq!(e[underside], [0.0; 3]);
+
+    // A move reruns only the placement and the propagation.
+    graph.set_param("area", "position", ParamValue::Vec3([0.5, 2.0, 0.0])).unwrap();
+    let moved = evaluate_frame(&engine, &graph);
+    let reran: BTreeSet<String> = ran(&moved.report);
+    assert_eq!(reran, set(&["area.placement", "area.light", "output.area_irradiance"]));
+
+    // Doubling the intensity doubles the light, reusing the memoised sum.
+    let before = value_of::<AreaIrradiance>(&moved, "output", "area_irradiance").irradiance;
+    graph.set_param("area", "intensity", ParamValue::Float(20.0)).unwrap();
+    let brighter = evaluate_frame(&engine, &graph);
+    let report = brighter.report.stages.iter().find(|s| s.stage == "area_irradiance").unwrap();
+    assert!(report.reasons.iter().any(|r| r.contains("0 part(s) computed, 1 reused")), "{:?}", report.reasons);
+    let after = value_of::<AreaIrradiance>(&brighter, "output", "area_irradiance").irradiance;
+    assert!(before.iter().zip(&after).all(|(b, a)| (2.0 * b[1] - a[1]).abs() <= 1e-6 * a[1].abs().max(1e-3)));
+
+    // A second light with the same face: the transport stage reruns (its inputs changed) but
+    // traces nothing new.
+    let mut two = lit_floor_graph(2);
+    for id in ["area", "area1"] {
+        two.set_param(id, "position", ParamValue::Vec3([0.5, 2.0, 0.0])).unwrap();
+        two.set_param(id, "intensity", ParamValue::Float(20.0)).unwrap();
+    }
+    two.set_param("area1", "position", ParamValue::Vec3([-1.0, 1.5, 0.5])).unwrap();
+    let two = evaluate_frame(&engine, &two);
+    let report = two.report.stages.iter().find(|s| s.stage == "area_transport").unwrap();
+    assert!(report.reasons.iter().any(|r| r.contains("0 part(s) computed, 1 reused")), "{:?}", report.reasons);
+    assert_eq!(value_of::<AreaTransport>(&two, "output", "area_transport").faces.len(), 1);
+    let both = value_of::<AreaIrradiance>(&two, "output", "area_irradiance").irradiance;
+    let peak = after.iter().map(|a| a[0]).fold(0.0, f32::max);
+    let lowest = both.iter().zip(&after).map(|(b, a)| b[0] - a[0]).fold(f32::MAX, f32::min);
+    assert!(lowest > -0.01 * peak, "a second light darkens a vertex by {lowest} (peak {peak})");
+    assert!(both.iter().zip(&after).any(|(b, a)| b[0] > 1.5 * a[0] + 1.0));
 }

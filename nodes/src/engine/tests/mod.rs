@@ -86,6 +86,8 @@ const SCENE_ALL: &[&str] = &[
     "scene.rsl_occluders",
     "output.rsl_visibility",
     "output.blocked_transport",
+    "output.area_transport",
+    "output.area_irradiance",
     "output.adaptive_incident",
     "output.adaptive_error",
 ];
@@ -327,7 +329,7 @@ fn each_parameter_recomputes_exactly_its_stages() {
     graph.set_param("scene", "tessellation", Int(12)).unwrap();
     let first = engine.evaluate(&graph, &CancelToken::default(), None);
     assert!(first.report.failed().is_empty(), "{:?}", first.report.failed());
-    assert_eq!(first.report.computed().len(), 33);
+    assert_eq!(first.report.computed().len(), 35);
     let again = engine.evaluate(&graph, &CancelToken::default(), None);
     assert!(ran(&again.report).is_empty(), "an unchanged graph recomputed {:?}", ran(&again.report));
     for (node, param, value, expected) in table {
@@ -1242,7 +1244,7 @@ fn each_mode_and_view_evaluates_exactly_the_stages_it_reads() {
         for s in eval.report.stages.iter().filter(|s| s.status == StageStatus::NotNeeded) {
             assert!(s.reasons[0].contains(&format!("mode {mode}")), "{}.{}: {:?}", s.node, s.stage, s.reasons);
         }
-        assert_eq!(eval.report.stages.len(), 33, "every stage is reported");
+        assert_eq!(eval.report.stages.len(), 35, "every stage is reported");
     }
 }
 

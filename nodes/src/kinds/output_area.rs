@@ -1,0 +1,181 @@
+//! The Output's area lights: near-field relighting of the scene by the painted lights linked to
+//! it ([`crate::near_field`], Sun 2008 §4.5), drawn in every relighting mode. Kept apart from
+//! the modes' stages.
+//!
+//! - `area_transport`: per distinct top face among the lights, every vertex's top-face
+//!   transport in 2D Haar (one ray per cell). Lights with equal faces share it; it is memoised
+//!   per face on the geometry, so moving, painting or adding a light with a face already
+//!   traced casts no ray.
+//! - `area_irradiance`: `E = Σ_ℓ scale_ℓ Σ_k L_k^{(ℓ)} T_k` per vertex (Eq. 4.36). Each light's
+//!   unscaled sum is memoised on the light's coefficients, placement and face, so an edit of one
+//!   light reruns only its propagation, and intensity or tint only rescales.
+
+use crate::engine::{Key, StageContext, StageError, StageValue};
+use crate::near_field::{FaceTransport, TopFace, face_transport, irradiance};
+use crate::node_kind::{PortSpec, PortType, StageSpec};
+use crate::raycast::RayScene;
+use crate::transport::Receivers;
+use glam::DVec3;
+use serde::{Deserialize, Serialize};
+use std::sync::Arc;
+
+crate::stage_type!(Arc<FaceTransport>, "top-face transport", encoding = 1, |v| v.coefficients.len() * 4 + 32);
+crate::stage_type!(AreaTransport, "area-light transport", encoding = 1, |v| v
+    .faces
+    .iter()
+    .map(|f| f.transport.coefficients.len() * 4 + 48)
+    .sum());
+crate::stage_type!(
+    AreaIrradiance,
+    "area-light irradiance",
+    |v| v.irradiance.len() * 12 + 16,
+    numbers = |v| v.irradiance.iter().flatten().map(|&c| f64::from(c))
+);
+crate::stage_type!(UnscaledIrradiance, "one area light's irradiance", encoding = 1, |v| v.0.len() * 12);
+
+/// Receivers per cancellation check and progress step of the transport.
+const TRANSPORT_CHUNK: usize = 512;
+
+/// The transports of the linked lights' distinct top faces.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct AreaTransport {
+    pub faces: Vec<SharedTransport>,
+}
+
+/// One face's transport and the key it is memoised under (what the lights' sums depend on).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SharedTransport {
+    pub key: Key,
+    pub transport: Arc<FaceTransport>,
+}
+
+/// Irradiance from every linked area light, per vertex (RGB, W/m² per unit radiance scale).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct AreaIrradiance {
+    pub irradiance: Vec<[f32; 3]>,
+}
+
+/// One light's irradiance before its intensity and tint.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct UnscaledIrradiance(pub Vec<[f32; 3]>);
+
+/// The Output's input for area lights (any number).
+pub fn input() -> PortSpec {
+    PortSpec { name: "area_lights", ty: PortType::AreaLight, required: false, many: true }
+}
+
+pub fn stages() -> Vec<StageSpec> {
+    vec![
+        StageSpec {
+            name: "area_transport",
+            version: 1,
+            params: &[],
+            stages: &[],
+            inputs: &[("scene", "receivers"), ("scene", "ray_scene"), ("area_lights", "face")],
+            persist: Some(crate::engine::Codec::of::<AreaTransport>()),
+            compute: area_transport,
+        },
+        StageSpec {
+            name: "area_irradiance",
+            version: 1,
+            params: &[],
+            stages: &["area_transport"],
+            inputs: &[("scene", "receivers"), ("area_lights", "light")],
+            persist: None,
+            compute: area_irradiance,
+        },
+    ]
+}
+
+fn positions(receivers: &Receivers) -> Vec<DVec3> {
+    receivers.positions.iter().map(|p| DVec3::from(p.map(f64::from))).collect()
+}
+
+fn face_bytes(face: &TopFace) -> [u8; 16] {
+    let mut bytes = [0; 16];
+    bytes[..8].copy_from_slice(&(face.order as u64).to_le_bytes());
+    bytes[8..].copy_from_slice(&face.size.to_bits().to_le_bytes());
+    bytes
+}
+
+fn area_transport(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let receivers = ctx.required_input::<Receivers>("scene", "receivers")?;
+    let scene = ctx.required_input::<RayScene>("scene", "ray_scene")?;
+    let mut faces: Vec<TopFace> = Vec::new();
+    for (_, face) in ctx.inputs_all::<TopFace>("area_lights", "face")? {
+        if !faces.contains(face) {
+            faces.push(*face);
+        }
+    }
+    let cells: usize = faces.iter().map(|f| f.order * f.order).sum();
+    super::scene::check_ray_budget(receivers.len(), cells, "the scene's tessellation")?;
+    // What every face's transport depends on besides the face: the receivers and the triangles.
+    let mut geometry = xxhash_rust::xxh3::Xxh3::new();
+    geometry.update(b"area transport v1");
+    geometry.update(bytemuck::cast_slice(&receivers.positions));
+    geometry.update(bytemuck::cast_slice(&receivers.normals));
+    geometry.update(&scene.fingerprint().to_le_bytes());
+    let geometry = geometry.digest128().to_le_bytes();
+    let (points, normals): (Vec<DVec3>, Vec<DVec3>) = (0..receivers.len()).map(|i| receivers.point(i)).unzip();
+    // Rays leave each surface just off it; the transport itself reads only the normals.
+    let origins: Vec<DVec3> =
+        points.iter().zip(&normals).map(|(&p, &n)| scene.leave_surface(p, n).as_dvec3()).collect();
+    let mut out = AreaTransport::default();
+    for (f, face) in faces.iter().enumerate() {
+        let key = xxhash_rust::xxh3::xxh3_128(&[geometry.as_slice(), &face_bytes(face)].concat());
+        let transport = ctx.memo(key, || {
+            let mut coefficients = Vec::with_capacity(receivers.len() * face.order * face.order);
+            for start in (0..receivers.len()).step_by(TRANSPORT_CHUNK) {
+                ctx.check_cancel()?;
+                let end = (start + TRANSPORT_CHUNK).min(receivers.len());
+                let part = face_transport(*face, &origins[start..end], &normals[start..end], 1, |origin, direction| {
+                    !scene.occluded(origin.as_vec3a(), direction.as_vec3a(), f32::INFINITY)
+                });
+                coefficients.extend(part.coefficients);
+                ctx.progress((f as f64 + end as f64 / receivers.len().max(1) as f64) / faces.len() as f64);
+            }
+            Ok(Arc::new(FaceTransport { face: *face, coefficients }))
+        })?;
+        out.faces.push(SharedTransport { key, transport: (*transport).clone() });
+    }
+    ctx.inform(format!(
+        "{} top face(s) of {} cells traced for {} vertices ({} KB per vertex)",
+        faces.len(),
+        faces.first().map_or(0, |f| f.order * f.order),
+        receivers.len(),
+        cells * 4 / 1024
+    ));
+    Ok(StageValue::new(out))
+}
+
+fn area_irradiance(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let receivers = ctx.required_input::<Receivers>("scene", "receivers")?;
+    let transports = ctx.stage::<AreaTransport>("area_transport")?;
+    let points = positions(receivers);
+    let mut total = vec![[0.0f64; 3]; receivers.len()];
+    for (_, light) in ctx.inputs_all::<crate::kinds::area_light::AreaLight>("area_lights", "light")? {
+        let shared = transports
+            .faces
+            .iter()
+            .find(|f| f.transport.face == light.face)
+            .ok_or_else(|| StageError::Internal("no transport for a light's top face".into()))?;
+        let described = (&light.source, &light.placement, &light.keep);
+        let mut key = xxhash_rust::xxh3::Xxh3::new();
+        key.update(b"area irradiance v1");
+        key.update(&shared.key.to_le_bytes());
+        key.update(&postcard::to_allocvec(&described).map_err(|e| StageError::Internal(e.to_string()))?);
+        let unscaled = ctx.memo(key.digest128(), || {
+            ctx.check_cancel()?;
+            let e = irradiance(&light.source, &light.placement, &shared.transport, &points, light.keep);
+            Ok(UnscaledIrradiance(e.into_iter().map(|c| c.map(|v| v as f32)).collect()))
+        })?;
+        for (sum, e) in total.iter_mut().zip(&unscaled.0) {
+            for c in 0..3 {
+                sum[c] += light.scale[c] * f64::from(e[c]);
+            }
+        }
+    }
+    // Truncated products ring slightly below zero near a light's footprint; irradiance cannot.
+    let irradiance = total.into_iter().map(|c| c.map(|v| v.max(0.0) as f32)).collect();
+    Ok(StageValue::new(AreaIrradiance { irradiance }))
+}

@@ -289,6 +289,7 @@ fn rsl_mode_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
         background: Background { radiance: None, visible: false },
         surfaces: Surfaces::Rsl(surfaces),
         medium: MediumFrame::new(Vec::new(), &materials, None),
+        area_lights: None,
         blockers: None,
     };
     let view = bench_view();
@@ -503,6 +504,7 @@ fn synthetic_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
         background: Background { radiance: Some(keyed(4, StageValue::new(environment.clone()))), visible: true },
         surfaces,
         medium: MediumFrame::new(Vec::new(), &materials, None),
+        area_lights: None,
         blockers: None,
     };
     let mut renderer = ViewportRenderer::new(gpu);

@@ -52,6 +52,8 @@ pub struct FrameInputs {
     pub background: Background,
     pub surfaces: Surfaces,
     pub medium: MediumFrame,
+    /// Painted area lights, added over any mode's surfaces once their transport is ready.
+    pub area_lights: Option<AreaLightFrame>,
     /// The blocker spheres linked to the Output, when evaluated (the reference traces them).
     pub blockers: Option<crate::kinds::blockers::BlockerSet>,
 }
@@ -370,6 +372,34 @@ impl RslSurfaces {
     }
 }
 
+/// Painted area lights (Sun 2008 §4.5): diffuse light per vertex, drawn over the mode's
+/// surfaces as `albedo · colour / π · E`.
+#[derive(Clone, Debug)]
+pub struct AreaLightFrame {
+    /// [`crate::kinds::output_area::AreaIrradiance`]: `E` per vertex from every linked light.
+    pub irradiance: Keyed,
+    /// Per material: diffuse albedo.
+    pub albedo: Vec<[f64; 3]>,
+    /// The lights as the reference samples them.
+    pub emitters: Vec<crate::reference::AreaEmitter>,
+}
+
+impl AreaLightFrame {
+    /// Checks that the irradiance covers the scene's `vertices`.
+    pub fn new(
+        irradiance: Keyed,
+        emitters: Vec<crate::reference::AreaEmitter>,
+        materials: &[FrameMaterial],
+        vertices: usize,
+    ) -> Result<Self, String> {
+        let e = irradiance.value.expect::<crate::kinds::output_area::AreaIrradiance>().map_err(|e| e.to_string())?;
+        if e.irradiance.len() != vertices {
+            return Err(format!("the area lights cover {} receivers for {vertices} vertices", e.irradiance.len()));
+        }
+        Ok(Self { irradiance, albedo: materials.iter().map(|m| m.material.albedo).collect(), emitters })
+    }
+}
+
 /// Point lights and the participating medium (Sun 2008 ch. 3), shaded with every surface.
 #[derive(Clone, Debug, Default)]
 pub struct MediumFrame {
@@ -445,6 +475,7 @@ impl FrameInputs {
             // Blocker spheres are opaque to the reference's rays; a set faded to strength 0
             // casts nothing (fractional strengths are an artistic fade it does not model).
             blockers: self.blockers.as_ref().filter(|b| b.strength > 0.0).map_or(&[], |b| b.blockers.as_slice()),
+            area_lights: self.area_lights.as_ref().map_or(&[], |a| a.emitters.as_slice()),
         };
         crate::reference::render(&rs, camera, size, self.settings.reference_samples, seed, cancel, progress)
             .map_err(|e| e.to_string())

@@ -8,6 +8,10 @@
 //! wavelet projections see); environment samples pick a texel by `luminance × solid angle` and
 //! a point uniformly in its face rectangle, with the exact solid-angle density.
 
+mod area_emitter;
+
+pub use area_emitter::AreaEmitter;
+
 use crate::brdf::Brdf;
 use crate::cubemap::{self, CubeMap, FACES};
 use crate::engine::{CancelToken, StageError};
@@ -127,6 +131,8 @@ pub struct ReferenceScene<'a> {
     pub background: bool,
     /// Spheres that block light but are not seen (blocker sphere sets stand in for geometry).
     pub blockers: &'a [crate::sh_exponential::Blocker],
+    /// Painted area lights (not seen by camera rays, as in the viewport).
+    pub area_lights: &'a [AreaEmitter],
 }
 
 /// A linear HDR image, rows top to bottom, with the fraction of each pixel's samples that
@@ -190,6 +196,13 @@ fn ray_hits_sphere(origin: DVec3, dir: DVec3, sphere: &crate::sh_exponential::Bl
     }
     let along = to.dot(dir);
     along > 0.0 && to.length_squared() - along * along <= r2
+}
+
+/// Whether the segment from `origin` along `dir` (unit) for `length` meets the sphere.
+fn segment_hits_sphere(origin: DVec3, dir: DVec3, length: f64, sphere: &crate::sh_exponential::Blocker) -> bool {
+    let centre = DVec3::from(sphere.centre);
+    let along = (centre - origin).dot(dir).clamp(0.0, length);
+    (origin + dir * along - centre).length_squared() <= sphere.radius * sphere.radius
 }
 
 fn shade_point(rs: &ReferenceScene, table: &TriangleTable, origin: DVec3, dir: DVec3) -> Option<Hit> {
@@ -259,6 +272,20 @@ fn direct_lighting(
             if pb > 0.0 && visible(wi_world) {
                 total += f * env.radiance(wi_world) * wi.z / (pe + pb);
             }
+        }
+    }
+    // One sample of each area light (they are not geometry, so BRDF samples never reach them).
+    for light in rs.area_lights {
+        let Some((p, radiance, pdf)) = light.sample([rng.random(), rng.random(), rng.random()]) else { continue };
+        let Some((wi_world, dist, g)) = light.towards(hit.position, p) else { continue };
+        let wi = to_local * wi_world;
+        if wi.z <= 0.0 || wi_world.dot(hit.geometric) <= 0.0 {
+            continue;
+        }
+        let blocked = rs.blockers.iter().any(|b| segment_hits_sphere(hit.position, wi_world, dist, b))
+            || rs.scene.occluded(origin, Vec3A::from(wi_world.as_vec3()), (dist * (1.0 - 1e-6)) as f32);
+        if !blocked {
+            total += brdf.eval(wi, wo) * radiance * wi.z * g / pdf;
         }
     }
     total
@@ -436,6 +463,7 @@ mod tests {
             environment,
             background: false,
             blockers: &[],
+            area_lights: &[],
         }
     }
 

@@ -4,6 +4,7 @@
 //! come from changes.
 
 use crate::capture::{CapturedFrame, read_texture};
+use crate::passes::area_light::AreaLightPass;
 use crate::passes::background::BackgroundPass;
 use crate::passes::camera::CameraBinding;
 use crate::passes::geometry::GeometryBuffers;
@@ -76,6 +77,7 @@ pub struct ViewportRenderer {
     prt: PrtPass,
     wavelet: WaveletPass,
     rsl: RslPass,
+    area_lights: AreaLightPass,
     tonemap: TonemapPass,
     geometry: Option<GeometryBuffers>,
     targets: Option<Targets>,
@@ -100,6 +102,7 @@ impl ViewportRenderer {
             prt: PrtPass::new(&setup),
             wavelet: WaveletPass::new(&setup),
             rsl: RslPass::new(&setup),
+            area_lights: AreaLightPass::new(&setup),
             tonemap: TonemapPass::new(&gpu.device),
             camera,
             medium,
@@ -127,6 +130,10 @@ impl ViewportRenderer {
             Surfaces::Prt(data) => self.prt.prepare(gpu, data)?,
             Surfaces::Wavelet(data) => self.wavelet.prepare(gpu, data)?,
             Surfaces::Rsl(data) => self.rsl.prepare(gpu, data)?,
+        }
+        match &frame.area_lights {
+            Some(data) => self.area_lights.prepare(gpu, data)?,
+            None => self.area_lights.clear(),
         }
         self.ensure_targets(gpu, width, height);
         let bounds = self.geometry.as_ref().map_or(([0.0; 3], [0.0; 3]), |m| m.bounds);
@@ -170,6 +177,7 @@ impl ViewportRenderer {
                 Surfaces::Rsl(_) => &self.rsl,
             };
             surfaces.draw(&mut pass, self.geometry.as_ref());
+            self.area_lights.draw(&mut pass, self.geometry.as_ref());
         }
         gpu.queue.submit(Some(encoder.finish()));
         self.tone_map(gpu, frame.settings.exposure, frame.settings.tonemap);

@@ -12,6 +12,7 @@ use crate::light_texture::{LightTexture, PaintOp, load_image, render, turned_ext
 use crate::near_field::{FACE_ORDER, LightPlacement, LightSource, TargetKeep, TopFace, light_source};
 use crate::node_kind::{Availability, NodeKindSpec, ParamKind, ParamSpec, ParamValue, PortSpec, PortType, StageSpec};
 use crate::picture::Preview;
+use crate::reference::AreaEmitter;
 use serde::{Deserialize, Serialize};
 
 crate::stage_type!(TopFace, "top face", |_v| 16);
@@ -28,6 +29,9 @@ pub struct AreaLight {
     pub scale: [f64; 3],
     pub face: TopFace,
     pub keep: TargetKeep,
+    /// The light as the Monte Carlo reference samples it: the painted texture on the turned
+    /// rectangle, times intensity and tint.
+    pub emitter: AreaEmitter,
 }
 
 pub fn spec() -> NodeKindSpec {
@@ -151,8 +155,8 @@ pub fn spec() -> NodeKindSpec {
             StageSpec {
                 name: "light",
                 version: 2,
-                params: &["intensity", "tint", "target_keep"],
-                stages: &["source", "placement", "face"],
+                params: &["intensity", "tint", "target_keep", "position", "width", "depth", "angle"],
+                stages: &["texture", "source", "placement", "face"],
                 inputs: &[],
                 persist: None,
                 compute: light,
@@ -227,11 +231,17 @@ fn light(ctx: &StageContext) -> Result<StageValue, StageError> {
     let tint = ctx.vec3("tint")?;
     let target = ctx.float("target_keep")?;
     let keep = if target >= 100.0 { TargetKeep::All } else { TargetKeep::Predicted(target / 100.0) };
+    let texture = ctx.stage::<LightTexture>("texture")?;
+    let scale = tint.map(|t| t * intensity);
+    let radiance = texture.emission().into_iter().map(|c| std::array::from_fn(|i| c[i] * scale[i])).collect();
+    let shape = (ctx.float("width")?, ctx.float("depth")?, ctx.float("angle")?);
+    let emitter = AreaEmitter::new(ctx.vec3("position")?, shape, texture.side, radiance);
     Ok(StageValue::new(AreaLight {
         source: ctx.stage::<LightSource>("source")?.clone(),
         placement: *ctx.stage::<LightPlacement>("placement")?,
-        scale: tint.map(|t| t * intensity),
+        scale,
         face: *ctx.stage::<TopFace>("face")?,
         keep,
+        emitter,
     }))
 }

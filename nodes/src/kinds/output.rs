@@ -506,8 +506,8 @@ fn typed<T: crate::engine::StageType + Clone>(keyed: &Keyed, stage: &str) -> Res
 }
 
 use crate::frame::{
-    Background, FogFrame, FrameMaterial, Geometry, IrradianceSurfaces, MediumFrame, PrtSurfaces, RslSurfaces, Surfaces,
-    WaveletSurfaces,
+    AreaLightFrame, Background, FogFrame, FrameMaterial, Geometry, IrradianceSurfaces, MediumFrame, PrtSurfaces,
+    RslSurfaces, Surfaces, WaveletSurfaces,
 };
 pub use crate::frame::{FrameInputs, Keyed, MAX_LIGHTS, MAX_MATERIALS};
 
@@ -780,6 +780,24 @@ impl FrameInputs {
                 materials[0].node
             ));
         }
+        // Area lights join once their transport is traced (a later request tier).
+        let light_nodes = graph.upstream_all(output, "area_lights");
+        let area_lights = match evaluation.get(output, "area_irradiance") {
+            Some(_) if !light_nodes.is_empty() => {
+                let mut emitters = Vec::new();
+                for node in &light_nodes {
+                    let light: crate::kinds::area_light::AreaLight = typed(&keyed(&node.id, "light")?, "light")?;
+                    emitters.push(light.emitter);
+                }
+                Some(AreaLightFrame::new(
+                    keyed(output, "area_irradiance")?,
+                    emitters,
+                    &materials,
+                    geometry.vertex_count(),
+                )?)
+            }
+            _ => None,
+        };
         let lobe_limits = lobe_limits(graph, output, &scene, settings.mode, &materials);
         let medium = MediumFrame::new(lights, &materials, fog);
         Ok(Self {
@@ -794,6 +812,7 @@ impl FrameInputs {
             materials,
             surfaces,
             medium,
+            area_lights,
             blockers,
         })
     }

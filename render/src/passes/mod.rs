@@ -7,6 +7,7 @@
 //! they depend on its normal and material), 2 the pass's own. A new drawing feature adds one
 //! module here with its shader in `shaders/`.
 
+pub mod area_light;
 pub mod background;
 pub mod camera;
 pub mod geometry;
@@ -59,12 +60,29 @@ impl PassSetup<'_> {
             step_mode: wgpu::VertexStepMode::Vertex,
             attributes: &attributes,
         })];
-        self.pipeline(shader, own, &buffers, true)
+        self.pipeline(shader, own, &buffers, Depth::Write, None)
+    }
+
+    /// A pipeline adding `shader`'s output onto the surfaces already drawn (same meshes, depth
+    /// tested equal-or-nearer, not written).
+    pub fn additive_surface_pipeline(&self, shader: (&str, &str), own: &wgpu::BindGroupLayout) -> wgpu::RenderPipeline {
+        let attributes = geometry::VERTEX_ATTRIBUTES;
+        let buffers = [Some(wgpu::VertexBufferLayout {
+            array_stride: std::mem::size_of::<geometry::Vertex>() as u64,
+            step_mode: wgpu::VertexStepMode::Vertex,
+            attributes: &attributes,
+        })];
+        let add = wgpu::BlendComponent {
+            src_factor: wgpu::BlendFactor::One,
+            dst_factor: wgpu::BlendFactor::One,
+            operation: wgpu::BlendOperation::Add,
+        };
+        self.pipeline(shader, own, &buffers, Depth::Equal, Some(wgpu::BlendState { color: add, alpha: add }))
     }
 
     /// A pipeline drawing one screen-covering triangle behind everything.
     pub fn fullscreen_pipeline(&self, shader: (&str, &str), own: &wgpu::BindGroupLayout) -> wgpu::RenderPipeline {
-        self.pipeline(shader, own, &[], false)
+        self.pipeline(shader, own, &[], Depth::Behind, None)
     }
 
     fn pipeline(
@@ -72,7 +90,8 @@ impl PassSetup<'_> {
         (label, source): (&str, &str),
         own: &wgpu::BindGroupLayout,
         buffers: &[Option<wgpu::VertexBufferLayout<'_>>],
-        depth_write: bool,
+        depth: Depth,
+        blend: Option<wgpu::BlendState>,
     ) -> wgpu::RenderPipeline {
         let module = self.device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some(label),
@@ -83,10 +102,15 @@ impl PassSetup<'_> {
             bind_group_layouts: &[Some(self.camera_layout), Some(self.medium_layout), Some(own)],
             immediate_size: 0,
         });
+        let (write, compare) = match depth {
+            Depth::Write => (true, wgpu::CompareFunction::Less),
+            Depth::Equal => (false, wgpu::CompareFunction::LessEqual),
+            Depth::Behind => (false, wgpu::CompareFunction::Always),
+        };
         let depth = wgpu::DepthStencilState {
             format: DEPTH_FORMAT,
-            depth_write_enabled: Some(depth_write),
-            depth_compare: Some(if depth_write { wgpu::CompareFunction::Less } else { wgpu::CompareFunction::Always }),
+            depth_write_enabled: Some(write),
+            depth_compare: Some(compare),
             stencil: Default::default(),
             bias: Default::default(),
         };
@@ -98,9 +122,19 @@ impl PassSetup<'_> {
             buffers,
             Some(depth),
             wgpu::MultisampleState { count: self.sample_count, ..Default::default() },
-            HDR_FORMAT,
+            wgpu::ColorTargetState { format: HDR_FORMAT, blend, write_mask: wgpu::ColorWrites::ALL },
         )
     }
+}
+
+/// How a scene pass uses the depth buffer.
+enum Depth {
+    /// Nearest surface wins and is recorded.
+    Write,
+    /// Only where the surfaces already drawn are (adding light to them).
+    Equal,
+    /// Behind everything, not recorded (the background).
+    Behind,
 }
 
 /// The shared WGSL every scene pass includes, in order: the camera uniform, the vertex layout
@@ -110,8 +144,8 @@ pub(crate) const SHADER_PRELUDE: [&str; 2] =
 
 /// Every scene pass's shader (checked by `shaders_compose_and_match_the_rust_uniforms`).
 #[cfg(test)]
-const SCENE_SHADERS: [(&str, &str); 5] =
-    [irradiance::SHADER, prt::SHADER, wavelet::SHADER, background::SHADER, rsl::SHADER];
+const SCENE_SHADERS: [(&str, &str); 6] =
+    [irradiance::SHADER, prt::SHADER, wavelet::SHADER, background::SHADER, rsl::SHADER, area_light::SHADER];
 
 /// A scene pass's complete WGSL: the prelude, then the pass's source. WGSL has no includes;
 /// this is the one place modules are joined, and `shaders_compose_and_match_the_rust_uniforms`
@@ -134,7 +168,7 @@ pub(crate) fn pipeline(
     buffers: &[Option<wgpu::VertexBufferLayout<'_>>],
     depth_stencil: Option<wgpu::DepthStencilState>,
     multisample: wgpu::MultisampleState,
-    target: wgpu::TextureFormat,
+    target: impl Into<wgpu::ColorTargetState>,
 ) -> wgpu::RenderPipeline {
     device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
         label: Some(label),
@@ -355,7 +389,7 @@ mod layout_tests {
                 assert_eq!(members, rust, "{} members and offsets", $wgsl);
             }};
         }
-        let [irr, prt, wavelet, _background, rsl, tone] = [0, 1, 2, 3, 4, 5].map(|i| &modules[i].1);
+        let [irr, prt, wavelet, _background, rsl, area, tone] = [0, 1, 2, 3, 4, 5, 6].map(|i| &modules[i].1);
         check!(irr, "Globals", camera::Globals, [view_proj, inv_view_proj, camera_pos, flags]);
         check!(irr, "Irradiance", irradiance::IrradianceParams, [bands, albedo, coeffs]);
         check!(
@@ -367,6 +401,7 @@ mod layout_tests {
         check!(prt, "PrtParams", prt::PrtParams, [counts, albedo, specular, lobe, light]);
         check!(wavelet, "WaveletParams", wavelet::WaveletParams, [counts, albedo, specular, texels]);
         check!(rsl, "RslParams", rsl::RslParams, [counts, albedo, specular, layouts]);
+        check!(area, "AreaLights", area_light::AreaLightParams, [albedo]);
         check!(tone, "ToneParams", tonemap::ToneParams, [params]);
         // The blocker kernel is a compute shader after common.wgsl alone.
         let source = format!("{}\n{}", SHADER_PRELUDE[0], include_str!("../../../shaders/shexp.wgsl"));

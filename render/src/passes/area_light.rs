@@ -1,0 +1,83 @@
+//! Painted area lights: their per-vertex diffuse light (`nodes/src/near_field.rs`, Sun 2008
+//! §4.5) drawn additively over whichever mode drew the surfaces ([`AreaLightFrame`]).
+
+use super::geometry::GeometryBuffers;
+use super::{Draw, Pass, PassSetup, entry, stage_value, storage_buffer, uniform_buffer, vec4};
+use crate::{GpuContext, RenderError};
+use lightloom_nodes::engine::Key;
+use lightloom_nodes::frame::{AreaLightFrame, MAX_MATERIALS};
+use lightloom_nodes::kinds::output_area::AreaIrradiance;
+
+pub(crate) const SHADER: (&str, &str) = ("mesh_area.wgsl", include_str!("../../../shaders/mesh_area.wgsl"));
+
+/// `mesh_area.wgsl` `AreaLights`.
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+pub(crate) struct AreaLightParams {
+    pub(crate) albedo: [[f32; 4]; MAX_MATERIALS],
+}
+
+pub(crate) struct AreaLightPass {
+    layout: wgpu::BindGroupLayout,
+    pipeline: wgpu::RenderPipeline,
+    params: wgpu::Buffer,
+    /// The per-vertex irradiance and the stage key it came from.
+    bound: Option<(Key, wgpu::BindGroup)>,
+}
+
+impl AreaLightPass {
+    pub fn new(setup: &PassSetup) -> Self {
+        use wgpu::ShaderStages as S;
+        let layout = setup.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("area-lights"),
+            entries: &[entry::uniform(0, S::VERTEX), entry::storage(1, S::VERTEX)],
+        });
+        Self {
+            pipeline: setup.additive_surface_pipeline(SHADER, &layout),
+            params: uniform_buffer::<AreaLightParams>(setup.device, "area-light-params"),
+            layout,
+            bound: None,
+        }
+    }
+
+    /// Forgets the last frame's lights (a frame without area lights draws nothing here).
+    pub fn clear(&mut self) {
+        self.bound = None;
+    }
+}
+
+impl Pass for AreaLightPass {
+    type Data = AreaLightFrame;
+
+    fn prepare(&mut self, gpu: &GpuContext, data: &AreaLightFrame) -> Result<(), RenderError> {
+        if self.bound.as_ref().is_none_or(|(k, _)| *k != data.irradiance.key) {
+            let e = stage_value::<AreaIrradiance>(&data.irradiance)?;
+            let rgba: Vec<[f32; 4]> = e.irradiance.iter().map(|c| [c[0], c[1], c[2], 0.0]).collect();
+            let irradiance = storage_buffer(gpu, "area-irradiance", &rgba);
+            let bind_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("area-lights"),
+                layout: &self.layout,
+                entries: &[
+                    wgpu::BindGroupEntry { binding: 0, resource: self.params.as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 1, resource: irradiance.as_entire_binding() },
+                ],
+            });
+            self.bound = Some((data.irradiance.key, bind_group));
+        }
+        let mut params: AreaLightParams = bytemuck::Zeroable::zeroed();
+        for (dst, albedo) in params.albedo.iter_mut().zip(&data.albedo) {
+            *dst = vec4(*albedo, 1.0);
+        }
+        gpu.queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
+        Ok(())
+    }
+}
+
+impl Draw for AreaLightPass {
+    fn draw(&self, pass: &mut wgpu::RenderPass<'_>, geometry: Option<&GeometryBuffers>) {
+        let (Some(geometry), Some((_, bind_group))) = (geometry, &self.bound) else { return };
+        pass.set_pipeline(&self.pipeline);
+        pass.set_bind_group(2, bind_group, &[]);
+        geometry.draw(pass);
+    }
+}

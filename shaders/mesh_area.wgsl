@@ -1,0 +1,37 @@
+// Area-light pass: painted area lights' diffuse light (Sun 2008 eq. 4.36, E = sum_k L_k T_k per
+// vertex, computed on the CPU), added over the mode's surfaces: radiance out = albedo * E / pi,
+// seen through the medium's extinction when there is one.
+
+struct AreaLights {
+    // Diffuse albedo (rgb) of each material, indexed by the vertex's material.
+    albedo: array<vec4<f32>, 8>,
+};
+
+@group(2) @binding(0) var<uniform> area: AreaLights;
+// Per vertex: irradiance E (rgb) from every linked area light.
+@group(2) @binding(1) var<storage, read> irradiance: array<vec4<f32>>;
+
+struct VertexOut {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) radiance: vec3<f32>,
+    @location(1) world: vec3<f32>,
+};
+
+@vertex
+fn vs_main(v: MeshVertex, @builtin(vertex_index) index: u32) -> VertexOut {
+    var out: VertexOut;
+    out.clip = globals.view_proj * vec4<f32>(v.position, 1.0);
+    let kd = area.albedo[v.material].rgb * v.color / PI;
+    out.radiance = kd * irradiance[index].rgb;
+    out.world = v.position;
+    return out;
+}
+
+@fragment
+fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
+    var radiance = in.radiance;
+    if (fog.beta.w > 0.5) {
+        radiance = radiance * exp(-fog.beta.rgb * length(globals.camera_pos.xyz - in.world));
+    }
+    return vec4<f32>(radiance, 0.0);
+}

@@ -1,0 +1,60 @@
+//! The painted area light through the real binary: the sample renders, and its near-field
+//! relighting agrees with the Monte Carlo reference (which samples the painted texture on the
+//! turned rectangle with shadow rays, independently of the wavelet path).
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn lightloom() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_lightloom"))
+}
+
+/// The area-light sample without its environment: everything the image shows comes from the
+/// painted panel.
+fn panel_only_project(dir: &Path) -> PathBuf {
+    let sample = Path::new(env!("CARGO_MANIFEST_DIR")).join("../projects/samples/area_light.ron");
+    let text = std::fs::read_to_string(sample).unwrap();
+    let start = text.find("        (\n            id: \"sky\"").expect("the sample has a sky node");
+    let end = text.find("        (\n            id: \"scene\"").unwrap();
+    let text = format!("{}{}", &text[..start], &text[end..])
+        .replace("        (from: (\"sky\", \"environment\"), to: (\"out\", \"environment\")),\n", "");
+    let path = dir.join("panel_only.ron");
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+/// Relative RMSE over surface pixels of the unshadowed-environment mode (here: the area light
+/// alone) against the reference, and the reference's own noise.
+fn accuracy(project: &Path, sets: &[&str]) -> (f64, f64) {
+    let mut command = lightloom();
+    command.args(["accuracy", project.to_str().unwrap(), "--json", "--samples", "1024", "--width", "128"]);
+    command.args(["--height", "72", "--bands", "2", "--wavelets", "--no-disk-cache"]);
+    command.args(["--set", "out.mode=sh_irradiance", "--set", "scene.tessellation=128"]);
+    for set in sets {
+        command.args(["--set", set]);
+    }
+    let out = command.output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let rows = report["rows"].as_array().unwrap();
+    let row = rows.iter().find(|r| r["mode"].as_str().unwrap().starts_with("sh_irradiance")).unwrap();
+    (row["relative_rmse"].as_f64().unwrap(), report["reference_noise"]["relative_rmse"].as_f64().unwrap())
+}
+
+/// Per setting, the error against the reference: the defaults (2% of the texture, 30% of each
+/// top face) within 12%; keeping everything no worse than the defaults by more than the
+/// noise; and a face of 2 (missing the light's grazing reach) clearly worse than 4.
+#[test]
+fn painted_area_light_matches_the_monte_carlo_reference() {
+    let dir = std::env::temp_dir().join(format!("lightloom-area-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let project = panel_only_project(&dir);
+    let (defaults, noise) = accuracy(&project, &[]);
+    let (full, _) = accuracy(&project, &["panel.source_keep=100", "panel.target_keep=100"]);
+    let (narrow, _) = accuracy(&project, &["panel.face_size=2"]);
+    eprintln!("relative RMSE: defaults {defaults:.4}, keep all {full:.4}, face 2 {narrow:.4}; noise {noise:.4}");
+    assert!(noise < 0.05, "the reference is too noisy to judge: {noise}");
+    assert!(defaults < 0.12, "defaults: {defaults}");
+    assert!(full < defaults + noise, "keeping everything: {full} against {defaults}");
+    assert!(narrow > 1.5 * defaults, "face 2: {narrow} against {defaults} at face 4");
+}

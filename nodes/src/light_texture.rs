@@ -29,7 +29,8 @@ impl LightTexture {
         self.radiance.iter().zip(&self.mask).map(|(c, m)| c.map(|v| v * m)).collect()
     }
 
-    /// The emission of a `width × depth` light turned by `angle` degrees about its centre,
+    /// The emission of a `width × depth` light turned by `angle` degrees about its centre
+    /// (right-handed about +y, as objects turn: the width axis goes from +x towards −z),
     /// resampled (nearest texel) over its axis-aligned bounding rectangle
     /// ([`turned_extent`]) at the same resolution; zero outside the light.
     pub fn turned(&self, width: f64, depth: f64, angle: f64) -> Vec<[f64; 3]> {
@@ -46,7 +47,7 @@ impl LightTexture {
                 // into the light's own frame.
                 let c = self.centre(k);
                 let (x, z) = ((c[0] - 0.5) * extent[0], (c[1] - 0.5) * extent[1]);
-                let (u, v) = ((cos * x + sin * z) / width + 0.5, (-sin * x + cos * z) / depth + 0.5);
+                let (u, v) = ((cos * x - sin * z) / width + 0.5, (sin * x + cos * z) / depth + 0.5);
                 if (0.0..1.0).contains(&u) && (0.0..1.0).contains(&v) {
                     emission[((v * n as f64) as usize).min(n - 1) * n + ((u * n as f64) as usize).min(n - 1)]
                 } else {

@@ -1,7 +1,8 @@
 //! Gizmos in the viewport: every point light drawn where it is (filled when it lights the
 //! output, hollow when it is not linked), every blocker sphere as its outline, and every
-//! painted area light as its rectangle with a centre handle. A click selects the node; a drag
-//! moves the light, the sphere or the area light in the view plane (one undo step per drag).
+//! painted area light as its rectangle with a centre handle and four edge handles. A click
+//! selects the node; a drag moves the light, the sphere or the area light in the view plane, and
+//! an edge handle resizes the area light about its centre (one undo step per drag).
 
 use super::*;
 
@@ -9,6 +10,8 @@ use super::*;
 const HIT_RADIUS: f32 = 12.0;
 /// Distance from a sphere's outline, in points, within which it is hit.
 const RING_HIT: f32 = 5.0;
+/// Pointer distance, in points, within which an area light's edge handle is hit.
+const EDGE_HIT: f32 = 7.0;
 
 /// What a gizmo stands for.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -40,11 +43,39 @@ pub(super) struct Gizmo {
     pub linked: bool,
 }
 
-/// A gizmo by its node and, for a blocker set, which sphere.
+/// A gizmo by its node and, for a blocker set, which sphere; for an area light, which edge
+/// handle (none: the centre).
 #[derive(Clone, Debug, PartialEq)]
 pub(super) struct GizmoId {
     pub node: String,
     pub sphere: Option<usize>,
+    pub edge: Option<Edge>,
+}
+
+/// An area light's edge handle: the two along its width (±), then the two along its depth.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) enum Edge {
+    Width(f64),
+    Depth(f64),
+}
+
+impl Edge {
+    const ALL: [Edge; 4] = [Edge::Width(1.0), Edge::Width(-1.0), Edge::Depth(1.0), Edge::Depth(-1.0)];
+
+    fn param(self) -> &'static str {
+        match self {
+            Edge::Width(_) => "width",
+            Edge::Depth(_) => "depth",
+        }
+    }
+}
+
+/// The world point at light coordinates `(u, v) ∈ [−1, 1]²` of a `width × depth` light centred
+/// at `p`, turned by `angle` degrees (right-handed about +y, as the light's texture turns).
+fn on_area_light(p: [f64; 3], (width, depth, angle): (f64, f64, f64), (u, v): (f64, f64)) -> [f64; 3] {
+    let (sin, cos) = angle.to_radians().sin_cos();
+    let (x, z) = (u * width / 2.0, v * depth / 2.0);
+    [p[0] + cos * x + sin * z, p[1], p[2] - sin * x + cos * z]
 }
 
 impl Gizmo {
@@ -53,7 +84,22 @@ impl Gizmo {
             GizmoTarget::Light | GizmoTarget::AreaLight { .. } => None,
             GizmoTarget::Sphere { index, .. } => Some(index),
         };
-        GizmoId { node: self.id.clone(), sphere }
+        GizmoId { node: self.id.clone(), sphere, edge: None }
+    }
+
+    /// An area light's edge handles: which edge, and its world point.
+    fn edges(&self) -> Vec<(Edge, [f64; 3])> {
+        let GizmoTarget::AreaLight { width, depth, angle } = self.target else { return Vec::new() };
+        Edge::ALL
+            .iter()
+            .map(|&e| {
+                let uv = match e {
+                    Edge::Width(s) => (s, 0.0),
+                    Edge::Depth(s) => (0.0, s),
+                };
+                (e, on_area_light(self.position, (width, depth, angle), uv))
+            })
+            .collect()
     }
 
     /// The sphere's outline radius in points (0 for a light).
@@ -179,11 +225,20 @@ impl EditorApp {
         Some(lightloom_nodes::kinds::blockers::SetTransform::new(offset, rotation, scale))
     }
 
-    /// The gizmo under `pos`: a light within reach of its marker, a sphere near its centre or
-    /// its outline (the nearest centre wins).
+    /// The gizmo under `pos`: an area light's edge handle, a light within reach of its marker,
+    /// a sphere near its centre or its outline (the nearest wins).
     pub(super) fn gizmo_at(&self, pos: egui::Pos2, rect: egui::Rect) -> Option<GizmoId> {
         let camera = self.viewport_camera(rect);
-        self.gizmos()
+        let gizmos = self.gizmos();
+        let edge = gizmos
+            .iter()
+            .flat_map(|g| g.edges().into_iter().map(move |(e, p)| (g, e, p)))
+            .filter_map(|(g, e, p)| {
+                let d = screen_pos(&camera, rect, p)?.distance(pos);
+                (d <= EDGE_HIT).then(|| (d, GizmoId { edge: Some(e), ..g.gizmo_id() }))
+            })
+            .min_by(|a, b| a.0.total_cmp(&b.0));
+        gizmos
             .into_iter()
             .filter_map(|g| {
                 let d = screen_pos(&camera, rect, g.position)?.distance(pos);
@@ -198,6 +253,7 @@ impl EditorApp {
                 };
                 hit.then(|| (d, g.gizmo_id()))
             })
+            .chain(edge)
             .min_by(|a, b| a.0.total_cmp(&b.0))
             .map(|(_, id)| id)
     }
@@ -232,14 +288,9 @@ impl EditorApp {
                     if g.linked { g.id.clone() } else { format!("{} (not linked: lights nothing)", g.id) }
                 }
                 GizmoTarget::AreaLight { width, depth, angle } => {
-                    let (sin, cos) = angle.to_radians().sin_cos();
                     let corners: Option<Vec<egui::Pos2>> = [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)]
                         .iter()
-                        .map(|(u, v)| {
-                            let (x, z) = (u * width / 2.0, v * depth / 2.0);
-                            let p = g.position;
-                            screen_pos(&camera, rect, [p[0] + cos * x + sin * z, p[1], p[2] - sin * x + cos * z])
-                        })
+                        .map(|&uv| screen_pos(&camera, rect, on_area_light(g.position, (width, depth, angle), uv)))
                         .collect();
                     let colour = if is_selected { outline } else { g.colour };
                     if let Some(mut corners) = corners {
@@ -250,7 +301,17 @@ impl EditorApp {
                     let handle = egui::Rect::from_center_size(at, egui::vec2(9.0, 9.0));
                     painter.rect_filled(handle.expand(1.5), 1.0, Color32::BLACK);
                     painter.rect_filled(handle, 1.0, colour);
-                    format!("{} · {width:.2} × {depth:.2} m area light (the viewport does not draw its light)", g.id)
+                    for (edge, p) in g.edges() {
+                        let Some(at) = screen_pos(&camera, rect, p) else { continue };
+                        let hot = hovered_id.as_ref().is_some_and(|h| h.node == g.id && h.edge == Some(edge));
+                        painter.circle_filled(at, if hot { 6.0 } else { 4.5 }, Color32::BLACK);
+                        painter.circle_filled(at, if hot { 4.5 } else { 3.0 }, colour);
+                    }
+                    match hovered_id.as_ref().and_then(|h| h.edge) {
+                        Some(edge) => format!("{} · drag to resize its {}", g.id, edge.param()),
+                        None if g.linked => format!("{} · {width:.2} × {depth:.2} m area light", g.id),
+                        None => format!("{} · {width:.2} × {depth:.2} m area light (not linked: lights nothing)", g.id),
+                    }
                 }
                 GizmoTarget::Sphere { index, radius, fitted } => {
                     let r = g.screen_radius(&camera, rect).max(3.0);
@@ -268,7 +329,8 @@ impl EditorApp {
                     format!("{} {what} {} · r {radius:.2} m{state}", g.id, index + 1)
                 }
             };
-            if hovered_id.as_ref() == Some(&g.gizmo_id()) || (is_selected && g.target == GizmoTarget::Light) {
+            let hovered = hovered_id.as_ref().is_some_and(|h| h.node == g.id && h.sphere == g.gizmo_id().sphere);
+            if hovered || (is_selected && g.target == GizmoTarget::Light) {
                 let galley = painter.layout_no_wrap(label, egui::FontId::proportional(12.0), Color32::WHITE);
                 let corner = at + egui::vec2(14.0, -8.0);
                 painter.rect_filled(
@@ -297,7 +359,10 @@ impl EditorApp {
         }
         let Some(id) = self.view.dragging_gizmo.clone() else { return false };
         let delta = ui.input(|i| i.pointer.delta());
-        let Some(gizmo) = self.gizmos().into_iter().find(|g| g.gizmo_id() == id) else { return false };
+        let Some(gizmo) = self.gizmos().into_iter().find(|g| g.gizmo_id() == GizmoId { edge: None, ..id.clone() })
+        else {
+            return false;
+        };
         if delta == egui::Vec2::ZERO {
             return true;
         }
@@ -309,16 +374,29 @@ impl EditorApp {
                 f64::from(rect.height()),
             )
             .to_array();
-        let change = match id.sphere {
-            None => Some(("position", ParamValue::Vec3(moved))),
-            Some(_) if matches!(gizmo.target, GizmoTarget::Sphere { fitted: true, .. }) => {
+        let change = match (id.sphere, id.edge) {
+            (_, Some(edge)) => {
+                // The edge follows the pointer in the view plane; its distance from the centre
+                // along the light's own axis is half the new size.
+                let Some((_, at)) = gizmo.edges().into_iter().find(|(e, _)| *e == edge) else { return true };
+                let moved = camera.drag_point(
+                    glam::DVec3::from(at),
+                    (f64::from(delta.x), f64::from(delta.y)),
+                    f64::from(rect.height()),
+                );
+                let axis = glam::DVec3::from(at) - glam::DVec3::from(gizmo.position);
+                let half = (moved - glam::DVec3::from(gizmo.position)).dot(axis.normalize_or_zero());
+                Some((edge.param(), ParamValue::Float((2.0 * half).clamp(0.01, 1e3))))
+            }
+            (None, None) => Some(("position", ParamValue::Vec3(moved))),
+            (Some(_), None) if matches!(gizmo.target, GizmoTarget::Sphere { fitted: true, .. }) => {
                 // A fitted sphere moves its whole set.
                 self.sphere_transform(&id.node).map(|t| {
                     let offset = t.offset + glam::DVec3::from(moved) - glam::DVec3::from(gizmo.position);
                     ("offset", ParamValue::Vec3(offset.to_array()))
                 })
             }
-            Some(index) => {
+            (Some(index), None) => {
                 let spec = lightloom_nodes::kinds::kind("BlockerSpheres").expect("BlockerSpheres kind");
                 let spheres =
                     inspector::param_value(&self.doc.project, &id.node, spec.param("spheres").expect("param"));

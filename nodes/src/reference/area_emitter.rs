@@ -6,7 +6,7 @@ use glam::DVec3;
 use serde::{Deserialize, Serialize};
 
 /// A horizontal light facing down: a `width × depth` rectangle centred at `centre`, turned by
-/// `angle` degrees about the vertical, emitting `radiance` (texel `(i, j)` at `j·side + i`,
+/// `angle` degrees about the vertical (right-handed about +y), emitting `radiance` (texel `(i, j)` at `j·side + i`,
 /// `i` along the light's width) uniformly in angle.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct AreaEmitter {
@@ -40,7 +40,7 @@ impl AreaEmitter {
     pub fn point(&self, u: f64, v: f64) -> DVec3 {
         let (sin, cos) = self.angle.to_radians().sin_cos();
         let (a, b) = ((u - 0.5) * self.width, (v - 0.5) * self.depth);
-        DVec3::new(self.centre[0] + cos * a - sin * b, self.centre[1], self.centre[2] + sin * a + cos * b)
+        DVec3::new(self.centre[0] + cos * a + sin * b, self.centre[1], self.centre[2] - sin * a + cos * b)
     }
 
     /// A point on the light by `u` (texels by their `r + g + b`, uniform within one), its
@@ -106,12 +106,14 @@ mod tests {
         assert!((e - exact).abs() < 0.01 * exact, "sampled {e}, closed form {exact}");
     }
 
-    /// A quarter turn maps the light's width onto z, as `LightTexture::turned` does.
+    /// A quarter turn (right-handed about +y) maps the light's width onto −z, and the emitter
+    /// puts every texel where `LightTexture::turned` does.
     #[test]
     fn a_turned_light_lies_where_the_resampled_texture_puts_it() {
         let emitter = AreaEmitter::new([1.0, 2.0, -1.0], (2.0, 1.0, 90.0), 4, vec![[1.0; 3]; 16]);
         let corner = emitter.point(1.0, 0.5);
-        assert!((corner - DVec3::new(1.0, 2.0, 0.0)).length() < 1e-12, "{corner}");
+        let turned_x = glam::DQuat::from_rotation_y(90f64.to_radians()) * DVec3::X;
+        assert!((corner - (DVec3::new(1.0, 2.0, -1.0) + turned_x)).length() < 1e-12, "{corner}");
         let texture = crate::light_texture::LightTexture {
             side: 4,
             radiance: (0..16).map(|k| [k as f64; 3]).collect(),

@@ -106,3 +106,46 @@ fn the_area_light_shows_in_the_viewport_and_drags() {
     );
     assert_eq!(harness.state().doc.undo_label(), Some(format!("Set {added}.position").as_str()));
 }
+
+/// Linked to the Output, the light brightens the viewport once its transport is traced; an
+/// edge handle resizes it about its centre (one undo step), and the light follows.
+#[test]
+fn a_linked_area_light_lights_the_viewport_and_its_edges_resize_it() {
+    let mut harness = default_harness();
+    settle(&mut harness);
+    let dark = viewport_mean(&mut harness);
+    let added = add_from_menu(&mut harness, "Area light painter");
+    let link = ((added.clone(), "area_light".into()), ("output".to_string(), "area_lights".to_string()));
+    harness.state_mut().doc.edit("Link", None, |p| edits::connect(p, &link.0, &link.1)).unwrap();
+    inspector::set_param(&mut harness.state_mut().doc, &added, "position", ParamValue::Vec3([0.0, 1.8, 0.5])).unwrap();
+    inspector::set_param(&mut harness.state_mut().doc, &added, "intensity", ParamValue::Float(60.0)).unwrap();
+    harness.state_mut().doc.seal();
+    settle(&mut harness);
+    let lit = viewport_mean(&mut harness);
+    assert!(lit > dark + 2.0, "the area light brightens the view: {dark:.1} → {lit:.1}");
+    harness.render().unwrap().save(state_dir().join("area_light_lit.png")).expect("screenshot for a person to look at");
+
+    // Drag the +width edge handle outward along the light's width axis.
+    let rect = harness.state().viewport_rect;
+    let camera = harness.state().viewport_camera(rect);
+    let gizmo = harness.state().gizmos().into_iter().find(|g| g.id == added).unwrap();
+    let centre = gizmos::screen_pos(&camera, rect, gizmo.position).unwrap();
+    let edge =
+        gizmos::screen_pos(&camera, rect, [gizmo.position[0] + 0.5, gizmo.position[1], gizmo.position[2]]).unwrap();
+    let hit = harness.state().gizmo_at(edge, rect).expect("the edge handle is under the pointer");
+    assert_eq!(hit.edge, Some(gizmos::Edge::Width(1.0)));
+    let outward = (edge - centre).normalized() * 60.0;
+    pointer_drag(&mut harness, egui::PointerButton::Primary, edge, edge + outward);
+    let param = |name: &str| match edits::node(&harness.state().doc.project, &added).and_then(|n| n.params.get(name)) {
+        Some(ParamValue::Float(v)) => *v,
+        Some(ParamValue::Vec3(p)) => p[0],
+        _ => f64::NAN,
+    };
+    assert!(param("width") > 1.3, "the drag widens the light: {}", param("width"));
+    assert_eq!(param("position"), 0.0, "resizing keeps the centre");
+    assert_eq!(harness.state().doc.undo_label(), Some(format!("Set {added}.width").as_str()));
+    settle(&mut harness);
+    let wider = viewport_mean(&mut harness);
+    assert!(wider > lit, "a wider light of the same radiance gives more light: {lit:.1} → {wider:.1}");
+    harness.render().unwrap().save(state_dir().join("area_light_resized.png")).expect("screenshot");
+}

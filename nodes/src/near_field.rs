@@ -190,7 +190,10 @@ pub struct Propagation {
     step1: Vec<[f64; 3]>,
     touched: Vec<bool>,
     rows: Vec<usize>,
-    targets: Vec<usize>,
+    couplings: CouplingCache,
+    ranked: Vec<(f64, u32, usize)>,
+    chosen: Vec<bool>,
+    kept: Vec<usize>,
     /// `L_{k₁k₂}` at `k₂·order + k₁`, valid after [`propagate_into`].
     pub light: Vec<[f64; 3]>,
 }
@@ -201,9 +204,46 @@ impl Propagation {
             step1: vec![[0.0; 3]; source_order * face_order],
             touched: vec![false; source_order * face_order],
             rows: Vec::new(),
-            targets: Vec::new(),
+            couplings: CouplingCache::default(),
+            ranked: Vec::new(),
+            chosen: Vec::new(),
+            kept: Vec::new(),
             light: vec![[0.0; 3]; face_order * face_order],
         }
+    }
+}
+
+/// Coupling entries kept before [`CouplingCache`] starts afresh (about 16 MB).
+const COUPLING_CACHE_ENTRIES: usize = 1 << 20;
+
+/// One axis's fan-out and couplings `(k, D_ik(s, o))` per exact `(s, o, i)`: receivers that
+/// share a depth and a coordinate along an axis (a floor's rows and columns) share them, so
+/// they are computed once. Cached values are the computed ones, bit for bit.
+#[derive(Default)]
+struct CouplingCache {
+    index: rustc_hash::FxHashMap<(u64, u64, usize), (usize, usize)>,
+    entries: Vec<(usize, f64)>,
+    targets: Vec<usize>,
+}
+
+impl CouplingCache {
+    fn get(&mut self, map: Affine, i: usize, order: usize) -> &[(usize, f64)] {
+        let key = (map.s.to_bits(), map.o.to_bits(), i);
+        let (start, len) = match self.index.get(&key) {
+            Some(&range) => range,
+            None => {
+                if self.entries.len() > COUPLING_CACHE_ENTRIES {
+                    self.index.clear();
+                    self.entries.clear();
+                }
+                map.targets(i, order, &mut self.targets);
+                let start = self.entries.len();
+                self.entries.extend(self.targets.iter().map(|&k| (k, map.coupling(i, k))));
+                self.index.insert(key, (start, self.targets.len()));
+                (start, self.targets.len())
+            }
+        };
+        &self.entries[start..start + len]
     }
 }
 
@@ -218,14 +258,12 @@ pub fn propagate(source: &LightSource, maps: [Affine; 2], face_order: usize) -> 
 /// [`propagate`] into reused buffers.
 pub fn propagate_into(source: &LightSource, maps: [Affine; 2], face_order: usize, scratch: &mut Propagation) {
     let n = face_order;
-    let Propagation { step1, touched, rows, targets, light } = scratch;
+    let Propagation { step1, touched, rows, couplings, light, .. } = scratch;
     light.iter_mut().for_each(|l| *l = [0.0; 3]);
     // Step 1: Z_{i₂k₁} = Σ_{i₁} F_{i₁i₂} D_{i₁k₁}; `rows` lists the entries it touched.
     rows.clear();
     for &((i1, i2), f) in &source.coefficients {
-        maps[0].targets(usize::from(i1), n, targets);
-        for &k1 in targets.iter() {
-            let d = maps[0].coupling(usize::from(i1), k1);
+        for &(k1, d) in couplings.get(maps[0], usize::from(i1), n) {
             let at = usize::from(i2) * n + k1;
             if !touched[at] {
                 touched[at] = true;
@@ -239,18 +277,16 @@ pub fn propagate_into(source: &LightSource, maps: [Affine; 2], face_order: usize
     // Step 2: L_{k₁k₂} = Σ_{i₂} Z_{i₂k₁} D_{i₂k₂}, in a fixed order (deterministic sums).
     // Rows sorted by `i₂·n + k₁` come grouped by `i₂`: its couplings are computed once.
     rows.sort_unstable();
-    let mut couplings: Vec<(usize, f64)> = Vec::new();
     let mut current = usize::MAX;
+    let mut row: &[(usize, f64)] = &[];
     for &at in rows.iter() {
         let (i2, k1) = (at / n, at % n);
         if i2 != current {
             current = i2;
-            maps[1].targets(i2, n, targets);
-            couplings.clear();
-            couplings.extend(targets.iter().map(|&k2| (k2, maps[1].coupling(i2, k2))));
+            row = couplings.get(maps[1], i2, n);
         }
         let z = step1[at];
-        for &(k2, d) in &couplings {
+        for &(k2, d) in row {
             let l = &mut light[k2 * n + k1];
             for c in 0..3 {
                 l[c] += d * z[c];
@@ -272,42 +308,75 @@ fn coarseness(k: usize) -> u32 {
 /// ranked; the rest follow in coarse-first order.
 pub fn predicted_targets(maps: [Affine; 2], face_order: usize, fraction: f64) -> Vec<usize> {
     let n = face_order;
-    let count = ((fraction.clamp(0.0, 1.0) * (n * n) as f64).round() as usize).min(n * n);
-    let mut axis: [Vec<(usize, f64)>; 2] = [Vec::new(), Vec::new()];
-    let mut targets = Vec::new();
-    for q in 0..2 {
-        maps[q].targets(0, n, &mut targets);
-        axis[q] = targets.iter().map(|&k| (k, maps[q].coupling(0, k).abs())).filter(|(_, d)| *d > 0.0).collect();
-    }
-    let mut ranked: Vec<(f64, u32, usize)> = axis[1]
-        .iter()
-        .flat_map(|&(k2, d2)| {
-            axis[0].iter().map(move |&(k1, d1)| (d1 * d2, coarseness(k1).max(coarseness(k2)), k2 * n + k1))
-        })
-        .filter(|(p, _, _)| *p > 0.0)
-        .collect();
-    ranked.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
+    let count = target_count(n, fraction);
+    let mut ranked = Vec::new();
+    rank_predictions(maps, n, &mut CouplingCache::default(), &mut ranked);
+    ranked.sort_by(by_prediction);
     let mut kept: Vec<usize> = ranked.iter().take(count).map(|r| r.2).collect();
-    if kept.len() < count {
-        let mut chosen = vec![false; n * n];
-        kept.iter().for_each(|&k| chosen[k] = true);
-        // Coarse first: every index whose coarser axis is at `c`, in index order.
-        'fill: for c in 0..=n.max(1).ilog2() {
-            let span = (1usize << c).min(n);
-            for k2 in 0..span {
-                for k1 in 0..span {
-                    if coarseness(k1).max(coarseness(k2)) != c || chosen[k2 * n + k1] {
-                        continue;
-                    }
-                    kept.push(k2 * n + k1);
-                    if kept.len() == count {
-                        break 'fill;
-                    }
+    fill_coarse_first(&mut kept, count, n, &mut Vec::new());
+    kept
+}
+
+fn target_count(n: usize, fraction: f64) -> usize {
+    ((fraction.clamp(0.0, 1.0) * (n * n) as f64).round() as usize).min(n * n)
+}
+
+/// Largest prediction first, then coarse first, then by index: a total order.
+fn by_prediction(a: &(f64, u32, usize), b: &(f64, u32, usize)) -> std::cmp::Ordering {
+    b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2))
+}
+
+/// Every nonzero prediction `(|D_{φk₁} D_{φk₂}|, coarseness, k₂·n + k₁)`, unordered.
+fn rank_predictions(maps: [Affine; 2], n: usize, couplings: &mut CouplingCache, ranked: &mut Vec<(f64, u32, usize)>) {
+    ranked.clear();
+    let axis0: Vec<(usize, f64)> =
+        couplings.get(maps[0], 0, n).iter().map(|&(k, d)| (k, d.abs())).filter(|(_, d)| *d > 0.0).collect();
+    for &(k2, d2) in couplings.get(maps[1], 0, n) {
+        let d2 = d2.abs();
+        if d2 > 0.0 {
+            ranked.extend(axis0.iter().map(|&(k1, d1)| (d1 * d2, coarseness(k1).max(coarseness(k2)), k2 * n + k1)));
+        }
+    }
+    ranked.retain(|r| r.0 > 0.0);
+}
+
+/// Tops `kept` up to `count` with the indices it lacks, coarse first then in index order.
+fn fill_coarse_first(kept: &mut Vec<usize>, count: usize, n: usize, chosen: &mut Vec<bool>) {
+    if kept.len() >= count {
+        return;
+    }
+    chosen.clear();
+    chosen.resize(n * n, false);
+    kept.iter().for_each(|&k| chosen[k] = true);
+    'fill: for c in 0..=n.max(1).ilog2() {
+        let span = (1usize << c).min(n);
+        for k2 in 0..span {
+            for k1 in 0..span {
+                if coarseness(k1).max(coarseness(k2)) != c || chosen[k2 * n + k1] {
+                    continue;
+                }
+                kept.push(k2 * n + k1);
+                if kept.len() == count {
+                    break 'fill;
                 }
             }
         }
     }
-    kept
+}
+
+/// [`predicted_targets`] as a set in index order, into `scratch`'s buffers: the shading's
+/// path, which selects the kept predictions without ranking them all.
+fn predicted_target_set(maps: [Affine; 2], n: usize, fraction: f64, scratch: &mut Propagation) {
+    let count = target_count(n, fraction);
+    let Propagation { couplings, ranked, chosen, kept, .. } = scratch;
+    rank_predictions(maps, n, couplings, ranked);
+    if ranked.len() > count && count > 0 {
+        ranked.select_nth_unstable_by(count - 1, by_prediction);
+    }
+    kept.clear();
+    kept.extend(ranked.iter().take(count).map(|r| r.2));
+    fill_coarse_first(kept, count, n, chosen);
+    kept.sort_unstable();
 }
 
 /// Irradiance `E = Σ_k L_k T_k` (RGB) at each receiver from one light; 0 above its plane.
@@ -331,17 +400,16 @@ pub fn irradiance(
                 propagate_into(source, maps, face.order, scratch);
                 let t = transport.of(r);
                 let mut e = [0.0; 3];
-                let mut add = |k: usize| {
+                let mut add = |light: &[[f64; 3]], k: usize| {
                     for c in 0..3 {
-                        e[c] += scratch.light[k][c] * f64::from(t[k]);
+                        e[c] += light[k][c] * f64::from(t[k]);
                     }
                 };
                 match keep {
-                    TargetKeep::All => (0..face.order * face.order).for_each(&mut add),
+                    TargetKeep::All => (0..face.order * face.order).for_each(|k| add(&scratch.light, k)),
                     TargetKeep::Predicted(fraction) => {
-                        let mut kept = predicted_targets(maps, face.order, fraction);
-                        kept.sort_unstable();
-                        kept.into_iter().for_each(&mut add);
+                        predicted_target_set(maps, face.order, fraction, scratch);
+                        scratch.kept.iter().for_each(|&k| add(&scratch.light, k));
                     }
                 }
                 e

@@ -9,9 +9,17 @@
 //! * the transport precompute per vertex (unoccluded rays here: the time is the face sampling
 //!   and the Haar transform, not ray casting) and its memory.
 
+use crate::bench_command::{BenchArgs, median, timed_frame};
+use crate::project_commands::{evaluate, fail_on_errors, output_request, upstream_of};
+use anyhow::{Result, anyhow};
 use glam::DVec3;
+use lightloom_nodes::engine::{Engine, Graph};
+use lightloom_nodes::kinds::output::FrameInputs;
 use lightloom_nodes::light_texture::{Blend, PaintOp, render};
 use lightloom_nodes::near_field::{LightPlacement, TargetKeep, TopFace, face_transport, irradiance, light_source};
+use lightloom_nodes::node_kind::ParamValue;
+use lightloom_render::{CameraView, GpuContext, ViewportRenderer};
+use std::sync::Arc;
 use std::time::Instant;
 
 pub fn area_light_figures() {
@@ -95,4 +103,80 @@ pub fn area_light_figures() {
         "  stroke to new shading: {stroke_ms:.0} ms ({texture_ms:.1} ms replay and transform) (goal < 100 ms); light move: \
          {move_ms:.0} ms"
     );
+}
+
+/// The area-light sample (`projects/samples/area_light.ron`) at a tessellation of about 40k
+/// vertices, through the engine as the editor runs it: the first evaluation (the top-face
+/// transport), then a stroke, a move, a resize and an intensity change, each as CPU stage time
+/// and the frame drawn after it.
+pub fn area_sample_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../projects/samples/area_light.ron");
+    let (project, mut graph) = lightloom_nodes::project::Project::load(&path).map_err(|e| anyhow!("{e}"))?;
+    graph.set_param("scene", "tessellation", ParamValue::Int(136))?;
+    let view = CameraView::from_project(&project.camera(None).map_err(|e| anyhow!(e))?);
+    let engine = Arc::new(Engine::in_memory());
+    let mut renderer = ViewportRenderer::new(gpu);
+    let frame_of = |graph: &Graph| -> Result<(FrameInputs, f64)> {
+        let start = Instant::now();
+        let evaluation = evaluate(engine.clone(), graph, output_request(graph, "out"), true);
+        fail_on_errors(&evaluation, &upstream_of(graph, "out"))?;
+        let frame = FrameInputs::gather(&evaluation, graph, "out").map_err(|e| anyhow!(e))?;
+        Ok((frame, start.elapsed().as_secs_f64() * 1e3))
+    };
+    let (frame, first_ms) = frame_of(&graph)?;
+    let vertices = frame.geometry.vertex_count();
+    timed_frame(gpu, &mut renderer, &frame, &view, (960, 540))?;
+    println!(
+        "\narea-light sample ({vertices} vertices, sh_prt plus one painted light), 960x540; first evaluation {:.1} s \
+         ({:.0} us per vertex with the top-face transport, {} KB per vertex)",
+        first_ms / 1e3,
+        first_ms * 1e3 / vertices as f64,
+        32 * 32 * 4 / 1024
+    );
+    println!("{:<34} {:>16} {:>12}", "edit (goal: stroke < 100 ms CPU)", "CPU stages ms", "frame ms");
+    let ParamValue::Paint(paint) =
+        graph.node("panel").and_then(|n| n.params.get("paint")).cloned().ok_or_else(|| anyhow!("paint"))?
+    else {
+        return Err(anyhow!("paint"));
+    };
+    type Edit = Box<dyn Fn(&mut Graph, usize) -> Result<()>>;
+    let edits: Vec<(&str, Edit)> = vec![
+        (
+            "a stroke",
+            Box::new(move |g, k| {
+                let mut ops = paint.clone();
+                ops.push(PaintOp::Stroke {
+                    points: (0..20).map(|i| [0.2 + 0.03 * i as f64, 0.5 + 0.02 * k as f64]).collect(),
+                    radius: 0.06,
+                    hardness: 0.5,
+                    colour: [1.0, 0.4, 0.2],
+                    intensity: 5.0,
+                    blend: Blend::Mix,
+                });
+                Ok(g.set_param("panel", "paint", ParamValue::Paint(ops))?)
+            }),
+        ),
+        (
+            "move the light",
+            Box::new(|g, k| {
+                Ok(g.set_param("panel", "position", ParamValue::Vec3([0.1 * (k + 1) as f64, 2.0, 0.0]))?)
+            }),
+        ),
+        (
+            "resize the light",
+            Box::new(|g, k| Ok(g.set_param("panel", "width", ParamValue::Float(1.6 + 0.1 * (k + 1) as f64))?)),
+        ),
+        ("intensity", Box::new(|g, k| Ok(g.set_param("panel", "intensity", ParamValue::Float(4.0 + (k + 1) as f64))?))),
+    ];
+    for (label, edit) in edits {
+        let (mut stages, mut frames) = (Vec::new(), Vec::new());
+        for k in 0..args.frames.max(1) {
+            edit(&mut graph, k)?;
+            let (frame, ms) = frame_of(&graph)?;
+            stages.push(ms);
+            frames.push(timed_frame(gpu, &mut renderer, &frame, &view, (960, 540))?);
+        }
+        println!("{label:<34} {:>16.1} {:>12.1}", median(stages), median(frames));
+    }
+    Ok(())
 }

@@ -58,13 +58,13 @@ fn bench_view() -> CameraView {
     })
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
+pub(crate) fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     v[v.len() / 2]
 }
 
 /// Draws and waits until the GPU has finished the frame.
-fn timed_frame(
+pub(crate) fn timed_frame(
     gpu: &GpuContext,
     renderer: &mut ViewportRenderer,
     frame: &FrameInputs,
@@ -99,6 +99,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
     }
     if wanted("area") {
         crate::bench_area::area_light_figures();
+        crate::bench_area::area_sample_figures(args, &gpu)?;
     }
     if wanted("synthetic") {
         synthetic_figures(args, &gpu)?;

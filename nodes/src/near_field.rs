@@ -191,23 +191,27 @@ pub struct Propagation {
     touched: Vec<bool>,
     rows: Vec<usize>,
     couplings: CouplingCache,
+    axis: Vec<(usize, f64)>,
     ranked: Vec<(f64, u32, usize)>,
     chosen: Vec<bool>,
     kept: Vec<usize>,
+    selected: Vec<bool>,
     /// `L_{k₁k₂}` at `k₂·order + k₁`, valid after [`propagate_into`].
     pub light: Vec<[f64; 3]>,
 }
 
 impl Propagation {
-    pub fn new(source_order: usize, face_order: usize) -> Self {
+    pub fn new(face_order: usize) -> Self {
         Self {
-            step1: vec![[0.0; 3]; source_order * face_order],
-            touched: vec![false; source_order * face_order],
+            step1: vec![[0.0; 3]; face_order],
+            touched: vec![false; face_order],
             rows: Vec::new(),
             couplings: CouplingCache::default(),
+            axis: Vec::new(),
             ranked: Vec::new(),
             chosen: Vec::new(),
             kept: Vec::new(),
+            selected: Vec::new(),
             light: vec![[0.0; 3]; face_order * face_order],
         }
     }
@@ -250,7 +254,7 @@ impl CouplingCache {
 /// The light on a receiver's top face, `L_{k₁k₂}` for every face coefficient
 /// (`k₂·order + k₁`), by the two separable steps of §4.5.5 over the fan-out only.
 pub fn propagate(source: &LightSource, maps: [Affine; 2], face_order: usize) -> Vec<[f64; 3]> {
-    let mut scratch = Propagation::new(source.order, face_order);
+    let mut scratch = Propagation::new(face_order);
     propagate_into(source, maps, face_order, &mut scratch);
     scratch.light
 }
@@ -260,40 +264,41 @@ pub fn propagate_into(source: &LightSource, maps: [Affine; 2], face_order: usize
     let n = face_order;
     let Propagation { step1, touched, rows, couplings, light, .. } = scratch;
     light.iter_mut().for_each(|l| *l = [0.0; 3]);
-    // Step 1: Z_{i₂k₁} = Σ_{i₁} F_{i₁i₂} D_{i₁k₁}; `rows` lists the entries it touched.
-    rows.clear();
-    for &((i1, i2), f) in &source.coefficients {
-        for &(k1, d) in couplings.get(maps[0], usize::from(i1), n) {
-            let at = usize::from(i2) * n + k1;
-            if !touched[at] {
-                touched[at] = true;
-                rows.push(at);
-            }
-            for c in 0..3 {
-                step1[at][c] += d * f64::from(f[c]);
-            }
-        }
-    }
-    // Step 2: L_{k₁k₂} = Σ_{i₂} Z_{i₂k₁} D_{i₂k₂}, in a fixed order (deterministic sums).
-    // Rows sorted by `i₂·n + k₁` come grouped by `i₂`: its couplings are computed once.
-    rows.sort_unstable();
-    let mut current = usize::MAX;
-    let mut row: &[(usize, f64)] = &[];
-    for &at in rows.iter() {
-        let (i2, k1) = (at / n, at % n);
-        if i2 != current {
-            current = i2;
-            row = couplings.get(maps[1], i2, n);
-        }
-        let z = step1[at];
-        for &(k2, d) in row {
-            let l = &mut light[k2 * n + k1];
-            for c in 0..3 {
-                l[c] += d * z[c];
+    // One source row `i₂` at a time (the coefficients come in index order, so grouped by
+    // `i₂`; any order gives the same sums, this one the same bits on every run).
+    let coefficients = &source.coefficients;
+    let mut start = 0;
+    while start < coefficients.len() {
+        let i2 = coefficients[start].0.1;
+        let end = start + coefficients[start..].iter().take_while(|c| c.0.1 == i2).count();
+        // Step 1: Z_{i₂k₁} = Σ_{i₁} F_{i₁i₂} D_{i₁k₁}; `rows` lists the `k₁` it touched.
+        rows.clear();
+        for &((i1, _), f) in &coefficients[start..end] {
+            for &(k1, d) in couplings.get(maps[0], usize::from(i1), n) {
+                if !touched[k1] {
+                    touched[k1] = true;
+                    rows.push(k1);
+                }
+                for c in 0..3 {
+                    step1[k1][c] += d * f64::from(f[c]);
+                }
             }
         }
-        step1[at] = [0.0; 3];
-        touched[at] = false;
+        // Step 2: L_{k₁k₂} += Z_{i₂k₁} D_{i₂k₂}, by ascending `k₁`.
+        rows.sort_unstable();
+        let row = couplings.get(maps[1], usize::from(i2), n);
+        for &k1 in rows.iter() {
+            let z = step1[k1];
+            for &(k2, d) in row {
+                let l = &mut light[k2 * n + k1];
+                for c in 0..3 {
+                    l[c] += d * z[c];
+                }
+            }
+            step1[k1] = [0.0; 3];
+            touched[k1] = false;
+        }
+        start = end;
     }
 }
 
@@ -310,7 +315,7 @@ pub fn predicted_targets(maps: [Affine; 2], face_order: usize, fraction: f64) ->
     let n = face_order;
     let count = target_count(n, fraction);
     let mut ranked = Vec::new();
-    rank_predictions(maps, n, &mut CouplingCache::default(), &mut ranked);
+    rank_predictions(maps, n, &mut CouplingCache::default(), &mut Vec::new(), &mut ranked);
     ranked.sort_by(by_prediction);
     let mut kept: Vec<usize> = ranked.iter().take(count).map(|r| r.2).collect();
     fill_coarse_first(&mut kept, count, n, &mut Vec::new());
@@ -327,10 +332,16 @@ fn by_prediction(a: &(f64, u32, usize), b: &(f64, u32, usize)) -> std::cmp::Orde
 }
 
 /// Every nonzero prediction `(|D_{φk₁} D_{φk₂}|, coarseness, k₂·n + k₁)`, unordered.
-fn rank_predictions(maps: [Affine; 2], n: usize, couplings: &mut CouplingCache, ranked: &mut Vec<(f64, u32, usize)>) {
+fn rank_predictions(
+    maps: [Affine; 2],
+    n: usize,
+    couplings: &mut CouplingCache,
+    axis0: &mut Vec<(usize, f64)>,
+    ranked: &mut Vec<(f64, u32, usize)>,
+) {
     ranked.clear();
-    let axis0: Vec<(usize, f64)> =
-        couplings.get(maps[0], 0, n).iter().map(|&(k, d)| (k, d.abs())).filter(|(_, d)| *d > 0.0).collect();
+    axis0.clear();
+    axis0.extend(couplings.get(maps[0], 0, n).iter().map(|&(k, d)| (k, d.abs())).filter(|(_, d)| *d > 0.0));
     for &(k2, d2) in couplings.get(maps[1], 0, n) {
         let d2 = d2.abs();
         if d2 > 0.0 {
@@ -364,19 +375,22 @@ fn fill_coarse_first(kept: &mut Vec<usize>, count: usize, n: usize, chosen: &mut
     }
 }
 
-/// [`predicted_targets`] as a set in index order, into `scratch`'s buffers: the shading's
-/// path, which selects the kept predictions without ranking them all.
+/// [`predicted_targets`] as a set, into `scratch`'s buffers: `kept` (in no order) and the
+/// mask `selected` over the face. The shading's path: it selects the kept predictions without
+/// ranking them all.
 fn predicted_target_set(maps: [Affine; 2], n: usize, fraction: f64, scratch: &mut Propagation) {
     let count = target_count(n, fraction);
-    let Propagation { couplings, ranked, chosen, kept, .. } = scratch;
-    rank_predictions(maps, n, couplings, ranked);
+    let Propagation { couplings, axis, ranked, chosen, kept, selected, .. } = scratch;
+    rank_predictions(maps, n, couplings, axis, ranked);
     if ranked.len() > count && count > 0 {
         ranked.select_nth_unstable_by(count - 1, by_prediction);
     }
     kept.clear();
     kept.extend(ranked.iter().take(count).map(|r| r.2));
     fill_coarse_first(kept, count, n, chosen);
-    kept.sort_unstable();
+    selected.clear();
+    selected.resize(n * n, false);
+    kept.iter().for_each(|&k| selected[k] = true);
 }
 
 /// Irradiance `E = Σ_k L_k T_k` (RGB) at each receiver from one light; 0 above its plane.
@@ -392,7 +406,7 @@ pub fn irradiance(
         .par_iter()
         .enumerate()
         .map_init(
-            || Propagation::new(source.order, face.order),
+            || Propagation::new(face.order),
             |scratch, (r, &x)| {
                 let Some(maps) = placement.maps(&face, x) else {
                     return [0.0; 3];
@@ -408,8 +422,11 @@ pub fn irradiance(
                 match keep {
                     TargetKeep::All => (0..face.order * face.order).for_each(|k| add(&scratch.light, k)),
                     TargetKeep::Predicted(fraction) => {
+                        // In index order: the same sums on every run.
                         predicted_target_set(maps, face.order, fraction, scratch);
-                        scratch.kept.iter().for_each(|&k| add(&scratch.light, k));
+                        (0..face.order * face.order)
+                            .filter(|&k| scratch.selected[k])
+                            .for_each(|k| add(&scratch.light, k));
                     }
                 }
                 e

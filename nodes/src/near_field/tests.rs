@@ -248,12 +248,15 @@ fn predicted_targets_equal_the_full_ranking() {
         for fraction in [0.01, 0.05, 0.2, 0.3, 1.0] {
             let count = (fraction * (n * n) as f64).round() as usize;
             assert_eq!(predicted_targets(maps, n, fraction), all[..count].to_vec(), "{maps:?} at {fraction}");
-            // The shading's selection: the same set, in index order.
-            let mut scratch = Propagation::new(1, n);
+            // The shading's selection: the same set.
+            let mut scratch = Propagation::new(n);
             predicted_target_set(maps, n, fraction, &mut scratch);
             let mut expected = all[..count].to_vec();
             expected.sort_unstable();
-            assert_eq!(scratch.kept, expected, "{maps:?} at {fraction}");
+            let mut kept = scratch.kept.clone();
+            kept.sort_unstable();
+            assert_eq!(kept, expected, "{maps:?} at {fraction}");
+            assert_eq!(scratch.selected.iter().filter(|s| **s).count(), count);
         }
     }
 }

@@ -14,7 +14,7 @@ struct Irradiance {
 @group(2) @binding(0) var<uniform> sh: Irradiance;
 
 struct VertexOut {
-    @builtin(position) clip: vec4<f32>,
+    @builtin(position) @invariant clip: vec4<f32>,
     @location(0) normal: vec3<f32>,
     @location(1) color: vec3<f32>,
     @location(2) @interpolate(flat) material: u32,

@@ -12,7 +12,7 @@ struct AreaLights {
 @group(2) @binding(1) var<storage, read> irradiance: array<vec4<f32>>;
 
 struct VertexOut {
-    @builtin(position) clip: vec4<f32>,
+    @builtin(position) @invariant clip: vec4<f32>,
     @location(0) radiance: vec3<f32>,
     @location(1) world: vec3<f32>,
 };

@@ -65,7 +65,7 @@ fn glossy_sum(r: vec3<f32>, bands: i32, ib: u32, material: u32) -> vec3<f32> {
 }
 
 struct VertexOut {
-    @builtin(position) clip: vec4<f32>,
+    @builtin(position) @invariant clip: vec4<f32>,
     @location(0) color: vec3<f32>,
     @location(1) world: vec3<f32>,
     @location(2) normal: vec3<f32>,

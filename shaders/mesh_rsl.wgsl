@@ -107,7 +107,7 @@ fn lobe_mean(m: u32, c: vec3<f32>, half_edge: f32, wo: vec3<f32>) -> f32 {
 }
 
 struct VertexOut {
-    @builtin(position) clip: vec4<f32>,
+    @builtin(position) @invariant clip: vec4<f32>,
     @location(0) radiance: vec3<f32>,
     @location(1) albedo: vec3<f32>,
     @location(2) @interpolate(flat) material: u32,

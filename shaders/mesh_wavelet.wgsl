@@ -88,7 +88,7 @@ fn local_view(position: vec3<f32>, normal: vec3<f32>, tangent: vec3<f32>) -> vec
 }
 
 struct VertexOut {
-    @builtin(position) clip: vec4<f32>,
+    @builtin(position) @invariant clip: vec4<f32>,
     @location(0) diffuse: vec3<f32>,
     @location(1) specular: vec3<f32>,
     @location(2) albedo: vec3<f32>,

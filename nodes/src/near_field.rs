@@ -217,22 +217,23 @@ impl Propagation {
     }
 }
 
-/// Coupling entries kept before [`CouplingCache`] starts afresh (about 16 MB).
-const COUPLING_CACHE_ENTRIES: usize = 1 << 20;
+/// Coupling entries one thread keeps before its [`CouplingCache`] starts afresh (about 4 MB
+/// with the index).
+const COUPLING_CACHE_ENTRIES: usize = 1 << 18;
 
 /// One axis's fan-out and couplings `(k, D_ik(s, o))` per exact `(s, o, i)`: receivers that
 /// share a depth and a coordinate along an axis (a floor's rows and columns) share them, so
 /// they are computed once. Cached values are the computed ones, bit for bit.
 #[derive(Default)]
 struct CouplingCache {
-    index: rustc_hash::FxHashMap<(u64, u64, usize), (usize, usize)>,
+    index: rustc_hash::FxHashMap<(u64, u64, usize, usize), (usize, usize)>,
     entries: Vec<(usize, f64)>,
     targets: Vec<usize>,
 }
 
 impl CouplingCache {
     fn get(&mut self, map: Affine, i: usize, order: usize) -> &[(usize, f64)] {
-        let key = (map.s.to_bits(), map.o.to_bits(), i);
+        let key = (map.s.to_bits(), map.o.to_bits(), i, order);
         let (start, len) = match self.index.get(&key) {
             Some(&range) => range,
             None => {

@@ -2,10 +2,12 @@
 //! (`crate::light_texture`), compressed in 2D Haar for near-field relighting by affine wavelet
 //! products (`crate::near_field`, Sun 2008 §4.5).
 //!
-//! Stages follow the notes' dirty rules (§6): a stroke reruns `texture` and `source` only; a
-//! move reruns `placement` only; intensity and tint are a scale in `light`. Resizing also
-//! reruns `source` (a turned light is resampled into its bounding rectangle, which needs the
-//! aspect; it is a 2D Haar transform of at most 128², well under a millisecond at 64²).
+//! Stages follow the notes' dirty rules (§6): a stroke reruns `texture` and `source`; a move
+//! reruns `placement`; resizing or turning also reruns `source` (a turned light is resampled
+//! into its bounding rectangle, a 2D Haar transform of at most 128², well under a millisecond
+//! at 64²). Each of these reruns `light`, which only gathers them with the intensity × tint
+//! scale and the light as the reference samples it; the Output memoises each light's
+//! propagation, so intensity and tint only rescale it.
 
 use crate::engine::{StageContext, StageError, StageValue};
 use crate::light_texture::{LightTexture, PaintOp, load_image, render, turned_extent};
@@ -17,7 +19,7 @@ use serde::{Deserialize, Serialize};
 
 crate::stage_type!(TopFace, "top face", |_v| 16);
 crate::stage_type!(LightPlacement, "area light placement", |_v| 48);
-crate::stage_type!(AreaLight, "area light", |v| v.source.coefficients.len() * 16 + 96);
+crate::stage_type!(AreaLight, "area light", |v| v.source.coefficients.len() * 16 + v.emitter.radiance.len() * 32 + 96);
 
 /// Everything the relighting needs of one light.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -74,8 +76,20 @@ pub fn spec() -> NodeKindSpec {
                 kind: ParamKind::Vec3 { min: -1e4, max: 1e4, default: [0.0, 2.0, 0.0] },
                 doc: "Centre of the light; its height is the light's plane.",
             },
-            ParamSpec::float("width", "Width", "m", (1e-3, 1e3, 1.0), "Extent along x."),
-            ParamSpec::float("depth", "Depth", "m", (1e-3, 1e3, 1.0), "Extent along z."),
+            ParamSpec::float(
+                "width",
+                "Width",
+                "m",
+                (1e-3, 1e3, 1.0),
+                "Extent along the light's width axis (x before a turn).",
+            ),
+            ParamSpec::float(
+                "depth",
+                "Depth",
+                "m",
+                (1e-3, 1e3, 1.0),
+                "Extent along the light's depth axis (z before a turn).",
+            ),
             ParamSpec::float(
                 "angle",
                 "Turn",
@@ -166,7 +180,7 @@ pub fn spec() -> NodeKindSpec {
             stages: &["texture"],
             make: |v| Some(Preview::Image(texture_preview(v[0].get()?))),
             size: [96.0, 96.0],
-            caption: "the light's emission, seen from below (auto-exposed)",
+            caption: "the light's emission, seen from above (auto-exposed)",
         }],
         availability: Availability::Ready,
         relevant: crate::node_kind::always_relevant,

@@ -782,8 +782,9 @@ impl FrameInputs {
         }
         // Area lights join once their transport is traced (a later request tier).
         let light_nodes = graph.upstream_all(output, "area_lights");
+        // A failed light is reported with its stage; the frame draws without area lights.
         let area_lights = match evaluation.get(output, "area_irradiance") {
-            Some(_) if !light_nodes.is_empty() => {
+            Some(r) if r.value.is_ok() && !light_nodes.is_empty() => {
                 let mut emitters = Vec::new();
                 for node in &light_nodes {
                     let light: crate::kinds::area_light::AreaLight = typed(&keyed(&node.id, "light")?, "light")?;
@@ -800,6 +801,13 @@ impl FrameInputs {
         };
         let lobe_limits = lobe_limits(graph, output, &scene, settings.mode, &materials);
         let medium = MediumFrame::new(lights, &materials, fog);
+        let glossy = medium.surface_lobes.iter().any(Option::is_some);
+        if !light_nodes.is_empty() && (glossy || upstream("blockers").is_some()) {
+            ignored_inputs.push(
+                "`area_lights` shade diffuse only: no highlights and no blocker-sphere shadows (the reference has both)"
+                    .into(),
+            );
+        }
         Ok(Self {
             geometry,
             ray_scene,

@@ -3,9 +3,10 @@
 //! the modes' stages.
 //!
 //! - `area_transport`: per distinct top face among the lights, every vertex's top-face
-//!   transport in 2D Haar (one ray per cell). Lights with equal faces share it; it is memoised
-//!   per face on the geometry, so moving, painting or adding a light with a face already
-//!   traced casts no ray.
+//!   transport in 2D Haar (one ray per cell, ending at the highest light's plane: what lies
+//!   above the lights, a ceiling, casts no shadow). Lights with equal faces share it; it is
+//!   memoised per face on the geometry and that plane, so painting, moving a light within it
+//!   or adding a light with a face already traced casts no ray.
 //! - `area_irradiance`: `E = Σ_ℓ scale_ℓ Σ_k L_k^{(ℓ)} T_k` per vertex (Eq. 4.36). Each light's
 //!   unscaled sum is memoised on the light's coefficients, placement and face, so an edit of one
 //!   light reruns only its propagation, and intensity or tint only rescales.
@@ -68,10 +69,15 @@ pub fn stages() -> Vec<StageSpec> {
     vec![
         StageSpec {
             name: "area_transport",
-            version: 1,
+            version: 2,
             params: &[],
             stages: &[],
-            inputs: &[("scene", "receivers"), ("scene", "ray_scene"), ("area_lights", "face")],
+            inputs: &[
+                ("scene", "receivers"),
+                ("scene", "ray_scene"),
+                ("area_lights", "face"),
+                ("area_lights", "placement"),
+            ],
             persist: Some(crate::engine::Codec::of::<AreaTransport>()),
             compute: area_transport,
         },
@@ -107,6 +113,12 @@ fn area_transport(ctx: &StageContext) -> Result<StageValue, StageError> {
             faces.push(*face);
         }
     }
+    // Rays end at the highest light's plane (the top-face directions all point up).
+    let ceiling = ctx
+        .inputs_all::<crate::near_field::LightPlacement>("area_lights", "placement")?
+        .iter()
+        .map(|(_, p)| p.height)
+        .fold(f64::NEG_INFINITY, f64::max);
     let cells: usize = faces.iter().map(|f| f.order * f.order).sum();
     super::scene::check_ray_budget(receivers.len(), cells, "the scene's tessellation")?;
     // What every face's transport depends on besides the face: the receivers and the triangles.
@@ -115,6 +127,7 @@ fn area_transport(ctx: &StageContext) -> Result<StageValue, StageError> {
     geometry.update(bytemuck::cast_slice(&receivers.positions));
     geometry.update(bytemuck::cast_slice(&receivers.normals));
     geometry.update(&scene.fingerprint().to_le_bytes());
+    geometry.update(&ceiling.to_bits().to_le_bytes());
     let geometry = geometry.digest128().to_le_bytes();
     let (points, normals): (Vec<DVec3>, Vec<DVec3>) = (0..receivers.len()).map(|i| receivers.point(i)).unzip();
     // Rays leave each surface just off it; the transport itself reads only the normals.
@@ -129,7 +142,8 @@ fn area_transport(ctx: &StageContext) -> Result<StageValue, StageError> {
                 ctx.check_cancel()?;
                 let end = (start + TRANSPORT_CHUNK).min(receivers.len());
                 let part = face_transport(*face, &origins[start..end], &normals[start..end], 1, |origin, direction| {
-                    !scene.occluded(origin.as_vec3a(), direction.as_vec3a(), f32::INFINITY)
+                    let reach = ((ceiling - origin.y) / direction.y.max(1e-12)).max(0.0);
+                    !scene.occluded(origin.as_vec3a(), direction.as_vec3a(), reach as f32)
                 });
                 coefficients.extend(part.coefficients);
                 ctx.progress((f as f64 + end as f64 / receivers.len().max(1) as f64) / faces.len() as f64);

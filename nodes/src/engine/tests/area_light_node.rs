@@ -183,12 +183,24 @@ fn area_lights_light_the_floor_like_direct_integration() {
     // The ball's underside (normal down) gets nothing from a light above.
     let underside = (floor..receivers.len()).find(|&i| receivers.point(i).1.y < -0.9).unwrap();
     assert_eq!(e[underside], [0.0; 3]);
+    // A ceiling above the light casts no shadow (rays end at the light's plane), and gets
+    // nothing itself.
+    let mut roofed = graph.clone();
+    let ParamValue::Objects(mut objects) = graph.node("scene").unwrap().params["objects"].clone() else { panic!() };
+    objects.push(SceneObject::new("ceiling", Shape::Plane { size: 4.0 }).at([0.0, 3.0, 0.0]));
+    roofed.set_param("scene", "objects", ParamValue::Objects(objects)).unwrap();
+    let under_roof = value_of::<AreaIrradiance>(&evaluate_frame(&engine, &roofed), "output", "area_irradiance");
+    assert_eq!(&under_roof.irradiance[..receivers.len()], &e[..], "the ceiling changes nothing below the light");
+    assert!(under_roof.irradiance[receivers.len()..].iter().all(|c| *c == [0.0; 3]));
 
     // A move reruns only the placement and the propagation.
     graph.set_param("area", "position", ParamValue::Vec3([0.5, 2.0, 0.0])).unwrap();
     let moved = evaluate_frame(&engine, &graph);
     let reran: BTreeSet<String> = ran(&moved.report);
-    assert_eq!(reran, set(&["area.placement", "area.light", "output.area_irradiance"]));
+    assert_eq!(reran, set(&["area.placement", "area.light", "output.area_transport", "output.area_irradiance"]));
+    // The transport reruns only to see the light's plane is unchanged: no ray is cast.
+    let report = moved.report.stages.iter().find(|s| s.stage == "area_transport").unwrap();
+    assert!(report.reasons.iter().any(|r| r.contains("0 part(s) computed, 1 reused")), "{:?}", report.reasons);
 
     // Doubling the intensity doubles the light, reusing the memoised sum.
     let before = value_of::<AreaIrradiance>(&moved, "output", "area_irradiance").irradiance;

@@ -79,6 +79,19 @@ pub fn area_light_figures() {
             source.coefficients.len()
         );
     }
+    // The other target heuristic: the largest propagated coefficients (1% / 20%).
+    {
+        let texture = render(&ops, 32, &mut no_files).expect("a valid log");
+        let source = light_source(&texture.emission(), 32, 11);
+        let start = Instant::now();
+        std::hint::black_box(irradiance(&source, &placement, &transport, &positions, TargetKeep::Largest(0.2)));
+        let seconds = start.elapsed().as_secs_f64();
+        println!(
+            "  keep 1% / 20% by the largest coefficients: {:.0} ms per relight = {:.2} M relights/s",
+            seconds * 1e3,
+            positions.len() as f64 / seconds / 1e6
+        );
+    }
     // A stroke: replay, transform, propagate (1% / 20%).
     ops.push(PaintOp::Stroke {
         points: (0..40).map(|i| [0.2 + 0.015 * i as f64, 0.4]).collect(),

@@ -183,6 +183,9 @@ pub enum TargetKeep {
     All,
     /// This fraction of the face's coefficients, ranked by the constant-light prediction.
     Predicted(f64),
+    /// This fraction, the largest propagated `|L_k|` (summed over the channels): every `L_k`
+    /// is computed first, so it costs the full propagation.
+    Largest(f64),
 }
 
 /// Reusable buffers for [`propagate_into`] (one per thread).
@@ -376,6 +379,21 @@ fn fill_coarse_first(kept: &mut Vec<usize>, count: usize, n: usize, chosen: &mut
     }
 }
 
+/// The `fraction` of face coefficients with the largest propagated `|L_k|` (ties by index),
+/// marked in `scratch.selected`.
+fn largest_target_set(n: usize, fraction: f64, scratch: &mut Propagation) {
+    let count = target_count(n, fraction);
+    let Propagation { ranked, selected, light, .. } = scratch;
+    ranked.clear();
+    ranked.extend(light.iter().enumerate().map(|(k, l)| (l[0].abs() + l[1].abs() + l[2].abs(), 0, k)));
+    if ranked.len() > count && count > 0 {
+        ranked.select_nth_unstable_by(count - 1, by_prediction);
+    }
+    selected.clear();
+    selected.resize(n * n, false);
+    ranked.iter().take(count).for_each(|r| selected[r.2] = true);
+}
+
 /// [`predicted_targets`] as a set, into `scratch`'s buffers: `kept` (in no order) and the
 /// mask `selected` over the face. The shading's path: it selects the kept predictions without
 /// ranking them all.
@@ -422,6 +440,13 @@ pub fn irradiance(
                 };
                 match keep {
                     TargetKeep::All => (0..face.order * face.order).for_each(|k| add(&scratch.light, k)),
+                    TargetKeep::Largest(fraction) => {
+                        propagate_into(source, maps, face.order, scratch);
+                        largest_target_set(face.order, fraction, scratch);
+                        (0..face.order * face.order)
+                            .filter(|&k| scratch.selected[k])
+                            .for_each(|k| add(&scratch.light, k));
+                    }
                     TargetKeep::Predicted(fraction) => {
                         // In index order: the same sums on every run.
                         predicted_target_set(maps, face.order, fraction, scratch);

@@ -120,6 +120,20 @@ pub fn spec() -> NodeKindSpec {
                 "Share of each receiver's top-face coefficients shaded, picked by how a constant light would \
                  reach it; 100% shades them all.",
             ),
+            ParamSpec {
+                name: "target_heuristic",
+                label: "Pick lighting detail by",
+                unit: "",
+                kind: ParamKind::Choice {
+                    options: &["prediction", "largest"],
+                    default: "prediction",
+                    labels: &[
+                        ("Prediction", "how a constant light would reach each receiver: skips work, fastest"),
+                        ("Largest light", "the largest propagated coefficients: computes them all first"),
+                    ],
+                },
+                doc: "How each receiver's kept top-face coefficients are picked (below 100% lighting detail).",
+            },
             ParamSpec::float(
                 "face_size",
                 "Face size",
@@ -169,7 +183,16 @@ pub fn spec() -> NodeKindSpec {
             StageSpec {
                 name: "light",
                 version: 2,
-                params: &["intensity", "tint", "target_keep", "position", "width", "depth", "angle"],
+                params: &[
+                    "intensity",
+                    "tint",
+                    "target_keep",
+                    "target_heuristic",
+                    "position",
+                    "width",
+                    "depth",
+                    "angle",
+                ],
                 stages: &["texture", "source", "placement", "face"],
                 inputs: &[],
                 persist: None,
@@ -244,7 +267,11 @@ fn light(ctx: &StageContext) -> Result<StageValue, StageError> {
     let intensity = ctx.float("intensity")?;
     let tint = ctx.vec3("tint")?;
     let target = ctx.float("target_keep")?;
-    let keep = if target >= 100.0 { TargetKeep::All } else { TargetKeep::Predicted(target / 100.0) };
+    let keep = match (target >= 100.0, ctx.choice("target_heuristic")?) {
+        (true, _) => TargetKeep::All,
+        (false, "largest") => TargetKeep::Largest(target / 100.0),
+        (false, _) => TargetKeep::Predicted(target / 100.0),
+    };
     let texture = ctx.stage::<LightTexture>("texture")?;
     let scale = tint.map(|t| t * intensity);
     let radiance = texture.emission().into_iter().map(|c| std::array::from_fn(|i| c[i] * scale[i])).collect();

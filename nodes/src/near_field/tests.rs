@@ -160,6 +160,15 @@ fn compression_trades_coefficients_for_error() {
     assert!(target_error < 0.03, "30% of the targets: {target_error}");
     let e = irradiance(&full_source, &light, &transport, &scene.positions, TargetKeep::Predicted(1.0));
     assert!(relative_l2(&e, &exact) < 1e-6, "all targets by prediction is the exact shading");
+    // Picking the largest propagated coefficients instead of predicting them does better at
+    // the same count, and all of them is exact.
+    let largest = |f| {
+        relative_l2(&irradiance(&full_source, &light, &transport, &scene.positions, TargetKeep::Largest(f)), &exact)
+    };
+    let (largest20, prediction20) = (largest(0.2), relative_l2(&e20, &exact));
+    eprintln!("targets by largest |L_k|: 20% {largest20:.4} (prediction {prediction20:.4})");
+    assert!(largest20 < prediction20, "largest {largest20} against prediction {prediction20} at 20%");
+    assert!(largest(1.0) < 1e-12);
 }
 
 /// Notes §5.9: receivers on or above the light's plane get nothing; the penumbra widens as the

@@ -9,12 +9,10 @@
 //! * the transport precompute per vertex (unoccluded rays here: the time is the face sampling
 //!   and the Haar transform, not ray casting) and its memory.
 
-use crate::bench_command::{BenchArgs, median, timed_frame};
-use crate::project_commands::{evaluate, fail_on_errors, output_request, upstream_of};
+use crate::bench_command::{BenchArgs, evaluate_frame, median, timed_frame};
 use anyhow::{Result, anyhow};
 use glam::DVec3;
 use lightloom_nodes::engine::{Engine, Graph};
-use lightloom_nodes::kinds::output::FrameInputs;
 use lightloom_nodes::light_texture::{Blend, PaintOp, render};
 use lightloom_nodes::near_field::{LightPlacement, TargetKeep, TopFace, face_transport, irradiance, light_source};
 use lightloom_nodes::node_kind::ParamValue;
@@ -129,14 +127,8 @@ pub fn area_sample_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
     let view = CameraView::from_project(&project.camera(None).map_err(|e| anyhow!(e))?);
     let engine = Arc::new(Engine::in_memory());
     let mut renderer = ViewportRenderer::new(gpu);
-    let frame_of = |graph: &Graph| -> Result<(FrameInputs, f64)> {
-        let start = Instant::now();
-        let evaluation = evaluate(engine.clone(), graph, output_request(graph, "out"), true);
-        fail_on_errors(&evaluation, &upstream_of(graph, "out"))?;
-        let frame = FrameInputs::gather(&evaluation, graph, "out").map_err(|e| anyhow!(e))?;
-        Ok((frame, start.elapsed().as_secs_f64() * 1e3))
-    };
-    let (frame, first_ms) = frame_of(&graph)?;
+    let frame_of = |graph: &Graph| evaluate_frame(&engine, graph, "out");
+    let (frame, first_ms, _) = frame_of(&graph)?;
     let vertices = frame.geometry.vertex_count();
     timed_frame(gpu, &mut renderer, &frame, &view, (960, 540))?;
     println!(
@@ -185,7 +177,7 @@ pub fn area_sample_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
         let (mut stages, mut frames) = (Vec::new(), Vec::new());
         for k in 0..args.frames.max(1) {
             edit(&mut graph, k)?;
-            let (frame, ms) = frame_of(&graph)?;
+            let (frame, ms, _) = frame_of(&graph)?;
             stages.push(ms);
             frames.push(timed_frame(gpu, &mut renderer, &frame, &view, (960, 540))?);
         }

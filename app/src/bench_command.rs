@@ -63,6 +63,16 @@ pub(crate) fn median(mut v: Vec<f64>) -> f64 {
     v[v.len() / 2]
 }
 
+/// Evaluates what drawing Output `output` needs and gathers the frame: the frame, the CPU
+/// milliseconds it took and how many stages computed.
+pub(crate) fn evaluate_frame(engine: &Arc<Engine>, graph: &Graph, output: &str) -> Result<(FrameInputs, f64, usize)> {
+    let start = Instant::now();
+    let evaluation = evaluate(engine.clone(), graph, output_request(graph, output), true);
+    fail_on_errors(&evaluation, &upstream_of(graph, output))?;
+    let frame = FrameInputs::gather(&evaluation, graph, output).map_err(|e| anyhow!(e))?;
+    Ok((frame, start.elapsed().as_secs_f64() * 1e3, evaluation.report.computed().len()))
+}
+
 /// Draws and waits until the GPU has finished the frame.
 pub(crate) fn timed_frame(
     gpu: &GpuContext,
@@ -317,13 +327,7 @@ fn square_light_sample_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()>
     let view = CameraView::from_project(&project.camera(None).map_err(|e| anyhow!(e))?);
     let engine = Arc::new(Engine::in_memory());
     let mut renderer = ViewportRenderer::new(gpu);
-    let frame_of = |graph: &Graph| -> Result<(FrameInputs, f64, usize)> {
-        let start = Instant::now();
-        let evaluation = evaluate(engine.clone(), graph, output_request(graph, "output"), true);
-        fail_on_errors(&evaluation, &upstream_of(graph, "output"))?;
-        let frame = FrameInputs::gather(&evaluation, graph, "output").map_err(|e| anyhow!(e))?;
-        Ok((frame, start.elapsed().as_secs_f64() * 1e3, evaluation.report.computed().len()))
-    };
+    let frame_of = |graph: &Graph| evaluate_frame(&engine, graph, "output");
     let (frame, first_ms, _) = frame_of(&graph)?;
     let vertices = frame.geometry.vertex_count();
     timed_frame(gpu, &mut renderer, &frame, &view, (960, 540))?;
@@ -395,14 +399,8 @@ fn fog_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
     graph.set_param("fog", "table_resolution", ParamValue::Choice("512".into()))?;
     let engine = Arc::new(Engine::in_memory());
     let mut renderer = ViewportRenderer::new(gpu);
-    let frame_of = |graph: &Graph| -> Result<(FrameInputs, f64)> {
-        let start = Instant::now();
-        let evaluation = evaluate(engine.clone(), graph, output_request(graph, "output"), true);
-        fail_on_errors(&evaluation, &upstream_of(graph, "output"))?;
-        let frame = FrameInputs::gather(&evaluation, graph, "output").map_err(|e| anyhow!(e))?;
-        Ok((frame, start.elapsed().as_secs_f64() * 1e3))
-    };
-    let (frame, tables_ms) = frame_of(&graph)?;
+    let frame_of = |graph: &Graph| evaluate_frame(&engine, graph, "output");
+    let (frame, tables_ms, _) = frame_of(&graph)?;
     timed_frame(gpu, &mut renderer, &frame, &view, (1280, 720))?;
     let frames: Vec<f64> =
         (0..args.frames).map(|_| timed_frame(gpu, &mut renderer, &frame, &view, (1280, 720))).collect::<Result<_>>()?;
@@ -420,7 +418,7 @@ fog: two street lamps over a wet street, 1280x720 (tables 512² F, 128² × 49 G
         for v in values {
             let value = if param == "beta" { ParamValue::Color(v) } else { ParamValue::Vec3(v) };
             graph.set_param(node, param, value)?;
-            let (frame, ms) = frame_of(&graph)?;
+            let (frame, ms, _) = frame_of(&graph)?;
             stages.push(ms);
             frames.push(timed_frame(gpu, &mut renderer, &frame, &view, (1280, 720))?);
         }
@@ -443,11 +441,7 @@ fn default_project_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
         graph.set_param("material", "f0", ParamValue::Float(0.3))?;
         let engine = Arc::new(Engine::in_memory());
         let mut renderer = ViewportRenderer::new(gpu);
-        let frame_of = |graph: &Graph| -> Result<FrameInputs> {
-            let evaluation = evaluate(engine.clone(), graph, output_request(graph, "output"), true);
-            fail_on_errors(&evaluation, &upstream_of(graph, "output"))?;
-            FrameInputs::gather(&evaluation, graph, "output").map_err(|e| anyhow!(e))
-        };
+        let frame_of = |graph: &Graph| evaluate_frame(&engine, graph, "output").map(|(frame, _, _)| frame);
         let frame = frame_of(&graph)?;
         timed_frame(gpu, &mut renderer, &frame, &view, (1280, 720))?;
         let (mut latencies, mut stages) = (Vec::new(), Vec::new());

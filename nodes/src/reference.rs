@@ -189,13 +189,7 @@ struct Hit {
 
 /// Whether the ray `origin + t dir`, `t > 0`, meets the sphere (an origin inside it is blocked).
 fn ray_hits_sphere(origin: DVec3, dir: DVec3, sphere: &crate::sh_exponential::Blocker) -> bool {
-    let to = DVec3::from(sphere.centre) - origin;
-    let r2 = sphere.radius * sphere.radius;
-    if to.length_squared() <= r2 {
-        return true;
-    }
-    let along = to.dot(dir);
-    along > 0.0 && to.length_squared() - along * along <= r2
+    segment_hits_sphere(origin, dir, f64::INFINITY, sphere)
 }
 
 /// Whether the segment from `origin` along `dir` (unit) for `length` meets the sphere.

@@ -506,8 +506,8 @@ fn typed<T: crate::engine::StageType + Clone>(keyed: &Keyed, stage: &str) -> Res
 }
 
 use crate::frame::{
-    AreaLightFrame, Background, FogFrame, FrameMaterial, Geometry, IrradianceSurfaces, MediumFrame, PrtSurfaces,
-    RslSurfaces, Surfaces, WaveletSurfaces,
+    Background, FogFrame, FrameMaterial, Geometry, IrradianceSurfaces, MediumFrame, PrtSurfaces, RslSurfaces, Surfaces,
+    WaveletSurfaces,
 };
 pub use crate::frame::{FrameInputs, Keyed, MAX_LIGHTS, MAX_MATERIALS};
 
@@ -782,23 +782,8 @@ impl FrameInputs {
         }
         // Area lights join once their transport is traced (a later request tier).
         let light_nodes = graph.upstream_all(output, "area_lights");
-        // A failed light is reported with its stage; the frame draws without area lights.
-        let area_lights = match evaluation.get(output, "area_irradiance") {
-            Some(r) if r.value.is_ok() && !light_nodes.is_empty() => {
-                let mut emitters = Vec::new();
-                for node in &light_nodes {
-                    let light: crate::kinds::area_light::AreaLight = typed(&keyed(&node.id, "light")?, "light")?;
-                    emitters.push(light.emitter);
-                }
-                Some(AreaLightFrame::new(
-                    keyed(output, "area_irradiance")?,
-                    emitters,
-                    &materials,
-                    geometry.vertex_count(),
-                )?)
-            }
-            _ => None,
-        };
+        let area_lights =
+            super::output_area::frame(evaluation, &light_nodes, output, &keyed, &materials, geometry.vertex_count())?;
         let lobe_limits = lobe_limits(graph, output, &scene, settings.mode, &materials);
         let medium = MediumFrame::new(lights, &materials, fog);
         let glossy = medium.surface_lobes.iter().any(Option::is_some);

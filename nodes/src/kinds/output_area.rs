@@ -12,6 +12,8 @@
 //!   light reruns only its propagation, and intensity or tint only rescales.
 
 use crate::engine::{Key, StageContext, StageError, StageValue};
+use crate::frame::{AreaLightFrame, FrameMaterial, Keyed};
+use crate::kinds::area_light::AreaLight;
 use crate::near_field::{FaceTransport, TopFace, face_transport, irradiance};
 use crate::node_kind::{PortSpec, PortType, StageSpec};
 use crate::raycast::RayScene;
@@ -167,7 +169,7 @@ fn area_irradiance(ctx: &StageContext) -> Result<StageValue, StageError> {
     let transports = ctx.stage::<AreaTransport>("area_transport")?;
     let points = positions(receivers);
     let mut total = vec![[0.0f64; 3]; receivers.len()];
-    for (_, light) in ctx.inputs_all::<crate::kinds::area_light::AreaLight>("area_lights", "light")? {
+    for (_, light) in ctx.inputs_all::<AreaLight>("area_lights", "light")? {
         let shared = transports
             .faces
             .iter()
@@ -192,4 +194,28 @@ fn area_irradiance(ctx: &StageContext) -> Result<StageValue, StageError> {
     // Truncated products ring slightly below zero near a light's footprint; irradiance cannot.
     let irradiance = total.into_iter().map(|c| c.map(|v| v.max(0.0) as f32)).collect();
     Ok(StageValue::new(AreaIrradiance { irradiance }))
+}
+
+/// The linked lights as one frame's [`AreaLightFrame`], once `area_irradiance` is evaluated.
+/// A failed light is reported with its stage; the frame draws without area lights.
+pub(super) fn frame(
+    evaluation: &crate::engine::Evaluation,
+    lights: &[&crate::engine::GraphNode],
+    output: &str,
+    keyed: &dyn Fn(&str, &str) -> Result<Keyed, String>,
+    materials: &[FrameMaterial],
+    vertices: usize,
+) -> Result<Option<AreaLightFrame>, String> {
+    match evaluation.get(output, "area_irradiance") {
+        Some(r) if r.value.is_ok() && !lights.is_empty() => {
+            let mut emitters = Vec::new();
+            for node in lights {
+                let light = keyed(&node.id, "light")?;
+                let light = light.value.expect::<AreaLight>().map_err(|e| e.to_string())?;
+                emitters.push(light.emitter.clone());
+            }
+            Ok(Some(AreaLightFrame::new(keyed(output, "area_irradiance")?, emitters, materials, vertices)?))
+        }
+        _ => Ok(None),
+    }
 }

@@ -54,30 +54,35 @@ impl PassSetup<'_> {
     /// A pipeline drawing the scene's meshes with `shader` (composed with the prelude), its own
     /// bind group `own` as group 2, depth-tested.
     pub fn surface_pipeline(&self, shader: (&str, &str), own: &wgpu::BindGroupLayout) -> wgpu::RenderPipeline {
-        let attributes = geometry::VERTEX_ATTRIBUTES;
-        let buffers = [Some(wgpu::VertexBufferLayout {
-            array_stride: std::mem::size_of::<geometry::Vertex>() as u64,
-            step_mode: wgpu::VertexStepMode::Vertex,
-            attributes: &attributes,
-        })];
-        self.pipeline(shader, own, &buffers, Depth::Write, None)
+        self.mesh_pipeline(shader, own, Depth::Write, None)
     }
 
     /// A pipeline adding `shader`'s output onto the surfaces already drawn (same meshes, depth
     /// tested equal-or-nearer, not written).
     pub fn additive_surface_pipeline(&self, shader: (&str, &str), own: &wgpu::BindGroupLayout) -> wgpu::RenderPipeline {
+        let add = wgpu::BlendComponent {
+            src_factor: wgpu::BlendFactor::One,
+            dst_factor: wgpu::BlendFactor::One,
+            operation: wgpu::BlendOperation::Add,
+        };
+        self.mesh_pipeline(shader, own, Depth::Equal, Some(wgpu::BlendState { color: add, alpha: add }))
+    }
+
+    /// A pipeline over the shared mesh vertex buffer.
+    fn mesh_pipeline(
+        &self,
+        shader: (&str, &str),
+        own: &wgpu::BindGroupLayout,
+        depth: Depth,
+        blend: Option<wgpu::BlendState>,
+    ) -> wgpu::RenderPipeline {
         let attributes = geometry::VERTEX_ATTRIBUTES;
         let buffers = [Some(wgpu::VertexBufferLayout {
             array_stride: std::mem::size_of::<geometry::Vertex>() as u64,
             step_mode: wgpu::VertexStepMode::Vertex,
             attributes: &attributes,
         })];
-        let add = wgpu::BlendComponent {
-            src_factor: wgpu::BlendFactor::One,
-            dst_factor: wgpu::BlendFactor::One,
-            operation: wgpu::BlendOperation::Add,
-        };
-        self.pipeline(shader, own, &buffers, Depth::Equal, Some(wgpu::BlendState { color: add, alpha: add }))
+        self.pipeline(shader, own, &buffers, depth, blend)
     }
 
     /// A pipeline drawing one screen-covering triangle behind everything.

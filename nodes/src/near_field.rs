@@ -199,6 +199,12 @@ pub struct Propagation {
     chosen: Vec<bool>,
     kept: Vec<usize>,
     selected: Vec<bool>,
+    /// The adjoint's row of couplings `D_{i₂k₂}`, its per-`k₁` partial sums, and which of them
+    /// belong to the current row (`row_stamp`).
+    row: Vec<(usize, f64)>,
+    row_sums: Vec<f64>,
+    row_sum_stamps: Vec<u32>,
+    row_stamp: u32,
     /// `L_{k₁k₂}` at `k₂·order + k₁`, valid after [`propagate_into`].
     pub light: Vec<[f64; 3]>,
 }
@@ -215,6 +221,10 @@ impl Propagation {
             chosen: Vec::new(),
             kept: Vec::new(),
             selected: Vec::new(),
+            row: Vec::new(),
+            row_sums: vec![0.0; face_order],
+            row_sum_stamps: vec![0; face_order],
+            row_stamp: 0,
             light: vec![[0.0; 3]; face_order * face_order],
         }
     }
@@ -413,6 +423,12 @@ fn predicted_target_set(maps: [Affine; 2], n: usize, fraction: f64, scratch: &mu
 }
 
 /// Irradiance `E = Σ_k L_k T_k` (RGB) at each receiver from one light; 0 above its plane.
+///
+/// `All` and `Predicted` targets take the adjoint order of the same sum,
+/// `E = Σ_i F_i Σ_{k₁} D_{i₁k₁} Σ_{k₂} D_{i₂k₂} T̃_{k₁k₂}` with `T̃` the kept transport: scalar
+/// partial sums gathered from the transport instead of RGB light scattered over the whole face,
+/// so a receiver's cost is its fan-out, never the face's `order²`. `Largest` needs every `L_k`
+/// to rank them, so it propagates first ([`propagate_into`]).
 pub fn irradiance(
     source: &LightSource,
     placement: &LightPlacement,
@@ -430,35 +446,89 @@ pub fn irradiance(
                 let Some(maps) = placement.maps(&face, x) else {
                     return [0.0; 3];
                 };
-                propagate_into(source, maps, face.order, scratch);
                 let t = transport.of(r);
-                let mut e = [0.0; 3];
-                let mut add = |light: &[[f64; 3]], k: usize| {
-                    for c in 0..3 {
-                        e[c] += light[k][c] * f64::from(t[k]);
-                    }
-                };
                 match keep {
-                    TargetKeep::All => (0..face.order * face.order).for_each(|k| add(&scratch.light, k)),
+                    TargetKeep::All => adjoint_irradiance(source, maps, face.order, t, false, scratch),
+                    TargetKeep::Predicted(fraction) => {
+                        predicted_target_set(maps, face.order, fraction, scratch);
+                        adjoint_irradiance(source, maps, face.order, t, true, scratch)
+                    }
                     TargetKeep::Largest(fraction) => {
                         propagate_into(source, maps, face.order, scratch);
                         largest_target_set(face.order, fraction, scratch);
-                        (0..face.order * face.order)
-                            .filter(|&k| scratch.selected[k])
-                            .for_each(|k| add(&scratch.light, k));
-                    }
-                    TargetKeep::Predicted(fraction) => {
-                        // In index order: the same sums on every run.
-                        predicted_target_set(maps, face.order, fraction, scratch);
-                        (0..face.order * face.order)
-                            .filter(|&k| scratch.selected[k])
-                            .for_each(|k| add(&scratch.light, k));
+                        propagated_irradiance(t, true, scratch)
                     }
                 }
-                e
             },
         )
         .collect()
+}
+
+/// `Σ_k L_k T_k` over the propagated light in `scratch.light`, in index order, over
+/// `scratch.selected` when `masked`: the forward definition the adjoint must equal.
+fn propagated_irradiance(t: &[f32], masked: bool, scratch: &Propagation) -> [f64; 3] {
+    let mut e = [0.0; 3];
+    for (k, l) in scratch.light.iter().enumerate() {
+        if !masked || scratch.selected[k] {
+            for c in 0..3 {
+                e[c] += l[c] * f64::from(t[k]);
+            }
+        }
+    }
+    e
+}
+
+/// One receiver's `E` by the adjoint order (see [`irradiance`]), over `scratch.selected` when
+/// `masked`. Per source row `i₂`, `H_{k₁} = Σ_{k₂} D_{i₂k₂} T̃_{k₁k₂}` is computed once per
+/// `k₁` the row's fan-out reaches; the sums run in a fixed order, so every run gives the same
+/// bits.
+fn adjoint_irradiance(
+    source: &LightSource,
+    maps: [Affine; 2],
+    n: usize,
+    t: &[f32],
+    masked: bool,
+    scratch: &mut Propagation,
+) -> [f64; 3] {
+    let Propagation { couplings, selected, row, row_sums, row_sum_stamps, row_stamp, .. } = scratch;
+    let mut e = [0.0; 3];
+    let coefficients = &source.coefficients;
+    let mut start = 0;
+    while start < coefficients.len() {
+        let i2 = coefficients[start].0.1;
+        let end = start + coefficients[start..].iter().take_while(|c| c.0.1 == i2).count();
+        row.clear();
+        row.extend_from_slice(couplings.get(maps[1], usize::from(i2), n));
+        *row_stamp = row_stamp.wrapping_add(1);
+        if *row_stamp == 0 {
+            row_sum_stamps.iter_mut().for_each(|s| *s = 0);
+            *row_stamp = 1;
+        }
+        if !row.is_empty() {
+            for &((i1, _), f) in &coefficients[start..end] {
+                let mut g = 0.0;
+                for &(k1, d1) in couplings.get(maps[0], usize::from(i1), n) {
+                    if row_sum_stamps[k1] != *row_stamp {
+                        let mut h = 0.0;
+                        for &(k2, d2) in row.iter() {
+                            let k = k2 * n + k1;
+                            if !masked || selected[k] {
+                                h += d2 * f64::from(t[k]);
+                            }
+                        }
+                        row_sums[k1] = h;
+                        row_sum_stamps[k1] = *row_stamp;
+                    }
+                    g += d1 * row_sums[k1];
+                }
+                for c in 0..3 {
+                    e[c] += f64::from(f[c]) * g;
+                }
+            }
+        }
+        start = end;
+    }
+    e
 }
 
 #[cfg(test)]

@@ -338,3 +338,36 @@ fn error_against_kept_coefficients_per_texture() {
     }
     assert!(at_five[0] < at_five[3], "smooth {} against noise {} at 5%", at_five[0], at_five[3]);
 }
+
+/// The adjoint shading order equals propagating the light and summing `L_k T_k` (the
+/// definition), on random lights, maps, transports and masks, with source and face orders
+/// equal and not.
+#[test]
+fn adjoint_shading_equals_the_propagated_sum() {
+    use crate::wavelet::affine::Affine;
+    use rand::{Rng, SeedableRng, rngs::SmallRng};
+    let mut rng = SmallRng::seed_from_u64(7);
+    for case in 0..60 {
+        let n = 32;
+        let source_order = [16, 32, 64][case % 3];
+        let texture: Vec<[f64; 3]> =
+            (0..source_order * source_order).map(|_| std::array::from_fn(|_| rng.random_range(0.0..4.0))).collect();
+        let source = light_source(&texture, source_order, rng.random_range(1..source_order * source_order / 4));
+        let maps: [Affine; 2] =
+            std::array::from_fn(|_| Affine { s: rng.random_range(0.1..6.0), o: rng.random_range(-3.0..1.0) });
+        let t: Vec<f32> = (0..n * n).map(|_| rng.random_range(-1.0..1.0)).collect();
+        let fraction = rng.random_range(0.01..1.0);
+        let mut scratch = Propagation::new(n);
+        propagate_into(&source, maps, n, &mut scratch);
+        let all = propagated_irradiance(&t, false, &scratch);
+        predicted_target_set(maps, n, fraction, &mut scratch);
+        let kept = propagated_irradiance(&t, true, &scratch);
+        for (expected, masked) in [(all, false), (kept, true)] {
+            let e = adjoint_irradiance(&source, maps, n, &t, masked, &mut scratch);
+            let scale = expected.iter().map(|v| v.abs()).fold(1e-12, f64::max);
+            for c in 0..3 {
+                assert!((e[c] - expected[c]).abs() <= 1e-9 * scale, "case {case}: {e:?} against {expected:?}");
+            }
+        }
+    }
+}

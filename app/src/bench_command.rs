@@ -70,6 +70,12 @@ pub(crate) fn evaluate_frame(engine: &Arc<Engine>, graph: &Graph, output: &str) 
     let evaluation = evaluate(engine.clone(), graph, output_request(graph, output), true);
     fail_on_errors(&evaluation, &upstream_of(graph, output))?;
     let frame = FrameInputs::gather(&evaluation, graph, output).map_err(|e| anyhow!(e))?;
+    if std::env::var_os("LIGHTLOOM_BENCH_STAGES").is_some() {
+        for s in evaluation.report.stages.iter().filter(|s| s.ms > 1.0) {
+            eprintln!("    {}.{}: {:.1} ms {:?}", s.node, s.stage, s.ms, s.reasons);
+        }
+        eprintln!("    total with the gather: {:.1} ms", start.elapsed().as_secs_f64() * 1e3);
+    }
     Ok((frame, start.elapsed().as_secs_f64() * 1e3, evaluation.report.computed().len()))
 }
 

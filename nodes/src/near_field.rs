@@ -17,7 +17,7 @@
 //!   `L_k` (found by the breakpoint fan-out) or a fraction picked by the constant-light
 //!   prediction `L̃_k = D_{φk₁} D_{φk₂}` (Eq. 4.38), ties coarse first.
 
-use crate::wavelet::affine::{Affine, haar_forward_2d, level_offset};
+use crate::wavelet::affine::{Affine, CouplingGrid, haar_forward_2d, level_offset};
 use glam::DVec3;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -188,6 +188,40 @@ pub enum TargetKeep {
     Largest(f64),
 }
 
+/// Where the shading takes its affine coupling coefficients.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum AccMode {
+    /// Exactly, at each receiver's own maps (closed form, no quantisation).
+    #[default]
+    Analytic,
+    /// At the nearest point of a [`CouplingGrid`] of this many steps: nearby receivers share
+    /// their couplings, at the cost of a small shift of the light.
+    Table(u32),
+}
+
+impl AccMode {
+    /// The maps the couplings are taken at.
+    pub fn maps(self, maps: [Affine; 2]) -> [Affine; 2] {
+        match self {
+            AccMode::Analytic => maps,
+            AccMode::Table(steps) => maps.map(|m| CouplingGrid { steps }.snap(m)),
+        }
+    }
+}
+
+/// How a light is shaded: which top-face coefficients, and how the couplings are found.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Shading {
+    pub keep: TargetKeep,
+    pub acc: AccMode,
+}
+
+impl From<TargetKeep> for Shading {
+    fn from(keep: TargetKeep) -> Self {
+        Shading { keep, acc: AccMode::Analytic }
+    }
+}
+
 /// Reusable buffers for [`propagate_into`] (one per thread).
 pub struct Propagation {
     step1: Vec<[f64; 3]>,
@@ -196,15 +230,18 @@ pub struct Propagation {
     couplings: CouplingCache,
     axis: Vec<(usize, f64)>,
     ranked: Vec<(f64, u32, usize)>,
-    chosen: Vec<bool>,
     kept: Vec<usize>,
-    selected: Vec<bool>,
+    selected: FaceSet,
+    /// Every face index, coarse first then in index order: the predicted set's fill order.
+    coarse_first: Vec<usize>,
     /// The adjoint's row of couplings `D_{i₂k₂}`, its per-`k₁` partial sums, and which of them
     /// belong to the current row (`row_stamp`).
     row: Vec<(usize, f64)>,
     row_sums: Vec<f64>,
     row_sum_stamps: Vec<u32>,
     row_stamp: u32,
+    /// The transport with the unkept coefficients zeroed: the adjoint's loops need no mask.
+    kept_transport: Vec<f32>,
     /// `L_{k₁k₂}` at `k₂·order + k₁`, valid after [`propagate_into`].
     pub light: Vec<[f64; 3]>,
 }
@@ -218,21 +255,54 @@ impl Propagation {
             couplings: CouplingCache::default(),
             axis: Vec::new(),
             ranked: Vec::new(),
-            chosen: Vec::new(),
             kept: Vec::new(),
-            selected: Vec::new(),
+            selected: FaceSet::default(),
+            coarse_first: coarse_first_order(face_order),
             row: Vec::new(),
             row_sums: vec![0.0; face_order],
             row_sum_stamps: vec![0; face_order],
             row_stamp: 0,
+            kept_transport: vec![0.0; face_order * face_order],
             light: vec![[0.0; 3]; face_order * face_order],
         }
     }
 }
 
-/// Coupling entries one thread keeps before its [`CouplingCache`] starts afresh (about 4 MB
-/// with the index).
-const COUPLING_CACHE_ENTRIES: usize = 1 << 18;
+/// A set of face indices, emptied in O(1) by moving to a new stamp.
+#[derive(Default)]
+struct FaceSet {
+    stamps: Vec<u32>,
+    stamp: u32,
+}
+
+impl FaceSet {
+    fn clear(&mut self, size: usize) {
+        if self.stamps.len() != size {
+            self.stamps = vec![0; size];
+            self.stamp = 0;
+        }
+        self.stamp = self.stamp.wrapping_add(1);
+        if self.stamp == 0 {
+            self.stamps.fill(0);
+            self.stamp = 1;
+        }
+    }
+
+    /// Whether `k` was new.
+    fn insert(&mut self, k: usize) -> bool {
+        let new = self.stamps[k] != self.stamp;
+        self.stamps[k] = self.stamp;
+        new
+    }
+
+    fn contains(&self, k: usize) -> bool {
+        self.stamps[k] == self.stamp
+    }
+}
+
+/// Coupling entries one thread keeps before its [`CouplingCache`] starts afresh (about 24 MB
+/// with the index; kept between evaluations).
+const COUPLING_CACHE_ENTRIES: usize = 1 << 20;
 
 /// One axis's fan-out and couplings `(k, D_ik(s, o))` per exact `(s, o, i)`: receivers that
 /// share a depth and a coordinate along an axis (a floor's rows and columns) share them, so
@@ -365,6 +435,13 @@ fn rank_predictions(
     ranked.retain(|r| r.0 > 0.0);
 }
 
+/// Every index of an `n × n` face in [`fill_coarse_first`]'s order.
+fn coarse_first_order(n: usize) -> Vec<usize> {
+    let mut order = Vec::with_capacity(n * n);
+    fill_coarse_first(&mut order, n * n, n, &mut Vec::new());
+    order
+}
+
 /// Tops `kept` up to `count` with the indices it lacks, coarse first then in index order.
 fn fill_coarse_first(kept: &mut Vec<usize>, count: usize, n: usize, chosen: &mut Vec<bool>) {
     if kept.len() >= count {
@@ -399,9 +476,10 @@ fn largest_target_set(n: usize, fraction: f64, scratch: &mut Propagation) {
     if ranked.len() > count && count > 0 {
         ranked.select_nth_unstable_by(count - 1, by_prediction);
     }
-    selected.clear();
-    selected.resize(n * n, false);
-    ranked.iter().take(count).for_each(|r| selected[r.2] = true);
+    selected.clear(n * n);
+    ranked.iter().take(count).for_each(|r| {
+        selected.insert(r.2);
+    });
 }
 
 /// [`predicted_targets`] as a set, into `scratch`'s buffers: `kept` (in no order) and the
@@ -409,59 +487,138 @@ fn largest_target_set(n: usize, fraction: f64, scratch: &mut Propagation) {
 /// ranking them all.
 fn predicted_target_set(maps: [Affine; 2], n: usize, fraction: f64, scratch: &mut Propagation) {
     let count = target_count(n, fraction);
-    let Propagation { couplings, axis, ranked, chosen, kept, selected, .. } = scratch;
+    let Propagation { couplings, axis, ranked, kept, selected, coarse_first, .. } = scratch;
+    if coarse_first.len() != n * n {
+        *coarse_first = coarse_first_order(n);
+    }
     rank_predictions(maps, n, couplings, axis, ranked);
     if ranked.len() > count && count > 0 {
         ranked.select_nth_unstable_by(count - 1, by_prediction);
     }
     kept.clear();
-    kept.extend(ranked.iter().take(count).map(|r| r.2));
-    fill_coarse_first(kept, count, n, chosen);
-    selected.clear();
-    selected.resize(n * n, false);
-    kept.iter().for_each(|&k| selected[k] = true);
+    selected.clear(n * n);
+    for r in ranked.iter().take(count) {
+        kept.push(r.2);
+        selected.insert(r.2);
+    }
+    for &k in coarse_first.iter() {
+        if kept.len() >= count {
+            break;
+        }
+        if selected.insert(k) {
+            kept.push(k);
+        }
+    }
 }
 
 /// Irradiance `E = Σ_k L_k T_k` (RGB) at each receiver from one light; 0 above its plane.
 ///
-/// `All` and `Predicted` targets take the adjoint order of the same sum,
-/// `E = Σ_i F_i Σ_{k₁} D_{i₁k₁} Σ_{k₂} D_{i₂k₂} T̃_{k₁k₂}` with `T̃` the kept transport: scalar
-/// partial sums gathered from the transport instead of RGB light scattered over the whole face,
-/// so a receiver's cost is its fan-out, never the face's `order²`. `Largest` needs every `L_k`
-/// to rank them, so it propagates first ([`propagate_into`]).
+/// `All` and `Predicted` targets take the adjoint order of the same sum, through each source
+/// coefficient's [`responses`]: `E = Σ_i F_i G_i`. `Largest` needs every `L_k` to rank them,
+/// so it propagates first ([`propagate_into`]).
 pub fn irradiance(
     source: &LightSource,
     placement: &LightPlacement,
     transport: &FaceTransport,
     positions: &[DVec3],
-    keep: TargetKeep,
+    shading: impl Into<Shading>,
 ) -> Vec<[f64; 3]> {
+    let Shading { keep, acc } = shading.into();
+    let indices: Vec<(u16, u16)> = source.coefficients.iter().map(|c| c.0).collect();
+    if let Some(g) = responses(&indices, placement, transport, positions, Shading { keep, acc }) {
+        return shade(source, positions.len(), |r, j| g[r * indices.len() + j]);
+    }
     let face = transport.face;
     positions
         .par_iter()
         .enumerate()
-        .map_init(
-            || Propagation::new(face.order),
-            |scratch, (r, &x)| {
-                let Some(maps) = placement.maps(&face, x) else {
-                    return [0.0; 3];
-                };
-                let t = transport.of(r);
-                match keep {
-                    TargetKeep::All => adjoint_irradiance(source, maps, face.order, t, false, scratch),
-                    TargetKeep::Predicted(fraction) => {
-                        predicted_target_set(maps, face.order, fraction, scratch);
-                        adjoint_irradiance(source, maps, face.order, t, true, scratch)
-                    }
-                    TargetKeep::Largest(fraction) => {
-                        propagate_into(source, maps, face.order, scratch);
-                        largest_target_set(face.order, fraction, scratch);
-                        propagated_irradiance(t, true, scratch)
-                    }
-                }
-            },
-        )
+        .map(|(r, &x)| {
+            let Some(maps) = placement.maps(&face, x).map(|m| acc.maps(m)) else {
+                return [0.0; 3];
+            };
+            let TargetKeep::Largest(fraction) = keep else { unreachable!("linear targets shade by responses") };
+            with_scratch(face.order, |scratch| {
+                propagate_into(source, maps, face.order, scratch);
+                largest_target_set(face.order, fraction, scratch);
+                propagated_irradiance(transport.of(r), true, scratch)
+            })
+        })
         .collect()
+}
+
+/// `E_r = Σ_j F_j G_j(r)` per receiver, in coefficient order, with `G_j(r)` from `response(r, j)`
+/// ([`responses`], kept per coefficient or all at once: the same sum, the same bits).
+pub fn shade(source: &LightSource, receivers: usize, response: impl Fn(usize, usize) -> f64 + Sync) -> Vec<[f64; 3]> {
+    (0..receivers)
+        .into_par_iter()
+        .map(|r| {
+            let mut e = [0.0; 3];
+            for (j, (_, f)) in source.coefficients.iter().enumerate() {
+                let g = response(r, j);
+                for c in 0..3 {
+                    e[c] += f64::from(f[c]) * g;
+                }
+            }
+            e
+        })
+        .collect()
+}
+
+/// Each source coefficient's share of each receiver's irradiance per unit coefficient,
+/// `G_i = Σ_{k₁} D_{i₁k₁} Σ_{k₂} D_{i₂k₂} T̃_{k₁k₂}` (`T̃` the kept transport), for `indices`
+/// `(i₁, i₂)` in the source's order (by `i₂`, then `i₁`); at `r · indices.len() + j`.
+///
+/// `E` is linear in the light for `All` and `Predicted` targets (the kept set depends on the
+/// placement alone), so a repainted light reuses the responses of the coefficients it keeps and
+/// a stroke computes only those it adds. `None` for `Largest`, whose kept set follows the light.
+pub fn responses(
+    indices: &[(u16, u16)],
+    placement: &LightPlacement,
+    transport: &FaceTransport,
+    positions: &[DVec3],
+    shading: impl Into<Shading>,
+) -> Option<Vec<f64>> {
+    let Shading { keep, acc } = shading.into();
+    let fraction = match keep {
+        TargetKeep::All => None,
+        TargetKeep::Predicted(fraction) => Some(fraction),
+        TargetKeep::Largest(_) => return None,
+    };
+    let face = transport.face;
+    let mut g = vec![0.0; positions.len() * indices.len()];
+    if indices.is_empty() {
+        return Some(g);
+    }
+    g.par_chunks_mut(indices.len()).enumerate().for_each(|(r, out)| {
+        let Some(maps) = placement.maps(&face, positions[r]).map(|m| acc.maps(m)) else {
+            return;
+        };
+        with_scratch(face.order, |scratch| {
+            if let Some(fraction) = fraction {
+                predicted_target_set(maps, face.order, fraction, scratch);
+            }
+            adjoint_responses(indices, maps, face.order, transport.of(r), fraction.is_some(), scratch, out);
+        });
+    });
+    Some(g)
+}
+
+thread_local! {
+    /// Each thread's buffers and coupling cache, kept from one evaluation to the next: a stroke
+    /// finds the couplings of an unchanged placement already computed (the cached values are the
+    /// computed ones, so results do not depend on what a thread did before).
+    static SCRATCH: std::cell::RefCell<Option<Propagation>> = const { std::cell::RefCell::new(None) };
+}
+
+/// Runs `f` with this thread's [`Propagation`] for a face of `order`.
+fn with_scratch<R>(order: usize, f: impl FnOnce(&mut Propagation) -> R) -> R {
+    SCRATCH.with(|cell| {
+        let mut slot = cell.borrow_mut();
+        if slot.as_ref().is_none_or(|p| p.light.len() != order * order) {
+            *slot = Some(Propagation::new(order));
+        }
+        f(slot.as_mut().expect("just made"))
+    })
 }
 
 /// `Σ_k L_k T_k` over the propagated light in `scratch.light`, in index order, over
@@ -469,7 +626,7 @@ pub fn irradiance(
 fn propagated_irradiance(t: &[f32], masked: bool, scratch: &Propagation) -> [f64; 3] {
     let mut e = [0.0; 3];
     for (k, l) in scratch.light.iter().enumerate() {
-        if !masked || scratch.selected[k] {
+        if !masked || scratch.selected.contains(k) {
             for c in 0..3 {
                 e[c] += l[c] * f64::from(t[k]);
             }
@@ -478,25 +635,34 @@ fn propagated_irradiance(t: &[f32], masked: bool, scratch: &Propagation) -> [f64
     e
 }
 
-/// One receiver's `E` by the adjoint order (see [`irradiance`]), over `scratch.selected` when
-/// `masked`. Per source row `i₂`, `H_{k₁} = Σ_{k₂} D_{i₂k₂} T̃_{k₁k₂}` is computed once per
-/// `k₁` the row's fan-out reaches; the sums run in a fixed order, so every run gives the same
-/// bits.
-fn adjoint_irradiance(
-    source: &LightSource,
+/// One receiver's [`responses`], over `scratch.kept` when `masked`. Per source row `i₂`,
+/// `H_{k₁} = Σ_{k₂} D_{i₂k₂} T̃_{k₁k₂}` is computed once per `k₁` the row's fan-out reaches
+/// (scalar sums gathered from the transport, never light scattered over the face), in a fixed
+/// order: a coefficient's response has the same bits whichever others are computed with it.
+fn adjoint_responses(
+    indices: &[(u16, u16)],
     maps: [Affine; 2],
     n: usize,
     t: &[f32],
     masked: bool,
     scratch: &mut Propagation,
-) -> [f64; 3] {
-    let Propagation { couplings, selected, row, row_sums, row_sum_stamps, row_stamp, .. } = scratch;
-    let mut e = [0.0; 3];
-    let coefficients = &source.coefficients;
+    out: &mut [f64],
+) {
+    let Propagation { couplings, kept, row, row_sums, row_sum_stamps, row_stamp, kept_transport, .. } = scratch;
+    let t = if masked {
+        kept_transport.clear();
+        kept_transport.resize(n * n, 0.0);
+        for &k in kept.iter() {
+            kept_transport[k] = t[k];
+        }
+        &kept_transport[..]
+    } else {
+        t
+    };
     let mut start = 0;
-    while start < coefficients.len() {
-        let i2 = coefficients[start].0.1;
-        let end = start + coefficients[start..].iter().take_while(|c| c.0.1 == i2).count();
+    while start < indices.len() {
+        let i2 = indices[start].1;
+        let end = start + indices[start..].iter().take_while(|c| c.1 == i2).count();
         row.clear();
         row.extend_from_slice(couplings.get(maps[1], usize::from(i2), n));
         *row_stamp = row_stamp.wrapping_add(1);
@@ -504,31 +670,25 @@ fn adjoint_irradiance(
             row_sum_stamps.iter_mut().for_each(|s| *s = 0);
             *row_stamp = 1;
         }
-        if !row.is_empty() {
-            for &((i1, _), f) in &coefficients[start..end] {
-                let mut g = 0.0;
+        for (j, &(i1, _)) in indices.iter().enumerate().take(end).skip(start) {
+            let mut g = 0.0;
+            if !row.is_empty() {
                 for &(k1, d1) in couplings.get(maps[0], usize::from(i1), n) {
                     if row_sum_stamps[k1] != *row_stamp {
                         let mut h = 0.0;
                         for &(k2, d2) in row.iter() {
-                            let k = k2 * n + k1;
-                            if !masked || selected[k] {
-                                h += d2 * f64::from(t[k]);
-                            }
+                            h += d2 * f64::from(t[k2 * n + k1]);
                         }
                         row_sums[k1] = h;
                         row_sum_stamps[k1] = *row_stamp;
                     }
                     g += d1 * row_sums[k1];
                 }
-                for c in 0..3 {
-                    e[c] += f64::from(f[c]) * g;
-                }
             }
+            out[j] = g;
         }
         start = end;
     }
-    e
 }
 
 #[cfg(test)]

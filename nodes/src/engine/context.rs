@@ -84,6 +84,14 @@ impl StageContext<'_> {
         Ok(Memo::new(v))
     }
 
+    /// The part memoised under `key` if the memory cache holds it (counted as a hit), without
+    /// computing it: for stages that compute their missing parts together.
+    pub fn memo_cached<T: Persisted>(&self, key: Key) -> Option<Memo<T>> {
+        let cached = self.engine.memory.lock().unwrap().get(key).filter(|v| v.get::<T>().is_some())?;
+        self.memo_hits.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        Some(Memo::new(cached))
+    }
+
     fn param(&self, name: &str) -> Result<&ParamValue, StageError> {
         self.params.get(name).copied().ok_or_else(|| {
             StageError::Internal(format!("stage `{}` read parameter `{name}` it did not declare", self.stage))

@@ -11,7 +11,7 @@
 
 use crate::engine::{StageContext, StageError, StageValue};
 use crate::light_texture::{LightTexture, PaintOp, load_image, render, turned_extent};
-use crate::near_field::{FACE_ORDER, LightPlacement, LightSource, TargetKeep, TopFace, light_source};
+use crate::near_field::{AccMode, FACE_ORDER, LightPlacement, LightSource, Shading, TargetKeep, TopFace, light_source};
 use crate::node_kind::{Availability, NodeKindSpec, ParamKind, ParamSpec, ParamValue, PortSpec, PortType, StageSpec};
 use crate::picture::Preview;
 use crate::reference::AreaEmitter;
@@ -31,9 +31,16 @@ pub struct AreaLight {
     pub scale: [f64; 3],
     pub face: TopFace,
     pub keep: TargetKeep,
+    pub acc: AccMode,
     /// The light as the Monte Carlo reference samples it: the painted texture on the turned
     /// rectangle, times intensity and tint.
     pub emitter: AreaEmitter,
+}
+
+impl AreaLight {
+    pub fn shading(&self) -> Shading {
+        Shading { keep: self.keep, acc: self.acc }
+    }
 }
 
 pub fn spec() -> NodeKindSpec {
@@ -134,6 +141,22 @@ pub fn spec() -> NodeKindSpec {
                 },
                 doc: "How each receiver's kept top-face coefficients are picked (below 100% lighting detail).",
             },
+            ParamSpec {
+                name: "acc",
+                label: "Couplings",
+                unit: "",
+                kind: ParamKind::Choice {
+                    options: &["analytic", "table256", "table64"],
+                    default: "analytic",
+                    labels: &[
+                        ("Exact", "computed at every vertex: no quantisation"),
+                        ("Table 256", "snapped to a 256-step grid and shared by nearby vertices: within about 1%"),
+                        ("Table 64", "a coarser grid, shared more widely: within about 3%"),
+                    ],
+                },
+                doc: "How the light's wavelets are carried to each vertex (the affine coupling coefficients): \
+                      exactly, or looked up on a grid over the light's scale and offset as seen from the vertex.",
+            },
             ParamSpec::float(
                 "face_size",
                 "Face size",
@@ -182,12 +205,13 @@ pub fn spec() -> NodeKindSpec {
             },
             StageSpec {
                 name: "light",
-                version: 2,
+                version: 3,
                 params: &[
                     "intensity",
                     "tint",
                     "target_keep",
                     "target_heuristic",
+                    "acc",
                     "position",
                     "width",
                     "depth",
@@ -272,6 +296,11 @@ fn light(ctx: &StageContext) -> Result<StageValue, StageError> {
         (false, "largest") => TargetKeep::Largest(target / 100.0),
         (false, _) => TargetKeep::Predicted(target / 100.0),
     };
+    let acc = match ctx.choice("acc")? {
+        "table256" => AccMode::Table(256),
+        "table64" => AccMode::Table(64),
+        _ => AccMode::Analytic,
+    };
     let texture = ctx.stage::<LightTexture>("texture")?;
     let scale = tint.map(|t| t * intensity);
     let radiance = texture.emission().into_iter().map(|c| std::array::from_fn(|i| c[i] * scale[i])).collect();
@@ -283,6 +312,7 @@ fn light(ctx: &StageContext) -> Result<StageValue, StageError> {
         scale,
         face: *ctx.stage::<TopFace>("face")?,
         keep,
+        acc,
         emitter,
     }))
 }

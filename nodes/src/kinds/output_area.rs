@@ -9,12 +9,15 @@
 //!   or adding a light with a face already traced casts no ray.
 //! - `area_irradiance`: `E = Σ_ℓ scale_ℓ Σ_k L_k^{(ℓ)} T_k` per vertex (Eq. 4.36). Each light's
 //!   unscaled sum is memoised on the light's coefficients, placement and face, so an edit of one
-//!   light reruns only its propagation, and intensity or tint only rescales.
+//!   light reruns only its own, and intensity or tint only rescales. Below it, each source
+//!   coefficient's response ([`crate::near_field::responses`]) is memoised on the placement, the
+//!   face and the coefficient's index, so a stroke computes only the coefficients it newly keeps
+//!   and a move recomputes them all.
 
 use crate::engine::{Key, StageContext, StageError, StageValue};
 use crate::frame::{AreaLightFrame, FrameMaterial, Keyed};
 use crate::kinds::area_light::AreaLight;
-use crate::near_field::{FaceTransport, TopFace, face_transport, irradiance};
+use crate::near_field::{FaceTransport, TargetKeep, TopFace, face_transport, irradiance, responses, shade};
 use crate::node_kind::{PortSpec, PortType, StageSpec};
 use crate::raycast::RayScene;
 use crate::transport::Receivers;
@@ -35,6 +38,7 @@ crate::stage_type!(
     numbers = |v| v.irradiance.iter().flatten().map(|&c| f64::from(c))
 );
 crate::stage_type!(UnscaledIrradiance, "one area light's irradiance", encoding = 1, |v| v.0.len() * 12);
+crate::stage_type!(Response, "one light coefficient's response", encoding = 1, |v| v.0.len() * 8);
 
 /// Receivers per cancellation check and progress step of the transport.
 const TRANSPORT_CHUNK: usize = 512;
@@ -62,6 +66,10 @@ pub struct AreaIrradiance {
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct UnscaledIrradiance(pub Vec<[f32; 3]>);
 
+/// One source coefficient's share of every vertex's irradiance ([`responses`]).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Response(pub Vec<f64>);
+
 /// The Output's input for area lights (any number).
 pub fn input() -> PortSpec {
     PortSpec { name: "area_lights", ty: PortType::AreaLight, required: false, many: true }
@@ -85,7 +93,7 @@ pub fn stages() -> Vec<StageSpec> {
         },
         StageSpec {
             name: "area_irradiance",
-            version: 1,
+            version: 2,
             params: &[],
             stages: &["area_transport"],
             inputs: &[("scene", "receivers"), ("area_lights", "light")],
@@ -175,14 +183,19 @@ fn area_irradiance(ctx: &StageContext) -> Result<StageValue, StageError> {
             .iter()
             .find(|f| f.transport.face == light.face)
             .ok_or_else(|| StageError::Internal("no transport for a light's top face".into()))?;
-        let described = (&light.source, &light.placement, &light.keep);
+        let described = (&light.source, &light.placement, &light.shading());
         let mut key = xxhash_rust::xxh3::Xxh3::new();
         key.update(b"area irradiance v1");
         key.update(&shared.key.to_le_bytes());
         key.update(&postcard::to_allocvec(&described).map_err(|e| StageError::Internal(e.to_string()))?);
         let unscaled = ctx.memo(key.digest128(), || {
             ctx.check_cancel()?;
-            let e = irradiance(&light.source, &light.placement, &shared.transport, &points, light.keep);
+            let e = match light.keep {
+                TargetKeep::Largest(_) => {
+                    irradiance(&light.source, &light.placement, &shared.transport, &points, light.shading())
+                }
+                _ => shade_by_responses(ctx, light, shared, &points)?,
+            };
             Ok(UnscaledIrradiance(e.into_iter().map(|c| c.map(|v| v as f32)).collect()))
         })?;
         for (sum, e) in total.iter_mut().zip(&unscaled.0) {
@@ -194,6 +207,52 @@ fn area_irradiance(ctx: &StageContext) -> Result<StageValue, StageError> {
     // Truncated products ring slightly below zero near a light's footprint; irradiance cannot.
     let irradiance = total.into_iter().map(|c| c.map(|v| v.max(0.0) as f32)).collect();
     Ok(StageValue::new(AreaIrradiance { irradiance }))
+}
+
+/// `E = Σ_i F_i G_i` with each coefficient's response `G_i` memoised (see the module doc): the
+/// responses the light lacks are computed together, then all are summed in the light's order,
+/// the bits of [`irradiance`].
+fn shade_by_responses(
+    ctx: &StageContext,
+    light: &AreaLight,
+    shared: &SharedTransport,
+    points: &[DVec3],
+) -> Result<Vec<[f64; 3]>, StageError> {
+    let mut placed = xxhash_rust::xxh3::Xxh3::new();
+    placed.update(b"area response v1");
+    placed.update(&shared.key.to_le_bytes());
+    placed.update(
+        &postcard::to_allocvec(&(&light.placement, &light.shading()))
+            .map_err(|e| StageError::Internal(e.to_string()))?,
+    );
+    let key_of = |(i1, i2): (u16, u16)| {
+        let mut key = placed.clone();
+        key.update(&i1.to_le_bytes());
+        key.update(&i2.to_le_bytes());
+        key.digest128()
+    };
+    let indices: Vec<(u16, u16)> = light.source.coefficients.iter().map(|c| c.0).collect();
+    let mut columns: Vec<Option<crate::engine::Memo<Response>>> =
+        indices.iter().map(|&i| ctx.memo_cached::<Response>(key_of(i))).collect();
+    let missing: Vec<(u16, u16)> = indices.iter().zip(&columns).filter(|(_, c)| c.is_none()).map(|(&i, _)| i).collect();
+    if !missing.is_empty() {
+        ctx.check_cancel()?;
+        let g = responses(&missing, &light.placement, &shared.transport, points, light.shading())
+            .ok_or_else(|| StageError::Internal("responses of a light whose kept set follows it".into()))?;
+        let mut computed = missing.iter().enumerate();
+        for (column, &index) in columns.iter_mut().zip(&indices) {
+            if column.is_none() {
+                let (j, _) = computed
+                    .next()
+                    .filter(|(_, i)| **i == index)
+                    .ok_or_else(|| StageError::Internal("response order".into()))?;
+                let values = (0..points.len()).map(|r| g[r * missing.len() + j]).collect();
+                *column = Some(ctx.memo(key_of(index), || Ok(Response(values)))?);
+            }
+        }
+    }
+    let columns: Vec<&[f64]> = columns.iter().map(|c| c.as_ref().map_or(&[][..], |c| c.0.as_slice())).collect();
+    Ok(shade(&light.source, points.len(), |r, j| columns[j][r]))
 }
 
 /// The linked lights as one frame's [`AreaLightFrame`], once `area_irradiance` is evaluated.

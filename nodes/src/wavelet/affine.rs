@@ -61,6 +61,28 @@ pub fn canonical_coupling_by_cases(r: f64, c: f64) -> f64 {
     }
 }
 
+/// The memory-based ACC of §4.5.5 (notes §2.8): couplings taken at the nearest point of a grid
+/// over the map `(s, o)` instead of at the map itself, so receivers with nearby maps share one
+/// set of couplings (computed once, then looked up). The grid has `steps` points per unit of the
+/// footprint's position `c = (o + s)/(1 + s)` (`c ∈ (0, 1)` where the mapped interval
+/// `[o, o + s)` meets `[0, 1)`) and `steps / 2` per octave of `s`. The thesis tabulates 256²
+/// points; the couplings are piecewise linear in `(s, o)`, so the error falls with the step.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct CouplingGrid {
+    pub steps: u32,
+}
+
+impl CouplingGrid {
+    /// The grid point nearest `map`.
+    pub fn snap(&self, map: Affine) -> Affine {
+        let steps = f64::from(self.steps.max(2));
+        let per_octave = steps / 2.0;
+        let s = ((map.s.log2() * per_octave).round() / per_octave).exp2();
+        let c = ((map.o + map.s) / (1.0 + map.s) * steps).round() / steps;
+        Affine { s, o: c * (1.0 + s) - s }
+    }
+}
+
 /// An affine map `v ↦ s v + o` of the unit interval, `s > 0`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Affine {

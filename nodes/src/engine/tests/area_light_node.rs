@@ -211,6 +211,36 @@ fn area_lights_light_the_floor_like_direct_integration() {
     let after = value_of::<AreaIrradiance>(&brighter, "output", "area_irradiance").irradiance;
     assert!(before.iter().zip(&after).all(|(b, a)| (2.0 * b[1] - a[1]).abs() <= 1e-6 * a[1].abs().max(1e-3)));
 
+    // A stroke computes only the responses of the coefficients the light newly keeps (the
+    // white light's one coefficient is reused), and gives the bits of evaluating afresh.
+    let stroke = PaintOp::Stroke {
+        points: vec![[0.2, 0.3], [0.6, 0.4]],
+        radius: 0.15,
+        hardness: 0.5,
+        colour: [1.0, 0.3, 0.0],
+        intensity: 2.0,
+        blend: Blend::Mix,
+    };
+    graph.set_param("area", "paint", ParamValue::Paint(vec![stroke])).unwrap();
+    let painted = evaluate_frame(&engine, &graph);
+    let report = painted.report.stages.iter().find(|s| s.stage == "area_irradiance").unwrap();
+    let parts = |what: &str| -> usize {
+        report
+            .reasons
+            .iter()
+            .find_map(|r| {
+                let words: Vec<&str> = r.split(|c: char| c == ' ' || c == ',').filter(|w| !w.is_empty()).collect();
+                let at = words.iter().position(|w| *w == what)?;
+                words.get(at.checked_sub(1)?)?.parse().ok().or_else(|| words.get(at.checked_sub(2)?)?.parse().ok())
+            })
+            .unwrap_or(0)
+    };
+    assert!(parts("reused") >= 1 && parts("computed") >= 2, "{:?}", report.reasons);
+    let incremental = value_of::<AreaIrradiance>(&painted, "output", "area_irradiance").irradiance;
+    let fresh = value_of::<AreaIrradiance>(&evaluate_frame(&Engine::in_memory(), &graph), "output", "area_irradiance");
+    assert!(fresh.irradiance.iter().zip(&incremental).all(|(a, b)| a.map(f32::to_bits) == b.map(f32::to_bits)));
+    assert!(incremental.iter().zip(&after).any(|(p, a)| p[2] < 0.9 * a[2]), "the orange stroke takes blue away");
+
     // A second light with the same face: the transport stage reruns (its inputs changed) but
     // traces nothing new.
     let mut two_lights = lit_floor_graph(2);

@@ -78,6 +78,46 @@ fn on_area_light(p: [f64; 3], (width, depth, angle): (f64, f64, f64), (u, v): (f
     [p[0] + cos * x + sin * z, p[1], p[2] - sin * x + cos * z]
 }
 
+/// Texels per side of the grid the light's preview is drawn on: egui maps a texture affinely
+/// per triangle, so a finer grid keeps the texture where perspective puts it.
+const PREVIEW_GRID: usize = 8;
+
+/// The selected light's painted texture on its rectangle, over the view (in light coordinates,
+/// as the canvas shows it); nothing when part of it is behind the camera.
+fn preview_light(
+    painter: &egui::Painter,
+    camera: &OrbitCamera,
+    rect: egui::Rect,
+    texture: egui::TextureId,
+    position: [f64; 3],
+    shape: (f64, f64, f64),
+) {
+    let mut mesh = egui::Mesh::with_texture(texture);
+    let n = PREVIEW_GRID;
+    for j in 0..=n {
+        for i in 0..=n {
+            let (u, v) = (i as f64 / n as f64, j as f64 / n as f64);
+            let Some(pos) = screen_pos(camera, rect, on_area_light(position, shape, (2.0 * u - 1.0, 2.0 * v - 1.0)))
+            else {
+                return;
+            };
+            mesh.vertices.push(egui::epaint::Vertex {
+                pos,
+                uv: egui::pos2(u as f32, v as f32),
+                color: Color32::from_white_alpha(230),
+            });
+        }
+    }
+    let at = |i: usize, j: usize| (j * (n + 1) + i) as u32;
+    for j in 0..n {
+        for i in 0..n {
+            mesh.add_triangle(at(i, j), at(i + 1, j), at(i + 1, j + 1));
+            mesh.add_triangle(at(i, j), at(i + 1, j + 1), at(i, j + 1));
+        }
+    }
+    painter.add(egui::Shape::mesh(mesh));
+}
+
 impl Gizmo {
     fn gizmo_id(&self) -> GizmoId {
         let sphere = match self.target {
@@ -258,6 +298,28 @@ impl EditorApp {
             .map(|(_, id)| id)
     }
 
+    /// Keeps each area light's preview texture in step with its last evaluated `texture` stage.
+    pub(super) fn refresh_light_previews(&mut self, ctx: &egui::Context) {
+        let lights: Vec<String> =
+            self.doc.project.nodes.iter().filter(|n| n.kind == "AreaLightPainter").map(|n| n.id.clone()).collect();
+        self.light_previews.retain(|id, _| lights.contains(id));
+        let Some((evaluation, _)) = &self.evaluator.last else { return };
+        for id in lights {
+            let Some(stage) = evaluation.get(&id, "texture") else { continue };
+            if self.light_previews.get(&id).is_some_and(|(key, _)| *key == stage.key) {
+                continue;
+            }
+            let Some(texture) =
+                stage.value.as_ref().ok().and_then(|v| v.expect::<lightloom_nodes::light_texture::LightTexture>().ok())
+            else {
+                continue;
+            };
+            let image = super::paint_canvas::preview_image(texture);
+            let handle = ctx.load_texture(format!("light-preview-{id}"), image, egui::TextureOptions::LINEAR);
+            self.light_previews.insert(id, (stage.key, handle));
+        }
+    }
+
     pub(super) fn draw_gizmos(&self, painter: &egui::Painter, rect: egui::Rect, hover: Option<egui::Pos2>) {
         let camera = self.viewport_camera(rect);
         let selected = match &self.selection {
@@ -293,6 +355,9 @@ impl EditorApp {
                         .map(|&uv| screen_pos(&camera, rect, on_area_light(g.position, (width, depth, angle), uv)))
                         .collect();
                     let colour = if is_selected { outline } else { g.colour };
+                    if is_selected && let Some((_, texture)) = self.light_previews.get(&g.id) {
+                        preview_light(painter, &camera, rect, texture.id(), g.position, (width, depth, angle));
+                    }
                     if let Some(mut corners) = corners {
                         corners.push(corners[0]);
                         painter.add(egui::Shape::line(corners.clone(), egui::Stroke::new(3.0, Color32::BLACK)));

@@ -188,6 +188,8 @@ pub struct EditorApp {
     pub selection: Selection,
     previews: Previews,
     paint_canvas: paint_canvas::PaintCanvas,
+    /// Per area light: its painted texture as the viewport previews it, and the stage key.
+    light_previews: std::collections::HashMap<String, (lightloom_nodes::engine::Key, egui::TextureHandle)>,
     view: ViewState,
     host: Option<ViewportHost>,
     host_error: Option<String>,
@@ -344,6 +346,7 @@ impl EditorApp {
             selection: Selection::None,
             previews: Previews::default(),
             paint_canvas: Default::default(),
+            light_previews: Default::default(),
             view: ViewState {
                 camera,
                 camera_name,

@@ -239,6 +239,22 @@ impl PaintCanvas {
 }
 
 /// The texture's emission for display: auto-exposed sRGB, the masked-off part checkered.
+/// The light as the viewport previews it on its rectangle: the canvas's colours, with the
+/// masked-out texels transparent.
+pub fn preview_image(texture: &LightTexture) -> egui::ColorImage {
+    let emission = texture.emission();
+    let scale = lightloom_nodes::preview::auto_scale(emission.iter().copied());
+    let pixels = emission
+        .iter()
+        .zip(&texture.mask)
+        .map(|(c, m)| {
+            let [r, g, b, _] = lightloom_nodes::preview::display_rgb8(*c, scale);
+            if *m <= 0.0 { Color32::TRANSPARENT } else { Color32::from_rgb(r, g, b) }
+        })
+        .collect();
+    egui::ColorImage::new([texture.side, texture.side], pixels)
+}
+
 fn canvas_image(texture: &LightTexture) -> egui::ColorImage {
     let emission = texture.emission();
     let scale = lightloom_nodes::preview::auto_scale(emission.iter().copied());

@@ -33,6 +33,7 @@ impl EditorApp {
         }
         self.selection_overlay(&painter, rect);
         render_frame_overlay(&painter, rect, self.render_frame(rect), &self.doc.project.render);
+        self.refresh_light_previews(ui.ctx());
         self.draw_gizmos(&painter, rect, response.hover_pos());
         let message = if let Some(e) = &self.host_error {
             Some(format!("viewport unavailable: {e}"))

@@ -121,6 +121,9 @@ fn a_linked_area_light_lights_the_viewport_and_its_edges_resize_it() {
     inspector::set_param(&mut harness.state_mut().doc, &added, "intensity", ParamValue::Float(60.0)).unwrap();
     harness.state_mut().doc.seal();
     settle(&mut harness);
+    // Deselected: the light's own preview is not drawn, so only its lighting counts.
+    harness.state_mut().selection = Selection::None;
+    settle(&mut harness);
     let lit = viewport_mean(&mut harness);
     assert!(lit > dark + 2.0, "the area light brightens the view: {dark:.1} → {lit:.1}");
     harness.render().unwrap().save(state_dir().join("area_light_lit.png")).expect("screenshot for a person to look at");
@@ -144,8 +147,48 @@ fn a_linked_area_light_lights_the_viewport_and_its_edges_resize_it() {
     assert!(param("width") > 1.3, "the drag widens the light: {}", param("width"));
     assert_eq!(param("position"), 0.0, "resizing keeps the centre");
     assert_eq!(harness.state().doc.undo_label(), Some(format!("Set {added}.width").as_str()));
+    harness.state_mut().selection = Selection::None;
     settle(&mut harness);
     let wider = viewport_mean(&mut harness);
     assert!(wider > lit, "a wider light of the same radiance gives more light: {lit:.1} → {wider:.1}");
     harness.render().unwrap().save(state_dir().join("area_light_resized.png")).expect("screenshot");
+}
+
+/// The selected light shows its painted texture on its rectangle in the viewport, inside the
+/// gizmo's outline; deselected, only the outline is left.
+#[test]
+fn the_selected_area_light_previews_its_texture_in_the_viewport() {
+    let mut harness = default_harness();
+    let added = add_from_menu(&mut harness, "Area light painter");
+    let doc = &mut harness.state_mut().doc;
+    inspector::set_param(doc, &added, "position", ParamValue::Vec3([0.5, 1.5, 0.5])).unwrap();
+    let red = PaintOp::Fill { colour: [1.0, 0.05, 0.05], intensity: 1.0 };
+    inspector::set_param(doc, &added, "paint", ParamValue::Paint(vec![red])).unwrap();
+    doc.seal();
+    harness.state_mut().selection = Selection::Node(added.clone());
+    settle(&mut harness);
+    let rect = harness.state().viewport_rect;
+    let camera = harness.state().viewport_camera(rect);
+    // Halfway from the centre handle to a corner (the light is 1 × 1 and not turned).
+    let probe = gizmos::screen_pos(&camera, rect, [0.75, 1.5, 0.75]).expect("in front of the camera");
+    let ppp = harness.ctx.pixels_per_point();
+    let pixel = |harness: &mut Harness<'_, EditorApp>| {
+        let image = harness.render().expect("the UI renders through wgpu");
+        let p = image.get_pixel((probe.x * ppp) as u32, (probe.y * ppp) as u32);
+        [p[0], p[1], p[2]].map(f64::from)
+    };
+    let shown = pixel(&mut harness);
+    harness
+        .render()
+        .unwrap()
+        .save(state_dir().join("area_light_preview.png"))
+        .expect("screenshot for a person to look at");
+    assert!(
+        shown[0] > 100.0 && shown[0] > 2.0 * shown[1] && shown[0] > 2.0 * shown[2],
+        "the painted red shows: {shown:?}"
+    );
+    harness.state_mut().selection = Selection::None;
+    settle(&mut harness);
+    let hidden = pixel(&mut harness);
+    assert!(hidden[0] < 2.0 * hidden[1], "deselected, the view behind shows: {hidden:?}");
 }

@@ -229,7 +229,7 @@ fn area_lights_light_the_floor_like_direct_integration() {
             .reasons
             .iter()
             .find_map(|r| {
-                let words: Vec<&str> = r.split(|c: char| c == ' ' || c == ',').filter(|w| !w.is_empty()).collect();
+                let words: Vec<&str> = r.split([' ', ',']).filter(|w| !w.is_empty()).collect();
                 let at = words.iter().position(|w| *w == what)?;
                 words.get(at.checked_sub(1)?)?.parse().ok().or_else(|| words.get(at.checked_sub(2)?)?.parse().ok())
             })

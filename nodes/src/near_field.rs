@@ -320,11 +320,16 @@ impl CouplingCache {
         let (start, len) = match self.index.get(&key) {
             Some(&range) => range,
             None => {
-                if self.entries.len() > COUPLING_CACHE_ENTRIES {
-                    self.index.clear();
-                    self.entries.clear();
+                // Afresh, and with the memory given back: the cache lives as long as its thread.
+                if self.entries.len() > COUPLING_CACHE_ENTRIES || self.index.len() > COUPLING_CACHE_ENTRIES / 4 {
+                    self.index = Default::default();
+                    self.entries = Vec::new();
                 }
                 map.targets(i, order, &mut self.targets);
+                // A map that misses the face is cheap to find again: not kept.
+                if self.targets.is_empty() {
+                    return &[];
+                }
                 let start = self.entries.len();
                 self.entries.extend(self.targets.iter().map(|&k| (k, map.coupling(i, k))));
                 self.index.insert(key, (start, self.targets.len()));
@@ -524,9 +529,15 @@ pub fn irradiance(
     shading: impl Into<Shading>,
 ) -> Vec<[f64; 3]> {
     let Shading { keep, acc } = shading.into();
-    let indices: Vec<(u16, u16)> = source.coefficients.iter().map(|c| c.0).collect();
-    if let Some(g) = responses(&indices, placement, transport, positions, Shading { keep, acc }) {
-        return shade(source, positions.len(), |r, j| g[r * indices.len() + j]);
+    if !matches!(keep, TargetKeep::Largest(_)) {
+        // In batches of coefficients, summed in the light's order: the bits of one batch.
+        let mut e = vec![[0.0; 3]; positions.len()];
+        for batch in source.coefficients.chunks(response_batch(positions.len())) {
+            let indices: Vec<(u16, u16)> = batch.iter().map(|c| c.0).collect();
+            let g = responses(&indices, placement, transport, positions, Shading { keep, acc }).unwrap_or_default();
+            accumulate(&mut e, batch, |r, j| g[r * indices.len() + j]);
+        }
+        return e;
     }
     let face = transport.face;
     positions
@@ -549,19 +560,34 @@ pub fn irradiance(
 /// `E_r = Σ_j F_j G_j(r)` per receiver, in coefficient order, with `G_j(r)` from `response(r, j)`
 /// ([`responses`], kept per coefficient or all at once: the same sum, the same bits).
 pub fn shade(source: &LightSource, receivers: usize, response: impl Fn(usize, usize) -> f64 + Sync) -> Vec<[f64; 3]> {
-    (0..receivers)
-        .into_par_iter()
-        .map(|r| {
-            let mut e = [0.0; 3];
-            for (j, (_, f)) in source.coefficients.iter().enumerate() {
-                let g = response(r, j);
-                for c in 0..3 {
-                    e[c] += f64::from(f[c]) * g;
-                }
+    let mut e = vec![[0.0; 3]; receivers];
+    accumulate(&mut e, &source.coefficients, response);
+    e
+}
+
+/// Adds `Σ_j F_j G_j(r)` over `coefficients` (a run of a light's, in order) to each `e[r]`:
+/// runs added one after another give the bits of [`shade`].
+pub fn accumulate(
+    e: &mut [[f64; 3]],
+    coefficients: &[((u16, u16), [f32; 3])],
+    response: impl Fn(usize, usize) -> f64 + Sync,
+) {
+    e.par_iter_mut().enumerate().for_each(|(r, e)| {
+        for (j, (_, f)) in coefficients.iter().enumerate() {
+            let g = response(r, j);
+            for c in 0..3 {
+                e[c] += f64::from(f[c]) * g;
             }
-            e
-        })
-        .collect()
+        }
+    });
+}
+
+/// Bytes of responses computed at once (one batch's `G`).
+const RESPONSE_BATCH_BYTES: usize = 64 << 20;
+
+/// Coefficients per batch of [`responses`] for this many receivers.
+pub fn response_batch(receivers: usize) -> usize {
+    (RESPONSE_BATCH_BYTES / (receivers.max(1) * 8)).max(1)
 }
 
 /// Each source coefficient's share of each receiver's irradiance per unit coefficient,

@@ -238,7 +238,6 @@ impl PaintCanvas {
     }
 }
 
-/// The texture's emission for display: auto-exposed sRGB, the masked-off part checkered.
 /// The light as the viewport previews it on its rectangle: the canvas's colours, with the
 /// masked-out texels transparent.
 pub fn preview_image(texture: &LightTexture) -> egui::ColorImage {
@@ -255,6 +254,7 @@ pub fn preview_image(texture: &LightTexture) -> egui::ColorImage {
     egui::ColorImage::new([texture.side, texture.side], pixels)
 }
 
+/// The texture's emission for display: auto-exposed sRGB, the masked-off part checkered.
 fn canvas_image(texture: &LightTexture) -> egui::ColorImage {
     let emission = texture.emission();
     let scale = lightloom_nodes::preview::auto_scale(emission.iter().copied());

@@ -17,7 +17,9 @@
 use crate::engine::{Key, StageContext, StageError, StageValue};
 use crate::frame::{AreaLightFrame, FrameMaterial, Keyed};
 use crate::kinds::area_light::AreaLight;
-use crate::near_field::{FaceTransport, TargetKeep, TopFace, face_transport, irradiance, responses, shade};
+use crate::near_field::{
+    FaceTransport, TargetKeep, TopFace, face_transport, irradiance, response_batch, responses, shade,
+};
 use crate::node_kind::{PortSpec, PortType, StageSpec};
 use crate::raycast::RayScene;
 use crate::transport::Receivers;
@@ -39,6 +41,10 @@ crate::stage_type!(
 );
 crate::stage_type!(UnscaledIrradiance, "one area light's irradiance", encoding = 1, |v| v.0.len() * 12);
 crate::stage_type!(Response, "one light coefficient's response", encoding = 1, |v| v.0.len() * 8);
+
+/// Bytes of one light's responses the memory cache may hold (a quarter of its default budget);
+/// a light with more coefficients × vertices is shaded without keeping them.
+const RESPONSE_MEMO_BYTES: usize = 512 << 20;
 
 /// Receivers per cancellation check and progress step of the transport.
 const TRANSPORT_CHUNK: usize = 512;
@@ -232,23 +238,22 @@ fn shade_by_responses(
         key.digest128()
     };
     let indices: Vec<(u16, u16)> = light.source.coefficients.iter().map(|c| c.0).collect();
+    // A light too detailed for its responses to be kept is shaded afresh (the same bits).
+    if indices.len() * points.len() * 8 > RESPONSE_MEMO_BYTES {
+        return Ok(irradiance(&light.source, &light.placement, &shared.transport, points, light.shading()));
+    }
     let mut columns: Vec<Option<crate::engine::Memo<Response>>> =
         indices.iter().map(|&i| ctx.memo_cached::<Response>(key_of(i))).collect();
     let missing: Vec<(u16, u16)> = indices.iter().zip(&columns).filter(|(_, c)| c.is_none()).map(|(&i, _)| i).collect();
-    if !missing.is_empty() {
+    for batch in missing.chunks(response_batch(points.len())) {
         ctx.check_cancel()?;
-        let g = responses(&missing, &light.placement, &shared.transport, points, light.shading())
+        let g = responses(batch, &light.placement, &shared.transport, points, light.shading())
             .ok_or_else(|| StageError::Internal("responses of a light whose kept set follows it".into()))?;
-        let mut computed = missing.iter().enumerate();
-        for (column, &index) in columns.iter_mut().zip(&indices) {
-            if column.is_none() {
-                let (j, _) = computed
-                    .next()
-                    .filter(|(_, i)| **i == index)
-                    .ok_or_else(|| StageError::Internal("response order".into()))?;
-                let values = (0..points.len()).map(|r| g[r * missing.len() + j]).collect();
-                *column = Some(ctx.memo(key_of(index), || Ok(Response(values)))?);
-            }
+        for (j, &index) in batch.iter().enumerate() {
+            let values = (0..points.len()).map(|r| g[r * batch.len() + j]).collect();
+            let column = ctx.memo(key_of(index), || Ok(Response(values)))?;
+            let at = indices.iter().position(|&i| i == index).ok_or_else(|| StageError::Internal("response".into()))?;
+            columns[at] = Some(column);
         }
     }
     let columns: Vec<&[f64]> = columns.iter().map(|c| c.as_ref().map_or(&[][..], |c| c.0.as_slice())).collect();

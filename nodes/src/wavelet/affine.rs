@@ -73,8 +73,11 @@ pub struct CouplingGrid {
 }
 
 impl CouplingGrid {
-    /// The grid point nearest `map`.
+    /// The grid point nearest `map` (a map with no finite positive scale is left as it is).
     pub fn snap(&self, map: Affine) -> Affine {
+        if !(map.s.is_finite() && map.s > 0.0 && map.o.is_finite()) {
+            return map;
+        }
         let steps = f64::from(self.steps.max(2));
         let per_octave = steps / 2.0;
         let s = ((map.s.log2() * per_octave).round() / per_octave).exp2();

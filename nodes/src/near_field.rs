@@ -235,11 +235,10 @@ pub struct Propagation {
     /// Every face index, coarse first then in index order: the predicted set's fill order.
     coarse_first: Vec<usize>,
     /// The adjoint's row of couplings `D_{i₂k₂}`, its per-`k₁` partial sums, and which of them
-    /// belong to the current row (`row_stamp`).
+    /// the current row has computed.
     row: Vec<(usize, f64)>,
     row_sums: Vec<f64>,
-    row_sum_stamps: Vec<u32>,
-    row_stamp: u32,
+    row_summed: FaceSet,
     /// The transport with the unkept coefficients zeroed: the adjoint's loops need no mask.
     kept_transport: Vec<f32>,
     /// `L_{k₁k₂}` at `k₂·order + k₁`, valid after [`propagate_into`].
@@ -260,15 +259,14 @@ impl Propagation {
             coarse_first: coarse_first_order(face_order),
             row: Vec::new(),
             row_sums: vec![0.0; face_order],
-            row_sum_stamps: vec![0; face_order],
-            row_stamp: 0,
+            row_summed: FaceSet::default(),
             kept_transport: vec![0.0; face_order * face_order],
             light: vec![[0.0; 3]; face_order * face_order],
         }
     }
 }
 
-/// A set of face indices, emptied in O(1) by moving to a new stamp.
+/// A set of indices below a size, emptied in O(1) by moving to a new stamp.
 #[derive(Default)]
 struct FaceSet {
     stamps: Vec<u32>,
@@ -529,7 +527,7 @@ pub fn irradiance(
     shading: impl Into<Shading>,
 ) -> Vec<[f64; 3]> {
     let Shading { keep, acc } = shading.into();
-    if !matches!(keep, TargetKeep::Largest(_)) {
+    let TargetKeep::Largest(fraction) = keep else {
         // In batches of coefficients, summed in the light's order: the bits of one batch.
         let mut e = vec![[0.0; 3]; positions.len()];
         for batch in source.coefficients.chunks(response_batch(positions.len())) {
@@ -538,7 +536,7 @@ pub fn irradiance(
             accumulate(&mut e, batch, |r, j| g[r * indices.len() + j]);
         }
         return e;
-    }
+    };
     let face = transport.face;
     positions
         .par_iter()
@@ -547,7 +545,6 @@ pub fn irradiance(
             let Some(maps) = placement.maps(&face, x).map(|m| acc.maps(m)) else {
                 return [0.0; 3];
             };
-            let TargetKeep::Largest(fraction) = keep else { unreachable!("linear targets shade by responses") };
             with_scratch(face.order, |scratch| {
                 propagate_into(source, maps, face.order, scratch);
                 largest_target_set(face.order, fraction, scratch);
@@ -674,7 +671,7 @@ fn adjoint_responses(
     scratch: &mut Propagation,
     out: &mut [f64],
 ) {
-    let Propagation { couplings, kept, row, row_sums, row_sum_stamps, row_stamp, kept_transport, .. } = scratch;
+    let Propagation { couplings, kept, row, row_sums, row_summed, kept_transport, .. } = scratch;
     let t = if masked {
         kept_transport.clear();
         kept_transport.resize(n * n, 0.0);
@@ -691,22 +688,13 @@ fn adjoint_responses(
         let end = start + indices[start..].iter().take_while(|c| c.1 == i2).count();
         row.clear();
         row.extend_from_slice(couplings.get(maps[1], usize::from(i2), n));
-        *row_stamp = row_stamp.wrapping_add(1);
-        if *row_stamp == 0 {
-            row_sum_stamps.iter_mut().for_each(|s| *s = 0);
-            *row_stamp = 1;
-        }
+        row_summed.clear(n);
         for (j, &(i1, _)) in indices.iter().enumerate().take(end).skip(start) {
             let mut g = 0.0;
             if !row.is_empty() {
                 for &(k1, d1) in couplings.get(maps[0], usize::from(i1), n) {
-                    if row_sum_stamps[k1] != *row_stamp {
-                        let mut h = 0.0;
-                        for &(k2, d2) in row.iter() {
-                            h += d2 * f64::from(t[k2 * n + k1]);
-                        }
-                        row_sums[k1] = h;
-                        row_sum_stamps[k1] = *row_stamp;
+                    if row_summed.insert(k1) {
+                        row_sums[k1] = row.iter().fold(0.0, |h, &(k2, d2)| h + d2 * f64::from(t[k2 * n + k1]));
                     }
                     g += d1 * row_sums[k1];
                 }

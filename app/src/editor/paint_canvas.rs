@@ -241,38 +241,33 @@ impl PaintCanvas {
 /// The light as the viewport previews it on its rectangle: the canvas's colours, with the
 /// masked-out texels transparent.
 pub fn preview_image(texture: &LightTexture) -> egui::ColorImage {
-    let emission = texture.emission();
-    let scale = lightloom_nodes::preview::auto_scale(emission.iter().copied());
-    let pixels = emission
-        .iter()
-        .zip(&texture.mask)
-        .map(|(c, m)| {
-            let [r, g, b, _] = lightloom_nodes::preview::display_rgb8(*c, scale);
-            if *m <= 0.0 { Color32::TRANSPARENT } else { Color32::from_rgb(r, g, b) }
-        })
-        .collect();
-    egui::ColorImage::new([texture.side, texture.side], pixels)
+    display_image(texture, |_| Color32::TRANSPARENT)
 }
 
 /// The texture's emission for display: auto-exposed sRGB, the masked-off part checkered.
 fn canvas_image(texture: &LightTexture) -> egui::ColorImage {
+    let n = texture.side;
+    display_image(texture, |k| {
+        let grey = if ((k % n) / 4 + (k / n) / 4).is_multiple_of(2) { 40 } else { 60 };
+        Color32::from_rgb(grey, grey, grey)
+    })
+}
+
+/// The emission auto-exposed to sRGB, with `masked(k)` wherever texel `k` is masked off.
+fn display_image(texture: &LightTexture, masked: impl Fn(usize) -> Color32) -> egui::ColorImage {
     let emission = texture.emission();
     let scale = lightloom_nodes::preview::auto_scale(emission.iter().copied());
-    let n = texture.side;
     let pixels = emission
         .iter()
         .zip(&texture.mask)
         .enumerate()
         .map(|(k, (c, m))| {
-            let [r, g, b, _] = lightloom_nodes::preview::display_rgb8(*c, scale);
             if *m <= 0.0 {
-                let check = ((k % n) / 4 + (k / n) / 4).is_multiple_of(2);
-                let grey = if check { 40 } else { 60 };
-                Color32::from_rgb(grey, grey, grey)
-            } else {
-                Color32::from_rgb(r, g, b)
+                return masked(k);
             }
+            let [r, g, b, _] = lightloom_nodes::preview::display_rgb8(*c, scale);
+            Color32::from_rgb(r, g, b)
         })
         .collect();
-    egui::ColorImage::new([n, n], pixels)
+    egui::ColorImage::new([texture.side, texture.side], pixels)
 }

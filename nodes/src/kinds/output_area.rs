@@ -244,16 +244,16 @@ fn shade_by_responses(
     }
     let mut columns: Vec<Option<crate::engine::Memo<Response>>> =
         indices.iter().map(|&i| ctx.memo_cached::<Response>(key_of(i))).collect();
-    let missing: Vec<(u16, u16)> = indices.iter().zip(&columns).filter(|(_, c)| c.is_none()).map(|(&i, _)| i).collect();
+    // Where in the light's order the memory cache lacks a response.
+    let missing: Vec<usize> = (0..indices.len()).filter(|&at| columns[at].is_none()).collect();
     for batch in missing.chunks(response_batch(points.len())) {
         ctx.check_cancel()?;
-        let g = responses(batch, &light.placement, &shared.transport, points, light.shading())
+        let wanted: Vec<(u16, u16)> = batch.iter().map(|&at| indices[at]).collect();
+        let g = responses(&wanted, &light.placement, &shared.transport, points, light.shading())
             .ok_or_else(|| StageError::Internal("responses of a light whose kept set follows it".into()))?;
-        for (j, &index) in batch.iter().enumerate() {
+        for (j, &at) in batch.iter().enumerate() {
             let values = (0..points.len()).map(|r| g[r * batch.len() + j]).collect();
-            let column = ctx.memo(key_of(index), || Ok(Response(values)))?;
-            let at = indices.iter().position(|&i| i == index).ok_or_else(|| StageError::Internal("response".into()))?;
-            columns[at] = Some(column);
+            columns[at] = Some(ctx.memo(key_of(indices[at]), || Ok(Response(values)))?);
         }
     }
     let columns: Vec<&[f64]> = columns.iter().map(|c| c.as_ref().map_or(&[][..], |c| c.0.as_slice())).collect();

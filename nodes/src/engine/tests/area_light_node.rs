@@ -223,19 +223,8 @@ fn area_lights_light_the_floor_like_direct_integration() {
     };
     graph.set_param("area", "paint", ParamValue::Paint(vec![stroke])).unwrap();
     let painted = evaluate_frame(&engine, &graph);
-    let report = painted.report.stages.iter().find(|s| s.stage == "area_irradiance").unwrap();
-    let parts = |what: &str| -> usize {
-        report
-            .reasons
-            .iter()
-            .find_map(|r| {
-                let words: Vec<&str> = r.split([' ', ',']).filter(|w| !w.is_empty()).collect();
-                let at = words.iter().position(|w| *w == what)?;
-                words.get(at.checked_sub(1)?)?.parse().ok().or_else(|| words.get(at.checked_sub(2)?)?.parse().ok())
-            })
-            .unwrap_or(0)
-    };
-    assert!(parts("reused") >= 1 && parts("computed") >= 2, "{:?}", report.reasons);
+    let (computed, reused) = memo_parts(&painted, "output", "area_irradiance");
+    assert!(reused >= 1 && computed >= 2, "{computed} computed, {reused} reused");
     let incremental = value_of::<AreaIrradiance>(&painted, "output", "area_irradiance").irradiance;
     let fresh = value_of::<AreaIrradiance>(&evaluate_frame(&Engine::in_memory(), &graph), "output", "area_irradiance");
     assert!(fresh.irradiance.iter().zip(&incremental).all(|(a, b)| a.map(f32::to_bits) == b.map(f32::to_bits)));

@@ -23,10 +23,6 @@ fn blockers_graph(spheres: Vec<([f64; 3], f64)>) -> Graph {
     graph
 }
 
-fn report<'a>(eval: &'a Evaluation, node: &str, stage: &str) -> &'a crate::engine::StageReport {
-    eval.report.stages.iter().find(|s| s.node == node && s.stage == stage).expect("stage in the report")
-}
-
 /// Moving one sphere reruns the sphere list, the blocked transport (recomputing only the
 /// parts within the sphere's reach, old or new) and the incident light; never the scene's
 /// transport or the shadow tables. A floor vertex straight under a lone sphere gets the
@@ -49,12 +45,7 @@ fn a_sphere_move_recomputes_only_the_parts_it_reaches() {
     assert!((ratio - expected).abs() < 0.02, "occlusion under the sphere: {ratio} vs {expected}");
     let far = positions.iter().position(|p| (*p - DVec3::new(-15.0, 0.0, -15.0)).length() < 0.7).unwrap();
     assert_eq!(blocked.transfer[far * n..(far + 1) * n], plain.transfer[far * n..(far + 1) * n]);
-    let parts = |eval: &Evaluation| {
-        let reasons = &report(eval, "output", "blocked_transport").reasons;
-        let line = reasons.iter().find(|r| r.contains("part(s) computed")).expect("memoised parts").clone();
-        let numbers: Vec<usize> = line.split(' ').filter_map(|w| w.parse().ok()).collect();
-        (numbers[0], numbers[1])
-    };
+    let parts = |eval: &Evaluation| memo_parts(eval, "output", "blocked_transport");
     let (computed, reused) = parts(&first);
     assert_eq!(reused, 0);
     spheres[1].0 = [16.0, 1.0, 15.0];

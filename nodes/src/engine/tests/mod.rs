@@ -67,6 +67,18 @@ fn set(names: &[&str]) -> BTreeSet<String> {
     names.iter().map(|s| s.to_string()).collect()
 }
 
+fn report<'a>(eval: &'a Evaluation, node: &str, stage: &str) -> &'a crate::engine::StageReport {
+    eval.report.stages.iter().find(|s| s.node == node && s.stage == stage).expect("stage in the report")
+}
+
+/// A stage's memoised parts, `(computed, reused)`, from its report line.
+fn memo_parts(eval: &Evaluation, node: &str, stage: &str) -> (usize, usize) {
+    let reasons = &report(eval, node, stage).reasons;
+    let line = reasons.iter().find(|r| r.contains("part(s) computed")).expect("memoised parts");
+    let numbers: Vec<usize> = line.split(' ').filter_map(|w| w.parse().ok()).collect();
+    (numbers[0], numbers[1])
+}
+
 /// Everything a new environment source reruns (exposure and tint, read alone by
 /// `radiance_scale`, stay).
 const SKY_ALL: &[&str] =

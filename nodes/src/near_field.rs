@@ -228,7 +228,7 @@ pub struct Propagation {
     touched: Vec<bool>,
     rows: Vec<usize>,
     couplings: CouplingCache,
-    axis: Vec<(usize, f64)>,
+    axis: Vec<(usize, f64, u32)>,
     ranked: Vec<(f64, u32, usize)>,
     kept: Vec<usize>,
     selected: FaceSet,
@@ -299,42 +299,63 @@ impl FaceSet {
 }
 
 /// Coupling entries one thread keeps before its [`CouplingCache`] starts afresh (about 24 MB
-/// with the index; kept between evaluations).
+/// with the slots; kept between evaluations).
 const COUPLING_CACHE_ENTRIES: usize = 1 << 20;
 
-/// One axis's fan-out and couplings `(k, D_ik(s, o))` per exact `(s, o, i)`: receivers that
-/// share a depth and a coordinate along an axis (a floor's rows and columns) share them, so
-/// they are computed once. Cached values are the computed ones, bit for bit.
+/// Distinct maps one thread keeps before its [`CouplingCache`] starts afresh.
+const COUPLING_CACHE_MAPS: usize = 1 << 16;
+
+/// A fan-out not computed yet.
+const UNSET: (u32, u32) = (u32::MAX, 0);
+
+/// One axis's fan-out and couplings `(k, D_ik(s, o))` per exact map `(s, o)` and source index
+/// `i`: receivers that share a depth and a coordinate along an axis (a floor's rows and
+/// columns, or any receivers under the table couplings) share them, so they are computed once.
+/// A receiver looks its two maps up once ([`Self::receiver_slots`]); each fan-out is then an
+/// array index. Cached values are the computed ones, bit for bit.
 #[derive(Default)]
 struct CouplingCache {
-    index: rustc_hash::FxHashMap<(u64, u64, usize, usize), (usize, usize)>,
+    slots: rustc_hash::FxHashMap<(u64, u64, usize), u32>,
+    /// Per slot: its map and, per source index, its fan-out's `(start, len)` in `entries`.
+    maps: Vec<Affine>,
+    ranges: Vec<Vec<(u32, u32)>>,
     entries: Vec<(usize, f64)>,
     targets: Vec<usize>,
 }
 
 impl CouplingCache {
-    fn get(&mut self, map: Affine, i: usize, order: usize) -> &[(usize, f64)] {
-        let key = (map.s.to_bits(), map.o.to_bits(), i, order);
-        let (start, len) = match self.index.get(&key) {
-            Some(&range) => range,
-            None => {
-                // Afresh, and with the memory given back: the cache lives as long as its thread.
-                if self.entries.len() > COUPLING_CACHE_ENTRIES || self.index.len() > COUPLING_CACHE_ENTRIES / 4 {
-                    self.index = Default::default();
-                    self.entries = Vec::new();
-                }
-                map.targets(i, order, &mut self.targets);
-                // A map that misses the face is cheap to find again: not kept.
-                if self.targets.is_empty() {
-                    return &[];
-                }
-                let start = self.entries.len();
-                self.entries.extend(self.targets.iter().map(|&k| (k, map.coupling(i, k))));
-                self.index.insert(key, (start, self.targets.len()));
-                (start, self.targets.len())
+    /// The slots of one receiver's two maps on a face of `order`, valid until the next call
+    /// (the only place the cache starts afresh, its memory given back).
+    fn receiver_slots(&mut self, maps: [Affine; 2], order: usize) -> [u32; 2] {
+        if self.entries.len() > COUPLING_CACHE_ENTRIES || self.maps.len() > COUPLING_CACHE_MAPS {
+            *self = Self { targets: std::mem::take(&mut self.targets), ..Default::default() };
+        }
+        maps.map(|map| {
+            let next = self.maps.len() as u32;
+            let slot = *self.slots.entry((map.s.to_bits(), map.o.to_bits(), order)).or_insert(next);
+            if slot == next {
+                self.maps.push(map);
+                self.ranges.push(Vec::new());
             }
-        };
-        &self.entries[start..start + len]
+            slot
+        })
+    }
+
+    /// The fan-out of source index `i` under the map in `slot`.
+    fn fan_out(&mut self, slot: u32, i: usize, order: usize) -> &[(usize, f64)] {
+        let ranges = &mut self.ranges[slot as usize];
+        if ranges.len() <= i {
+            ranges.resize(i + 1, UNSET);
+        }
+        if ranges[i] == UNSET {
+            let map = self.maps[slot as usize];
+            map.targets(i, order, &mut self.targets);
+            let start = self.entries.len();
+            self.entries.extend(self.targets.iter().map(|&k| (k, map.coupling(i, k))));
+            ranges[i] = (start as u32, self.targets.len() as u32);
+        }
+        let (start, len) = ranges[i];
+        &self.entries[start as usize..(start + len) as usize]
     }
 }
 
@@ -354,6 +375,7 @@ pub fn propagate_into(source: &LightSource, maps: [Affine; 2], face_order: usize
     // One source row `i₂` at a time (the coefficients come in index order, so grouped by
     // `i₂`; any order gives the same sums, this one the same bits on every run).
     let coefficients = &source.coefficients;
+    let slots = couplings.receiver_slots(maps, n);
     let mut start = 0;
     while start < coefficients.len() {
         let i2 = coefficients[start].0.1;
@@ -361,7 +383,7 @@ pub fn propagate_into(source: &LightSource, maps: [Affine; 2], face_order: usize
         // Step 1: Z_{i₂k₁} = Σ_{i₁} F_{i₁i₂} D_{i₁k₁}; `rows` lists the `k₁` it touched.
         rows.clear();
         for &((i1, _), f) in &coefficients[start..end] {
-            for &(k1, d) in couplings.get(maps[0], usize::from(i1), n) {
+            for &(k1, d) in couplings.fan_out(slots[0], usize::from(i1), n) {
                 if !touched[k1] {
                     touched[k1] = true;
                     rows.push(k1);
@@ -373,7 +395,7 @@ pub fn propagate_into(source: &LightSource, maps: [Affine; 2], face_order: usize
         }
         // Step 2: L_{k₁k₂} += Z_{i₂k₁} D_{i₂k₂}, by ascending `k₁`.
         rows.sort_unstable();
-        let row = couplings.get(maps[1], usize::from(i2), n);
+        let row = couplings.fan_out(slots[1], usize::from(i2), n);
         for &k1 in rows.iter() {
             let z = step1[k1];
             for &(k2, d) in row {
@@ -423,16 +445,19 @@ fn rank_predictions(
     maps: [Affine; 2],
     n: usize,
     couplings: &mut CouplingCache,
-    axis0: &mut Vec<(usize, f64)>,
+    axis0: &mut Vec<(usize, f64, u32)>,
     ranked: &mut Vec<(f64, u32, usize)>,
 ) {
     ranked.clear();
     axis0.clear();
-    axis0.extend(couplings.get(maps[0], 0, n).iter().map(|&(k, d)| (k, d.abs())).filter(|(_, d)| *d > 0.0));
-    for &(k2, d2) in couplings.get(maps[1], 0, n) {
-        let d2 = d2.abs();
+    let slots = couplings.receiver_slots(maps, n);
+    axis0.extend(
+        couplings.fan_out(slots[0], 0, n).iter().filter(|(_, d)| *d != 0.0).map(|&(k, d)| (k, d.abs(), coarseness(k))),
+    );
+    for &(k2, d2) in couplings.fan_out(slots[1], 0, n) {
+        let (d2, c2) = (d2.abs(), coarseness(k2));
         if d2 > 0.0 {
-            ranked.extend(axis0.iter().map(|&(k1, d1)| (d1 * d2, coarseness(k1).max(coarseness(k2)), k2 * n + k1)));
+            ranked.extend(axis0.iter().map(|&(k1, d1, c1)| (d1 * d2, c1.max(c2), k2 * n + k1)));
         }
     }
     ranked.retain(|r| r.0 > 0.0);
@@ -682,17 +707,18 @@ fn adjoint_responses(
     } else {
         t
     };
+    let slots = couplings.receiver_slots(maps, n);
     let mut start = 0;
     while start < indices.len() {
         let i2 = indices[start].1;
         let end = start + indices[start..].iter().take_while(|c| c.1 == i2).count();
         row.clear();
-        row.extend_from_slice(couplings.get(maps[1], usize::from(i2), n));
+        row.extend_from_slice(couplings.fan_out(slots[1], usize::from(i2), n));
         row_summed.clear(n);
         for (j, &(i1, _)) in indices.iter().enumerate().take(end).skip(start) {
             let mut g = 0.0;
             if !row.is_empty() {
-                for &(k1, d1) in couplings.get(maps[0], usize::from(i1), n) {
+                for &(k1, d1) in couplings.fan_out(slots[0], usize::from(i1), n) {
                     if row_summed.insert(k1) {
                         row_sums[k1] = row.iter().fold(0.0, |h, &(k2, d2)| h + d2 * f64::from(t[k2 * n + k1]));
                     }

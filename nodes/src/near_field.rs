@@ -105,6 +105,87 @@ pub fn face_transport(
     FaceTransport { face, coefficients }
 }
 
+/// Per receiver, the top-face cells light can arrive through: above the receiver's horizon and
+/// unoccluded, one ray per cell centre, a bit per cell. Transports for any weight follow from
+/// it without new rays ([`visible_transport`]): the diffuse one, and a glossy one per view.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct FaceVisibility {
+    pub face: TopFace,
+    pub bits: Vec<u64>,
+}
+
+impl FaceVisibility {
+    fn words(face: &TopFace) -> usize {
+        (face.order * face.order).div_ceil(64)
+    }
+
+    pub fn receivers(&self) -> usize {
+        self.bits.len() / Self::words(&self.face).max(1)
+    }
+
+    fn visible(&self, receiver: usize, cell: usize) -> bool {
+        self.bits[receiver * Self::words(&self.face) + cell / 64] >> (cell % 64) & 1 == 1
+    }
+}
+
+/// The cells of each receiver (`origins`, unit `normals`) that see past `unoccluded(origin,
+/// direction)`, cells below the horizon left unset without a ray.
+pub fn face_visibility(
+    face: TopFace,
+    origins: &[DVec3],
+    normals: &[DVec3],
+    unoccluded: impl Fn(DVec3, DVec3) -> bool + Sync,
+) -> FaceVisibility {
+    let n = face.order;
+    let words = FaceVisibility::words(&face);
+    let bits = origins
+        .par_iter()
+        .zip(normals)
+        .flat_map_iter(|(&x, &normal)| {
+            let mut bits = vec![0u64; words];
+            for c in 0..n * n {
+                let v_hat = [((c % n) as f64 + 0.5) / n as f64, ((c / n) as f64 + 0.5) / n as f64];
+                let (direction, weight) = face.weight(v_hat, normal);
+                if weight > 0.0 && unoccluded(x, direction) {
+                    bits[c / 64] |= 1 << (c % 64);
+                }
+            }
+            bits
+        })
+        .collect();
+    FaceVisibility { face, bits }
+}
+
+/// The transport of `receivers` (indices into `visibility` and `normals`) with a per-direction
+/// factor: `T̂(v̂) = a² V(ω) factor(r, ω) max(0, ω·n) (1 + |v|²)^{−3/2}` at each cell centre, in
+/// 2D Haar (`order²` values per receiver, in order). `factor` 1 gives the irradiance transport
+/// ([`face_transport`] with one sample per cell, the same bits); the specular lobe toward a
+/// viewer gives the radiance a glossy surface reflects toward it (Sun 2008 §4.9).
+pub fn visible_transport(
+    visibility: &FaceVisibility,
+    receivers: std::ops::Range<usize>,
+    normals: &[DVec3],
+    factor: impl Fn(usize, DVec3) -> f64 + Sync,
+) -> Vec<f32> {
+    let face = visibility.face;
+    let n = face.order;
+    receivers
+        .into_par_iter()
+        .flat_map_iter(|r| {
+            let mut cells = vec![0.0; n * n];
+            for (c, cell) in cells.iter_mut().enumerate() {
+                if visibility.visible(r, c) {
+                    let v_hat = [((c % n) as f64 + 0.5) / n as f64, ((c / n) as f64 + 0.5) / n as f64];
+                    let (direction, weight) = face.weight(v_hat, normals[r]);
+                    *cell = weight * factor(r, direction);
+                }
+            }
+            haar_forward_2d(&mut cells, n);
+            cells.into_iter().map(|c| c as f32)
+        })
+        .collect()
+}
+
 /// A light texture's kept Haar coefficients: `((i₁, i₂), rgb)`, the union of each channel's
 /// largest, in index order.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]

@@ -1,6 +1,7 @@
 // Area-light pass: painted area lights' diffuse light (Sun 2008 eq. 4.36, E = sum_k L_k T_k per
-// vertex, computed on the CPU), added over the mode's surfaces: radiance out = albedo * E / pi,
-// seen through the medium's extinction when there is one.
+// vertex, computed on the CPU) and their glossy highlights toward the view (sec. 4.9, radiance
+// per vertex, specular colour applied), added over the mode's surfaces: radiance out =
+// albedo * E / pi + highlight, seen through the medium's extinction when there is one.
 
 struct AreaLights {
     // Diffuse albedo (rgb) of each material, indexed by the vertex's material.
@@ -10,6 +11,8 @@ struct AreaLights {
 @group(2) @binding(0) var<uniform> area: AreaLights;
 // Per vertex: irradiance E (rgb) from every linked area light.
 @group(2) @binding(1) var<storage, read> irradiance: array<vec4<f32>>;
+// Per vertex: reflected radiance (rgb) of the lights' highlights (zeros without them).
+@group(2) @binding(2) var<storage, read> highlight: array<vec4<f32>>;
 
 struct VertexOut {
     @builtin(position) @invariant clip: vec4<f32>,
@@ -22,7 +25,7 @@ fn vs_main(v: MeshVertex, @builtin(vertex_index) index: u32) -> VertexOut {
     var out: VertexOut;
     out.clip = globals.view_proj * vec4<f32>(v.position, 1.0);
     let kd = area.albedo[v.material].rgb * v.color / PI;
-    out.radiance = kd * irradiance[index].rgb;
+    out.radiance = kd * irradiance[index].rgb + highlight[index].rgb;
     out.world = v.position;
     return out;
 }

@@ -373,11 +373,14 @@ impl RslSurfaces {
 }
 
 /// Painted area lights (Sun 2008 §4.5): diffuse light per vertex, drawn over the mode's
-/// surfaces as `albedo · colour / π · E`.
+/// surfaces as `albedo · colour / π · E`, plus their glossy highlights toward the view (§4.9).
 #[derive(Clone, Debug)]
 pub struct AreaLightFrame {
     /// [`crate::kinds::output_area::AreaIrradiance`]: `E` per vertex from every linked light.
     pub irradiance: Keyed,
+    /// [`crate::kinds::output_area::AreaHighlights`]: reflected radiance per vertex (none, or
+    /// empty, without a glossy material).
+    pub highlights: Option<Keyed>,
     /// Per material: diffuse albedo.
     pub albedo: Vec<[f64; 3]>,
     /// The lights as the reference samples them.
@@ -388,6 +391,7 @@ impl AreaLightFrame {
     /// Checks that the irradiance covers the scene's `vertices`.
     pub fn new(
         irradiance: Keyed,
+        highlights: Option<Keyed>,
         emitters: Vec<crate::reference::AreaEmitter>,
         materials: &[FrameMaterial],
         vertices: usize,
@@ -396,7 +400,13 @@ impl AreaLightFrame {
         if e.irradiance.len() != vertices {
             return Err(format!("the area lights cover {} receivers for {vertices} vertices", e.irradiance.len()));
         }
-        Ok(Self { irradiance, albedo: materials.iter().map(|m| m.material.albedo).collect(), emitters })
+        if let Some(h) = &highlights {
+            let h = h.value.expect::<crate::kinds::output_area::AreaHighlights>().map_err(|e| e.to_string())?;
+            if !h.radiance.is_empty() && h.radiance.len() != vertices {
+                return Err(format!("the area-light highlights cover {} of {vertices} vertices", h.radiance.len()));
+            }
+        }
+        Ok(Self { irradiance, highlights, albedo: materials.iter().map(|m| m.material.albedo).collect(), emitters })
     }
 }
 

@@ -240,7 +240,14 @@ impl Project {
     }
 
     /// Builds the evaluable graph; relative asset paths resolve against the project's folder.
+    /// View-dependent results (area-light highlights) are for the render camera.
     pub fn graph(&self, path: &Path) -> Result<Graph, Vec<GraphError>> {
+        self.graph_seen_from(path, None)
+    }
+
+    /// [`Self::graph`] with view-dependent results for `eye` (the render camera's position when
+    /// `None`): the Outputs' [`crate::kinds::output::HIGHLIGHT_EYE`].
+    pub fn graph_seen_from(&self, path: &Path, eye: Option<[f64; 3]>) -> Result<Graph, Vec<GraphError>> {
         let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
         let mut errors = Vec::new();
         for (i, c) in self.cameras.iter().enumerate() {
@@ -273,8 +280,22 @@ impl Project {
                 message: format!("render size {w}x{h} must be within 1..=16384 on each side"),
             });
         }
+        let eye = eye.or_else(|| self.camera(None).ok().map(|c| c.position));
+        let seen: Vec<_> = self
+            .nodes
+            .iter()
+            .map(|n| {
+                let mut params = n.params.clone();
+                if n.kind == "Output"
+                    && let Some(eye) = eye
+                {
+                    params.insert(crate::kinds::output::HIGHLIGHT_EYE.into(), ParamValue::Vec3(eye));
+                }
+                params
+            })
+            .collect();
         let inputs: Vec<NodeInput> =
-            self.nodes.iter().map(|n| NodeInput { id: &n.id, kind: &n.kind, params: &n.params }).collect();
+            self.nodes.iter().zip(&seen).map(|(n, params)| NodeInput { id: &n.id, kind: &n.kind, params }).collect();
         let links: Vec<Link> = self
             .links
             .iter()

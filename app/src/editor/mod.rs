@@ -196,6 +196,10 @@ pub struct EditorApp {
     graph_errors: Vec<String>,
     /// Hash of what evaluation reads (nodes, parameters, links): positions and labels excluded.
     eval_signature: u64,
+    /// The view area-light highlights are computed for: the viewport camera's position once it
+    /// has rested, and where and since when the camera was last seen moving.
+    highlight_eye: Option<[f64; 3]>,
+    camera_seen: ([f64; 3], std::time::Instant),
     /// The document revision and folder last checked for changes, and the graph built from
     /// them (valid projects only): both are per edit, not per frame.
     checked_revision: Option<(u64, PathBuf)>,
@@ -367,6 +371,8 @@ impl EditorApp {
             host_error: host_error.clone(),
             graph_errors: Vec::new(),
             eval_signature: 0,
+            highlight_eye: None,
+            camera_seen: ([f64::NAN; 3], std::time::Instant::now()),
             checked_revision: None,
             built_graph: None,
             log: Vec::new(),
@@ -452,6 +458,7 @@ impl EditorApp {
         let ctx = ui.ctx().clone();
         self.shortcuts(&ctx);
         self.poll_jobs(&ctx);
+        self.follow_view_for_highlights(&ctx);
         self.submit_if_changed();
 
         egui::Panel::top("menu").show(ui, |ui| self.menu_bar(ui));
@@ -534,6 +541,27 @@ impl EditorApp {
         self.checked_revision = None;
     }
 
+    /// Area-light highlights hold for one viewpoint (a glossy transport per view): once the
+    /// viewport camera rests somewhere new, they are recomputed for it.
+    fn follow_view_for_highlights(&mut self, ctx: &egui::Context) {
+        const REST: std::time::Duration = std::time::Duration::from_millis(400);
+        if !self.doc.project.nodes.iter().any(|n| n.kind == "AreaLightPainter") {
+            return;
+        }
+        let eye = self.view.camera.to_camera("").position;
+        if eye != self.camera_seen.0 {
+            self.camera_seen = (eye, std::time::Instant::now());
+            ctx.request_repaint_after(REST);
+        } else if self.highlight_eye != Some(eye) {
+            if self.camera_seen.1.elapsed() >= REST {
+                self.highlight_eye = Some(eye);
+                self.checked_revision = None;
+            } else {
+                ctx.request_repaint_after(REST);
+            }
+        }
+    }
+
     fn submit_if_changed(&mut self) {
         // Relative asset paths resolve against the project's folder, which Save As can change.
         let dir = self.doc.project_dir();
@@ -542,14 +570,16 @@ impl EditorApp {
             return;
         }
         self.checked_revision = checked;
-        let signature =
-            eval_signature(&self.doc.project) ^ xxhash_rust::xxh3::xxh3_64(dir.as_os_str().as_encoded_bytes());
+        let eye: Vec<u8> = self.highlight_eye.iter().flatten().flat_map(|v| v.to_le_bytes()).collect();
+        let signature = eval_signature(&self.doc.project)
+            ^ xxhash_rust::xxh3::xxh3_64(dir.as_os_str().as_encoded_bytes())
+            ^ xxhash_rust::xxh3::xxh3_64(&eye);
         if signature == self.eval_signature {
             return;
         }
         self.eval_signature = signature;
         let scratch = dir.join("project.ron");
-        match self.doc.project.graph(&scratch) {
+        match self.doc.project.graph_seen_from(&scratch, self.highlight_eye) {
             Ok(graph) => {
                 self.graph_errors = graph.warnings.iter().map(|w| format!("warning: {w}")).collect();
                 self.built_graph = Some(graph.clone());

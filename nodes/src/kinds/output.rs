@@ -186,6 +186,15 @@ pub fn spec() -> NodeKindSpec {
                 kind: ParamKind::Int { min: 1, max: 65536, default: 64 },
                 doc: "Samples per pixel of the reference (each: one environment and one BRDF sample, MIS).",
             },
+            ParamSpec {
+                name: HIGHLIGHT_EYE,
+                label: "Highlights seen from",
+                unit: "m",
+                kind: ParamKind::Vec3 { min: -1e6, max: 1e6, default: [0.0, 1.5, 4.0] },
+                doc: "The viewpoint area-light highlights are computed for (a glossy transport per view, Sun 2008 \
+                      §4.9): the render camera's position, or the editor's view once it rests. Set by the \
+                      program, not shown.",
+            },
         ]
         .into_iter()
         .chain(super::output_adaptive::params())
@@ -271,6 +280,10 @@ pub fn spec() -> NodeKindSpec {
     }
 }
 
+/// The Output parameter holding the viewpoint of area-light highlights: derived from the camera
+/// when a project becomes a graph ([`crate::project::Project::graph_seen_from`]), never edited.
+pub const HIGHLIGHT_EYE: &str = "highlight_eye";
+
 /// The wavelet and adaptive-SH settings matter only in their modes (the inspector hides them
 /// elsewhere).
 fn relevant_to_mode(value: &dyn Fn(&str) -> Option<ParamValue>, name: &str) -> bool {
@@ -279,6 +292,7 @@ fn relevant_to_mode(value: &dyn Fn(&str) -> Option<ParamValue>, name: &str) -> b
         _ => return true,
     };
     match name {
+        HIGHLIGHT_EYE => false,
         "wavelet_terms" => mode.is_wavelet(),
         n if n.starts_with("adaptive_") => mode == Mode::ShAdaptive,
         _ => true,
@@ -624,7 +638,10 @@ pub fn frame_request(graph: &Graph, output: &str, picking: bool) -> Request {
     if graph.upstream_all(output, "area_lights").is_empty() {
         request
     } else {
-        request.then(format!("output `{output}`: area lights"), vec![StageRef::new(output, "area_irradiance")])
+        // Highlights follow the view: the diffuse light shows first.
+        request
+            .then(format!("output `{output}`: area lights"), vec![StageRef::new(output, "area_irradiance")])
+            .then(format!("output `{output}`: area-light highlights"), vec![StageRef::new(output, "area_highlights")])
     }
 }
 

@@ -18,7 +18,8 @@ use crate::engine::{Key, StageContext, StageError, StageValue};
 use crate::frame::{AreaLightFrame, FrameMaterial, Keyed};
 use crate::kinds::area_light::AreaLight;
 use crate::near_field::{
-    FaceTransport, TargetKeep, TopFace, face_transport, irradiance, response_batch, responses, shade,
+    FaceTransport, FaceVisibility, TargetKeep, TopFace, face_visibility, irradiance, response_batch, responses, shade,
+    visible_transport,
 };
 use crate::node_kind::{PortSpec, PortType, StageSpec};
 use crate::raycast::RayScene;
@@ -28,11 +29,18 @@ use serde::{Deserialize, Serialize};
 use std::sync::Arc;
 
 crate::stage_type!(Arc<FaceTransport>, "top-face transport", encoding = 1, |v| v.coefficients.len() * 4 + 32);
-crate::stage_type!(AreaTransport, "area-light transport", encoding = 1, |v| v
+crate::stage_type!(Arc<FaceVisibility>, "top-face visibility", encoding = 1, |v| v.bits.len() * 8 + 32);
+crate::stage_type!(AreaTransport, "area-light transport", encoding = 2, |v| v
     .faces
     .iter()
-    .map(|f| f.transport.coefficients.len() * 4 + 48)
+    .map(|f| f.transport.coefficients.len() * 4 + f.visibility.bits.len() * 8 + 64)
     .sum());
+crate::stage_type!(
+    AreaHighlights,
+    "area-light highlights",
+    |v| v.radiance.len() * 12 + 16,
+    numbers = |v| v.radiance.iter().flatten().map(|&c| f64::from(c))
+);
 crate::stage_type!(
     AreaIrradiance,
     "area-light irradiance",
@@ -55,11 +63,20 @@ pub struct AreaTransport {
     pub faces: Vec<SharedTransport>,
 }
 
-/// One face's transport and the key it is memoised under (what the lights' sums depend on).
+/// One face's transport and the key it is memoised under (what the lights' sums depend on),
+/// with the visibility it was built from (glossy transports reuse it without new rays).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct SharedTransport {
     pub key: Key,
     pub transport: Arc<FaceTransport>,
+    pub visibility: Arc<FaceVisibility>,
+}
+
+/// Radiance the linked area lights' glossy reflections send toward the Output's viewpoint, per
+/// vertex (RGB, the specular colour applied; empty when no material has a lobe).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct AreaHighlights {
+    pub radiance: Vec<[f32; 3]>,
 }
 
 /// Irradiance from every linked area light, per vertex (RGB, W/m² per unit radiance scale).
@@ -85,7 +102,7 @@ pub fn stages() -> Vec<StageSpec> {
     vec![
         StageSpec {
             name: "area_transport",
-            version: 2,
+            version: 3,
             params: &[],
             stages: &[],
             inputs: &[
@@ -105,6 +122,20 @@ pub fn stages() -> Vec<StageSpec> {
             inputs: &[("scene", "receivers"), ("area_lights", "light")],
             persist: None,
             compute: area_irradiance,
+        },
+        StageSpec {
+            name: "area_highlights",
+            version: 1,
+            params: &["highlight_eye"],
+            stages: &["area_transport"],
+            inputs: &[
+                ("scene", "receivers"),
+                ("scene", "geometry"),
+                ("area_lights", "light"),
+                ("material", "material"),
+            ],
+            persist: None,
+            compute: area_highlights,
         },
     ]
 }
@@ -151,22 +182,29 @@ fn area_transport(ctx: &StageContext) -> Result<StageValue, StageError> {
         points.iter().zip(&normals).map(|(&p, &n)| scene.leave_surface(p, n).as_dvec3()).collect();
     let mut out = AreaTransport::default();
     for (f, face) in faces.iter().enumerate() {
-        let key = xxhash_rust::xxh3::xxh3_128(&[geometry.as_slice(), &face_bytes(face)].concat());
-        let transport = ctx.memo(key, || {
-            let mut coefficients = Vec::with_capacity(receivers.len() * face.order * face.order);
+        let visibility_key = xxhash_rust::xxh3::xxh3_128(&[geometry.as_slice(), &face_bytes(face)].concat());
+        let visibility = ctx.memo(visibility_key, || {
+            let mut bits = Vec::new();
             for start in (0..receivers.len()).step_by(TRANSPORT_CHUNK) {
                 ctx.check_cancel()?;
                 let end = (start + TRANSPORT_CHUNK).min(receivers.len());
-                let part = face_transport(*face, &origins[start..end], &normals[start..end], 1, |origin, direction| {
+                let part = face_visibility(*face, &origins[start..end], &normals[start..end], |origin, direction| {
                     let reach = ((ceiling - origin.y) / direction.y.max(1e-12)).max(0.0);
                     !scene.occluded(origin.as_vec3a(), direction.as_vec3a(), reach as f32)
                 });
-                coefficients.extend(part.coefficients);
+                bits.extend(part.bits);
                 ctx.progress((f as f64 + end as f64 / receivers.len().max(1) as f64) / faces.len() as f64);
             }
+            Ok(Arc::new(FaceVisibility { face: *face, bits }))
+        })?;
+        let visibility: Arc<FaceVisibility> = (*visibility).clone();
+        let key = xxhash_rust::xxh3::xxh3_128(&[&visibility_key.to_le_bytes()[..], b"diffuse"].concat());
+        let transport = ctx.memo(key, || {
+            ctx.check_cancel()?;
+            let coefficients = visible_transport(&visibility, 0..receivers.len(), &normals, |_, _| 1.0);
             Ok(Arc::new(FaceTransport { face: *face, coefficients }))
         })?;
-        out.faces.push(SharedTransport { key, transport: (*transport).clone() });
+        out.faces.push(SharedTransport { key, transport: (*transport).clone(), visibility });
     }
     ctx.inform(format!(
         "{} top face(s) of {} cells traced for {} vertices ({} KB per vertex)",
@@ -184,35 +222,137 @@ fn area_irradiance(ctx: &StageContext) -> Result<StageValue, StageError> {
     let points = positions(receivers);
     let mut total = vec![[0.0f64; 3]; receivers.len()];
     for (_, light) in ctx.inputs_all::<AreaLight>("area_lights", "light")? {
-        let shared = transports
-            .faces
-            .iter()
-            .find(|f| f.transport.face == light.face)
-            .ok_or_else(|| StageError::Internal("no transport for a light's top face".into()))?;
-        let described = (&light.source, &light.placement, &light.shading());
-        let mut key = xxhash_rust::xxh3::Xxh3::new();
-        key.update(b"area irradiance v1");
-        key.update(&shared.key.to_le_bytes());
-        key.update(&postcard::to_allocvec(&described).map_err(|e| StageError::Internal(e.to_string()))?);
-        let unscaled = ctx.memo(key.digest128(), || {
-            ctx.check_cancel()?;
-            let e = match light.keep {
-                TargetKeep::Largest(_) => {
-                    irradiance(&light.source, &light.placement, &shared.transport, &points, light.shading())
-                }
-                _ => shade_by_responses(ctx, light, shared, &points)?,
-            };
-            Ok(UnscaledIrradiance(e.into_iter().map(|c| c.map(|v| v as f32)).collect()))
-        })?;
-        for (sum, e) in total.iter_mut().zip(&unscaled.0) {
-            for c in 0..3 {
-                sum[c] += light.scale[c] * f64::from(e[c]);
-            }
-        }
+        let shared = face_of(transports, light)?;
+        add_light(ctx, light, shared, &points, &mut total)?;
     }
     // Truncated products ring slightly below zero near a light's footprint; irradiance cannot.
     let irradiance = total.into_iter().map(|c| c.map(|v| v.max(0.0) as f32)).collect();
     Ok(StageValue::new(AreaIrradiance { irradiance }))
+}
+
+fn face_of<'a>(transports: &'a AreaTransport, light: &AreaLight) -> Result<&'a SharedTransport, StageError> {
+    transports
+        .faces
+        .iter()
+        .find(|f| f.transport.face == light.face)
+        .ok_or_else(|| StageError::Internal("no transport for a light's top face".into()))
+}
+
+/// Adds `scale · Σ_k L_k T_k` of one light through `shared`'s transport to `total`; the
+/// unscaled sum is memoised on the light's coefficients, placement, shading and the transport.
+fn add_light(
+    ctx: &StageContext,
+    light: &AreaLight,
+    shared: &SharedTransport,
+    points: &[DVec3],
+    total: &mut [[f64; 3]],
+) -> Result<(), StageError> {
+    let described = (&light.source, &light.placement, &light.shading());
+    let mut key = xxhash_rust::xxh3::Xxh3::new();
+    key.update(b"area irradiance v1");
+    key.update(&shared.key.to_le_bytes());
+    key.update(&postcard::to_allocvec(&described).map_err(|e| StageError::Internal(e.to_string()))?);
+    let unscaled = ctx.memo(key.digest128(), || {
+        ctx.check_cancel()?;
+        let e = match light.keep {
+            TargetKeep::Largest(_) => {
+                irradiance(&light.source, &light.placement, &shared.transport, points, light.shading())
+            }
+            _ => shade_by_responses(ctx, light, shared, points)?,
+        };
+        Ok(UnscaledIrradiance(e.into_iter().map(|c| c.map(|v| v as f32)).collect()))
+    })?;
+    for (sum, e) in total.iter_mut().zip(&unscaled.0) {
+        for c in 0..3 {
+            sum[c] += light.scale[c] * f64::from(e[c]);
+        }
+    }
+    Ok(())
+}
+
+/// Per vertex, the BRDF of its mesh's material: the material linked under the mesh's name, else
+/// the first linked, else the default (as the frame assigns them).
+fn vertex_brdfs(ctx: &StageContext, receivers: &Receivers) -> Result<(Vec<crate::brdf::Brdf>, Vec<u32>), StageError> {
+    let meshes = ctx.required_input::<crate::mesh::MeshSet>("scene", "geometry")?;
+    let linked = ctx.inputs_all::<crate::kinds::brdf::Material>("material", "material")?;
+    let mut brdfs: Vec<crate::brdf::Brdf> = linked.iter().map(|(_, m)| crate::brdf::Brdf::from_material(m)).collect();
+    if brdfs.is_empty() {
+        brdfs.push(crate::brdf::Brdf::from_material(&Default::default()));
+    }
+    let mut of_vertex = vec![0u32; receivers.len()];
+    for (m, mesh) in meshes.meshes.iter().enumerate() {
+        let found = linked.iter().position(|(node, _)| !mesh.material.is_empty() && *node == mesh.material);
+        let start = receivers.mesh_offsets.get(m).copied().unwrap_or(receivers.len());
+        let end = receivers.mesh_offsets.get(m + 1).copied().unwrap_or(receivers.len());
+        of_vertex[start.min(end)..end].fill(found.unwrap_or(0) as u32);
+    }
+    Ok((brdfs, of_vertex))
+}
+
+/// Vertices per cancellation check and progress step of a glossy transport.
+const GLOSSY_CHUNK: usize = 2048;
+
+/// Sun 2008 §4.9, near-field relighting of specular scenes for a fixed view: per face, the
+/// transport weighted by each vertex's specular lobe toward `highlight_eye` (from the face's
+/// visibility, no new rays; memoised on the visibility, the eye and the materials), shaded by
+/// every light as the irradiance is, then tinted by each material's specular colour.
+fn area_highlights(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let receivers = ctx.required_input::<Receivers>("scene", "receivers")?;
+    let transports = ctx.stage::<AreaTransport>("area_transport")?;
+    let (brdfs, of_vertex) = vertex_brdfs(ctx, receivers)?;
+    let lights = ctx.inputs_all::<AreaLight>("area_lights", "light")?;
+    if brdfs.iter().all(|b| b.lobe == crate::brdf::Lobe::None) || lights.is_empty() {
+        return Ok(StageValue::new(AreaHighlights::default()));
+    }
+    let eye = DVec3::from(ctx.vec3("highlight_eye")?);
+    let points = positions(receivers);
+    // Per vertex: world to its shading frame, and the direction to the eye in that frame.
+    let views: Vec<(glam::DMat3, DVec3)> = (0..receivers.len())
+        .map(|i| {
+            let (p, n) = receivers.point(i);
+            let tangent = DVec3::from(receivers.tangents[i].map(f64::from));
+            let to_local = crate::rsl::shade::shading_frame(n, tangent).transpose();
+            (to_local, to_local * (eye - p).normalize_or(n))
+        })
+        .collect();
+    let normals: Vec<DVec3> = (0..receivers.len()).map(|i| receivers.point(i).1).collect();
+    let lobes: Vec<String> = brdfs.iter().map(|b| format!("{:?}/{}", b.lobe, b.f0)).collect();
+    let mut total = vec![[0.0f64; 3]; receivers.len()];
+    for (_, light) in &lights {
+        let diffuse = face_of(transports, light)?;
+        let mut key = xxhash_rust::xxh3::Xxh3::new();
+        key.update(b"area glossy transport v1");
+        key.update(&diffuse.key.to_le_bytes());
+        key.update(bytemuck::cast_slice(&eye.to_array()));
+        key.update(&postcard::to_allocvec(&lobes).map_err(|e| StageError::Internal(e.to_string()))?);
+        key.update(bytemuck::cast_slice(&of_vertex));
+        let key = key.digest128();
+        let visibility = &diffuse.visibility;
+        let transport = ctx.memo(key, || {
+            let mut coefficients = Vec::with_capacity(diffuse.transport.coefficients.len());
+            for start in (0..receivers.len()).step_by(GLOSSY_CHUNK) {
+                ctx.check_cancel()?;
+                let end = (start + GLOSSY_CHUNK).min(receivers.len());
+                coefficients.extend(visible_transport(visibility, start..end, &normals, |r, w| {
+                    let (to_local, wo) = views[r];
+                    brdfs[of_vertex[r] as usize].lobe_value(to_local * w, wo)
+                }));
+                ctx.progress(end as f64 / receivers.len().max(1) as f64);
+            }
+            Ok(Arc::new(FaceTransport { face: visibility.face, coefficients }))
+        })?;
+        let glossy = SharedTransport { key, transport: (*transport).clone(), visibility: diffuse.visibility.clone() };
+        add_light(ctx, light, &glossy, &points, &mut total)?;
+    }
+    let radiance = total
+        .iter()
+        .zip(&of_vertex)
+        .map(|(l, &m)| {
+            let specular = brdfs[m as usize].specular;
+            std::array::from_fn(|c| (l[c].max(0.0) * specular[c]) as f32)
+        })
+        .collect();
+    Ok(StageValue::new(AreaHighlights { radiance }))
 }
 
 /// `E = Σ_i F_i G_i` with each coefficient's response `G_i` memoised (see the module doc): the
@@ -278,7 +418,13 @@ pub(super) fn frame(
                 let light = light.value.expect::<AreaLight>().map_err(|e| e.to_string())?;
                 emitters.push(light.emitter.clone());
             }
-            Ok(Some(AreaLightFrame::new(keyed(output, "area_irradiance")?, emitters, materials, vertices)?))
+            // Highlights as last evaluated, for the Output's `highlight_eye` (the editor
+            // recomputes them once its camera rests).
+            let highlights = match evaluation.get(output, "area_highlights") {
+                Some(r) if r.value.is_ok() => Some(keyed(output, "area_highlights")?),
+                _ => None,
+            };
+            Ok(Some(AreaLightFrame::new(keyed(output, "area_irradiance")?, highlights, emitters, materials, vertices)?))
         }
         _ => Ok(None),
     }

@@ -197,10 +197,19 @@ fn area_lights_light_the_floor_like_direct_integration() {
     graph.set_param("area", "position", ParamValue::Vec3([0.5, 2.0, 0.0])).unwrap();
     let moved = evaluate_frame(&engine, &graph);
     let reran: BTreeSet<String> = ran(&moved.report);
-    assert_eq!(reran, set(&["area.placement", "area.light", "output.area_transport", "output.area_irradiance"]));
+    assert_eq!(
+        reran,
+        set(&[
+            "area.placement",
+            "area.light",
+            "output.area_transport",
+            "output.area_irradiance",
+            "output.area_highlights"
+        ])
+    );
     // The transport reruns only to see the light's plane is unchanged: no ray is cast.
     let report = moved.report.stages.iter().find(|s| s.stage == "area_transport").unwrap();
-    assert!(report.reasons.iter().any(|r| r.contains("0 part(s) computed, 1 reused")), "{:?}", report.reasons);
+    assert!(report.reasons.iter().any(|r| r.contains("0 part(s) computed, 2 reused")), "{:?}", report.reasons);
 
     // Doubling the intensity doubles the light, reusing the memoised sum.
     let before = value_of::<AreaIrradiance>(&moved, "output", "area_irradiance").irradiance;
@@ -240,7 +249,7 @@ fn area_lights_light_the_floor_like_direct_integration() {
     two_lights.set_param("area1", "position", ParamValue::Vec3([-1.0, 1.5, 0.5])).unwrap();
     let two = evaluate_frame(&engine, &two_lights);
     let report = two.report.stages.iter().find(|s| s.stage == "area_transport").unwrap();
-    assert!(report.reasons.iter().any(|r| r.contains("0 part(s) computed, 1 reused")), "{:?}", report.reasons);
+    assert!(report.reasons.iter().any(|r| r.contains("0 part(s) computed, 2 reused")), "{:?}", report.reasons);
     assert_eq!(value_of::<AreaTransport>(&two, "output", "area_transport").faces.len(), 1);
     let both = value_of::<AreaIrradiance>(&two, "output", "area_irradiance").irradiance;
     let peak = after.iter().map(|a| a[0]).fold(0.0, f32::max);
@@ -251,4 +260,89 @@ fn area_lights_light_the_floor_like_direct_integration() {
     let fresh = evaluate_frame(&Engine::in_memory(), &two_lights);
     let scratch = value_of::<AreaIrradiance>(&fresh, "output", "area_irradiance").irradiance;
     assert!(scratch.iter().zip(&both).all(|(a, b)| a.map(f32::to_bits) == b.map(f32::to_bits)));
+}
+
+/// Radiance a glossy floor point `x` reflects toward `eye` from the constant light of
+/// [`direct_irradiance`] (same midpoint rule and blocker): `∫ L f_s(ω_i, ω_o) cos θ cos θ' V / d² dA`
+/// with the lobe before the specular colour.
+fn direct_highlight(x: DVec3, eye: DVec3, brdf: &crate::brdf::Brdf, radiance: f64, (s, r): (DVec3, f64)) -> f64 {
+    let (n, h, w) = (160, 2.0, 1.0);
+    let to_local = crate::rsl::shade::shading_frame(DVec3::Y, DVec3::X).transpose();
+    let wo = to_local * (eye - x).normalize();
+    let da = (w / n as f64).powi(2);
+    let mut l = 0.0;
+    for i in 0..n * n {
+        let p = DVec3::new(
+            -w / 2.0 + ((i % n) as f64 + 0.5) * w / n as f64,
+            h,
+            -w / 2.0 + ((i / n) as f64 + 0.5) * w / n as f64,
+        );
+        let d = p - x;
+        let dist2 = d.length_squared();
+        let dir = d / dist2.sqrt();
+        let t = (s - x).dot(dir).clamp(0.0, dist2.sqrt());
+        if (x + dir * t - s).length() < r {
+            continue;
+        }
+        l += radiance * brdf.lobe_value(to_local * dir, wo) * dir.y * dir.y / dist2 * da;
+    }
+    l
+}
+
+/// Sun 2008 §4.9 through the engine: a glossy floor's highlights from the painted light toward
+/// the render camera, against direct integration over the light with the ball's shadow; moving
+/// the viewpoint reruns only the highlights (the visibility is kept: no ray), and moves them.
+#[test]
+fn glossy_highlights_follow_the_view_like_direct_integration() {
+    use crate::kinds::output::HIGHLIGHT_EYE;
+    use crate::kinds::output_area::AreaHighlights;
+    let engine = Engine::in_memory();
+    let mut graph = lit_floor_graph(1);
+    graph.set_param("material", "model", ParamValue::Choice("phong".into())).unwrap();
+    graph.set_param("material", "exponent", ParamValue::Float(12.0)).unwrap();
+    graph.set_param("material", "f0", ParamValue::Float(0.5)).unwrap();
+    graph.set_param("material", "specular", ParamValue::Color([1.0, 0.8, 0.6])).unwrap();
+    let ParamValue::Vec3(eye) = graph.node("output").unwrap().params[HIGHLIGHT_EYE] else { panic!("an eye") };
+    assert_eq!(eye, default_project().cameras[0].position, "the render camera's viewpoint");
+    let first = evaluate_frame(&engine, &graph);
+    let receivers = value_of::<crate::transport::Receivers>(&first, "scene", "receivers");
+    let material = value_of::<crate::kinds::brdf::Material>(&first, "material", "material");
+    let brdf = crate::brdf::Brdf::from_material(&material);
+    let highlights = value_of::<AreaHighlights>(&first, "output", "area_highlights").radiance;
+    assert_eq!(highlights.len(), receivers.len());
+    let floor = receivers.mesh_offsets[1];
+    let ball = (DVec3::new(0.0, 0.5, 0.0), 0.5);
+    let compare = |radiance: &[[f32; 3]], eye: [f64; 3]| {
+        let (mut err2, mut ref2, mut checked) = (0.0, 0.0, 0);
+        for i in 0..floor {
+            let (x, _) = receivers.point(i);
+            if x.x.abs() > 1.5 || x.z.abs() > 1.5 || x.length() < 0.05 {
+                continue;
+            }
+            let reference = direct_highlight(x, DVec3::from(eye), &brdf, 10.0, ball);
+            // Tinted by the specular colour.
+            assert!((f64::from(radiance[i][2]) - 0.6 * f64::from(radiance[i][0])).abs() <= 1e-4 * reference.max(1.0));
+            err2 += (f64::from(radiance[i][0]) - reference).powi(2);
+            ref2 += reference * reference;
+            checked += 1;
+        }
+        assert!(checked > 50);
+        (err2 / ref2).sqrt()
+    };
+    let error = compare(&highlights, eye);
+    eprintln!("highlights from the render camera: {error:.4} relative L2 against direct integration");
+    assert!(error < 0.05, "relative L2 error {error:.4} of the highlights against direct integration");
+
+    // Another viewpoint: only the highlights rerun, reusing the traced visibility.
+    let side = [3.0, 1.5, 0.5];
+    graph.set_param("output", HIGHLIGHT_EYE, ParamValue::Vec3(side)).unwrap();
+    let moved = evaluate_frame(&engine, &graph);
+    assert_eq!(ran(&moved.report), set(&["output.area_highlights"]));
+    let seen = value_of::<AreaHighlights>(&moved, "output", "area_highlights").radiance;
+    let error = compare(&seen, side);
+    eprintln!("highlights from the side: {error:.4}");
+    assert!(error < 0.05, "relative L2 error {error:.4} from the side");
+    let brightest = |r: &[[f32; 3]]| (0..floor).max_by(|&a, &b| r[a][0].total_cmp(&r[b][0])).unwrap();
+    let (before, after) = (receivers.point(brightest(&highlights)).0, receivers.point(brightest(&seen)).0);
+    assert!(after.x > before.x + 0.3, "the highlight moves toward the new eye: {before} -> {after}");
 }

@@ -58,3 +58,29 @@ fn painted_area_light_matches_the_monte_carlo_reference() {
     assert!(full < defaults + noise, "keeping everything: {full} against {defaults}");
     assert!(narrow > 1.5 * defaults, "face 2: {narrow} against {defaults} at face 4");
 }
+
+/// Sun 2008 §4.9 through the binary: the panel over a glossy (Phong) floor, sphere and box, its
+/// highlights reflected toward the render camera, against the reference (which evaluates the
+/// full BRDF for each light sample). The same scene in Lambert sets the diffuse error.
+#[test]
+fn glossy_highlights_match_the_monte_carlo_reference() {
+    let dir = std::env::temp_dir().join(format!("lightloom-area-gloss-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let project = panel_only_project(&dir);
+    let text = std::fs::read_to_string(&project).unwrap();
+    let gloss = "        (\n            id: \"gloss\",\n            kind: \"BrdfEditor\",\n            position: (0.0, 600.0),\n            \
+                 params: {\"model\": Choice(\"phong\"), \"exponent\": Float(30.0), \"f0\": Float(0.3), \"albedo\": Color((0.5, 0.5, 0.5))},\n        ),\n";
+    let text = text.replacen("        (id: \"out\"", &format!("{gloss}        (id: \"out\""), 1).replacen(
+        "        (from: (\"panel\", \"area_light\"), to: (\"out\", \"area_lights\")),\n",
+        "        (from: (\"panel\", \"area_light\"), to: (\"out\", \"area_lights\")),\n        (from: (\"gloss\", \"material\"), to: (\"out\", \"material\")),\n",
+        1,
+    );
+    assert!(text.contains("(\"gloss\", \"material\")"), "the material is linked");
+    let glossy = dir.join("glossy.ron");
+    std::fs::write(&glossy, text).unwrap();
+    let (with_highlights, noise) = accuracy(&glossy, &[]);
+    let (lambert, _) = accuracy(&glossy, &["gloss.model=lambert"]);
+    eprintln!("relative RMSE: glossy {with_highlights:.4}, the same in Lambert {lambert:.4}; noise {noise:.4}");
+    assert!(noise < 0.05, "the reference is too noisy to judge: {noise}");
+    assert!(with_highlights < 0.15, "glossy: {with_highlights}");
+}

@@ -803,10 +803,10 @@ impl FrameInputs {
             super::output_area::frame(evaluation, &light_nodes, output, &keyed, &materials, geometry.vertex_count())?;
         let lobe_limits = lobe_limits(graph, output, &scene, settings.mode, &materials);
         let medium = MediumFrame::new(lights, &materials, fog);
-        let glossy = medium.surface_lobes.iter().any(Option::is_some);
-        if !light_nodes.is_empty() && (glossy || upstream("blockers").is_some()) {
+        if !light_nodes.is_empty() && upstream("blockers").is_some() {
             ignored_inputs.push(
-                "`area_lights` shade diffuse only: no highlights and no blocker-sphere shadows (the reference has both)"
+                "`area_lights` cast no blocker-sphere shadows (the reference has them): the spheres shadow the \
+                 environment only"
                     .into(),
             );
         }

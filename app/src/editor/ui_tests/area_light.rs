@@ -192,3 +192,62 @@ fn the_selected_area_light_previews_its_texture_in_the_viewport() {
     let hidden = pixel(&mut harness);
     assert!(hidden[0] < 2.0 * hidden[1], "deselected, the view behind shows: {hidden:?}");
 }
+
+/// Highlights hold for one viewpoint: a glossy floor under a light reflects it toward the
+/// viewport camera; after a right-drag orbit they stay until the camera rests, then are
+/// recomputed for the new view (only the highlights stage reruns) and move on the floor.
+#[test]
+fn area_light_highlights_follow_the_view_once_the_camera_rests() {
+    use lightloom_nodes::kinds::output_area::AreaHighlights;
+    let mut harness = default_harness();
+    let added = add_from_menu(&mut harness, "Area light painter");
+    let link = ((added.clone(), "area_light".into()), ("output".to_string(), "area_lights".to_string()));
+    harness.state_mut().doc.edit("Link", None, |p| edits::connect(p, &link.0, &link.1)).unwrap();
+    let doc = &mut harness.state_mut().doc;
+    inspector::set_param(doc, &added, "position", ParamValue::Vec3([0.0, 1.5, 0.0])).unwrap();
+    inspector::set_param(doc, "material", "model", ParamValue::Choice("phong".into())).unwrap();
+    inspector::set_param(doc, "material", "exponent", ParamValue::Float(20.0)).unwrap();
+    inspector::set_param(doc, "material", "f0", ParamValue::Float(0.5)).unwrap();
+    doc.seal();
+    harness.state_mut().selection = Selection::None;
+    let highlights = |harness: &Harness<'_, EditorApp>| {
+        let evaluation = &harness.state().evaluator.last.as_ref().expect("an evaluation").0;
+        let value = evaluation.value("output", "area_highlights").expect("the highlights ran");
+        value.expect::<AreaHighlights>().unwrap().radiance.clone()
+    };
+    let rest = |harness: &mut Harness<'_, EditorApp>| {
+        std::thread::sleep(Duration::from_millis(500));
+        harness.run_steps(2);
+        settle(harness);
+    };
+    rest(&mut harness);
+    let eye = harness.state().view.camera.to_camera("").position;
+    assert_eq!(harness.state().highlight_eye, Some(eye), "computed for the view");
+    let before = highlights(&harness);
+    assert!(before.iter().any(|c| c[0] > 0.01), "the glossy floor reflects the light");
+    harness.render().unwrap().save(state_dir().join("area_highlights_before.png")).expect("screenshot");
+
+    let rect = harness.state().viewport_rect;
+    let centre = rect.center();
+    pointer_drag(&mut harness, egui::PointerButton::Secondary, centre, centre + egui::vec2(120.0, 0.0));
+    let moved = harness.state().view.camera.to_camera("").position;
+    assert_ne!(moved, eye, "the right-drag orbits");
+    harness.step();
+    assert_eq!(harness.state().highlight_eye, Some(eye), "not while the camera may still move");
+    rest(&mut harness);
+    assert_eq!(harness.state().highlight_eye, Some(moved));
+    let after = highlights(&harness);
+    let ran = &harness.state().evaluator.last.as_ref().unwrap().0.report;
+    let ran: Vec<String> = ran
+        .stages
+        .iter()
+        .filter(|s| s.status == lightloom_nodes::engine::StageStatus::Computed)
+        .map(|s| format!("{}.{}", s.node, s.stage))
+        .collect();
+    assert!(ran.contains(&"output.area_highlights".to_string()), "{ran:?}");
+    assert!(!ran.iter().any(|s| s.ends_with("area_transport") || s.ends_with("area_irradiance")), "{ran:?}");
+    let change = before.iter().zip(&after).map(|(a, b)| (a[0] - b[0]).abs()).fold(0.0, f32::max);
+    let peak = before.iter().map(|c| c[0]).fold(0.0, f32::max);
+    assert!(change > 0.2 * peak, "the highlights move with the view: change {change}, peak {peak}");
+    harness.render().unwrap().save(state_dir().join("area_highlights_after.png")).expect("screenshot");
+}

@@ -204,5 +204,48 @@ pub fn area_sample_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
             println!("  {label:<32} {:>16.1} {:>12.1}", median(stages), median(frames));
         }
     }
+    glossy_sample_figures(args, gpu, &project, &path, &view)
+}
+
+/// The sample with a glossy (Phong) material: the highlights' first evaluation, the view
+/// resting somewhere new (the glossy transport and every response again, no ray), and a stroke.
+fn glossy_sample_figures(
+    args: &BenchArgs,
+    gpu: &GpuContext,
+    project: &lightloom_nodes::project::Project,
+    path: &std::path::Path,
+    view: &CameraView,
+) -> Result<()> {
+    use lightloom_nodes::project::{ProjectLink, ProjectNode};
+    let mut glossy = project.clone();
+    glossy.nodes.push(ProjectNode {
+        id: "gloss".into(),
+        kind: "BrdfEditor".into(),
+        label: String::new(),
+        position: [0.0; 2],
+        params: [
+            ("model".to_string(), ParamValue::Choice("phong".into())),
+            ("exponent".to_string(), ParamValue::Float(30.0)),
+            ("f0".to_string(), ParamValue::Float(0.3)),
+        ]
+        .into(),
+    });
+    glossy.links.push(ProjectLink { from: ("gloss".into(), "material".into()), to: ("out".into(), "material".into()) });
+    let mut graph = glossy.graph(path).map_err(|e| anyhow!("{e:?}"))?;
+    graph.set_param("scene", "tessellation", ParamValue::Int(136))?;
+    let engine = Arc::new(Engine::in_memory());
+    let mut renderer = ViewportRenderer::new(gpu);
+    let (_, first_ms, _) = evaluate_frame(&engine, &graph, "out")?;
+    println!("glossy floor, sphere and box (Phong 30), exact couplings (first evaluation {:.1} s):", first_ms / 1e3);
+    let eye = glossy.camera(None).map_err(|e| anyhow!(e))?.position;
+    let (mut stages, mut frames) = (Vec::new(), Vec::new());
+    for k in 0..args.frames.max(1) {
+        let turned = [eye[0] + 0.4 * (k + 1) as f64, eye[1], eye[2]];
+        graph.set_param("out", lightloom_nodes::kinds::output::HIGHLIGHT_EYE, ParamValue::Vec3(turned))?;
+        let (frame, ms, _) = evaluate_frame(&engine, &graph, "out")?;
+        stages.push(ms);
+        frames.push(timed_frame(gpu, &mut renderer, &frame, view, (960, 540))?);
+    }
+    println!("  {:<32} {:>16.1} {:>12.1}", "the view rests elsewhere", median(stages), median(frames));
     Ok(())
 }

@@ -100,6 +100,7 @@ const SCENE_ALL: &[&str] = &[
     "output.blocked_transport",
     "output.area_transport",
     "output.area_irradiance",
+    "output.area_highlights",
     "output.adaptive_incident",
     "output.adaptive_error",
 ];
@@ -213,6 +214,7 @@ fn each_parameter_recomputes_exactly_its_stages() {
                 "output.adaptive_error",
                 "material.local_table",
                 "material.rsl_tables",
+                "output.area_highlights",
             ],
         ),
         (
@@ -227,6 +229,7 @@ fn each_parameter_recomputes_exactly_its_stages() {
                 "output.adaptive_error",
                 "material.local_table",
                 "material.rsl_tables",
+                "output.area_highlights",
             ],
         ),
         (
@@ -241,6 +244,7 @@ fn each_parameter_recomputes_exactly_its_stages() {
                 "output.adaptive_error",
                 "material.local_table",
                 "material.rsl_tables",
+                "output.area_highlights",
             ],
         ),
         (
@@ -255,6 +259,7 @@ fn each_parameter_recomputes_exactly_its_stages() {
                 "output.adaptive_error",
                 "material.local_table",
                 "material.rsl_tables",
+                "output.area_highlights",
             ],
         ),
         (
@@ -269,6 +274,7 @@ fn each_parameter_recomputes_exactly_its_stages() {
                 "output.adaptive_error",
                 "material.local_table",
                 "material.rsl_tables",
+                "output.area_highlights",
             ],
         ),
         (
@@ -283,6 +289,7 @@ fn each_parameter_recomputes_exactly_its_stages() {
                 "output.adaptive_error",
                 "material.local_table",
                 "material.rsl_tables",
+                "output.area_highlights",
             ],
         ),
         (
@@ -297,6 +304,7 @@ fn each_parameter_recomputes_exactly_its_stages() {
                 "output.adaptive_error",
                 "material.local_table",
                 "material.rsl_tables",
+                "output.area_highlights",
             ],
         ),
         // Setting the current value (the default project's shadowed mode) recomputes nothing.
@@ -332,6 +340,7 @@ fn each_parameter_recomputes_exactly_its_stages() {
                 "output.adaptive_error",
                 "material.local_table",
                 "material.rsl_tables",
+                "output.area_highlights",
             ],
         ),
     ];
@@ -341,7 +350,7 @@ fn each_parameter_recomputes_exactly_its_stages() {
     graph.set_param("scene", "tessellation", Int(12)).unwrap();
     let first = engine.evaluate(&graph, &CancelToken::default(), None);
     assert!(first.report.failed().is_empty(), "{:?}", first.report.failed());
-    assert_eq!(first.report.computed().len(), 35);
+    assert_eq!(first.report.computed().len(), 36);
     let again = engine.evaluate(&graph, &CancelToken::default(), None);
     assert!(ran(&again.report).is_empty(), "an unchanged graph recomputed {:?}", ran(&again.report));
     for (node, param, value, expected) in table {
@@ -1256,7 +1265,7 @@ fn each_mode_and_view_evaluates_exactly_the_stages_it_reads() {
         for s in eval.report.stages.iter().filter(|s| s.status == StageStatus::NotNeeded) {
             assert!(s.reasons[0].contains(&format!("mode {mode}")), "{}.{}: {:?}", s.node, s.stage, s.reasons);
         }
-        assert_eq!(eval.report.stages.len(), 35, "every stage is reported");
+        assert_eq!(eval.report.stages.len(), 36, "every stage is reported");
     }
 }
 

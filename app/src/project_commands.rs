@@ -226,12 +226,7 @@ pub fn render_project(
     let camera = project.camera(camera).map_err(|e| anyhow!(e))?;
     // View-dependent results (area-light highlights) for the camera rendered.
     let mut seen = graph.clone();
-    for node in seen.nodes.iter_mut().filter(|n| n.kind.name == "Output") {
-        node.params.insert(
-            lightloom_nodes::kinds::output::HIGHLIGHT_EYE.into(),
-            lightloom_nodes::node_kind::ParamValue::Vec3(camera.position),
-        );
-    }
+    lightloom_nodes::kinds::output::see_from(&mut seen, camera.position);
     let graph = &seen;
     let start = Instant::now();
     let evaluation = evaluate(engine, graph, output_request(graph, &output.id), quiet);

@@ -38,6 +38,12 @@ impl TopFace {
         v_hat.map(|c| (c - 0.5) * self.size)
     }
 
+    /// The centre `v̂` of cell `c` (row-major, `c = row · order + column`).
+    fn cell_centre(&self, c: usize) -> [f64; 2] {
+        let n = self.order;
+        [((c % n) as f64 + 0.5) / n as f64, ((c / n) as f64 + 0.5) / n as f64]
+    }
+
     /// `T̂` at `v̂` for a receiver with normal `n`, before visibility.
     fn weight(&self, v_hat: [f64; 2], normal: DVec3) -> (DVec3, f64) {
         let [v1, v2] = self.intercept(v_hat);
@@ -119,10 +125,6 @@ impl FaceVisibility {
         (face.order * face.order).div_ceil(64)
     }
 
-    pub fn receivers(&self) -> usize {
-        self.bits.len() / Self::words(&self.face).max(1)
-    }
-
     fn visible(&self, receiver: usize, cell: usize) -> bool {
         self.bits[receiver * Self::words(&self.face) + cell / 64] >> (cell % 64) & 1 == 1
     }
@@ -144,8 +146,7 @@ pub fn face_visibility(
         .flat_map_iter(|(&x, &normal)| {
             let mut bits = vec![0u64; words];
             for c in 0..n * n {
-                let v_hat = [((c % n) as f64 + 0.5) / n as f64, ((c / n) as f64 + 0.5) / n as f64];
-                let (direction, weight) = face.weight(v_hat, normal);
+                let (direction, weight) = face.weight(face.cell_centre(c), normal);
                 if weight > 0.0 && unoccluded(x, direction) {
                     bits[c / 64] |= 1 << (c % 64);
                 }
@@ -175,8 +176,7 @@ pub fn visible_transport(
             let mut cells = vec![0.0; n * n];
             for (c, cell) in cells.iter_mut().enumerate() {
                 if visibility.visible(r, c) {
-                    let v_hat = [((c % n) as f64 + 0.5) / n as f64, ((c / n) as f64 + 0.5) / n as f64];
-                    let (direction, weight) = face.weight(v_hat, normals[r]);
+                    let (direction, weight) = face.weight(face.cell_centre(c), normals[r]);
                     *cell = weight * factor(r, direction);
                 }
             }

@@ -280,22 +280,8 @@ impl Project {
                 message: format!("render size {w}x{h} must be within 1..=16384 on each side"),
             });
         }
-        let eye = eye.or_else(|| self.camera(None).ok().map(|c| c.position));
-        let seen: Vec<_> = self
-            .nodes
-            .iter()
-            .map(|n| {
-                let mut params = n.params.clone();
-                if n.kind == "Output"
-                    && let Some(eye) = eye
-                {
-                    params.insert(crate::kinds::output::HIGHLIGHT_EYE.into(), ParamValue::Vec3(eye));
-                }
-                params
-            })
-            .collect();
         let inputs: Vec<NodeInput> =
-            self.nodes.iter().zip(&seen).map(|(n, params)| NodeInput { id: &n.id, kind: &n.kind, params }).collect();
+            self.nodes.iter().map(|n| NodeInput { id: &n.id, kind: &n.kind, params: &n.params }).collect();
         let links: Vec<Link> = self
             .links
             .iter()
@@ -307,7 +293,12 @@ impl Project {
             })
             .collect();
         match Graph::build(&inputs, &links, dir, crate::kinds::registry()) {
-            Ok(graph) if errors.is_empty() => Ok(graph),
+            Ok(mut graph) if errors.is_empty() => {
+                if let Some(eye) = eye.or_else(|| self.camera(None).ok().map(|c| c.position)) {
+                    crate::kinds::output::see_from(&mut graph, eye);
+                }
+                Ok(graph)
+            }
             Ok(_) => Err(errors),
             Err(mut more) => {
                 errors.append(&mut more);

@@ -284,6 +284,19 @@ pub fn spec() -> NodeKindSpec {
 /// when a project becomes a graph ([`crate::project::Project::graph_seen_from`]), never edited.
 pub const HIGHLIGHT_EYE: &str = "highlight_eye";
 
+/// Which of the `linked` materials (node ids in link order) a mesh naming `material` takes;
+/// `None` for an unnamed mesh or a name none has (both take the first).
+pub(super) fn named_material<'a>(material: &str, mut linked: impl Iterator<Item = &'a str>) -> Option<usize> {
+    if material.is_empty() { None } else { linked.position(|node| node == material) }
+}
+
+/// Sets every Output's [`HIGHLIGHT_EYE`] in `graph`: view-dependent results for `eye`.
+pub fn see_from(graph: &mut Graph, eye: [f64; 3]) {
+    for node in graph.nodes.iter_mut().filter(|n| n.kind.name == "Output") {
+        node.params.insert(HIGHLIGHT_EYE.into(), ParamValue::Vec3(eye));
+    }
+}
+
 /// The wavelet and adaptive-SH settings matter only in their modes (the inspector hides them
 /// elsewhere).
 fn relevant_to_mode(value: &dyn Fn(&str) -> Option<ParamValue>, name: &str) -> bool {
@@ -714,7 +727,7 @@ impl FrameInputs {
         let mut unmatched: std::collections::BTreeMap<String, usize> = Default::default();
         if let Some(set) = meshes.value.get::<crate::mesh::MeshSet>() {
             for mesh in &set.meshes {
-                let found = materials.iter().position(|m| !mesh.material.is_empty() && m.node == mesh.material);
+                let found = named_material(&mesh.material, materials.iter().map(|m| m.node.as_str()));
                 if found.is_none() && !mesh.material.is_empty() {
                     *unmatched.entry(mesh.material.clone()).or_default() += 1;
                 }

@@ -281,7 +281,7 @@ fn vertex_brdfs(ctx: &StageContext, receivers: &Receivers) -> Result<(Vec<crate:
     }
     let mut of_vertex = vec![0u32; receivers.len()];
     for (m, mesh) in meshes.meshes.iter().enumerate() {
-        let found = linked.iter().position(|(node, _)| !mesh.material.is_empty() && *node == mesh.material);
+        let found = super::output::named_material(&mesh.material, linked.iter().map(|(node, _)| *node));
         let start = receivers.mesh_offsets.get(m).copied().unwrap_or(receivers.len());
         let end = receivers.mesh_offsets.get(m + 1).copied().unwrap_or(receivers.len());
         of_vertex[start.min(end)..end].fill(found.unwrap_or(0) as u32);
@@ -306,26 +306,28 @@ fn area_highlights(ctx: &StageContext) -> Result<StageValue, StageError> {
     }
     let eye = DVec3::from(ctx.vec3("highlight_eye")?);
     let points = positions(receivers);
-    // Per vertex: world to its shading frame, and the direction to the eye in that frame.
-    let views: Vec<(glam::DMat3, DVec3)> = (0..receivers.len())
+    // Per vertex: its normal, world to its shading frame, and the direction to the eye there.
+    let (normals, views): (Vec<DVec3>, Vec<(glam::DMat3, DVec3)>) = (0..receivers.len())
         .map(|i| {
             let (p, n) = receivers.point(i);
             let tangent = DVec3::from(receivers.tangents[i].map(f64::from));
             let to_local = crate::rsl::shade::shading_frame(n, tangent).transpose();
-            (to_local, to_local * (eye - p).normalize_or(n))
+            (n, (to_local, to_local * (eye - p).normalize_or(n)))
         })
-        .collect();
-    let normals: Vec<DVec3> = (0..receivers.len()).map(|i| receivers.point(i).1).collect();
+        .unzip();
+    // What a glossy transport depends on besides its face's visibility: the eye and each
+    // vertex's lobe.
     let lobes: Vec<String> = brdfs.iter().map(|b| format!("{:?}/{}", b.lobe, b.f0)).collect();
+    let mut seen = xxhash_rust::xxh3::Xxh3::new();
+    seen.update(b"area glossy transport v1");
+    seen.update(bytemuck::cast_slice(&eye.to_array()));
+    seen.update(&postcard::to_allocvec(&lobes).map_err(|e| StageError::Internal(e.to_string()))?);
+    seen.update(bytemuck::cast_slice(&of_vertex));
     let mut total = vec![[0.0f64; 3]; receivers.len()];
     for (_, light) in &lights {
         let diffuse = face_of(transports, light)?;
-        let mut key = xxhash_rust::xxh3::Xxh3::new();
-        key.update(b"area glossy transport v1");
+        let mut key = seen.clone();
         key.update(&diffuse.key.to_le_bytes());
-        key.update(bytemuck::cast_slice(&eye.to_array()));
-        key.update(&postcard::to_allocvec(&lobes).map_err(|e| StageError::Internal(e.to_string()))?);
-        key.update(bytemuck::cast_slice(&of_vertex));
         let key = key.digest128();
         let visibility = &diffuse.visibility;
         let transport = ctx.memo(key, || {

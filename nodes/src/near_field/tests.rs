@@ -49,6 +49,19 @@ fn reference(
     visible: &(impl Fn(DVec3, DVec3) -> bool + Sync),
     samples: usize,
 ) -> [f64; 3] {
+    light_integral(texture, order, light, (x, normal), visible, samples, |_| 1.0)
+}
+
+/// `Σ F factor(ω) V cos θ_x cos θ_l / r² dA` over `samples²` points of the light's surface.
+fn light_integral(
+    texture: &[[f64; 3]],
+    order: usize,
+    light: &LightPlacement,
+    (x, normal): (DVec3, DVec3),
+    visible: &(impl Fn(DVec3, DVec3) -> bool + Sync),
+    samples: usize,
+    factor: impl Fn(DVec3) -> f64,
+) -> [f64; 3] {
     let area = light.extent[0] * light.extent[1] / (samples * samples) as f64;
     let mut e = [0.0; 3];
     for k in 0..samples * samples {
@@ -66,7 +79,7 @@ fn reference(
             continue;
         }
         let texel = texture[((u[1] * order as f64) as usize) * order + (u[0] * order as f64) as usize];
-        let weight = cos_x * direction.y / r2 * area;
+        let weight = factor(direction) * cos_x * direction.y / r2 * area;
         for c in 0..3 {
             e[c] += texel[c] * weight;
         }
@@ -476,29 +489,7 @@ fn highlight_reference(
 ) -> [f64; 3] {
     let to_local = crate::rsl::shade::shading_frame(normal, DVec3::X).transpose();
     let wo = to_local * (eye - x).normalize();
-    let area = light.extent[0] * light.extent[1] / (samples * samples) as f64;
-    let mut radiance = [0.0; 3];
-    for k in 0..samples * samples {
-        let u = [((k % samples) as f64 + 0.5) / samples as f64, ((k / samples) as f64 + 0.5) / samples as f64];
-        let p = DVec3::new(
-            light.corner[0] + u[0] * light.extent[0],
-            light.height,
-            light.corner[1] + u[1] * light.extent[1],
-        );
-        let to = p - x;
-        let r2 = to.length_squared();
-        let direction = to / r2.sqrt();
-        let cos_x = direction.dot(normal);
-        if cos_x <= 0.0 || direction.y <= 0.0 || !visible(x, direction) {
-            continue;
-        }
-        let texel = texture[((u[1] * order as f64) as usize) * order + (u[0] * order as f64) as usize];
-        let weight = brdf.lobe_value(to_local * direction, wo) * cos_x * direction.y / r2 * area;
-        for c in 0..3 {
-            radiance[c] += texel[c] * weight;
-        }
-    }
-    radiance
+    light_integral(texture, order, light, (x, normal), visible, samples, |d| brdf.lobe_value(to_local * d, wo))
 }
 
 /// Sun 2008 §4.9 (specular scenes, fixed view): a transport weighted by the BRDF lobe toward

@@ -237,13 +237,7 @@ fn area_light_highlights_follow_the_view_once_the_camera_rests() {
     rest(&mut harness);
     assert_eq!(harness.state().highlight_eye, Some(moved));
     let after = highlights(&harness);
-    let ran = &harness.state().evaluator.last.as_ref().unwrap().0.report;
-    let ran: Vec<String> = ran
-        .stages
-        .iter()
-        .filter(|s| s.status == lightloom_nodes::engine::StageStatus::Computed)
-        .map(|s| format!("{}.{}", s.node, s.stage))
-        .collect();
+    let ran = computed_stages(&harness);
     assert!(ran.contains(&"output.area_highlights".to_string()), "{ran:?}");
     assert!(!ran.iter().any(|s| s.ends_with("area_transport") || s.ends_with("area_irradiance")), "{ran:?}");
     let change = before.iter().zip(&after).map(|(a, b)| (a[0] - b[0]).abs()).fold(0.0, f32::max);

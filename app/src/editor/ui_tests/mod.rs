@@ -69,6 +69,17 @@ fn settle(harness: &mut Harness<'_, EditorApp>) {
     harness.step();
 }
 
+/// `node.stage` of every stage the last evaluation computed.
+fn computed_stages(harness: &Harness<'_, EditorApp>) -> Vec<String> {
+    let report = &harness.state().evaluator.last.as_ref().expect("an evaluation").0.report;
+    report
+        .stages
+        .iter()
+        .filter(|s| s.status == lightloom_nodes::engine::StageStatus::Computed)
+        .map(|s| format!("{}.{}", s.node, s.stage))
+        .collect()
+}
+
 /// Adds a node from the Add menu by (part of) its entry's label; returns its id.
 fn add_from_menu(harness: &mut Harness<'_, EditorApp>, entry: &str) -> String {
     let before: Vec<String> = harness.state().doc.project.nodes.iter().map(|n| n.id.clone()).collect();
@@ -1005,13 +1016,7 @@ fn square_lights_from_the_add_menu_to_the_viewport() {
     inspector::set_param(&mut harness.state_mut().doc, &added, "light_count", ParamValue::Int(8)).unwrap();
     harness.state_mut().doc.seal();
     settle(&mut harness);
-    let report = &harness.state().evaluator.last.as_ref().expect("an evaluation").0.report;
-    let ran: Vec<String> = report
-        .stages
-        .iter()
-        .filter(|s| s.status == lightloom_nodes::engine::StageStatus::Computed)
-        .map(|s| format!("{}.{}", s.node, s.stage))
-        .collect();
+    let ran = computed_stages(&harness);
     assert!(!ran.iter().any(|s| s.ends_with(".merge_sequence")), "K is a cut, not a new decomposition: {ran:?}");
     assert!(ran.contains(&format!("{added}.square_lights")), "{ran:?}");
     let fewer = viewport_mean(&mut harness);

@@ -114,7 +114,18 @@ fn lit_floor_graph(lights: usize) -> Graph {
 /// Irradiance at floor point `x` from a constant light of radiance `radiance` on the square
 /// `[c − w/2, c + w/2]²` at height `h`, with the sphere (centre `s`, radius `r`) blocking, by
 /// a midpoint rule over the light's surface: `E = ∫ L cos θ cos θ' V / d² dA`.
-fn direct_irradiance(x: DVec3, (h, c, w): (f64, [f64; 2], f64), radiance: f64, (s, r): (DVec3, f64)) -> f64 {
+fn direct_irradiance(x: DVec3, light: (f64, [f64; 2], f64), radiance: f64, sphere: (DVec3, f64)) -> f64 {
+    direct_integral(x, light, radiance, sphere, |_| 1.0)
+}
+
+/// [`direct_irradiance`]'s midpoint rule with a per-direction factor: `∫ L factor(ω) cos θ cos θ' V / d² dA`.
+fn direct_integral(
+    x: DVec3,
+    (h, c, w): (f64, [f64; 2], f64),
+    radiance: f64,
+    (s, r): (DVec3, f64),
+    factor: impl Fn(DVec3) -> f64,
+) -> f64 {
     let n = 160;
     let da = (w / n as f64).powi(2);
     let mut e = 0.0;
@@ -132,7 +143,7 @@ fn direct_irradiance(x: DVec3, (h, c, w): (f64, [f64; 2], f64), radiance: f64, (
         if (x + dir * t - s).length() < r {
             continue;
         }
-        e += radiance * dir.y * dir.y / dist2 * da;
+        e += radiance * factor(dir) * dir.y * dir.y / dist2 * da;
     }
     e
 }
@@ -262,31 +273,12 @@ fn area_lights_light_the_floor_like_direct_integration() {
     assert!(scratch.iter().zip(&both).all(|(a, b)| a.map(f32::to_bits) == b.map(f32::to_bits)));
 }
 
-/// Radiance a glossy floor point `x` reflects toward `eye` from the constant light of
-/// [`direct_irradiance`] (same midpoint rule and blocker): `∫ L f_s(ω_i, ω_o) cos θ cos θ' V / d² dA`
-/// with the lobe before the specular colour.
-fn direct_highlight(x: DVec3, eye: DVec3, brdf: &crate::brdf::Brdf, radiance: f64, (s, r): (DVec3, f64)) -> f64 {
-    let (n, h, w) = (160, 2.0, 1.0);
+/// Radiance a glossy floor point `x` reflects toward `eye` from the light of
+/// [`direct_irradiance`] (same rule and blocker), the lobe before the specular colour.
+fn direct_highlight(x: DVec3, eye: DVec3, brdf: &crate::brdf::Brdf, radiance: f64, sphere: (DVec3, f64)) -> f64 {
     let to_local = crate::rsl::shade::shading_frame(DVec3::Y, DVec3::X).transpose();
     let wo = to_local * (eye - x).normalize();
-    let da = (w / n as f64).powi(2);
-    let mut l = 0.0;
-    for i in 0..n * n {
-        let p = DVec3::new(
-            -w / 2.0 + ((i % n) as f64 + 0.5) * w / n as f64,
-            h,
-            -w / 2.0 + ((i / n) as f64 + 0.5) * w / n as f64,
-        );
-        let d = p - x;
-        let dist2 = d.length_squared();
-        let dir = d / dist2.sqrt();
-        let t = (s - x).dot(dir).clamp(0.0, dist2.sqrt());
-        if (x + dir * t - s).length() < r {
-            continue;
-        }
-        l += radiance * brdf.lobe_value(to_local * dir, wo) * dir.y * dir.y / dist2 * da;
-    }
-    l
+    direct_integral(x, (2.0, [0.0, 0.0], 1.0), radiance, sphere, |d| brdf.lobe_value(to_local * d, wo))
 }
 
 /// Sun 2008 §4.9 through the engine: a glossy floor's highlights from the painted light toward

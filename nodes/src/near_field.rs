@@ -315,13 +315,15 @@ pub struct Propagation {
     selected: FaceSet,
     /// Every face index, coarse first then in index order: the predicted set's fill order.
     coarse_first: Vec<usize>,
-    /// The adjoint's row of couplings `D_{i₂k₂}`, its per-`k₁` partial sums, and which of them
-    /// the current row has computed.
-    row: Vec<(usize, f64)>,
+    /// Each face index's position in `coarse_first`.
+    coarse_rank: Vec<u32>,
+    /// The adjoint's lanes: per axis the face indices of the receiver's [`Footprint`], the kept
+    /// transport over them (`k₂` lanes of `k₁` lanes) and one row's partial sums per `k₁` lane.
+    lanes: [Vec<u32>; 2],
+    kept_transport: Vec<f64>,
     row_sums: Vec<f64>,
-    row_summed: FaceSet,
-    /// The transport with the unkept coefficients zeroed: the adjoint's loops need no mask.
-    kept_transport: Vec<f32>,
+    /// One receiver's responses, when [`irradiance`] sums them at once.
+    responses: Vec<f64>,
     /// `L_{k₁k₂}` at `k₂·order + k₁`, valid after [`propagate_into`].
     pub light: Vec<[f64; 3]>,
 }
@@ -337,14 +339,129 @@ impl Propagation {
             ranked: Vec::new(),
             kept: Vec::new(),
             selected: FaceSet::default(),
-            coarse_first: coarse_first_order(face_order),
-            row: Vec::new(),
-            row_sums: vec![0.0; face_order],
-            row_summed: FaceSet::default(),
-            kept_transport: vec![0.0; face_order * face_order],
+            coarse_first: Vec::new(),
+            coarse_rank: Vec::new(),
+            lanes: [Vec::new(), Vec::new()],
+            kept_transport: Vec::new(),
+            row_sums: Vec::new(),
+            responses: Vec::new(),
             light: vec![[0.0; 3]; face_order * face_order],
         }
     }
+}
+
+impl Propagation {
+    /// `coarse_first` and `coarse_rank` for an `n × n` face.
+    fn coarse_orders(&mut self, n: usize) {
+        if self.coarse_first.len() != n * n {
+            self.coarse_first = coarse_first_order(n);
+            self.coarse_rank = vec![0; n * n];
+            for (rank, &k) in self.coarse_first.iter().enumerate() {
+                self.coarse_rank[k] = rank as u32;
+            }
+        }
+    }
+}
+
+/// The kept targets of the predicted set, as a test on `(k₁, k₂)`.
+#[derive(Clone, Copy)]
+enum KeptTargets {
+    All,
+    /// The nonzero predictions (per axis, the face indices whose `D_{φk}` is nonzero as bits)
+    /// and the zero ones ranked before `cutoff` in coarse-first order: the set when the
+    /// nonzero predictions number no more than the kept count, found without ranking them.
+    Fill {
+        nonzero: [u64; 2],
+        cutoff: u32,
+    },
+    /// Those marked in `Propagation::selected`.
+    Selected,
+}
+
+impl KeptTargets {
+    /// Whether face index `k = k₂·n + k₁` is kept (`coarse_rank` and `selected` from the
+    /// [`Propagation`] that found the set).
+    #[inline]
+    fn keeps(self, k1: u32, k2: u32, k: usize, coarse_rank: &[u32], selected: &FaceSet) -> bool {
+        match self {
+            KeptTargets::All => true,
+            KeptTargets::Fill { nonzero, cutoff } => {
+                (nonzero[0] >> k1 & 1 != 0 && nonzero[1] >> k2 & 1 != 0) || coarse_rank[k] < cutoff
+            }
+            KeptTargets::Selected => selected.contains(k),
+        }
+    }
+}
+
+/// The predicted targets for the maps in `slots`: [`predicted_target_set`]'s set (asserted
+/// equal), as the fill of the coarse-first order where it can be.
+fn kept_targets(slots: [u32; 2], n: usize, fraction: f64, scratch: &mut Propagation) -> KeptTargets {
+    let count = target_count(n, fraction);
+    scratch.coarse_orders(n);
+    if n <= 64 && n.is_power_of_two() {
+        let mut nonzero = [0u64; 2];
+        let mut smallest = [f64::INFINITY; 2];
+        for q in 0..2 {
+            for c in scratch.couplings.fan_out(slots[q], 0, n) {
+                if c.d != 0.0 {
+                    nonzero[q] |= 1 << c.k;
+                    smallest[q] = smallest[q].min(c.d.abs());
+                }
+            }
+        }
+        let predicted = nonzero[0].count_ones() as usize * nonzero[1].count_ones() as usize;
+        // Every nonzero prediction kept (none rounds to zero), then zero ones, coarse first.
+        if predicted <= count && smallest[0] * smallest[1] > 0.0 {
+            let cutoff = fill_cutoff(nonzero, n, count - predicted, &scratch.coarse_rank);
+            return KeptTargets::Fill { nonzero, cutoff };
+        }
+    }
+    predicted_target_set_at(slots, n, fraction, scratch);
+    KeptTargets::Selected
+}
+
+/// The coarse-first rank just past the `fill`-th face index whose prediction is zero (0 for
+/// none), given the axes' nonzero predictions as bits. Counted per level, then per row, then
+/// per column of [`fill_coarse_first`]'s order, never walking the face.
+fn fill_cutoff(nonzero: [u64; 2], n: usize, fill: usize, coarse_rank: &[u32]) -> u32 {
+    if fill == 0 {
+        return 0;
+    }
+    // Nonzero predictions on axis `q` among the indices below `span`.
+    let below = |q: usize, span: usize| {
+        let bits = if span >= 64 { u64::MAX } else { (1u64 << span) - 1 };
+        (nonzero[q] & bits).count_ones() as usize
+    };
+    let mut before = 0;
+    for c in 0..=n.max(1).ilog2() {
+        // Coarseness at most `c`: indices below `span` on each axis.
+        let span = (1usize << c).min(n);
+        let zero = span * span - below(0, span) * below(1, span);
+        if zero >= fill {
+            let inner = if c == 0 { 0 } else { (1usize << (c - 1)).min(n) };
+            let mut left = fill - before;
+            for k2 in 0..span {
+                // The row's indices of coarseness exactly `c`.
+                let first = if k2 >= inner { 0 } else { inner };
+                let row_nonzero = nonzero[1] >> k2 & 1 != 0;
+                let zero_in_row = (span - first) - if row_nonzero { below(0, span) - below(0, first) } else { 0 };
+                if left > zero_in_row {
+                    left -= zero_in_row;
+                    continue;
+                }
+                for k1 in first..span {
+                    if !(row_nonzero && nonzero[0] >> k1 & 1 != 0) {
+                        left -= 1;
+                        if left == 0 {
+                            return coarse_rank[k2 * n + k1] + 1;
+                        }
+                    }
+                }
+            }
+        }
+        before = zero;
+    }
+    (n * n) as u32
 }
 
 /// A set of indices below a size, emptied in O(1) by moving to a new stamp.
@@ -386,8 +503,110 @@ const COUPLING_CACHE_ENTRIES: usize = 1 << 20;
 /// Distinct maps one thread keeps before its [`CouplingCache`] starts afresh.
 const COUPLING_CACHE_MAPS: usize = 1 << 16;
 
+/// Where one fan-out lies: its couplings at `start..start + len` in `entries`, and the same
+/// couplings laid over its map's footprint lanes at `dense` in `dense`.
+#[derive(Clone, Copy, PartialEq)]
+struct FanOut {
+    start: u32,
+    len: u32,
+    dense: u32,
+}
+
 /// A fan-out not computed yet.
-const UNSET: (u32, u32) = (u32::MAX, 0);
+const UNSET: FanOut = FanOut { start: u32::MAX, len: 0, dense: 0 };
+
+/// The adjoint's block of lanes: footprints are padded to whole blocks, so its sums run in
+/// fixed-width blocks the compiler vectorises, in the same order on every machine.
+const LANES: usize = 4;
+
+/// `len` rounded up to whole blocks of [`LANES`].
+fn padded(len: usize) -> usize {
+    len.div_ceil(LANES) * LANES
+}
+
+/// `Σ a_l b_l` over whole blocks: one partial sum per lane, then `(s₀ + s₁) + (s₂ + s₃)`.
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    let mut sums = [0.0; LANES];
+    for (a, b) in a.as_chunks::<LANES>().0.iter().zip(b.as_chunks::<LANES>().0) {
+        let (a, b) = (*a, *b);
+        for l in 0..LANES {
+            sums[l] += a[l] * b[l];
+        }
+    }
+    (sums[0] + sums[1]) + (sums[2] + sums[3])
+}
+
+/// One coupling of a fan-out: the face index `k`, its lane in the map's [`Footprint`], and
+/// `D_ik`.
+#[derive(Clone, Copy, Debug)]
+struct Coupling {
+    k: u32,
+    lane: u32,
+    d: f64,
+}
+
+/// Levels a [`Footprint`] holds (faces up to 2¹⁶ cells per side).
+const FOOTPRINT_LEVELS: usize = 16;
+
+/// The face indices one axis's map can carry light to: `φ`, then per level the cells from the
+/// one holding the image of the texture's start to the one holding the image of its end. Every
+/// source index's fan-out lies inside (its breakpoints map into that interval, monotonically),
+/// so the adjoint sums over these lanes densely. Which lanes there are changes no sum, only
+/// where it is stored.
+#[derive(Clone, Copy, Debug, Default)]
+struct Footprint {
+    levels: usize,
+    /// Per level, its first cell; per level, its first lane (`lane[levels]` lanes in all, none
+    /// when the light misses the face).
+    first: [u32; FOOTPRINT_LEVELS],
+    lane: [u32; FOOTPRINT_LEVELS + 1],
+}
+
+impl Footprint {
+    fn of(map: Affine, order: usize) -> Self {
+        let (a, b) = ((0.0 - map.o) / map.s, (1.0 - map.o) / map.s);
+        let (lo, hi) = (a.min(b), a.max(b));
+        let mut footprint = Footprint::default();
+        if !(hi > 0.0 && lo < 1.0) {
+            return footprint;
+        }
+        footprint.levels = (order.max(1).ilog2() as usize).min(FOOTPRINT_LEVELS);
+        footprint.lane[0] = 1;
+        for l in 0..footprint.levels {
+            let cells = f64::from(1u32 << l);
+            let first = (lo.max(0.0) * cells).floor().min(cells - 1.0);
+            let last = (hi * cells).floor().clamp(first, cells - 1.0);
+            footprint.first[l] = first as u32;
+            footprint.lane[l + 1] = footprint.lane[l] + (last - first) as u32 + 1;
+        }
+        footprint
+    }
+
+    fn len(&self) -> usize {
+        self.lane[self.levels] as usize
+    }
+
+    /// The lane of face index `k` (inside the footprint).
+    fn lane(&self, k: usize) -> u32 {
+        match level_offset(k) {
+            None => 0,
+            Some((l, t)) => self.lane[l as usize] + t - self.first[l as usize],
+        }
+    }
+
+    /// The face index of every lane, in order.
+    fn indices(&self, out: &mut Vec<u32>) {
+        out.clear();
+        if self.len() == 0 {
+            return;
+        }
+        out.push(0);
+        for l in 0..self.levels {
+            let start = (1u32 << l) + self.first[l];
+            out.extend(start..start + self.lane[l + 1] - self.lane[l]);
+        }
+    }
+}
 
 /// One axis's fan-out and couplings `(k, D_ik(s, o))` per exact map `(s, o)` and source index
 /// `i`: receivers that share a depth and a coordinate along an axis (a floor's rows and
@@ -397,10 +616,13 @@ const UNSET: (u32, u32) = (u32::MAX, 0);
 #[derive(Default)]
 struct CouplingCache {
     slots: rustc_hash::FxHashMap<(u64, u64, usize), u32>,
-    /// Per slot: its map and, per source index, its fan-out's `(start, len)` in `entries`.
+    /// Per slot: its map, its footprint and, per source index, where its fan-out lies.
     maps: Vec<Affine>,
-    ranges: Vec<Vec<(u32, u32)>>,
-    entries: Vec<(usize, f64)>,
+    footprints: Vec<Footprint>,
+    ranges: Vec<Vec<FanOut>>,
+    entries: Vec<Coupling>,
+    /// Each fan-out over its footprint's lanes, [`padded`].
+    dense: Vec<f64>,
     targets: Vec<usize>,
 }
 
@@ -408,7 +630,10 @@ impl CouplingCache {
     /// The slots of one receiver's two maps on a face of `order`, valid until the next call
     /// (the only place the cache starts afresh, its memory given back).
     fn receiver_slots(&mut self, maps: [Affine; 2], order: usize) -> [u32; 2] {
-        if self.entries.len() > COUPLING_CACHE_ENTRIES || self.maps.len() > COUPLING_CACHE_MAPS {
+        if self.entries.len() > COUPLING_CACHE_ENTRIES
+            || self.dense.len() > COUPLING_CACHE_ENTRIES
+            || self.maps.len() > COUPLING_CACHE_MAPS
+        {
             *self = Self { targets: std::mem::take(&mut self.targets), ..Default::default() };
         }
         maps.map(|map| {
@@ -416,6 +641,7 @@ impl CouplingCache {
             let slot = *self.slots.entry((map.s.to_bits(), map.o.to_bits(), order)).or_insert(next);
             if slot == next {
                 self.maps.push(map);
+                self.footprints.push(Footprint::of(map, order));
                 self.ranges.push(Vec::new());
             }
             slot
@@ -423,20 +649,54 @@ impl CouplingCache {
     }
 
     /// The fan-out of source index `i` under the map in `slot`.
-    fn fan_out(&mut self, slot: u32, i: usize, order: usize) -> &[(usize, f64)] {
+    #[inline]
+    fn fan_out(&mut self, slot: u32, i: usize, order: usize) -> &[Coupling] {
+        let FanOut { start, len, .. } = self.located(slot, i, order);
+        &self.entries[start as usize..(start + len) as usize]
+    }
+
+    /// [`Self::fan_out`] over the slot's footprint lanes, zero elsewhere ([`padded`]).
+    #[inline]
+    fn dense_fan_out(&mut self, slot: u32, i: usize, order: usize) -> &[f64] {
+        let width = padded(self.footprints[slot as usize].len());
+        let FanOut { dense, .. } = self.located(slot, i, order);
+        &self.dense[dense as usize..dense as usize + width]
+    }
+
+    #[inline]
+    fn located(&mut self, slot: u32, i: usize, order: usize) -> FanOut {
+        match self.ranges[slot as usize].get(i) {
+            Some(&fan_out) if fan_out != UNSET => fan_out,
+            _ => self.compute(slot, i, order),
+        }
+    }
+
+    #[cold]
+    fn compute(&mut self, slot: u32, i: usize, order: usize) -> FanOut {
+        let (map, footprint) = (self.maps[slot as usize], self.footprints[slot as usize]);
+        map.targets(i, order, &mut self.targets);
+        let start = self.entries.len();
+        self.entries.extend(self.targets.iter().map(|&k| Coupling {
+            k: k as u32,
+            lane: footprint.lane(k),
+            d: map.coupling(i, k),
+        }));
+        let dense = self.dense.len();
+        self.dense.resize(dense + padded(footprint.len()), 0.0);
+        for c in &self.entries[start..] {
+            self.dense[dense + c.lane as usize] = c.d;
+        }
+        let fan_out = FanOut { start: start as u32, len: self.targets.len() as u32, dense: dense as u32 };
         let ranges = &mut self.ranges[slot as usize];
         if ranges.len() <= i {
             ranges.resize(i + 1, UNSET);
         }
-        if ranges[i] == UNSET {
-            let map = self.maps[slot as usize];
-            map.targets(i, order, &mut self.targets);
-            let start = self.entries.len();
-            self.entries.extend(self.targets.iter().map(|&k| (k, map.coupling(i, k))));
-            ranges[i] = (start as u32, self.targets.len() as u32);
-        }
-        let (start, len) = ranges[i];
-        &self.entries[start as usize..(start + len) as usize]
+        ranges[i] = fan_out;
+        fan_out
+    }
+
+    fn footprint(&self, slot: u32) -> Footprint {
+        self.footprints[slot as usize]
     }
 }
 
@@ -464,7 +724,8 @@ pub fn propagate_into(source: &LightSource, maps: [Affine; 2], face_order: usize
         // Step 1: Z_{i₂k₁} = Σ_{i₁} F_{i₁i₂} D_{i₁k₁}; `rows` lists the `k₁` it touched.
         rows.clear();
         for &((i1, _), f) in &coefficients[start..end] {
-            for &(k1, d) in couplings.fan_out(slots[0], usize::from(i1), n) {
+            for &Coupling { k: k1, d, .. } in couplings.fan_out(slots[0], usize::from(i1), n) {
+                let k1 = k1 as usize;
                 if !touched[k1] {
                     touched[k1] = true;
                     rows.push(k1);
@@ -479,7 +740,8 @@ pub fn propagate_into(source: &LightSource, maps: [Affine; 2], face_order: usize
         let row = couplings.fan_out(slots[1], usize::from(i2), n);
         for &k1 in rows.iter() {
             let z = step1[k1];
-            for &(k2, d) in row {
+            for &Coupling { k: k2, d, .. } in row {
+                let k2 = k2 as usize;
                 let l = &mut light[k2 * n + k1];
                 for c in 0..3 {
                     l[c] += d * z[c];
@@ -505,7 +767,9 @@ pub fn predicted_targets(maps: [Affine; 2], face_order: usize, fraction: f64) ->
     let n = face_order;
     let count = target_count(n, fraction);
     let mut ranked = Vec::new();
-    rank_predictions(maps, n, &mut CouplingCache::default(), &mut Vec::new(), &mut ranked);
+    let mut couplings = CouplingCache::default();
+    let slots = couplings.receiver_slots(maps, n);
+    rank_predictions(slots, n, &mut couplings, &mut Vec::new(), &mut ranked);
     ranked.sort_by(by_prediction);
     let mut kept: Vec<usize> = ranked.iter().take(count).map(|r| r.2).collect();
     fill_coarse_first(&mut kept, count, n, &mut Vec::new());
@@ -521,9 +785,10 @@ fn by_prediction(a: &(f64, u32, usize), b: &(f64, u32, usize)) -> std::cmp::Orde
     b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2))
 }
 
-/// Every nonzero prediction `(|D_{φk₁} D_{φk₂}|, coarseness, k₂·n + k₁)`, unordered.
+/// Every nonzero prediction `(|D_{φk₁} D_{φk₂}|, coarseness, k₂·n + k₁)` for the maps in
+/// `slots`, unordered.
 fn rank_predictions(
-    maps: [Affine; 2],
+    slots: [u32; 2],
     n: usize,
     couplings: &mut CouplingCache,
     axis0: &mut Vec<(usize, f64, u32)>,
@@ -531,11 +796,15 @@ fn rank_predictions(
 ) {
     ranked.clear();
     axis0.clear();
-    let slots = couplings.receiver_slots(maps, n);
     axis0.extend(
-        couplings.fan_out(slots[0], 0, n).iter().filter(|(_, d)| *d != 0.0).map(|&(k, d)| (k, d.abs(), coarseness(k))),
+        couplings
+            .fan_out(slots[0], 0, n)
+            .iter()
+            .filter(|c| c.d != 0.0)
+            .map(|c| (c.k as usize, c.d.abs(), coarseness(c.k as usize))),
     );
-    for &(k2, d2) in couplings.fan_out(slots[1], 0, n) {
+    for &Coupling { k: k2, d: d2, .. } in couplings.fan_out(slots[1], 0, n) {
+        let k2 = k2 as usize;
         let (d2, c2) = (d2.abs(), coarseness(k2));
         if d2 > 0.0 {
             ranked.extend(axis0.iter().map(|&(k1, d1, c1)| (d1 * d2, c1.max(c2), k2 * n + k1)));
@@ -592,15 +861,19 @@ fn largest_target_set(n: usize, fraction: f64, scratch: &mut Propagation) {
 }
 
 /// [`predicted_targets`] as a set, into `scratch`'s buffers: `kept` (in no order) and the
-/// mask `selected` over the face. The shading's path: it selects the kept predictions without
-/// ranking them all.
+/// mask `selected` over the face. It selects the kept predictions without ranking them all.
+#[cfg(test)]
 fn predicted_target_set(maps: [Affine; 2], n: usize, fraction: f64, scratch: &mut Propagation) {
+    let slots = scratch.couplings.receiver_slots(maps, n);
+    predicted_target_set_at(slots, n, fraction, scratch);
+}
+
+/// [`predicted_target_set`] for the maps in `slots`.
+fn predicted_target_set_at(slots: [u32; 2], n: usize, fraction: f64, scratch: &mut Propagation) {
     let count = target_count(n, fraction);
+    scratch.coarse_orders(n);
     let Propagation { couplings, axis, ranked, kept, selected, coarse_first, .. } = scratch;
-    if coarse_first.len() != n * n {
-        *coarse_first = coarse_first_order(n);
-    }
-    rank_predictions(maps, n, couplings, axis, ranked);
+    rank_predictions(slots, n, couplings, axis, ranked);
     if ranked.len() > count && count > 0 {
         ranked.select_nth_unstable_by(count - 1, by_prediction);
     }
@@ -633,17 +906,34 @@ pub fn irradiance(
     shading: impl Into<Shading>,
 ) -> Vec<[f64; 3]> {
     let Shading { keep, acc } = shading.into();
-    let TargetKeep::Largest(fraction) = keep else {
-        // In batches of coefficients, summed in the light's order: the bits of one batch.
-        let mut e = vec![[0.0; 3]; positions.len()];
-        for batch in source.coefficients.chunks(response_batch(positions.len())) {
-            let indices: Vec<(u16, u16)> = batch.iter().map(|c| c.0).collect();
-            let g = responses(&indices, placement, transport, positions, Shading { keep, acc }).unwrap_or_default();
-            accumulate(&mut e, batch, |r, j| g[r * indices.len() + j]);
-        }
-        return e;
-    };
     let face = transport.face;
+    let TargetKeep::Largest(fraction) = keep else {
+        // Each receiver's responses, summed in the light's order: the bits of [`shade`].
+        let fraction = if let TargetKeep::Predicted(fraction) = keep { Some(fraction) } else { None };
+        let indices: Vec<(u16, u16)> = source.coefficients.iter().map(|c| c.0).collect();
+        return positions
+            .par_iter()
+            .enumerate()
+            .map(|(r, &x)| {
+                let Some(maps) = placement.maps(&face, x).map(|m| acc.maps(m)) else {
+                    return [0.0; 3];
+                };
+                with_scratch(face.order, |scratch| {
+                    let mut g = std::mem::take(&mut scratch.responses);
+                    g.resize(indices.len(), 0.0);
+                    adjoint_responses(&indices, maps, face.order, transport.of(r), fraction, scratch, &mut g);
+                    let mut e = [0.0; 3];
+                    for ((_, f), g) in source.coefficients.iter().zip(&g) {
+                        for c in 0..3 {
+                            e[c] += f64::from(f[c]) * g;
+                        }
+                    }
+                    scratch.responses = g;
+                    e
+                })
+            })
+            .collect();
+    };
     positions
         .par_iter()
         .enumerate()
@@ -723,10 +1013,7 @@ pub fn responses(
             return;
         };
         with_scratch(face.order, |scratch| {
-            if let Some(fraction) = fraction {
-                predicted_target_set(maps, face.order, fraction, scratch);
-            }
-            adjoint_responses(indices, maps, face.order, transport.of(r), fraction.is_some(), scratch, out);
+            adjoint_responses(indices, maps, face.order, transport.of(r), fraction, scratch, out);
         });
     });
     Some(g)
@@ -764,49 +1051,107 @@ fn propagated_irradiance(t: &[f32], masked: bool, scratch: &Propagation) -> [f64
     e
 }
 
-/// One receiver's [`responses`], over `scratch.kept` when `masked`. Per source row `i₂`,
-/// `H_{k₁} = Σ_{k₂} D_{i₂k₂} T̃_{k₁k₂}` is computed once per `k₁` the row's fan-out reaches
-/// (scalar sums gathered from the transport, never light scattered over the face), in a fixed
-/// order: a coefficient's response has the same bits whichever others are computed with it.
+/// The transport over the lanes, 0 where `keep(k₁, k₂, k)` is false: per `k₂` lane, its
+/// `k₁` lanes [`padded`] with zeros.
+fn lay_out(
+    out: &mut Vec<f64>,
+    (lanes1, lanes2): (&[u32], &[u32]),
+    n: usize,
+    t: &[f32],
+    keep: impl Fn(u32, u32, usize) -> bool,
+) {
+    let width = padded(lanes1.len());
+    out.clear();
+    out.resize(width * lanes2.len(), 0.0);
+    for (values, &k2) in out.chunks_exact_mut(width).zip(lanes2) {
+        let row = &t[k2 as usize * n..][..n];
+        for (value, &k1) in values.iter_mut().zip(lanes1) {
+            if keep(k1, k2, k2 as usize * n + k1 as usize) {
+                *value = f64::from(row[k1 as usize]);
+            }
+        }
+    }
+}
+
+/// `H = Σ_c d_c T̃[lane_c]` over one row's fan-out, in its order, for `B` blocks of lanes held
+/// in registers.
+fn row_sums_of<const B: usize>(row: &[Coupling], transport: &[[f64; LANES]], out: &mut [[f64; LANES]]) {
+    let mut sums = [[0.0; LANES]; B];
+    for c in row {
+        let t: &[[f64; LANES]; B] = transport[c.lane as usize * B..][..B].try_into().expect("B blocks");
+        for (sum, t) in sums.iter_mut().zip(t) {
+            for l in 0..LANES {
+                sum[l] += c.d * t[l];
+            }
+        }
+    }
+    out.copy_from_slice(&sums);
+}
+
+/// One receiver's [`responses`], over the predicted targets of `fraction` when given. The
+/// kept transport is laid over the two maps' [`Footprint`]s; per source row `i₂`,
+/// `H_{k₁} = Σ_{k₂} D_{i₂k₂} T̃_{k₁k₂}` is summed for every `k₁` lane at once (in the fan-out's
+/// order), then `G_i = Σ_{k₁} D_{i₁k₁} H_{k₁}` in the fan-out's order: a coefficient's response
+/// has the same bits whichever others are computed with it.
 fn adjoint_responses(
     indices: &[(u16, u16)],
     maps: [Affine; 2],
     n: usize,
     t: &[f32],
-    masked: bool,
+    fraction: Option<f64>,
     scratch: &mut Propagation,
     out: &mut [f64],
 ) {
-    let Propagation { couplings, kept, row, row_sums, row_summed, kept_transport, .. } = scratch;
-    let t = if masked {
-        kept_transport.clear();
-        kept_transport.resize(n * n, 0.0);
-        for &k in kept.iter() {
-            kept_transport[k] = t[k];
-        }
-        &kept_transport[..]
-    } else {
-        t
-    };
-    let slots = couplings.receiver_slots(maps, n);
+    let slots = scratch.couplings.receiver_slots(maps, n);
+    let footprints = slots.map(|slot| scratch.couplings.footprint(slot));
+    let width = padded(footprints[0].len());
+    if width == 0 || footprints[1].len() == 0 {
+        out.fill(0.0);
+        return;
+    }
+    let kept = fraction.map_or(KeptTargets::All, |fraction| kept_targets(slots, n, fraction, scratch));
+    let Propagation { couplings, selected, coarse_rank, lanes, kept_transport, row_sums, .. } = scratch;
+    for q in 0..2 {
+        footprints[q].indices(&mut lanes[q]);
+    }
+    let lanes = (&lanes[0][..], &lanes[1][..]);
+    // One loop per kind of set, each with its test inlined.
+    let keeps = |k1, k2, k| kept.keeps(k1, k2, k, coarse_rank, selected);
+    match kept {
+        KeptTargets::All => lay_out(kept_transport, lanes, n, t, |_, _, _| true),
+        KeptTargets::Fill { .. } => lay_out(kept_transport, lanes, n, t, keeps),
+        KeptTargets::Selected => lay_out(kept_transport, lanes, n, t, keeps),
+    }
+    row_sums.resize(width, 0.0);
+    let (transport_blocks, blocks) = (kept_transport.as_chunks::<LANES>().0, width / LANES);
     let mut start = 0;
     while start < indices.len() {
         let i2 = indices[start].1;
         let end = start + indices[start..].iter().take_while(|c| c.1 == i2).count();
-        row.clear();
-        row.extend_from_slice(couplings.fan_out(slots[1], usize::from(i2), n));
-        row_summed.clear(n);
-        for (j, &(i1, _)) in indices.iter().enumerate().take(end).skip(start) {
-            let mut g = 0.0;
-            if !row.is_empty() {
-                for &(k1, d1) in couplings.fan_out(slots[0], usize::from(i1), n) {
-                    if row_summed.insert(k1) {
-                        row_sums[k1] = row.iter().fold(0.0, |h, &(k2, d2)| h + d2 * f64::from(t[k2 * n + k1]));
+        let row = couplings.fan_out(slots[1], usize::from(i2), n);
+        let sums = row_sums.as_chunks_mut::<LANES>().0;
+        match sums.len() {
+            1 => row_sums_of::<1>(row, transport_blocks, sums),
+            2 => row_sums_of::<2>(row, transport_blocks, sums),
+            3 => row_sums_of::<3>(row, transport_blocks, sums),
+            4 => row_sums_of::<4>(row, transport_blocks, sums),
+            5 => row_sums_of::<5>(row, transport_blocks, sums),
+            6 => row_sums_of::<6>(row, transport_blocks, sums),
+            _ => {
+                for (block, h) in sums.iter_mut().enumerate() {
+                    let mut sum = [0.0; LANES];
+                    for c in row {
+                        let t = transport_blocks[c.lane as usize * blocks + block];
+                        for l in 0..LANES {
+                            sum[l] += c.d * t[l];
+                        }
                     }
-                    g += d1 * row_sums[k1];
+                    *h = sum;
                 }
             }
-            out[j] = g;
+        }
+        for (j, &(i1, _)) in indices.iter().enumerate().take(end).skip(start) {
+            out[j] = dot(couplings.dense_fan_out(slots[0], usize::from(i1), n), row_sums);
         }
         start = end;
     }

@@ -284,6 +284,34 @@ fn predicted_targets_equal_the_full_ranking() {
     }
 }
 
+/// The shading's kept targets equal the predicted set for random maps, face orders and
+/// fractions: the coarse-first fill counted per level, row and column (when the nonzero
+/// predictions number no more than the kept count) and the ranking (when they outnumber it).
+#[test]
+fn kept_targets_equal_the_predicted_set() {
+    use crate::wavelet::affine::Affine;
+    use rand::{Rng, SeedableRng, rngs::SmallRng};
+    let mut rng = SmallRng::seed_from_u64(11);
+    let mut by_path = [0; 2];
+    for case in 0..600 {
+        let n = [8, 16, 32, 64][case % 4];
+        let maps: [Affine; 2] =
+            std::array::from_fn(|_| Affine { s: rng.random_range(0.05..8.0), o: rng.random_range(-4.0..1.0) });
+        let fraction = rng.random_range(0.0..0.5);
+        let mut scratch = Propagation::new(n);
+        let slots = scratch.couplings.receiver_slots(maps, n);
+        let kept = kept_targets(slots, n, fraction, &mut scratch);
+        by_path[usize::from(matches!(kept, KeptTargets::Selected))] += 1;
+        let found: Vec<bool> = (0..n * n)
+            .map(|k| kept.keeps((k % n) as u32, (k / n) as u32, k, &scratch.coarse_rank, &scratch.selected))
+            .collect();
+        predicted_target_set(maps, n, fraction, &mut scratch);
+        let expected: Vec<bool> = (0..n * n).map(|k| scratch.selected.contains(k)).collect();
+        assert_eq!(found, expected, "{maps:?}, order {n}, fraction {fraction}");
+    }
+    assert!(by_path.iter().all(|&count| count > 50), "both ways exercised: {by_path:?}");
+}
+
 /// The Fig. 4.10 analogue (the figure's numbers were lost in extraction): shading error
 /// against the share of source coefficients kept, for a smooth, a masked (hard-edged disc),
 /// a high-frequency (4-texel checker) and a noise texture, all targets shaded. Guaranteed by
@@ -379,7 +407,7 @@ fn adjoint_shading_equals_the_propagated_sum() {
         let indices: Vec<(u16, u16)> = source.coefficients.iter().map(|c| c.0).collect();
         for (expected, masked) in [(all, false), (kept, true)] {
             let mut g = vec![f64::NAN; indices.len()];
-            adjoint_responses(&indices, maps, n, &t, masked, &mut scratch, &mut g);
+            adjoint_responses(&indices, maps, n, &t, masked.then_some(fraction), &mut scratch, &mut g);
             let e = shade(&source, 1, |_, j| g[j])[0];
             let scale = expected.iter().map(|v| v.abs()).fold(1e-12, f64::max);
             for c in 0..3 {

@@ -381,7 +381,7 @@ enum KeptTargets {
 impl KeptTargets {
     /// Whether face index `k = k₂·n + k₁` is kept (`coarse_rank` and `selected` from the
     /// [`Propagation`] that found the set).
-    #[inline]
+    #[inline(always)]
     fn keeps(self, k1: u32, k2: u32, k: usize, coarse_rank: &[u32], selected: &FaceSet) -> bool {
         match self {
             KeptTargets::All => true,
@@ -399,16 +399,9 @@ fn kept_targets(slots: [u32; 2], n: usize, fraction: f64, scratch: &mut Propagat
     let count = target_count(n, fraction);
     scratch.coarse_orders(n);
     if n <= 64 && n.is_power_of_two() {
-        let mut nonzero = [0u64; 2];
-        let mut smallest = [f64::INFINITY; 2];
-        for q in 0..2 {
-            for c in scratch.couplings.fan_out(slots[q], 0, n) {
-                if c.d != 0.0 {
-                    nonzero[q] |= 1 << c.k;
-                    smallest[q] = smallest[q].min(c.d.abs());
-                }
-            }
-        }
+        let [(nonzero0, smallest0), (nonzero1, smallest1)] =
+            slots.map(|slot| scratch.couplings.nonzero_predictions(slot, n));
+        let (nonzero, smallest) = ([nonzero0, nonzero1], [smallest0, smallest1]);
         let predicted = nonzero[0].count_ones() as usize * nonzero[1].count_ones() as usize;
         // Every nonzero prediction kept (none rounds to zero), then zero ones, coarse first.
         if predicted <= count && smallest[0] * smallest[1] > 0.0 {
@@ -512,6 +505,9 @@ struct FanOut {
     dense: u32,
 }
 
+/// A map's exact bits and its face's order.
+type MapKey = (u64, u64, usize);
+
 /// A fan-out not computed yet.
 const UNSET: FanOut = FanOut { start: u32::MAX, len: 0, dense: 0 };
 
@@ -525,6 +521,7 @@ fn padded(len: usize) -> usize {
 }
 
 /// `Σ a_l b_l` over whole blocks: one partial sum per lane, then `(s₀ + s₁) + (s₂ + s₃)`.
+#[inline(always)]
 fn dot(a: &[f64], b: &[f64]) -> f64 {
     let mut sums = [0.0; LANES];
     for (a, b) in a.as_chunks::<LANES>().0.iter().zip(b.as_chunks::<LANES>().0) {
@@ -615,15 +612,18 @@ impl Footprint {
 /// array index. Cached values are the computed ones, bit for bit.
 #[derive(Default)]
 struct CouplingCache {
-    slots: rustc_hash::FxHashMap<(u64, u64, usize), u32>,
+    slots: rustc_hash::FxHashMap<MapKey, u32>,
     /// Per slot: its map, its footprint and, per source index, where its fan-out lies.
     maps: Vec<Affine>,
     footprints: Vec<Footprint>,
     ranges: Vec<Vec<FanOut>>,
+    predictions: Vec<Option<(u64, f64)>>,
     entries: Vec<Coupling>,
     /// Each fan-out over its footprint's lanes, [`padded`].
     dense: Vec<f64>,
     targets: Vec<usize>,
+    /// Per axis, the last map looked up and its slot: neighbouring receivers often share one.
+    recent: [Option<(MapKey, u32)>; 2],
 }
 
 impl CouplingCache {
@@ -636,16 +636,44 @@ impl CouplingCache {
         {
             *self = Self { targets: std::mem::take(&mut self.targets), ..Default::default() };
         }
-        maps.map(|map| {
+        let mut slots = [0; 2];
+        for (q, map) in maps.into_iter().enumerate() {
+            let key = (map.s.to_bits(), map.o.to_bits(), order);
+            if let Some((recent, slot)) = self.recent[q]
+                && recent == key
+            {
+                slots[q] = slot;
+                continue;
+            }
             let next = self.maps.len() as u32;
-            let slot = *self.slots.entry((map.s.to_bits(), map.o.to_bits(), order)).or_insert(next);
+            let slot = *self.slots.entry(key).or_insert(next);
             if slot == next {
                 self.maps.push(map);
                 self.footprints.push(Footprint::of(map, order));
                 self.ranges.push(Vec::new());
+                self.predictions.push(None);
             }
-            slot
-        })
+            self.recent[q] = Some((key, slot));
+            slots[q] = slot;
+        }
+        slots
+    }
+
+    /// The face indices (as bits) where the slot's constant-light prediction `D_{φk}` is
+    /// nonzero, and its smallest magnitude there (faces up to 64 cells per side).
+    fn nonzero_predictions(&mut self, slot: u32, order: usize) -> (u64, f64) {
+        if let Some(predictions) = self.predictions[slot as usize] {
+            return predictions;
+        }
+        let mut predictions = (0u64, f64::INFINITY);
+        for c in self.fan_out(slot, 0, order) {
+            if c.d != 0.0 {
+                predictions.0 |= 1 << c.k;
+                predictions.1 = predictions.1.min(c.d.abs());
+            }
+        }
+        self.predictions[slot as usize] = Some(predictions);
+        predictions
     }
 
     /// The fan-out of source index `i` under the map in `slot`.
@@ -1053,6 +1081,7 @@ fn propagated_irradiance(t: &[f32], masked: bool, scratch: &Propagation) -> [f64
 
 /// The transport over the lanes, 0 where `keep(k₁, k₂, k)` is false: per `k₂` lane, its
 /// `k₁` lanes [`padded`] with zeros.
+#[inline(always)]
 fn lay_out(
     out: &mut Vec<f64>,
     (lanes1, lanes2): (&[u32], &[u32]),
@@ -1075,6 +1104,7 @@ fn lay_out(
 
 /// `H = Σ_c d_c T̃[lane_c]` over one row's fan-out, in its order, for `B` blocks of lanes held
 /// in registers.
+#[inline(always)]
 fn row_sums_of<const B: usize>(row: &[Coupling], transport: &[[f64; LANES]], out: &mut [[f64; LANES]]) {
     let mut sums = [[0.0; LANES]; B];
     for c in row {
@@ -1102,6 +1132,40 @@ fn adjoint_responses(
     scratch: &mut Propagation,
     out: &mut [f64],
 ) {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: this CPU has AVX2, checked just above.
+        return unsafe { adjoint_responses_avx2(indices, maps, n, t, fraction, scratch, out) };
+    }
+    adjoint_responses_portable(indices, maps, n, t, fraction, scratch, out);
+}
+
+/// [`adjoint_responses`] compiled for AVX2: four lanes per instruction. The same operations in
+/// the same order (no fused multiply-adds), so the same bits as the portable build.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn adjoint_responses_avx2(
+    indices: &[(u16, u16)],
+    maps: [Affine; 2],
+    n: usize,
+    t: &[f32],
+    fraction: Option<f64>,
+    scratch: &mut Propagation,
+    out: &mut [f64],
+) {
+    adjoint_responses_portable(indices, maps, n, t, fraction, scratch, out);
+}
+
+#[inline(always)]
+fn adjoint_responses_portable(
+    indices: &[(u16, u16)],
+    maps: [Affine; 2],
+    n: usize,
+    t: &[f32],
+    fraction: Option<f64>,
+    scratch: &mut Propagation,
+    out: &mut [f64],
+) {
     let slots = scratch.couplings.receiver_slots(maps, n);
     let footprints = slots.map(|slot| scratch.couplings.footprint(slot));
     let width = padded(footprints[0].len());
@@ -1115,12 +1179,15 @@ fn adjoint_responses(
         footprints[q].indices(&mut lanes[q]);
     }
     let lanes = (&lanes[0][..], &lanes[1][..]);
-    // One loop per kind of set, each with its test inlined.
-    let keeps = |k1, k2, k| kept.keeps(k1, k2, k, coarse_rank, selected);
+    // One loop per kind of set, each with its own test inlined.
     match kept {
         KeptTargets::All => lay_out(kept_transport, lanes, n, t, |_, _, _| true),
-        KeptTargets::Fill { .. } => lay_out(kept_transport, lanes, n, t, keeps),
-        KeptTargets::Selected => lay_out(kept_transport, lanes, n, t, keeps),
+        KeptTargets::Fill { nonzero, cutoff } => lay_out(kept_transport, lanes, n, t, |k1, k2, k| {
+            KeptTargets::Fill { nonzero, cutoff }.keeps(k1, k2, k, coarse_rank, selected)
+        }),
+        KeptTargets::Selected => lay_out(kept_transport, lanes, n, t, |k1, k2, k| {
+            KeptTargets::Selected.keeps(k1, k2, k, coarse_rank, selected)
+        }),
     }
     row_sums.resize(width, 0.0);
     let (transport_blocks, blocks) = (kept_transport.as_chunks::<LANES>().0, width / LANES);

@@ -417,6 +417,37 @@ fn adjoint_shading_equals_the_propagated_sum() {
     }
 }
 
+/// The AVX2 build of the adjoint gives the portable build's bits (the same operations in the
+/// same order), for random maps, transports, lights and target fractions.
+#[test]
+#[cfg(target_arch = "x86_64")]
+fn avx2_and_portable_adjoints_give_the_same_bits() {
+    use crate::wavelet::affine::Affine;
+    use rand::{Rng, SeedableRng, rngs::SmallRng};
+    if !std::arch::is_x86_feature_detected!("avx2") {
+        eprintln!("this CPU has no AVX2: only the portable adjoint runs here");
+        return;
+    }
+    let mut rng = SmallRng::seed_from_u64(5);
+    for case in 0..200 {
+        let n = [16, 32, 64][case % 3];
+        let texture: Vec<[f64; 3]> =
+            (0..32 * 32).map(|_| std::array::from_fn(|_| rng.random_range(0.0..4.0))).collect();
+        let source = light_source(&texture, 32, rng.random_range(1..200));
+        let indices: Vec<(u16, u16)> = source.coefficients.iter().map(|c| c.0).collect();
+        let maps: [Affine; 2] =
+            std::array::from_fn(|_| Affine { s: rng.random_range(0.1..8.0), o: rng.random_range(-4.0..1.0) });
+        let t: Vec<f32> = (0..n * n).map(|_| rng.random_range(-1.0..1.0)).collect();
+        let fraction = [None, Some(rng.random_range(0.01..0.6))][case % 2];
+        let mut scratch = Propagation::new(n);
+        let (mut portable, mut avx2) = (vec![f64::NAN; indices.len()], vec![f64::NAN; indices.len()]);
+        adjoint_responses_portable(&indices, maps, n, &t, fraction, &mut scratch, &mut portable);
+        // SAFETY: this CPU has AVX2, checked above.
+        unsafe { adjoint_responses_avx2(&indices, maps, n, &t, fraction, &mut scratch, &mut avx2) };
+        assert!(portable.iter().zip(&avx2).all(|(a, b)| a.to_bits() == b.to_bits()), "case {case}");
+    }
+}
+
 /// A coefficient's response does not depend on which others are computed with it, so shading a
 /// repainted light from responses kept per coefficient gives the bits of shading it afresh.
 #[test]

@@ -3,6 +3,7 @@
 //! coarse-first fill the shading counts without ranking; and the largest propagated `|L_k|`.
 
 use super::*;
+
 impl Propagation {
     /// `coarse_first` and `coarse_rank` for an `n × n` face.
     pub(super) fn coarse_orders(&mut self, n: usize) {

@@ -244,6 +244,11 @@ pub struct LightPlacement {
 }
 
 impl LightPlacement {
+    /// [`Self::maps`] as `acc` takes its couplings at.
+    fn shading_maps(&self, face: &TopFace, acc: AccMode, x: DVec3) -> Option<[Affine; 2]> {
+        self.maps(face, x).map(|maps| acc.maps(maps))
+    }
+
     /// A `width × depth` light centred over `(x, z)`.
     pub fn centred(height: f64, centre: [f64; 2], size: [f64; 2]) -> Self {
         Self { height, corner: [centre[0] - size[0] / 2.0, centre[1] - size[1] / 2.0], extent: size }
@@ -274,6 +279,18 @@ pub enum TargetKeep {
     /// This fraction, the largest propagated `|L_k|` (summed over the channels): every `L_k`
     /// is computed first, so it costs the full propagation.
     Largest(f64),
+}
+
+impl TargetKeep {
+    /// For the keeps whose kept set depends on the placement alone (the shading is linear in
+    /// the light), the predicted fraction (`None` for all); `None` for [`TargetKeep::Largest`].
+    fn linear_fraction(self) -> Option<Option<f64>> {
+        match self {
+            TargetKeep::All => Some(None),
+            TargetKeep::Predicted(fraction) => Some(Some(fraction)),
+            TargetKeep::Largest(_) => None,
+        }
+    }
 }
 
 /// Where the shading takes its affine coupling coefficients.
@@ -459,25 +476,22 @@ pub fn irradiance(
     let face = transport.face;
     let TargetKeep::Largest(fraction) = keep else {
         // Each receiver's responses, summed in the light's order: the bits of [`shade`].
-        let fraction = if let TargetKeep::Predicted(fraction) = keep { Some(fraction) } else { None };
+        let fraction = keep.linear_fraction().flatten();
         let indices: Vec<(u16, u16)> = source.coefficients.iter().map(|c| c.0).collect();
         return positions
             .par_iter()
             .enumerate()
             .map(|(r, &x)| {
-                let Some(maps) = placement.maps(&face, x).map(|m| acc.maps(m)) else {
+                let Some(maps) = placement.shading_maps(&face, acc, x) else {
                     return [0.0; 3];
                 };
                 with_scratch(face.order, |scratch| {
                     let mut g = std::mem::take(&mut scratch.responses);
                     g.resize(indices.len(), 0.0);
-                    adjoint_responses(&indices, maps, face.order, transport.of(r), fraction, scratch, &mut g);
+                    let receiver = Receiver { indices: &indices, maps, order: face.order, transport: transport.of(r) };
+                    adjoint_responses(receiver, fraction, scratch, &mut g);
                     let mut e = [0.0; 3];
-                    for ((_, f), g) in source.coefficients.iter().zip(&g) {
-                        for c in 0..3 {
-                            e[c] += f64::from(f[c]) * g;
-                        }
-                    }
+                    add_shading(&mut e, &source.coefficients, |j| g[j]);
                     scratch.responses = g;
                     e
                 })
@@ -488,7 +502,7 @@ pub fn irradiance(
         .par_iter()
         .enumerate()
         .map(|(r, &x)| {
-            let Some(maps) = placement.maps(&face, x).map(|m| acc.maps(m)) else {
+            let Some(maps) = placement.shading_maps(&face, acc, x) else {
                 return [0.0; 3];
             };
             with_scratch(face.order, |scratch| {
@@ -515,14 +529,17 @@ pub fn accumulate(
     coefficients: &[((u16, u16), [f32; 3])],
     response: impl Fn(usize, usize) -> f64 + Sync,
 ) {
-    e.par_iter_mut().enumerate().for_each(|(r, e)| {
-        for (j, (_, f)) in coefficients.iter().enumerate() {
-            let g = response(r, j);
-            for c in 0..3 {
-                e[c] += f64::from(f[c]) * g;
-            }
+    e.par_iter_mut().enumerate().for_each(|(r, e)| add_shading(e, coefficients, |j| response(r, j)));
+}
+
+/// Adds `Σ_j F_j G_j` over `coefficients`, in order, to `e`.
+fn add_shading(e: &mut [f64; 3], coefficients: &[((u16, u16), [f32; 3])], response: impl Fn(usize) -> f64) {
+    for (j, (_, f)) in coefficients.iter().enumerate() {
+        let g = response(j);
+        for c in 0..3 {
+            e[c] += f64::from(f[c]) * g;
         }
-    });
+    }
 }
 
 /// Bytes of responses computed at once (one batch's `G`).
@@ -548,22 +565,19 @@ pub fn responses(
     shading: impl Into<Shading>,
 ) -> Option<Vec<f64>> {
     let Shading { keep, acc } = shading.into();
-    let fraction = match keep {
-        TargetKeep::All => None,
-        TargetKeep::Predicted(fraction) => Some(fraction),
-        TargetKeep::Largest(_) => return None,
-    };
+    let fraction = keep.linear_fraction()?;
     let face = transport.face;
     let mut g = vec![0.0; positions.len() * indices.len()];
     if indices.is_empty() {
         return Some(g);
     }
     g.par_chunks_mut(indices.len()).enumerate().for_each(|(r, out)| {
-        let Some(maps) = placement.maps(&face, positions[r]).map(|m| acc.maps(m)) else {
+        let Some(maps) = placement.shading_maps(&face, acc, positions[r]) else {
             return;
         };
         with_scratch(face.order, |scratch| {
-            adjoint_responses(indices, maps, face.order, transport.of(r), fraction, scratch, out);
+            let receiver = Receiver { indices, maps, order: face.order, transport: transport.of(r) };
+            adjoint_responses(receiver, fraction, scratch, out);
         });
     });
     Some(g)
@@ -640,54 +654,41 @@ fn row_sums_of<const B: usize>(row: &[Coupling], transport: &[[f64; LANES]], out
     out.copy_from_slice(&sums);
 }
 
+/// What [`adjoint_responses`] shades: the light's coefficient `indices` (by `i₂`, then `i₁`) at
+/// one receiver, its two maps and its top-face transport (`order²` coefficients).
+#[derive(Clone, Copy)]
+struct Receiver<'a> {
+    indices: &'a [(u16, u16)],
+    maps: [Affine; 2],
+    order: usize,
+    transport: &'a [f32],
+}
+
 /// One receiver's [`responses`], over the predicted targets of `fraction` when given. The
 /// kept transport is laid over the two maps' [`Footprint`]s; per source row `i₂`,
 /// `H_{k₁} = Σ_{k₂} D_{i₂k₂} T̃_{k₁k₂}` is summed for every `k₁` lane at once (in the fan-out's
 /// order), then `G_i = Σ_{k₁} D_{i₁k₁} H_{k₁}` in the fan-out's order: a coefficient's response
 /// has the same bits whichever others are computed with it.
-fn adjoint_responses(
-    indices: &[(u16, u16)],
-    maps: [Affine; 2],
-    n: usize,
-    t: &[f32],
-    fraction: Option<f64>,
-    scratch: &mut Propagation,
-    out: &mut [f64],
-) {
+fn adjoint_responses(receiver: Receiver, fraction: Option<f64>, scratch: &mut Propagation, out: &mut [f64]) {
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") {
         // SAFETY: this CPU has AVX2, checked just above.
-        return unsafe { adjoint_responses_avx2(indices, maps, n, t, fraction, scratch, out) };
+        return unsafe { adjoint_responses_avx2(receiver, fraction, scratch, out) };
     }
-    adjoint_responses_portable(indices, maps, n, t, fraction, scratch, out);
+    adjoint_responses_portable(receiver, fraction, scratch, out);
 }
 
 /// [`adjoint_responses`] compiled for AVX2: four lanes per instruction. The same operations in
 /// the same order (no fused multiply-adds), so the same bits as the portable build.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-fn adjoint_responses_avx2(
-    indices: &[(u16, u16)],
-    maps: [Affine; 2],
-    n: usize,
-    t: &[f32],
-    fraction: Option<f64>,
-    scratch: &mut Propagation,
-    out: &mut [f64],
-) {
-    adjoint_responses_portable(indices, maps, n, t, fraction, scratch, out);
+fn adjoint_responses_avx2(receiver: Receiver, fraction: Option<f64>, scratch: &mut Propagation, out: &mut [f64]) {
+    adjoint_responses_portable(receiver, fraction, scratch, out);
 }
 
 #[inline(always)]
-fn adjoint_responses_portable(
-    indices: &[(u16, u16)],
-    maps: [Affine; 2],
-    n: usize,
-    t: &[f32],
-    fraction: Option<f64>,
-    scratch: &mut Propagation,
-    out: &mut [f64],
-) {
+fn adjoint_responses_portable(receiver: Receiver, fraction: Option<f64>, scratch: &mut Propagation, out: &mut [f64]) {
+    let Receiver { indices, maps, order: n, transport: t } = receiver;
     let slots = scratch.couplings.receiver_slots(maps, n);
     let footprints = slots.map(|slot| scratch.couplings.footprint(slot));
     let width = padded(footprints[0].len());

@@ -407,7 +407,8 @@ fn adjoint_shading_equals_the_propagated_sum() {
         let indices: Vec<(u16, u16)> = source.coefficients.iter().map(|c| c.0).collect();
         for (expected, masked) in [(all, false), (kept, true)] {
             let mut g = vec![f64::NAN; indices.len()];
-            adjoint_responses(&indices, maps, n, &t, masked.then_some(fraction), &mut scratch, &mut g);
+            let receiver = Receiver { indices: &indices, maps, order: n, transport: &t };
+            adjoint_responses(receiver, masked.then_some(fraction), &mut scratch, &mut g);
             let e = shade(&source, 1, |_, j| g[j])[0];
             let scale = expected.iter().map(|v| v.abs()).fold(1e-12, f64::max);
             for c in 0..3 {
@@ -441,9 +442,10 @@ fn avx2_and_portable_adjoints_give_the_same_bits() {
         let fraction = [None, Some(rng.random_range(0.01..0.6))][case % 2];
         let mut scratch = Propagation::new(n);
         let (mut portable, mut avx2) = (vec![f64::NAN; indices.len()], vec![f64::NAN; indices.len()]);
-        adjoint_responses_portable(&indices, maps, n, &t, fraction, &mut scratch, &mut portable);
+        let receiver = Receiver { indices: &indices, maps, order: n, transport: &t };
+        adjoint_responses_portable(receiver, fraction, &mut scratch, &mut portable);
         // SAFETY: this CPU has AVX2, checked above.
-        unsafe { adjoint_responses_avx2(&indices, maps, n, &t, fraction, &mut scratch, &mut avx2) };
+        unsafe { adjoint_responses_avx2(receiver, fraction, &mut scratch, &mut avx2) };
         assert!(portable.iter().zip(&avx2).all(|(a, b)| a.to_bits() == b.to_bits()), "case {case}");
     }
 }

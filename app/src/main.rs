@@ -1,6 +1,7 @@
 //! `lightloom`: the node-based lighting design editor and its headless command line.
 
 mod accuracy_command;
+mod bake_command;
 mod bench_adaptive;
 mod bench_area;
 mod bench_blockers;
@@ -72,6 +73,9 @@ enum Command {
     Bench(bench_command::BenchArgs),
     /// Print the SH coefficients (RGB) of an environment map and its irradiance along ±X, ±Y, ±Z.
     Sh(sh_command::ShArgs),
+    /// Bake the Output's lighting for game engines: scene.glb (meshes, materials, light per vertex,
+    /// point lights, camera) and bake.json into --out DIR.
+    Bake(bake_command::BakeArgs),
 }
 
 /// Exit codes: 0 success, 1 replay regression, 2 bad input or failure.
@@ -83,6 +87,7 @@ fn main() {
         Some(Command::Eval(a)) => Some(a.project.clone()),
         Some(Command::Info(a)) => Some(a.project.clone()),
         Some(Command::Accuracy(a)) => Some(a.project.clone()),
+        Some(Command::Bake(a)) => Some(a.project.clone()),
         None => cli.editor.project.clone(),
         _ => None,
     };
@@ -94,6 +99,7 @@ fn main() {
         Some(Command::Accuracy(args)) => accuracy_command::run(&args).map(|_| true),
         Some(Command::Bench(args)) => bench_command::run(&args).map(|_| true),
         Some(Command::Sh(args)) => sh_command::run(&args).map(|_| true),
+        Some(Command::Bake(args)) => bake_command::run(&args).map(|_| true),
         None => main_job(cli.editor).map(|_| true),
     };
     match result {

@@ -122,7 +122,11 @@ pub(crate) fn output_request(graph: &Graph, output: &str) -> Request {
 /// Evaluates what `request` needs on a background thread, driving a progress bar from its
 /// events.
 pub(crate) fn evaluate(engine: Arc<Engine>, graph: &Graph, request: Request, quiet: bool) -> Evaluation {
-    let job = engine.spawn_request(graph.clone(), request);
+    follow(engine.spawn_request(graph.clone(), request), quiet)
+}
+
+/// Waits for `job`, driving a progress bar from its events.
+pub(crate) fn follow(job: lightloom_nodes::engine::EvalJob, quiet: bool) -> Evaluation {
     let bar = if quiet { ProgressBar::hidden() } else { ProgressBar::new(0) };
     bar.set_style(
         ProgressStyle::with_template("{spinner} evaluating [{bar:30}] {pos}/{len} {msg}")

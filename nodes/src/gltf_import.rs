@@ -383,6 +383,7 @@ fn read_primitive(
         base_color,
         visibility_texture: false,
         material,
+        ..Default::default()
     })
 }
 

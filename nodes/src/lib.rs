@@ -10,6 +10,7 @@
 //! - [`sat`]: summed-area tables.
 
 pub mod adaptive_sh;
+pub mod bake;
 pub mod brdf;
 pub mod cubemap;
 pub mod engine;

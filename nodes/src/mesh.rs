@@ -28,6 +28,14 @@ pub struct Mesh {
     /// empty for the first material.
     #[serde(default)]
     pub material: String,
+    /// The object transform its world-space data went through (column-major; identity for
+    /// object-space meshes): the bake writes object-space geometry under it.
+    #[serde(default = "identity_transform")]
+    pub transform: [f64; 16],
+}
+
+fn identity_transform() -> [f64; 16] {
+    DMat4::IDENTITY.to_cols_array()
 }
 
 /// Empty, white.
@@ -43,6 +51,7 @@ impl Default for Mesh {
             base_color: [1.0; 3],
             visibility_texture: false,
             material: String::new(),
+            transform: identity_transform(),
         }
     }
 }

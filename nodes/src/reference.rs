@@ -21,6 +21,7 @@ use crate::raycast::RayScene;
 use glam::{DMat3, DVec3, Vec3A};
 use rand::{Rng, SeedableRng, rngs::SmallRng};
 use rayon::prelude::*;
+use std::f64::consts::PI;
 
 /// A pinhole camera (`+Y` up), as `project::Camera` and the viewport use it.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -117,6 +118,45 @@ impl<'a> EnvironmentSampler<'a> {
         let (face, y, x) = (i / (n * n), (i / n) % n, i % n);
         cubemap::face_uv_to_dir(face, (x as f64 + u[1]) / n as f64, (y as f64 + u[2]) / n as f64)
     }
+}
+
+/// Irradiance `E = ∫ L(ω) V(ω) max(n·ω, 0) dω` at a surface point (or a probe, with `scene`
+/// occluding), by Monte Carlo: `samples` environment samples and as many cosine samples,
+/// combined with the balance heuristic. The bake's vertex light, lightmaps and probes are
+/// checked against it.
+pub fn irradiance(
+    scene: &RayScene,
+    environment: &EnvironmentSampler,
+    point: DVec3,
+    normal: DVec3,
+    samples: usize,
+    rng: &mut impl Rng,
+) -> DVec3 {
+    let origin = scene.leave_surface(point, normal);
+    let visible = |dir: DVec3| !scene.occluded(origin, dir.as_vec3().into(), f32::INFINITY);
+    let (t, b) = normal.any_orthonormal_pair();
+    let mut sum = DVec3::ZERO;
+    for _ in 0..samples {
+        // Environment sample.
+        let dir = environment.sample([rng.random(), rng.random(), rng.random()]);
+        let cos = dir.dot(normal);
+        if cos > 0.0 && visible(dir) {
+            let (p_env, p_cos) = (environment.pdf(dir), cos / PI);
+            sum += environment.radiance(dir) * cos / (p_env + p_cos);
+        }
+        // Cosine sample.
+        let (u1, u2): (f64, f64) = (rng.random(), rng.random());
+        let r = u1.sqrt();
+        let phi = 2.0 * PI * u2;
+        let local = DVec3::new(r * phi.cos(), r * phi.sin(), (1.0 - u1).max(0.0).sqrt());
+        let dir = t * local.x + b * local.y + normal * local.z;
+        let cos = local.z;
+        if cos > 0.0 && visible(dir) {
+            let (p_env, p_cos) = (environment.pdf(dir), cos / PI);
+            sum += environment.radiance(dir) * cos / (p_env + p_cos);
+        }
+    }
+    sum / samples as f64
 }
 
 /// Geometry, material and lighting of a reference render.

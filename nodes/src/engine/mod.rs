@@ -846,6 +846,11 @@ impl EvalJob {
         self.cancel.cancel();
     }
 
+    /// The evaluation's cancellation flag (to cancel it from elsewhere, e.g. on Ctrl+C).
+    pub fn cancel_token(&self) -> CancelToken {
+        self.cancel.clone()
+    }
+
     pub fn is_finished(&self) -> bool {
         self.handle.as_ref().is_none_or(|h| h.is_finished())
     }

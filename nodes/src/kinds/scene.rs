@@ -107,6 +107,7 @@ impl SceneObject {
         raw.into_iter()
             .map(|m| {
                 let mut m = m.transformed(transform);
+                m.transform = transform.to_cols_array();
                 m.visibility_texture = self.visibility_texture;
                 // A model keeps its own materials unless the object names one.
                 if !(model && self.material.is_empty()) {

@@ -1,0 +1,219 @@
+//! Baking a project's lighting out for game engines: what `lightloom bake` and the editor's
+//! File → Bake… write.
+//!
+//! - [`vertex_light`] — the diffuse light of the Output's mode per vertex (`E/π`).
+//! - [`material_fit`] — materials as glTF metallic-roughness, with the fit's error.
+//! - [`gltf_export`] — `scene.glb`.
+//!
+//! A bake is an engine request ([`bake_request`]): the Output's mode stages, the scene's BVH
+//! (point-light shadows) and the area lights' irradiance. Everything expensive is a cached
+//! stage, so a bake after an edit recomputes only what the edit touched; [`bake`] then turns
+//! the evaluation into files, and [`write_atomically`] puts them in place.
+
+pub mod gltf_export;
+pub mod material_fit;
+pub mod vertex_light;
+
+use crate::engine::{Graph, Request, StageRef};
+use crate::frame::FrameInputs;
+use crate::kinds::output::{mode_stages, output_mode_and_view};
+use serde::Serialize;
+use std::path::Path;
+
+/// The glTF file a bake writes.
+pub const SCENE_FILE: &str = "scene.glb";
+/// The manifest: conventions, settings, the materials' fits and the files, as JSON.
+pub const MANIFEST_FILE: &str = "bake.json";
+
+/// What baking the Output node `output` needs from the engine.
+pub fn bake_request(graph: &Graph, output: &str) -> Request {
+    let Some(node) = graph.node(output) else { return Request::default() };
+    let (mode, _) = output_mode_and_view(node);
+    let mut stages = mode_stages(graph, output, mode);
+    if let Some(scene) = graph.upstream(output, "scene") {
+        stages.push(StageRef::new(&scene.id, "ray_scene"));
+    }
+    if !graph.upstream_all(output, "area_lights").is_empty() {
+        stages.push(StageRef::new(output, "area_irradiance"));
+    }
+    Request::new(format!("bake of output `{output}` (mode {mode})"), stages)
+}
+
+/// One file of a bake.
+#[derive(Clone, Debug)]
+pub struct BakedFile {
+    pub name: String,
+    pub bytes: Vec<u8>,
+}
+
+/// Time one part of a bake took.
+#[derive(Clone, Debug, Serialize)]
+pub struct StageTime {
+    pub stage: String,
+    pub ms: f64,
+}
+
+/// The files of a bake and what they hold.
+#[derive(Clone, Debug)]
+pub struct Bake {
+    pub files: Vec<BakedFile>,
+    pub manifest: Manifest,
+}
+
+/// `bake.json`.
+#[derive(Clone, Debug, Serialize)]
+pub struct Manifest {
+    pub generator: String,
+    pub mode: String,
+    pub conventions: Conventions,
+    pub materials: Vec<ManifestMaterial>,
+    /// What `COLOR_0` is multiplied by to give `E/π`.
+    pub vertex_light_scale: f32,
+    pub vertices: usize,
+    pub triangles: usize,
+    pub point_lights: usize,
+    pub timings: Vec<StageTime>,
+    /// `(file, bytes)`; the manifest itself is not listed.
+    pub files: Vec<(String, usize)>,
+}
+
+/// The conventions every consumer needs, stated once.
+#[derive(Clone, Debug, Serialize)]
+pub struct Conventions {
+    pub units: &'static str,
+    pub axes: &'static str,
+    pub vertex_light: &'static str,
+    pub point_lights: &'static str,
+}
+
+impl Default for Conventions {
+    fn default() -> Self {
+        Self {
+            units: "metres; radiance in the project's linear units (an environment texel's value)",
+            axes: "right-handed, +Y up (glTF's)",
+            vertex_light: "COLOR_0 * vertex_light_scale is linear E/pi: the radiance a white Lambertian surface \
+                           reflects; the baked diffuse radiance is baseColor * COLOR_0 * vertex_light_scale (unlit). \
+                           The scale (a power of two, also in the glTF scene's extras.lightloom.vertexLightScale) \
+                           keeps COLOR_0 in glTF's 0..1. Environment (as the mode shadows it), area lights and \
+                           point lights (shadowed) are included; fog's attenuation and airlight toward the viewer \
+                           are not",
+            point_lights: "KHR_lights_punctual intensity is the light's radiant intensity (W/sr) in the project's \
+                           units; their diffuse light is already baked (extras.lightloom.baked = true), so add them \
+                           for specular only",
+        }
+    }
+}
+
+/// A material as written, with how well glTF's model fits it.
+#[derive(Clone, Debug, Serialize)]
+pub struct ManifestMaterial {
+    pub name: String,
+    pub model: String,
+    pub base_color: [f64; 3],
+    pub roughness: f64,
+    pub specular_factor: f64,
+    pub specular_color: [f64; 3],
+    pub anisotropy: Option<(f64, f64)>,
+    /// Relative L2 difference of `f cos θ_i` ([`material_fit::MaterialFit::error`]).
+    pub fit_error: f64,
+}
+
+/// Turns an evaluated frame into the bake's files. `camera` is the project's render camera.
+pub fn bake(
+    frame: &FrameInputs,
+    camera: Option<gltf_export::ExportCamera>,
+    progress: &dyn Fn(&str, f64),
+) -> Result<Bake, String> {
+    let meshes = frame.geometry.meshes.value.expect::<crate::mesh::MeshSet>().map_err(|e| e.to_string())?;
+    let shadows = match &frame.ray_scene {
+        Some(k) => Some(k.value.expect::<crate::raycast::RayScene>().map_err(|e| e.to_string())?),
+        None => None,
+    };
+    let mut timings = Vec::new();
+    let mut timed = |stage: &str, start: std::time::Instant| {
+        timings.push(StageTime { stage: stage.into(), ms: start.elapsed().as_secs_f64() * 1e3 })
+    };
+
+    progress("vertex lighting", 0.0);
+    let start = std::time::Instant::now();
+    let light = vertex_light::vertex_light(frame, shadows)?;
+    timed("vertex lighting", start);
+
+    progress("scene.glb", 0.5);
+    let start = std::time::Instant::now();
+    let materials: Vec<(String, crate::kinds::brdf::Material)> =
+        frame.materials.iter().map(|m| (m.node.clone(), m.material.clone())).collect();
+    let glb = gltf_export::write_glb(&gltf_export::ExportScene {
+        meshes,
+        vertex_light: &light,
+        mesh_materials: &frame.geometry.mesh_materials,
+        materials: &materials,
+        lights: &frame.medium.lights,
+        camera,
+    })?;
+    timed("scene.glb", start);
+    progress("done", 1.0);
+
+    let files = vec![BakedFile { name: SCENE_FILE.into(), bytes: glb.bytes }];
+    let manifest = Manifest {
+        generator: format!("Lightloom {}", env!("CARGO_PKG_VERSION")),
+        mode: frame.mode.to_string(),
+        conventions: Conventions::default(),
+        materials: glb
+            .materials
+            .iter()
+            .map(|m| ManifestMaterial {
+                name: m.name.clone(),
+                model: m.model.clone(),
+                base_color: m.fit.base_color,
+                roughness: m.fit.roughness,
+                specular_factor: m.fit.specular_factor,
+                specular_color: m.fit.specular_color,
+                anisotropy: m.fit.anisotropy,
+                fit_error: m.fit.error,
+            })
+            .collect(),
+        vertex_light_scale: glb.vertex_light_scale,
+        vertices: light.len(),
+        triangles: meshes.triangle_count(),
+        point_lights: frame.medium.lights.len(),
+        timings,
+        files: files.iter().map(|f| (f.name.clone(), f.bytes.len())).collect(),
+    };
+    Ok(Bake { files, manifest })
+}
+
+impl Bake {
+    /// The manifest as the bytes of [`MANIFEST_FILE`]. Timings vary run to run, so they are
+    /// left out: the same project gives the same bytes.
+    pub fn manifest_bytes(&self) -> Vec<u8> {
+        let mut m = self.manifest.clone();
+        m.timings.clear();
+        let mut bytes = serde_json::to_vec_pretty(&m).expect("the manifest serialises");
+        bytes.push(b'\n');
+        bytes
+    }
+}
+
+/// Writes `bake`'s files into `dir` (created if missing): every file is first written in full
+/// to a staging folder inside `dir`, then renamed into place, the manifest last. A failure
+/// before the renames leaves `dir` as it was; the staging folder is always removed.
+pub fn write_atomically(bake: &Bake, dir: &Path) -> std::io::Result<()> {
+    std::fs::create_dir_all(dir)?;
+    let staging = tempfile::Builder::new().prefix(".lightloom-bake-").tempdir_in(dir)?;
+    let manifest = BakedFile { name: MANIFEST_FILE.into(), bytes: bake.manifest_bytes() };
+    let all: Vec<&BakedFile> = bake.files.iter().chain(std::iter::once(&manifest)).collect();
+    for file in &all {
+        use std::io::Write;
+        let mut f = std::fs::File::create(staging.path().join(&file.name))?;
+        f.write_all(&file.bytes)?;
+        f.sync_all()?;
+    }
+    for file in &all {
+        std::fs::rename(staging.path().join(&file.name), dir.join(&file.name))?;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests;

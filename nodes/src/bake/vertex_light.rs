@@ -1,0 +1,206 @@
+//! The diffuse light of a frame per vertex, as its mode draws it: what the bake writes as
+//! `COLOR_0` and what lightmaps and probes are checked against.
+//!
+//! Every value is `E / π`, linear: the radiance a white Lambertian surface reflects (multiply by
+//! the base colour for a surface's diffuse radiance). Each mode's sum is the CPU twin of its
+//! shader's diffuse part (`shaders/mesh*.wgsl`), with two differences a bake wants: point lights
+//! are shadowed (one ray per vertex and light; the viewport draws them unshadowed), and nothing
+//! depends on the viewer (fog's attenuation towards the eye and its airlight stay out).
+
+use crate::frame::{FrameInputs, Surfaces};
+use crate::kinds::lights::PointLight;
+use crate::mesh::MeshSet;
+use crate::raycast::RayScene;
+use crate::sh::{ShBasis, ShRgb};
+use glam::{DVec3, Vec3A};
+use rayon::prelude::*;
+use std::f64::consts::PI;
+
+/// One surface point the light is evaluated at.
+#[derive(Clone, Copy, Debug)]
+pub struct SurfacePoint {
+    pub position: DVec3,
+    pub normal: DVec3,
+    pub tangent: DVec3,
+}
+
+/// The scene's vertices as surface points, in [`MeshSet`] order.
+pub fn vertex_points(meshes: &MeshSet) -> Vec<SurfacePoint> {
+    let mut points = Vec::new();
+    for mesh in &meshes.meshes {
+        let tangents = if mesh.tangents.len() == mesh.positions.len() {
+            mesh.tangents.clone()
+        } else {
+            crate::mesh::vertex_tangents(mesh)
+        };
+        for ((p, n), t) in mesh.positions.iter().zip(&mesh.normals).zip(&tangents) {
+            points.push(SurfacePoint {
+                position: DVec3::from(p.map(f64::from)),
+                normal: DVec3::from(n.map(f64::from)).normalize_or(DVec3::Y),
+                tangent: DVec3::from(t.map(f64::from)),
+            });
+        }
+    }
+    points
+}
+
+/// `E / π` per vertex of `frame`'s scene: the mode's environment light, area lights and point
+/// lights (shadowed by `shadows` when given).
+pub fn vertex_light(frame: &FrameInputs, shadows: Option<&RayScene>) -> Result<Vec<[f32; 3]>, String> {
+    let meshes = frame.geometry.meshes.value.expect::<MeshSet>().map_err(|e| e.to_string())?;
+    let points = vertex_points(meshes);
+    let mut light = environment_light(frame, &points)?;
+    if let Some(area) = &frame.area_lights {
+        let e =
+            area.irradiance.value.expect::<crate::kinds::output_area::AreaIrradiance>().map_err(|e| e.to_string())?;
+        for (out, e) in light.iter_mut().zip(&e.irradiance) {
+            for c in 0..3 {
+                out[c] += f64::from(e[c]) / PI;
+            }
+        }
+    }
+    let point_lights = PointLightShading::new(frame)?;
+    light.par_iter_mut().zip(&points).for_each(|(out, p)| {
+        let add = point_lights.light(p, shadows);
+        for c in 0..3 {
+            out[c] += add[c];
+        }
+    });
+    Ok(light.into_iter().map(|l| l.map(|c| c.max(0.0) as f32)).collect())
+}
+
+/// The environment's share of `E / π` at each point, per the frame's mode.
+fn environment_light(frame: &FrameInputs, points: &[SurfacePoint]) -> Result<Vec<[f64; 3]>, String> {
+    let fog = frame.medium.fog.as_ref().and_then(|f| f.environment.as_ref().map(|e| (f, e)));
+    // The wavelet and square-light modes cannot convolve their light: fog attenuates it and
+    // adds the glow's (unshadowed) irradiance, as `fog_shade` does.
+    let through_fog = |light: [f64; 3], normal: DVec3| -> [f64; 3] {
+        let Some((medium, env)) = fog else { return light };
+        let glow =
+            if medium.scatter_onto_surfaces { sh_irradiance(&env.scattered.irradiance(), normal) } else { [0.0; 3] };
+        std::array::from_fn(|c| light[c] * env.fog.attenuation[c] + glow[c] / PI)
+    };
+    Ok(match &frame.surfaces {
+        Surfaces::Irradiance(s) => match &s.irradiance {
+            Some(e) => points.par_iter().map(|p| sh_irradiance(e, p.normal).map(|c| c / PI)).collect(),
+            None => vec![[0.0; 3]; points.len()],
+        },
+        Surfaces::Prt(s) => {
+            let t = s.transport.value.expect::<crate::transport::ShTransport>().map_err(|e| e.to_string())?;
+            let n = t.bands * t.bands;
+            match &s.light {
+                Some(light) => (0..points.len())
+                    .into_par_iter()
+                    .map(|i| crate::prt::diffuse_exit(light, &t.transfer[i * n..(i + 1) * n], DVec3::ONE).to_array())
+                    .collect(),
+                None => vec![[0.0; 3]; points.len()],
+            }
+        }
+        Surfaces::Wavelet(s) => {
+            let p = s.products.value.expect::<crate::triple_product::LocalProducts>().map_err(|e| e.to_string())?;
+            let cells = p.cells;
+            points
+                .par_iter()
+                .enumerate()
+                .map(|(i, point)| {
+                    let row = &p.values[i * cells * 3..(i + 1) * cells * 3];
+                    let mut sum = [0.0; 3];
+                    for c in 0..cells {
+                        for k in 0..3 {
+                            sum[k] += f64::from(row[c * 3 + k]) * f64::from(s.diffuse_table[c]);
+                        }
+                    }
+                    through_fog(sum, point.normal)
+                })
+                .collect()
+        }
+        Surfaces::Rsl(s) => {
+            let v = s.visibility.value.expect::<crate::rsl::shade::LightVisibility>().map_err(|e| e.to_string())?;
+            let cosine = lambert_sat();
+            let k = v.lights;
+            points
+                .par_iter()
+                .enumerate()
+                .map(|(i, point)| {
+                    let to_local = crate::rsl::shade::shading_frame(point.normal, point.tangent).transpose();
+                    let mut sum = DVec3::ZERO;
+                    for (light, &vis) in s.lights.iter().zip(&v.values[i * k..(i + 1) * k]) {
+                        if vis <= 0.0 {
+                            continue;
+                        }
+                        let direction = DVec3::new(light[0].into(), light[1].into(), light[2].into());
+                        let omega = f64::from(light[3]);
+                        let intensity = DVec3::new(light[4].into(), light[5].into(), light[6].into());
+                        let (cos_mean, _) = cosine.means(to_local * direction, omega, DVec3::Z);
+                        sum += intensity * omega * f64::from(vis) * cos_mean;
+                    }
+                    through_fog(sum.to_array(), point.normal)
+                })
+                .collect()
+        }
+    })
+}
+
+/// `E(n) = Σ E_lm Y_lm(n)` for irradiance coefficients `e`.
+fn sh_irradiance(e: &ShRgb, normal: DVec3) -> [f64; 3] {
+    e.eval(&ShBasis::new(e.bands), normal)
+}
+
+/// The square lights' `cos θ / π` table (material-independent; built once).
+fn lambert_sat() -> &'static crate::rsl::brdf_sat::BrdfSat {
+    static SAT: std::sync::OnceLock<crate::rsl::brdf_sat::BrdfSat> = std::sync::OnceLock::new();
+    SAT.get_or_init(|| {
+        let lambert = crate::brdf::Brdf::from_material(&crate::kinds::brdf::Material::default());
+        crate::rsl::brdf_sat::BrdfSat::build(&lambert, &crate::engine::CancelToken::default())
+            .expect("an uncancelled Lambert table")
+    })
+}
+
+/// Point lights onto a Lambertian surface, through the medium when there is one (Sun 2008
+/// eqs. 3.27 and 3.29 towards the surface: `e^{-β d}/d² cos θ` plus the light scattered onto
+/// it, `β² G₁(βd, θ)/(2π βd)`).
+struct PointLightShading<'a> {
+    lights: &'a [PointLight],
+    fog: Option<([f64; 3], &'a crate::single_scattering::PhongGTables)>,
+}
+
+impl<'a> PointLightShading<'a> {
+    fn new(frame: &'a FrameInputs) -> Result<Self, String> {
+        let fog = match &frame.medium.fog {
+            Some(f) => Some((
+                f.beta,
+                f.g_tables.value.expect::<crate::single_scattering::PhongGTables>().map_err(|e| e.to_string())?,
+            )),
+            None => None,
+        };
+        Ok(Self { lights: &frame.medium.lights, fog })
+    }
+
+    /// `E / π` at `p` from every light.
+    fn light(&self, p: &SurfacePoint, shadows: Option<&RayScene>) -> [f64; 3] {
+        let mut out = [0.0; 3];
+        for light in self.lights {
+            let to_light = DVec3::from(light.position) - p.position;
+            let d = to_light.length().max(1e-4);
+            let l = to_light / d;
+            let cos = l.dot(p.normal);
+            let visible = cos > 0.0
+                && shadows.is_none_or(|scene| {
+                    let origin = scene.leave_surface(p.position, p.normal);
+                    let direction = Vec3A::from(l.as_vec3());
+                    let tmax = (DVec3::from(light.position) - DVec3::from(Vec3A::to_array(&origin).map(f64::from)))
+                        .length() as f32;
+                    !scene.occluded(origin, direction, tmax * (1.0 - 1e-4))
+                });
+            for c in 0..3 {
+                let beta = self.fog.map_or(0.0, |f| f.0[c]);
+                let direct = if visible { (-beta * d).exp() / (d * d) * cos } else { 0.0 };
+                let scattered = self.fog.map_or(0.0, |(_, g)| {
+                    crate::single_scattering::surface_scattered(beta, d, cos.clamp(-1.0, 1.0).acos(), 1.0, g)
+                });
+                out[c] += light.intensity[c] * (direct + scattered) / PI;
+            }
+        }
+        out
+    }
+}

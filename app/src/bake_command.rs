@@ -73,7 +73,8 @@ pub fn run(args: &BakeArgs) -> Result<()> {
         fov_y_deg: camera.fov_y_deg,
         aspect: f64::from(project.render.width) / f64::from(project.render.height.max(1)),
     };
-    let baked = bake::bake(&frame, Some(export_camera), &|what, fraction| {
+    let lightmap = bake::LightmapInputs::gather(&evaluation, &output).map_err(|e| anyhow!(e))?;
+    let baked = bake::bake(&frame, Some(&lightmap), Some(export_camera), &|what, fraction| {
         bar.set_message(what.to_string());
         bar.set_position((fraction * 1000.0) as u64);
     })

@@ -37,7 +37,23 @@ pub struct ExportScene<'a> {
     pub materials: &'a [(String, crate::kinds::brdf::Material)],
     pub lights: &'a [PointLight],
     pub camera: Option<ExportCamera>,
+    pub lightmap: Option<ExportLightmap<'a>>,
 }
+
+/// The lightmap: its atlas (`TEXCOORD_1`, seam vertices duplicated) and its RGBM PNG, shown
+/// to every material through the `LIGHTLOOM_lightmap` extension (shaped like `MSFT_lightmap`):
+/// `{"lightmapTexture": {"index", "texCoord": 1}, "encoding": "RGBM", "range", "exr"}`, the
+/// decoded value being `E/π` as in `COLOR_0 × scale`.
+pub struct ExportLightmap<'a> {
+    pub atlas: &'a super::lightmap::LightmapAtlas,
+    pub png: &'a [u8],
+    pub range: f32,
+    /// The float EXR beside the GLB.
+    pub exr_name: &'a str,
+}
+
+/// The extension materials point at the lightmap with.
+pub const LIGHTMAP_EXTENSION: &str = "LIGHTLOOM_lightmap";
 
 /// One glTF material written: its source and fit.
 #[derive(Clone, Debug)]
@@ -142,6 +158,43 @@ pub fn write_glb(scene: &ExportScene) -> Result<Glb, String> {
         }
     };
 
+    let lightmap_texture = scene.lightmap.as_ref().map(|lightmap| {
+        let view = bin.view(&mut root, lightmap.png, json::buffer::Target::ArrayBuffer);
+        // Images in a buffer view take no target.
+        root.buffer_views[view.value()].target = None;
+        let image = root.push(json::Image {
+            buffer_view: Some(view),
+            mime_type: Some(json::image::MimeType("image/png".into())),
+            name: Some("lightmap (RGBM)".into()),
+            uri: None,
+            extensions: None,
+            extras: Default::default(),
+        });
+        let sampler = root.push(json::texture::Sampler {
+            mag_filter: Some(Valid(json::texture::MagFilter::Linear)),
+            min_filter: Some(Valid(json::texture::MinFilter::Linear)),
+            wrap_s: Valid(json::texture::WrappingMode::ClampToEdge),
+            wrap_t: Valid(json::texture::WrappingMode::ClampToEdge),
+            ..Default::default()
+        });
+        let texture = root.push(json::Texture {
+            sampler: Some(sampler),
+            source: image,
+            name: Some("lightmap".into()),
+            extensions: None,
+            extras: Default::default(),
+        });
+        serde_json::json!({
+            "lightmapTexture": { "index": texture.value(), "texCoord": 1 },
+            "encoding": "RGBM",
+            "range": lightmap.range,
+            "exr": lightmap.exr_name,
+        })
+    });
+    if lightmap_texture.is_some() {
+        use_extension(LIGHTMAP_EXTENSION);
+    }
+
     // One glTF material per (material, base colour) pair the meshes use.
     let mut written: Vec<WrittenMaterial> = Vec::new();
     let mut material_of: BTreeMap<(u32, [u32; 3]), json::Index<json::Material>> = BTreeMap::new();
@@ -172,7 +225,11 @@ pub fn write_glb(scene: &ExportScene) -> Result<Glb, String> {
                     (0, true) => "default".into(),
                     (n, _) => format!("{} {}", if name.is_empty() { "default" } else { name }, n + 1),
                 };
-                let index = root.push(gltf_material(&fit, &written_name, &mut use_extension));
+                let mut material = gltf_material(&fit, &written_name, &mut use_extension);
+                if let (Some(extension), Some(extensions)) = (&lightmap_texture, material.extensions.as_mut()) {
+                    extensions.others.insert(LIGHTMAP_EXTENSION.into(), extension.clone());
+                }
+                let index = root.push(material);
                 written.push(WrittenMaterial {
                     name: written_name,
                     source: name.clone(),
@@ -192,13 +249,19 @@ pub fn write_glb(scene: &ExportScene) -> Result<Glb, String> {
             None => (None, DMat4::IDENTITY),
         };
         let normal_to_object = DMat3::from_mat4(if trs.is_some() { transform } else { DMat4::IDENTITY }).transpose();
-        let positions: Vec<[f32; 3]> = mesh
-            .positions
+        // With a lightmap, the atlas's vertices (seams duplicated) replace the mesh's.
+        let atlas = scene.lightmap.as_ref().map(|l| &l.atlas.meshes[m]);
+        let remap: Vec<usize> = match atlas {
+            Some(a) => a.xref.iter().map(|&i| i as usize).collect(),
+            None => (0..count).collect(),
+        };
+        let count = remap.len();
+        let pick = |values: &[[f32; 3]]| -> Vec<[f32; 3]> { remap.iter().map(|&i| values[i]).collect() };
+        let positions: Vec<[f32; 3]> = pick(&mesh.positions)
             .iter()
             .map(|p| to_object.transform_point3(DVec3::from(p.map(f64::from))).as_vec3().to_array())
             .collect();
-        let normals: Vec<[f32; 3]> = mesh
-            .normals
+        let normals: Vec<[f32; 3]> = pick(&mesh.normals)
             .iter()
             .map(|n| (normal_to_object * DVec3::from(n.map(f64::from))).normalize_or(DVec3::Y).as_vec3().to_array())
             .collect();
@@ -218,17 +281,25 @@ pub fn write_glb(scene: &ExportScene) -> Result<Glb, String> {
         attributes.insert(Valid(Semantic::Positions), accessor(&mut root, view, count, F32, Vec3, Some((lo, hi))));
         let view = bin.view(&mut root, &floats(&normals), ArrayBuffer);
         attributes.insert(Valid(Semantic::Normals), accessor(&mut root, view, count, F32, Vec3, None));
-        if mesh.uvs.len() == count {
-            let view = bin.view(&mut root, &floats(&mesh.uvs), ArrayBuffer);
+        if mesh.uvs.len() == mesh.positions.len() {
+            let uvs: Vec<[f32; 2]> = remap.iter().map(|&i| mesh.uvs[i]).collect();
+            let view = bin.view(&mut root, &floats(&uvs), ArrayBuffer);
             attributes.insert(Valid(Semantic::TexCoords(0)), accessor(&mut root, view, count, F32, Vec2, None));
         }
-        let light: Vec<[f32; 3]> = light.iter().map(|l| l.map(|c| (c / scale).clamp(0.0, 1.0))).collect();
+        if let Some(a) = atlas {
+            let view = bin.view(&mut root, &floats(&a.uvs), ArrayBuffer);
+            attributes.insert(Valid(Semantic::TexCoords(1)), accessor(&mut root, view, count, F32, Vec2, None));
+        }
+        let light: Vec<[f32; 3]> = pick(light).iter().map(|l| l.map(|c| (c / scale).clamp(0.0, 1.0))).collect();
         let view = bin.view(&mut root, &floats(&light), ArrayBuffer);
         attributes.insert(Valid(Semantic::Colors(0)), accessor(&mut root, view, count, F32, Vec3, None));
         if anisotropic {
-            let world =
-                if mesh.tangents.len() == count { mesh.tangents.clone() } else { crate::mesh::vertex_tangents(mesh) };
-            let tangents: Vec<[f32; 4]> = world
+            let world = if mesh.tangents.len() == mesh.positions.len() {
+                mesh.tangents.clone()
+            } else {
+                crate::mesh::vertex_tangents(mesh)
+            };
+            let tangents: Vec<[f32; 4]> = pick(&world)
                 .iter()
                 .zip(&normals)
                 .map(|(t, n)| {
@@ -243,7 +314,7 @@ pub fn write_glb(scene: &ExportScene) -> Result<Glb, String> {
         }
         // The world-space mesh already flipped a mirroring transform's winding; glTF flips it
         // again for a node whose transform mirrors, so undo ours.
-        let mut indices = mesh.indices.clone();
+        let mut indices = atlas.map_or_else(|| mesh.indices.clone(), |a| a.indices.clone());
         if trs.is_some() && transform.determinant() < 0.0 {
             for t in indices.chunks_mut(3) {
                 t.swap(1, 2);

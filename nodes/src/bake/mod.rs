@@ -10,18 +10,23 @@
 //! stage, so a bake after an edit recomputes only what the edit touched; [`bake`] then turns
 //! the evaluation into files, and [`write_atomically`] puts them in place.
 
+pub mod baked_render;
 pub mod gltf_export;
+pub mod lightmap;
 pub mod material_fit;
 pub mod vertex_light;
 
+use crate::engine::Evaluation;
 use crate::engine::{Graph, Request, StageRef};
 use crate::frame::FrameInputs;
-use crate::kinds::output::{mode_stages, output_mode_and_view};
+use crate::kinds::output::{Mode, mode_stages, output_mode_and_view};
 use serde::Serialize;
 use std::path::Path;
 
 /// The glTF file a bake writes.
 pub const SCENE_FILE: &str = "scene.glb";
+/// The lightmap as linear float RGB (`E/π`), beside the GLB.
+pub const LIGHTMAP_EXR: &str = "lightmap.exr";
 /// The manifest: conventions, settings, the materials' fits and the files, as JSON.
 pub const MANIFEST_FILE: &str = "bake.json";
 
@@ -35,6 +40,12 @@ pub fn bake_request(graph: &Graph, output: &str) -> Request {
     }
     if !graph.upstream_all(output, "area_lights").is_empty() {
         stages.push(StageRef::new(output, "area_irradiance"));
+    }
+    stages.push(StageRef::new(output, "bake_atlas"));
+    match mode {
+        Mode::ShPrt | Mode::ShAdaptive => stages.push(StageRef::new(output, "bake_texel_sh")),
+        Mode::WaveletVertex | Mode::WaveletPixel => stages.push(StageRef::new(output, "bake_texel_products")),
+        Mode::ShIrradiance | Mode::Rsl => {}
     }
     Request::new(format!("bake of output `{output}` (mode {mode})"), stages)
 }
@@ -69,6 +80,7 @@ pub struct Manifest {
     pub materials: Vec<ManifestMaterial>,
     /// What `COLOR_0` is multiplied by to give `E/π`.
     pub vertex_light_scale: f32,
+    pub lightmap: Option<ManifestLightmap>,
     pub vertices: usize,
     pub triangles: usize,
     pub point_lights: usize,
@@ -83,6 +95,7 @@ pub struct Conventions {
     pub units: &'static str,
     pub axes: &'static str,
     pub vertex_light: &'static str,
+    pub lightmap: &'static str,
     pub point_lights: &'static str,
 }
 
@@ -97,11 +110,31 @@ impl Default for Conventions {
                            keeps COLOR_0 in glTF's 0..1. Environment (as the mode shadows it), area lights and \
                            point lights (shadowed) are included; fog's attenuation and airlight toward the viewer \
                            are not",
+            lightmap: "TEXCOORD_1 is the lightmap UV (unwrapped with uvunwrap, charts padded, never \
+                       overlapping; v down the image). Materials reference the lightmap with the \
+                       LIGHTLOOM_lightmap extension: lightmapTexture (an RGBM PNG in the GLB, linear, value = rgb * \
+                       a * range) and exr (the same as float RGB). Both hold E/pi like COLOR_0 * scale, per texel \
+                       from the texel's own transport in the mode (the square-light mode and area lights \
+                       interpolate the vertices' light)",
             point_lights: "KHR_lights_punctual intensity is the light's radiant intensity (W/sr) in the project's \
                            units; their diffuse light is already baked (extras.lightloom.baked = true), so add them \
                            for specular only",
         }
     }
+}
+
+/// The lightmap's layout and encoding.
+#[derive(Clone, Debug, Serialize)]
+pub struct ManifestLightmap {
+    pub width: u32,
+    pub height: u32,
+    pub texels_per_metre: f32,
+    pub padding: u32,
+    /// Texels with their own receiver (inside a chart).
+    pub surface_texels: usize,
+    pub utilization: f32,
+    /// RGBM's range: `E/π = rgb × a × range` (each 0..1).
+    pub rgbm_range: f32,
 }
 
 /// A material as written, with how well glTF's model fits it.
@@ -118,9 +151,41 @@ pub struct ManifestMaterial {
     pub fit_error: f64,
 }
 
+/// The lightmap's stages from a bake's evaluation ([`bake_request`]).
+pub struct LightmapInputs<'a> {
+    pub atlas: &'a lightmap::LightmapAtlas,
+    pub texel_sh: Option<&'a crate::transport::ShTransport>,
+    pub texel_products: Option<&'a crate::triple_product::LocalProducts>,
+}
+
+impl<'a> LightmapInputs<'a> {
+    /// Reads them from `evaluation` of the Output node `output`.
+    pub fn gather(evaluation: &'a Evaluation, output: &str) -> Result<Self, String> {
+        fn get<'e, T: crate::engine::StageType>(
+            e: &'e Evaluation,
+            node: &str,
+            stage: &str,
+        ) -> Result<Option<&'e T>, String> {
+            match e.get(node, stage) {
+                None => Ok(None),
+                Some(r) => match &r.value {
+                    Ok(v) => v.expect::<T>().map(Some).map_err(|e| e.to_string()),
+                    Err(e) => Err(format!("{node}.{stage} failed: {e}")),
+                },
+            }
+        }
+        Ok(Self {
+            atlas: get(evaluation, output, "bake_atlas")?.ok_or("the lightmap atlas was not evaluated")?,
+            texel_sh: get(evaluation, output, "bake_texel_sh")?,
+            texel_products: get(evaluation, output, "bake_texel_products")?,
+        })
+    }
+}
+
 /// Turns an evaluated frame into the bake's files. `camera` is the project's render camera.
 pub fn bake(
     frame: &FrameInputs,
+    lightmap_inputs: Option<&LightmapInputs>,
     camera: Option<gltf_export::ExportCamera>,
     progress: &dyn Fn(&str, f64),
 ) -> Result<Bake, String> {
@@ -139,7 +204,22 @@ pub fn bake(
     let light = vertex_light::vertex_light(frame, shadows)?;
     timed("vertex lighting", start);
 
-    progress("scene.glb", 0.5);
+    let mut files = Vec::new();
+    let mut lightmap_png = Vec::new();
+    let mut lightmap_range = 1.0;
+    if let Some(inputs) = lightmap_inputs {
+        progress("lightmap", 0.3);
+        let start = std::time::Instant::now();
+        let texels = vertex_light::texel_light(frame, inputs.atlas, inputs.texel_sh, inputs.texel_products, shadows)?;
+        let image = inputs.atlas.image(&texels);
+        let (w, h) = (inputs.atlas.width, inputs.atlas.height);
+        lightmap_range = gltf_export::vertex_light_scale(&image);
+        lightmap_png = lightmap::png_bytes(&lightmap::encode_rgbm(&image, lightmap_range), w, h)?;
+        files.push(BakedFile { name: LIGHTMAP_EXR.into(), bytes: lightmap::exr_bytes(&image, w, h)? });
+        timed("lightmap", start);
+    }
+
+    progress("scene.glb", 0.6);
     let start = std::time::Instant::now();
     let materials: Vec<(String, crate::kinds::brdf::Material)> =
         frame.materials.iter().map(|m| (m.node.clone(), m.material.clone())).collect();
@@ -150,11 +230,17 @@ pub fn bake(
         materials: &materials,
         lights: &frame.medium.lights,
         camera,
+        lightmap: lightmap_inputs.map(|inputs| gltf_export::ExportLightmap {
+            atlas: inputs.atlas,
+            png: &lightmap_png,
+            range: lightmap_range,
+            exr_name: LIGHTMAP_EXR,
+        }),
     })?;
     timed("scene.glb", start);
     progress("done", 1.0);
 
-    let files = vec![BakedFile { name: SCENE_FILE.into(), bytes: glb.bytes }];
+    files.insert(0, BakedFile { name: SCENE_FILE.into(), bytes: glb.bytes });
     let manifest = Manifest {
         generator: format!("Lightloom {}", env!("CARGO_PKG_VERSION")),
         mode: frame.mode.to_string(),
@@ -174,6 +260,15 @@ pub fn bake(
             })
             .collect(),
         vertex_light_scale: glb.vertex_light_scale,
+        lightmap: lightmap_inputs.map(|inputs| ManifestLightmap {
+            width: inputs.atlas.width,
+            height: inputs.atlas.height,
+            texels_per_metre: inputs.atlas.texels_per_metre,
+            padding: inputs.atlas.padding,
+            surface_texels: inputs.atlas.receivers.len(),
+            utilization: inputs.atlas.utilization,
+            rgbm_range: lightmap_range,
+        }),
         vertices: light.len(),
         triangles: meshes.triangle_count(),
         point_lights: frame.medium.lights.len(),

@@ -10,6 +10,11 @@ use glam::DVec3;
 use std::f64::consts::PI;
 
 fn frame_of(ron: &str, overrides: &[&str]) -> FrameInputs {
+    evaluated(ron, overrides).1
+}
+
+/// The bake's evaluation of a project, and its frame.
+fn evaluated(ron: &str, overrides: &[&str]) -> (crate::engine::Evaluation, FrameInputs, String) {
     let mut project = Project::from_ron(ron, Path::new("test.ron")).unwrap();
     for o in overrides {
         project.apply_override(o).unwrap();
@@ -21,11 +26,11 @@ fn frame_of(ron: &str, overrides: &[&str]) -> FrameInputs {
         engine.evaluate_request(&graph, &bake_request(&graph, &output), &CancelToken::default(), None, &|_, _| {});
     let frame = FrameInputs::gather(&evaluation, &graph, &output).unwrap();
     assert!(frame.pending.is_none(), "{:?}", frame.pending);
-    frame
+    (evaluation, frame, output)
 }
 
-fn default_frame(overrides: &[&str]) -> FrameInputs {
-    frame_of(&crate::project::default_project().to_ron(), overrides)
+fn default_evaluated(overrides: &[&str]) -> (crate::engine::Evaluation, FrameInputs, String) {
+    evaluated(&crate::project::default_project().to_ron(), overrides)
 }
 
 const LAMP_OVER_BALL: &str = r#"(
@@ -93,8 +98,8 @@ fn point_lights_bake_as_inverse_square_cosine_with_shadows() {
 }
 
 /// Each mode's baked environment light against Monte Carlo irradiance (MIS, shadow rays) at
-/// 240 random vertices of the default scene (sky with a sun, objects on a floor): the
-/// relative L1 error over those vertices. Tolerances are each mode's own accuracy: the
+/// 240 random vertices and 240 random lightmap texels of the default scene (sky with a sun,
+/// objects on a floor): the relative L1 error over those points. Tolerances are each mode's own accuracy: the
 /// unshadowed SH mode against unshadowed irradiance (9–25 coefficients of a sun), the
 /// shadowed modes against shadowed irradiance.
 #[test]
@@ -103,10 +108,22 @@ fn each_modes_vertex_light_matches_monte_carlo_irradiance() {
     for (mode, shadowed, tolerance) in
         [("sh_irradiance", false, 0.08), ("sh_prt", true, 0.15), ("wavelet_vertex", true, 0.08)]
     {
-        let frame = default_frame(&[&format!("output.mode={mode}")]);
-        let light = vertex_light::vertex_light(&frame, None).unwrap();
+        let (evaluation, frame, output) = default_evaluated(&[&format!("output.mode={mode}")]);
+        let lightmap = LightmapInputs::gather(&evaluation, &output).unwrap();
+        let mut light = vertex_light::vertex_light(&frame, None).unwrap();
         let meshes = frame.geometry.meshes.value.get::<crate::mesh::MeshSet>().unwrap();
-        let points = vertex_light::vertex_points(meshes);
+        let mut points = vertex_light::vertex_points(meshes);
+        let vertices = points.len();
+        light.extend(
+            vertex_light::texel_light(&frame, lightmap.atlas, lightmap.texel_sh, lightmap.texel_products, None)
+                .unwrap(),
+        );
+        let r = &lightmap.atlas.receivers;
+        points.extend((0..r.len()).map(|i| vertex_light::SurfacePoint {
+            position: r.point(i).0,
+            normal: r.point(i).1,
+            tangent: DVec3::from(r.tangents[i].map(f64::from)),
+        }));
         let cube = frame.background.radiance.as_ref().unwrap().value.get::<crate::cubemap::CubeMap>().unwrap();
         let sampler = crate::reference::EnvironmentSampler::new(cube);
         let empty = crate::raycast::RayScene::build(&crate::mesh::MeshSet { meshes: vec![] });
@@ -117,8 +134,8 @@ fn each_modes_vertex_light_matches_monte_carlo_irradiance() {
         };
         let mut rng = rand::rngs::SmallRng::seed_from_u64(11);
         let (mut diff, mut total, mut unshadowed_diff) = (0.0, 0.0, 0.0);
-        for _ in 0..240 {
-            let i = rng.random_range(0..points.len());
+        for k in 0..480 {
+            let i = if k < 240 { rng.random_range(0..vertices) } else { rng.random_range(vertices..points.len()) };
             let p = points[i];
             let e = crate::reference::irradiance(occluders, &sampler, p.position, p.normal, 512, &mut rng) / PI;
             let got = DVec3::from(light[i].map(f64::from));
@@ -149,8 +166,8 @@ fn the_glb_reads_back_with_world_positions_light_lights_and_camera() {
     let frame = frame_of(&ron, &[]);
     let scene = frame.ray_scene.as_ref().unwrap().value.get::<crate::raycast::RayScene>().unwrap();
     let light = vertex_light::vertex_light(&frame, Some(scene)).unwrap();
-    let baked = bake(&frame, Some(baked_camera()), &|_, _| {}).unwrap();
-    let again = bake(&frame, Some(baked_camera()), &|_, _| {}).unwrap();
+    let baked = bake(&frame, None, Some(baked_camera()), &|_, _| {}).unwrap();
+    let again = bake(&frame, None, Some(baked_camera()), &|_, _| {}).unwrap();
     assert_eq!(baked.files[0].bytes, again.files[0].bytes, "the same frame gives the same bytes");
     assert_eq!(baked.manifest_bytes(), again.manifest_bytes());
 
@@ -207,7 +224,7 @@ fn baked_camera() -> gltf_export::ExportCamera {
 #[test]
 fn writes_are_whole_or_nothing() {
     let frame = frame_of(LAMP_OVER_BALL, &[]);
-    let baked = bake(&frame, None, &|_, _| {}).unwrap();
+    let baked = bake(&frame, None, None, &|_, _| {}).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("out");
     write_atomically(&baked, &out).unwrap();
@@ -222,4 +239,127 @@ fn writes_are_whole_or_nothing() {
     assert!(write_atomically(&baked, &blocked).is_err());
     assert_eq!(std::fs::read(&blocked).unwrap(), b"x");
     assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 2);
+}
+
+/// The atlas: no texel centre lies strictly inside two triangles (charts never overlap),
+/// texels of different meshes are at least twice the padding apart, and the texels cover the
+/// surfaces at the density asked for.
+#[test]
+fn lightmap_charts_do_not_overlap_and_keep_their_padding() {
+    let (evaluation, frame, output) =
+        default_evaluated(&["output.mode=sh_irradiance", "output.bake_lightmap_density=24"]);
+    let atlas = LightmapInputs::gather(&evaluation, &output).unwrap().atlas;
+    let meshes = frame.geometry.meshes.value.get::<crate::mesh::MeshSet>().unwrap();
+    let (w, h) = (atlas.width as usize, atlas.height as usize);
+    let mut hits = vec![0u32; w * h];
+    let mut owner = vec![u32::MAX; w * h];
+    for (m, a) in atlas.meshes.iter().enumerate() {
+        for tri in a.indices.chunks_exact(3) {
+            let uv = [0, 1, 2].map(|k| {
+                let p = a.uvs[tri[k] as usize];
+                [p[0] as f64 * w as f64, p[1] as f64 * h as f64]
+            });
+            let edge =
+                |a: [f64; 2], b: [f64; 2], p: [f64; 2]| (b[0] - a[0]) * (p[1] - a[1]) - (b[1] - a[1]) * (p[0] - a[0]);
+            let lo = |c: usize, n: usize| {
+                uv.iter().map(|p| p[c]).fold(f64::MAX, f64::min).floor().clamp(0.0, n as f64) as usize
+            };
+            let hi = |c: usize, n: usize| {
+                uv.iter().map(|p| p[c]).fold(f64::MIN, f64::max).ceil().clamp(0.0, n as f64) as usize
+            };
+            for y in lo(1, h)..hi(1, h) {
+                for x in lo(0, w)..hi(0, w) {
+                    let p = [x as f64 + 0.5, y as f64 + 0.5];
+                    let e = [edge(uv[0], uv[1], p), edge(uv[1], uv[2], p), edge(uv[2], uv[0], p)];
+                    if e.iter().all(|&v| v > 1e-6) || e.iter().all(|&v| v < -1e-6) {
+                        hits[y * w + x] += 1;
+                        owner[y * w + x] = m as u32;
+                    }
+                }
+            }
+        }
+    }
+    assert!(hits.iter().all(|&n| n <= 1), "a texel centre lies strictly inside two triangles");
+    let pad = atlas.padding as i64;
+    for i in 0..w * h {
+        if owner[i] == u32::MAX {
+            continue;
+        }
+        let (x, y) = ((i % w) as i64, (i / w) as i64);
+        for dy in -2 * pad + 1..2 * pad {
+            for dx in -2 * pad + 1..2 * pad {
+                let (nx, ny) = (x + dx, y + dy);
+                if nx >= 0 && ny >= 0 && nx < w as i64 && ny < h as i64 {
+                    let o = owner[ny as usize * w + nx as usize];
+                    assert!(o == u32::MAX || o == owner[i], "meshes {} and {o} closer than the padding", owner[i]);
+                }
+            }
+        }
+    }
+    // Texels on surfaces ≈ area × density² (charts are near-isometric).
+    let area: f64 = meshes
+        .meshes
+        .iter()
+        .map(|m| {
+            m.indices
+                .chunks_exact(3)
+                .map(|t| {
+                    let p = [0, 1, 2].map(|k| DVec3::from(m.positions[t[k] as usize].map(f64::from)));
+                    (p[1] - p[0]).cross(p[2] - p[0]).length() / 2.0
+                })
+                .sum::<f64>()
+        })
+        .sum();
+    let expected = area * 24.0f64.powi(2);
+    let ratio = atlas.receivers.len() as f64 / expected;
+    assert!((0.8..1.25).contains(&ratio), "{} texels for {expected:.0} expected", atlas.receivers.len());
+}
+
+#[test]
+fn rgbm_round_trips_within_its_quantisation() {
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand::rngs::SmallRng::seed_from_u64(3);
+    let values: Vec<[f32; 3]> = (0..10_000).map(|_| [0, 1, 2].map(|_| rng.random::<f32>().powi(3) * 6.0)).collect();
+    let range = gltf_export::vertex_light_scale(&values);
+    assert_eq!(range, 8.0);
+    for (v, p) in values.iter().zip(lightmap::encode_rgbm(&values, range)) {
+        let d = lightmap::decode_rgbm(p, range);
+        let peak = v.iter().fold(0.0f32, |m, &c| m.max(c));
+        // Half a step of the 8-bit channel at the texel's multiplier.
+        let step = range * f32::from(p[3]) / 255.0 / 255.0;
+        for c in 0..3 {
+            assert!((d[c] - v[c]).abs() <= 0.5 * step + 1e-6, "{v:?} -> {d:?}");
+        }
+        assert!(f32::from(p[3]) / 255.0 * range >= peak - 1e-6);
+    }
+}
+
+/// The lightmap in the GLB: TEXCOORD_1 on every mesh, and the embedded PNG decodes (by the
+/// `gltf` crate's importer) to the EXR's values within RGBM's quantisation.
+#[test]
+fn the_glb_carries_the_lightmap_and_its_uvs() {
+    let (evaluation, frame, output) = default_evaluated(&["output.mode=sh_irradiance"]);
+    let lightmap = LightmapInputs::gather(&evaluation, &output).unwrap();
+    let baked = bake(&frame, Some(&lightmap), None, &|_, _| {}).unwrap();
+    let glb = &baked.files.iter().find(|f| f.name == SCENE_FILE).unwrap().bytes;
+    let (document, buffers, images) = gltf::import_slice(glb).unwrap();
+    for mesh in document.meshes() {
+        let primitive = mesh.primitives().next().unwrap();
+        let reader = primitive.reader(|b| Some(&buffers[b.index()]));
+        let uvs: Vec<[f32; 2]> = reader.read_tex_coords(1).expect("TEXCOORD_1").into_f32().collect();
+        assert!(uvs.iter().flatten().all(|c| (0.0..=1.0).contains(c)));
+    }
+    let image = &images[0];
+    let m = baked.manifest.lightmap.as_ref().unwrap();
+    assert_eq!((image.width, image.height), (m.width, m.height));
+    let exr = image::load_from_memory(&baked.files.iter().find(|f| f.name == LIGHTMAP_EXR).unwrap().bytes)
+        .unwrap()
+        .into_rgb32f();
+    for (i, px) in image.pixels.chunks_exact(4).enumerate() {
+        let d = lightmap::decode_rgbm([px[0], px[1], px[2], px[3]], m.rgbm_range);
+        for c in 0..3 {
+            let e = exr.as_raw()[i * 3 + c];
+            assert!((d[c] - e).abs() <= m.rgbm_range / 255.0, "texel {i}: {d:?} vs {e}");
+        }
+    }
 }

@@ -49,28 +49,115 @@ pub fn vertex_points(meshes: &MeshSet) -> Vec<SurfacePoint> {
 pub fn vertex_light(frame: &FrameInputs, shadows: Option<&RayScene>) -> Result<Vec<[f32; 3]>, String> {
     let meshes = frame.geometry.meshes.value.expect::<MeshSet>().map_err(|e| e.to_string())?;
     let points = vertex_points(meshes);
-    let mut light = environment_light(frame, &points)?;
-    if let Some(area) = &frame.area_lights {
-        let e =
-            area.irradiance.value.expect::<crate::kinds::output_area::AreaIrradiance>().map_err(|e| e.to_string())?;
-        for (out, e) in light.iter_mut().zip(&e.irradiance) {
-            for c in 0..3 {
-                out[c] += f64::from(e[c]) / PI;
-            }
+    let environment = match &frame.surfaces {
+        Surfaces::Prt(s) => {
+            Transport::Sh(s.transport.value.expect::<crate::transport::ShTransport>().map_err(|e| e.to_string())?)
+        }
+        Surfaces::Wavelet(s) => Transport::Products(
+            s.products.value.expect::<crate::triple_product::LocalProducts>().map_err(|e| e.to_string())?,
+        ),
+        _ => Transport::None,
+    };
+    let mut light = environment_light(frame, &points, environment)?;
+    if let Some(area) = area_light(frame)? {
+        add(&mut light, &area);
+    }
+    add_point_lights(frame, &points, shadows, &mut light)?;
+    Ok(finish(light))
+}
+
+/// `E / π` per texel of `atlas`, as [`vertex_light`] computes it per vertex: the environment
+/// from the texels' own transport (`texel_sh` in the SH transfer modes, `texel_products` in
+/// the wavelet modes), point lights with a shadow ray per texel. What has no per-texel
+/// transport is interpolated from the vertices: the square-light mode's visibility and the
+/// area lights.
+pub fn texel_light(
+    frame: &FrameInputs,
+    atlas: &super::lightmap::LightmapAtlas,
+    texel_sh: Option<&crate::transport::ShTransport>,
+    texel_products: Option<&crate::triple_product::LocalProducts>,
+    shadows: Option<&RayScene>,
+) -> Result<Vec<[f32; 3]>, String> {
+    let meshes = frame.geometry.meshes.value.expect::<MeshSet>().map_err(|e| e.to_string())?;
+    let r = &atlas.receivers;
+    let points: Vec<SurfacePoint> = (0..r.len())
+        .map(|i| {
+            let (position, normal) = r.point(i);
+            SurfacePoint { position, normal, tangent: DVec3::from(r.tangents[i].map(f64::from)) }
+        })
+        .collect();
+    let mut light = match (&frame.surfaces, texel_sh, texel_products) {
+        (Surfaces::Prt(_), Some(t), _) => environment_light(frame, &points, Transport::Sh(t))?,
+        (Surfaces::Prt(_), None, _) => return Err("the lightmap's SH transport was not evaluated".into()),
+        (Surfaces::Wavelet(_), _, Some(p)) => environment_light(frame, &points, Transport::Products(p))?,
+        (Surfaces::Wavelet(_), _, None) => return Err("the lightmap's wavelet products were not evaluated".into()),
+        (Surfaces::Irradiance(_), _, _) => environment_light(frame, &points, Transport::None)?,
+        (Surfaces::Rsl(_), _, _) => {
+            let vertices = environment_light(frame, &vertex_points(meshes), Transport::None)?;
+            widen(&atlas.interpolate(meshes, &finish(vertices)))
+        }
+    };
+    if let Some(area) = area_light(frame)? {
+        add(&mut light, &widen(&atlas.interpolate(meshes, &finish(area))));
+    }
+    add_point_lights(frame, &points, shadows, &mut light)?;
+    Ok(finish(light))
+}
+
+/// Per receiver: what the mode's environment light is read from.
+enum Transport<'a> {
+    /// The frame's own data (unshadowed SH, or the square lights' per-vertex visibility).
+    None,
+    Sh(&'a crate::transport::ShTransport),
+    Products(&'a crate::triple_product::LocalProducts),
+}
+
+fn add(light: &mut [[f64; 3]], more: &[[f64; 3]]) {
+    for (out, m) in light.iter_mut().zip(more) {
+        for c in 0..3 {
+            out[c] += m[c];
         }
     }
+}
+
+fn widen(values: &[[f32; 3]]) -> Vec<[f64; 3]> {
+    values.iter().map(|v| v.map(f64::from)).collect()
+}
+
+fn finish(light: Vec<[f64; 3]>) -> Vec<[f32; 3]> {
+    light.into_iter().map(|l| l.map(|c| c.max(0.0) as f32)).collect()
+}
+
+/// The area lights' `E / π` per vertex, once their transport is evaluated.
+fn area_light(frame: &FrameInputs) -> Result<Option<Vec<[f64; 3]>>, String> {
+    let Some(area) = &frame.area_lights else { return Ok(None) };
+    let e = area.irradiance.value.expect::<crate::kinds::output_area::AreaIrradiance>().map_err(|e| e.to_string())?;
+    Ok(Some(e.irradiance.iter().map(|e| e.map(|c| f64::from(c) / PI)).collect()))
+}
+
+fn add_point_lights(
+    frame: &FrameInputs,
+    points: &[SurfacePoint],
+    shadows: Option<&RayScene>,
+    light: &mut [[f64; 3]],
+) -> Result<(), String> {
     let point_lights = PointLightShading::new(frame)?;
-    light.par_iter_mut().zip(&points).for_each(|(out, p)| {
+    light.par_iter_mut().zip(points).for_each(|(out, p)| {
         let add = point_lights.light(p, shadows);
         for c in 0..3 {
             out[c] += add[c];
         }
     });
-    Ok(light.into_iter().map(|l| l.map(|c| c.max(0.0) as f32)).collect())
+    Ok(())
 }
 
-/// The environment's share of `E / π` at each point, per the frame's mode.
-fn environment_light(frame: &FrameInputs, points: &[SurfacePoint]) -> Result<Vec<[f64; 3]>, String> {
+/// The environment's share of `E / π` at each point, per the frame's mode, from `transport`
+/// (one entry per point).
+fn environment_light(
+    frame: &FrameInputs,
+    points: &[SurfacePoint],
+    transport: Transport,
+) -> Result<Vec<[f64; 3]>, String> {
     let fog = frame.medium.fog.as_ref().and_then(|f| f.environment.as_ref().map(|e| (f, e)));
     // The wavelet and square-light modes cannot convolve their light: fog attenuates it and
     // adds the glow's (unshadowed) irradiance, as `fog_shade` does.
@@ -80,14 +167,20 @@ fn environment_light(frame: &FrameInputs, points: &[SurfacePoint]) -> Result<Vec
             if medium.scatter_onto_surfaces { sh_irradiance(&env.scattered.irradiance(), normal) } else { [0.0; 3] };
         std::array::from_fn(|c| light[c] * env.fog.attenuation[c] + glow[c] / PI)
     };
-    Ok(match &frame.surfaces {
-        Surfaces::Irradiance(s) => match &s.irradiance {
+    Ok(match (&frame.surfaces, transport) {
+        (Surfaces::Irradiance(s), _) => match &s.irradiance {
             Some(e) => points.par_iter().map(|p| sh_irradiance(e, p.normal).map(|c| c / PI)).collect(),
             None => vec![[0.0; 3]; points.len()],
         },
-        Surfaces::Prt(s) => {
-            let t = s.transport.value.expect::<crate::transport::ShTransport>().map_err(|e| e.to_string())?;
+        (Surfaces::Prt(s), Transport::Sh(t)) => {
             let n = t.bands * t.bands;
+            if t.transfer.len() != points.len() * n {
+                return Err(format!(
+                    "the SH transport covers {} of {} points",
+                    t.transfer.len() / n.max(1),
+                    points.len()
+                ));
+            }
             match &s.light {
                 Some(light) => (0..points.len())
                     .into_par_iter()
@@ -96,9 +189,15 @@ fn environment_light(frame: &FrameInputs, points: &[SurfacePoint]) -> Result<Vec
                 None => vec![[0.0; 3]; points.len()],
             }
         }
-        Surfaces::Wavelet(s) => {
-            let p = s.products.value.expect::<crate::triple_product::LocalProducts>().map_err(|e| e.to_string())?;
+        (Surfaces::Wavelet(s), Transport::Products(p)) => {
             let cells = p.cells;
+            if p.values.len() != points.len() * cells * 3 {
+                return Err(format!(
+                    "the wavelet products cover {} of {} points",
+                    p.values.len() / (cells * 3).max(1),
+                    points.len()
+                ));
+            }
             points
                 .par_iter()
                 .enumerate()
@@ -114,10 +213,13 @@ fn environment_light(frame: &FrameInputs, points: &[SurfacePoint]) -> Result<Vec
                 })
                 .collect()
         }
-        Surfaces::Rsl(s) => {
+        (Surfaces::Rsl(s), _) => {
             let v = s.visibility.value.expect::<crate::rsl::shade::LightVisibility>().map_err(|e| e.to_string())?;
             let cosine = lambert_sat();
             let k = v.lights;
+            if v.values.len() != points.len() * k {
+                return Err("the square-light visibility does not cover the points".into());
+            }
             points
                 .par_iter()
                 .enumerate()
@@ -138,6 +240,7 @@ fn environment_light(frame: &FrameInputs, points: &[SurfacePoint]) -> Result<Vec
                 })
                 .collect()
         }
+        _ => return Err("the mode's transport does not match its surfaces".into()),
     })
 }
 

@@ -10,6 +10,7 @@ pub mod lights;
 pub mod output;
 mod output_adaptive;
 pub mod output_area;
+mod output_bake;
 pub use output_adaptive::AdaptiveError;
 pub mod rsl;
 pub mod scene;

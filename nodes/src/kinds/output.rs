@@ -198,6 +198,7 @@ pub fn spec() -> NodeKindSpec {
         ]
         .into_iter()
         .chain(super::output_adaptive::params())
+        .chain(super::output_bake::params())
         .collect(),
         stages: [
             StageSpec {
@@ -273,6 +274,7 @@ pub fn spec() -> NodeKindSpec {
         .into_iter()
         .chain(super::output_adaptive::stages())
         .chain(super::output_area::stages())
+        .chain(super::output_bake::stages())
         .collect(),
         previews: Vec::new(),
         availability: Availability::Ready,

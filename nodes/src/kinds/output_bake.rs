@@ -1,0 +1,152 @@
+//! The Output's bake settings and the stages only a bake pulls (see [`crate::bake`]): the
+//! lightmap atlas and its texels' own transport, computed like the vertices' in the Output's
+//! mode. Cached like every stage, so a second bake after an edit recomputes only what the edit
+//! touched (a material edit no transport, a light move no atlas).
+
+use crate::engine::{Codec, StageContext, StageError, StageValue};
+use crate::node_kind::{ParamKind, ParamSpec, StageSpec};
+
+pub fn params() -> Vec<ParamSpec> {
+    vec![
+        ParamSpec {
+            name: "bake_lightmap_density",
+            label: "Lightmap texels per metre",
+            unit: "1/m",
+            kind: ParamKind::Float { min: 0.5, max: 1024.0, default: 16.0 },
+            doc: "Bake: lightmap resolution on the scene's surfaces (the same everywhere). The lightmap is at most \
+                  4096 texels a side; each texel gets its own shadow transport in the mode, so the bake's cost \
+                  grows with the square of this.",
+        },
+        ParamSpec {
+            name: "bake_lightmap_padding",
+            label: "Lightmap padding",
+            unit: "texels",
+            kind: ParamKind::Int { min: 1, max: 16, default: 2 },
+            doc: "Bake: empty texels around each lightmap chart (filled with the chart's edge light), so \
+                  filtering and mipmaps do not bleed between charts.",
+        },
+    ]
+}
+
+pub fn stages() -> Vec<StageSpec> {
+    vec![
+        StageSpec {
+            name: "bake_atlas",
+            version: 1,
+            params: &["bake_lightmap_density", "bake_lightmap_padding"],
+            stages: &[],
+            inputs: &[("scene", "geometry")],
+            persist: None,
+            compute: bake_atlas,
+        },
+        StageSpec {
+            name: "bake_texel_sh",
+            version: 1,
+            params: &[],
+            stages: &["bake_atlas"],
+            inputs: &[("scene", "ray_scene"), ("scene", "transport_sh")],
+            persist: Some(Codec::of::<crate::transport::ShTransport>()),
+            compute: bake_texel_sh,
+        },
+        StageSpec {
+            name: "bake_texel_local",
+            version: 1,
+            params: &[],
+            stages: &["bake_atlas"],
+            inputs: &[("scene", "ray_scene"), ("scene", "transport_local")],
+            persist: Some(Codec::of::<crate::transport::SphericalTransport>()),
+            compute: bake_texel_local,
+        },
+        StageSpec {
+            name: "bake_texel_products",
+            version: 1,
+            params: &["wavelet_terms"],
+            stages: &["bake_atlas", "bake_texel_local"],
+            inputs: &[("environment", "radiance"), ("environment", "rotation")],
+            persist: None,
+            compute: bake_texel_products,
+        },
+    ]
+}
+
+fn bake_atlas(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let meshes = ctx.required_input::<crate::mesh::MeshSet>("scene", "geometry")?;
+    let density = ctx.float("bake_lightmap_density")? as f32;
+    let padding = ctx.int("bake_lightmap_padding")? as u32;
+    let cancel = ctx.cancel_token();
+    let atlas = crate::bake::lightmap::LightmapAtlas::build(meshes, density, padding, &|f| {
+        ctx.progress(f);
+        !cancel.is_cancelled()
+    });
+    ctx.check_cancel()?;
+    let atlas = atlas.map_err(StageError::Failed)?;
+    ctx.inform(format!(
+        "lightmap {}×{} at {:.1} texels/m: {} texels on surfaces ({:.0}% of the page)",
+        atlas.width,
+        atlas.height,
+        atlas.texels_per_metre,
+        atlas.receivers.len(),
+        atlas.utilization * 100.0
+    ));
+    Ok(StageValue::new(atlas))
+}
+
+/// The texels' SH transport, with the vertices' bands and rays.
+fn bake_texel_sh(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let atlas = ctx.stage::<crate::bake::lightmap::LightmapAtlas>("bake_atlas")?;
+    let scene = ctx.required_input::<crate::raycast::RayScene>("scene", "ray_scene")?;
+    let vertices = ctx.required_input::<crate::transport::ShTransport>("scene", "transport_sh")?;
+    super::scene::check_ray_budget(atlas.receivers.len(), vertices.rays, "the lightmap's texels per metre")?;
+    Ok(StageValue::new(crate::transport::sh_transport(
+        scene,
+        &atlas.receivers,
+        vertices.bands,
+        vertices.rays,
+        ctx.cancel_token(),
+        &|f| ctx.progress(f),
+    )?))
+}
+
+/// The texels' local-frame visibility, at the vertices' depth and terms.
+fn bake_texel_local(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let atlas = ctx.stage::<crate::bake::lightmap::LightmapAtlas>("bake_atlas")?;
+    let scene = ctx.required_input::<crate::raycast::RayScene>("scene", "ray_scene")?;
+    let vertices = ctx.required_input::<crate::transport::SphericalTransport>("scene", "transport_local")?;
+    let depth = vertices.depth;
+    super::scene::check_ray_budget(
+        atlas.receivers.len(),
+        20 << (2 * depth.min(20)),
+        "the lightmap's texels per metre",
+    )?;
+    Ok(StageValue::new(crate::transport::spherical_transport(
+        scene,
+        &atlas.receivers,
+        depth,
+        vertices.keep,
+        ctx.cancel_token(),
+        &|f| ctx.progress(f),
+    )?))
+}
+
+/// The texels' triple products with the environment (as `local_products` per vertex).
+fn bake_texel_products(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let atlas = ctx.stage::<crate::bake::lightmap::LightmapAtlas>("bake_atlas")?;
+    let transport = ctx.stage::<crate::transport::SphericalTransport>("bake_texel_local")?;
+    let terms: usize =
+        ctx.choice("wavelet_terms")?.parse().map_err(|_| StageError::Internal("wavelet_terms".into()))?;
+    let grid = crate::triple_product::CellGrid::for_coefficients(terms).map_err(StageError::Failed)?;
+    let (Some(environment), Some(rotation)) = (
+        ctx.input::<crate::cubemap::CubeMap>("environment", "radiance")?,
+        ctx.input::<glam::DMat3>("environment", "rotation")?,
+    ) else {
+        return Ok(StageValue::new(crate::triple_product::LocalProducts::default()));
+    };
+    let lighting = crate::triple_product::Lighting { environment, rotation: *rotation, table: None };
+    Ok(StageValue::new(crate::triple_product::local_products(
+        grid,
+        &lighting,
+        &atlas.receivers,
+        transport,
+        ctx.cancel_token(),
+    )?))
+}

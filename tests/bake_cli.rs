@@ -1,5 +1,6 @@
 //! `lightloom bake` through the real binary: every exported file passes the Khronos
-//! glTF-Validator (npm `gltf-validator`, run with Node) with no errors or warnings; the same
+//! glTF-Validator (npm `gltf-validator`, run with Node) with no errors or warnings; three.js
+//! in headless Chromium draws the baked lighting as Lightloom's own picture of it; the same
 //! project gives the same bytes; a failed or cancelled bake leaves the folder as it was.
 
 use std::path::{Path, PathBuf};
@@ -26,14 +27,18 @@ fn bake(project: &Path, out: &Path, extra: &[&str]) -> std::process::Output {
     command.output().unwrap()
 }
 
-/// The validator's Node package, installed from `tools/package.json` on first use (`.ci/run`
-/// installs it up front). Fails loudly without Node or npm.
-fn validator() -> PathBuf {
+/// The Node packages (validator, three.js, puppeteer-core), installed from
+/// `tools/package.json` on first use (`.ci/run` installs them up front). Fails loudly without
+/// Node or npm.
+fn tools() -> PathBuf {
     static READY: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
     READY
         .get_or_init(|| {
             let tools = repo().join("tools");
-            if !tools.join("node_modules/gltf-validator").exists() {
+            let installed = ["gltf-validator", "three", "puppeteer-core"]
+                .iter()
+                .all(|p| tools.join("node_modules").join(p).exists());
+            if !installed {
                 let status = Command::new("npm")
                     .args(["ci", "--no-audit", "--no-fund", "--prefix"])
                     .arg(&tools)
@@ -41,7 +46,7 @@ fn validator() -> PathBuf {
                     .expect("npm is needed to install the glTF validator: install nodejs and npm (.ci/run does)");
                 assert!(status.success(), "npm ci in tools/ failed");
             }
-            tools.join("validate_gltf.mjs")
+            tools
         })
         .clone()
 }
@@ -49,7 +54,7 @@ fn validator() -> PathBuf {
 /// The validator's report on `file`: (errors, warnings, messages that are errors or warnings).
 fn validate(file: &Path) -> (u64, u64, Vec<String>) {
     let out = Command::new("node")
-        .arg(validator())
+        .arg(tools().join("validate_gltf.mjs"))
         .arg(file)
         .output()
         .expect("node is needed to run the glTF validator: install nodejs (.ci/run does)");
@@ -140,4 +145,89 @@ fn ctrl_c_cancels_a_bake_and_writes_nothing() {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && stderr.contains("cancelled"), "{stderr}");
     assert!(!out_dir.join("scene.glb").exists());
+}
+
+/// Linear RGB pixels three.js drew (rows top to bottom) and which show a surface.
+fn three_js_picture(bake: &Path, variant: &str, (w, h): (usize, usize)) -> (Vec<[f32; 3]>, Vec<bool>) {
+    let out = Command::new("node")
+        .arg(tools().join("threejs/shoot.mjs"))
+        .arg(bake)
+        .args([variant, &w.to_string(), &h.to_string()])
+        .output()
+        .expect("node is needed to drive three.js in Chromium: install nodejs and chromium (.ci/run does)");
+    assert!(out.status.success(), "three.js in Chromium ({variant}): {}", String::from_utf8_lossy(&out.stderr));
+    let result: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let bytes = base64::decode(result["pixels"].as_str().unwrap()).unwrap();
+    let floats: Vec<f32> = bytes.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
+    assert_eq!(floats.len(), w * h * 4);
+    let mut pixels = vec![[0.0; 3]; w * h];
+    let mut surface = vec![false; w * h];
+    for y in 0..h {
+        // WebGL reads rows bottom to top.
+        for x in 0..w {
+            let p = &floats[((h - 1 - y) * w + x) * 4..][..4];
+            pixels[y * w + x] = [p[0], p[1], p[2]];
+            surface[y * w + x] = p[3] > 0.5;
+        }
+    }
+    (pixels, surface)
+}
+
+/// Relative RMSE `‖a − b‖ / ‖b‖` over pixels inside surfaces, leaving out silhouettes
+/// against the background (a neighbour differs), where a rasteriser and a ray through the
+/// pixel centre may see different things. Edges between two objects stay in: they are most of
+/// the remaining error (the mean ratio of the pictures is 1.000).
+fn relative_rmse(a: &[[f32; 3]], b: &[[f32; 3]], surface: &[bool], (w, h): (usize, usize)) -> (f64, usize) {
+    let (mut diff, mut norm, mut count) = (0.0, 0.0, 0);
+    for y in 1..h - 1 {
+        for x in 1..w - 1 {
+            let i = y * w + x;
+            let inside = (-1i64..=1)
+                .all(|dy| (-1i64..=1).all(|dx| surface[(y as i64 + dy) as usize * w + (x as i64 + dx) as usize]));
+            if !inside {
+                continue;
+            }
+            for c in 0..3 {
+                diff += f64::from(a[i][c] - b[i][c]).powi(2);
+                norm += f64::from(b[i][c]).powi(2);
+            }
+            count += 1;
+        }
+    }
+    ((diff / norm).sqrt(), count)
+}
+
+/// three.js (npm `three`, GLTFLoader, in headless Chromium with SwiftShader) loads the baked
+/// default scene and draws its baked lighting from the glTF camera, per vertex (`COLOR_0`) and
+/// from the lightmap (the RGBM texture decoded in three's own lightmap path): both match
+/// Lightloom's own picture of the same bake (`--preview`) within 2% relative RMSE over surface
+/// pixels. The vertex and lightmap pictures differ from each other by far more, so the
+/// metric sees which light was drawn.
+#[test]
+fn three_js_draws_the_bake_as_lightloom_does() {
+    let dir = temp_dir("threejs");
+    let size = (320, 180);
+    let out = bake(&repo().join("projects/default.ron"), &dir, &["--no-disk-cache", "-q", "--preview", "320x180"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let ours = |name: &str| -> Vec<[f32; 3]> {
+        let image = image::open(dir.join(name)).unwrap().into_rgb32f();
+        image.as_raw().chunks_exact(3).map(|p| [p[0], p[1], p[2]]).collect()
+    };
+    let (vertex_ours, lightmap_ours) = (ours("preview_vertex.exr"), ours("preview_lightmap.exr"));
+    let mut errors = Vec::new();
+    for (variant, reference) in [("vertex", &vertex_ours), ("lightmap", &lightmap_ours)] {
+        let (theirs, surface) = three_js_picture(&dir, variant, size);
+        let (error, pixels) = relative_rmse(&theirs, reference, &surface, size);
+        eprintln!("three.js {variant}: relative RMSE {error:.4} over {pixels} surface pixels");
+        assert!(pixels > 20_000, "{variant}: only {pixels} surface pixels compared");
+        assert!(error < 0.02, "{variant}: three.js differs from Lightloom's picture by {error:.4}");
+        errors.push(error);
+    }
+    let surface = vec![true; size.0 * size.1];
+    let (between, _) = relative_rmse(&vertex_ours, &lightmap_ours, &surface, size);
+    eprintln!("vertex against lightmap: {between:.4}");
+    assert!(
+        between > 3.0 * errors[0].max(errors[1]),
+        "the variants differ by {between}: the metric cannot tell them apart"
+    );
 }

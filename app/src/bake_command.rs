@@ -25,6 +25,10 @@ pub struct BakeArgs {
     /// Output node id [default: the only Output node].
     #[arg(long)]
     pub output_node: Option<String>,
+    /// Also write Lightloom's own pictures of the baked lighting from the camera, WIDTHxHEIGHT
+    /// (preview_vertex.exr, preview_lightmap.exr: albedo × baked light, unlit, linear).
+    #[arg(long, value_name = "WIDTHxHEIGHT", value_parser = parse_size)]
+    pub preview: Option<(usize, usize)>,
     #[command(flatten)]
     pub eval: EvalOptions,
 }
@@ -74,7 +78,15 @@ pub fn run(args: &BakeArgs) -> Result<()> {
         aspect: f64::from(project.render.width) / f64::from(project.render.height.max(1)),
     };
     let lightmap = bake::LightmapInputs::gather(&evaluation, &output).map_err(|e| anyhow!(e))?;
-    let baked = bake::bake(&frame, Some(&lightmap), Some(export_camera), &|what, fraction| {
+    let preview = args.preview.map(|size| bake::PreviewRequest {
+        camera: lightloom_nodes::reference::PinholeCamera {
+            position: camera.position.into(),
+            target: camera.target.into(),
+            fov_y_deg: camera.fov_y_deg,
+        },
+        size,
+    });
+    let baked = bake::bake(&frame, Some(&lightmap), Some(export_camera), preview, &|what, fraction| {
         bar.set_message(what.to_string());
         bar.set_position((fraction * 1000.0) as u64);
     })
@@ -119,4 +131,14 @@ pub fn run(args: &BakeArgs) -> Result<()> {
         println!("total {}", duration_text(started.elapsed().as_secs_f64()));
     }
     Ok(())
+}
+
+/// `WIDTHxHEIGHT`, each 1..=8192.
+fn parse_size(text: &str) -> Result<(usize, usize), String> {
+    let (w, h) = text.split_once('x').ok_or("expected WIDTHxHEIGHT, e.g. 640x360")?;
+    let parse = |v: &str| match v.trim().parse::<usize>() {
+        Ok(n) if (1..=8192).contains(&n) => Ok(n),
+        _ => Err(format!("`{v}` is not a size from 1 to 8192")),
+    };
+    Ok((parse(w)?, parse(h)?))
 }

@@ -1,12 +1,13 @@
 // Serves the repository's tools/ and a bake folder over HTTP, opens the three.js page in
-// headless Chromium and prints the page's result (JSON) on stdout. Fails loudly (exit 1)
-// when Chromium cannot start or the page reports an error.
+// headless Chromium (puppeteer-core driving the system's `chromium`, or $CHROMIUM) and prints
+// the page's result (JSON) on stdout. Fails loudly (exit 1) when Chromium cannot start or the
+// page reports an error.
 // Usage: node tools/threejs/shoot.mjs BAKE_DIR vertex|lightmap WIDTH HEIGHT
 import http from "node:http";
 import path from "node:path";
 import { readFile } from "node:fs/promises";
-import { execFile } from "node:child_process";
 import { fileURLToPath } from "node:url";
+import puppeteer from "puppeteer-core";
 
 const [bakeDir, variant, width, height] = process.argv.slice(2);
 const root = path.resolve(path.dirname(fileURLToPath(import.meta.url)), "../..");
@@ -27,26 +28,33 @@ const server = http.createServer(async (req, res) => {
 });
 await new Promise((resolve) => server.listen(0, "127.0.0.1", resolve));
 const page = `http://127.0.0.1:${server.address().port}/tools/threejs/view.html?variant=${variant}&width=${width}&height=${height}`;
-const browser = process.env.CHROMIUM ?? "chromium";
-const args = ["--headless", "--no-sandbox", "--disable-gpu-sandbox", "--use-angle=swiftshader",
-  "--enable-unsafe-swiftshader", "--ignore-gpu-blocklist", "--virtual-time-budget=60000",
-  "--run-all-compositor-stages-before-draw", "--dump-dom", page];
-execFile(browser, args, { maxBuffer: 1 << 28, timeout: 240000 }, (error, stdout, stderr) => {
-  server.close();
-  const match = /<pre id="result">([\s\S]*?)<\/pre>/.exec(stdout);
-  if (error && !match) {
-    console.error(`Chromium (${browser}) failed to start or run: ${error.message}\n${stderr.slice(-2000)}`);
-    process.exit(1);
-  }
-  if (!match || match[1] === "pending") {
-    console.error(`the page did not finish:\n${stderr.slice(-2000)}`);
-    process.exit(1);
-  }
-  const text = match[1].replace(/&quot;/g, '"').replace(/&amp;/g, "&");
+const executablePath = process.env.CHROMIUM ?? "/usr/bin/chromium";
+let browser;
+try {
+  browser = await puppeteer.launch({
+    executablePath,
+    headless: true,
+    args: ["--no-sandbox", "--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--ignore-gpu-blocklist"],
+  });
+} catch (error) {
+  console.error(`Chromium (${executablePath}) failed to start: ${error.message}`);
+  process.exit(1);
+}
+try {
+  const tab = await browser.newPage();
+  const logs = [];
+  tab.on("console", (m) => logs.push(m.text()));
+  tab.on("pageerror", (e) => logs.push(String(e)));
+  await tab.goto(page);
+  await tab.waitForFunction(() => document.getElementById("result").textContent !== "pending", { timeout: 240000 });
+  const text = await tab.$eval("#result", (e) => e.textContent);
   const result = JSON.parse(text);
-  if (result.error) {
-    console.error(`the page failed: ${result.error}`);
-    process.exit(1);
-  }
+  if (result.error) throw new Error(`the page failed: ${result.error}\n${logs.join("\n")}`);
   process.stdout.write(text + "\n");
-});
+} catch (error) {
+  console.error(String(error.message ?? error));
+  process.exitCode = 1;
+} finally {
+  await browser.close();
+  server.close();
+}

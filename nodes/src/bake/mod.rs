@@ -182,11 +182,20 @@ impl<'a> LightmapInputs<'a> {
     }
 }
 
+/// Lightloom's own pictures of the baked lighting ([`baked_render`]), written beside the
+/// bake as `preview_vertex.exr` and `preview_lightmap.exr` (linear radiance).
+#[derive(Clone, Copy, Debug)]
+pub struct PreviewRequest {
+    pub camera: crate::reference::PinholeCamera,
+    pub size: (usize, usize),
+}
+
 /// Turns an evaluated frame into the bake's files. `camera` is the project's render camera.
 pub fn bake(
     frame: &FrameInputs,
     lightmap_inputs: Option<&LightmapInputs>,
     camera: Option<gltf_export::ExportCamera>,
+    preview: Option<PreviewRequest>,
     progress: &dyn Fn(&str, f64),
 ) -> Result<Bake, String> {
     let meshes = frame.geometry.meshes.value.expect::<crate::mesh::MeshSet>().map_err(|e| e.to_string())?;
@@ -207,16 +216,46 @@ pub fn bake(
     let mut files = Vec::new();
     let mut lightmap_png = Vec::new();
     let mut lightmap_range = 1.0;
+    let mut lightmap_image = Vec::new();
     if let Some(inputs) = lightmap_inputs {
         progress("lightmap", 0.3);
         let start = std::time::Instant::now();
         let texels = vertex_light::texel_light(frame, inputs.atlas, inputs.texel_sh, inputs.texel_products, shadows)?;
         let image = inputs.atlas.image(&texels);
+        lightmap_image = image.clone();
         let (w, h) = (inputs.atlas.width, inputs.atlas.height);
         lightmap_range = gltf_export::vertex_light_scale(&image);
         lightmap_png = lightmap::png_bytes(&lightmap::encode_rgbm(&image, lightmap_range), w, h)?;
         files.push(BakedFile { name: LIGHTMAP_EXR.into(), bytes: lightmap::exr_bytes(&image, w, h)? });
         timed("lightmap", start);
+    }
+
+    if let (Some(request), Some(scene)) = (preview, shadows) {
+        progress("previews", 0.5);
+        let start = std::time::Instant::now();
+        // The glTF's base colours: albedo × the mesh's colour, clamped to 0..1.
+        let albedo: Vec<[f32; 3]> = meshes
+            .meshes
+            .iter()
+            .enumerate()
+            .map(|(i, m)| {
+                let a = frame.mesh_material(i).albedo;
+                std::array::from_fn(|c| (a[c] * f64::from(m.base_color[c])).clamp(0.0, 1.0) as f32)
+            })
+            .collect();
+        let mut pictures = vec![("preview_vertex.exr", baked_render::BakedLight::Vertex(&light))];
+        if let Some(inputs) = lightmap_inputs {
+            pictures.push((
+                "preview_lightmap.exr",
+                baked_render::BakedLight::Lightmap { atlas: inputs.atlas, image: &lightmap_image },
+            ));
+        }
+        for (name, light) in pictures {
+            let picture = baked_render::render(meshes, scene, &albedo, &light, &request.camera, request.size);
+            let (w, h) = (request.size.0 as u32, request.size.1 as u32);
+            files.push(BakedFile { name: name.into(), bytes: lightmap::exr_bytes(&picture.pixels, w, h)? });
+        }
+        timed("previews", start);
     }
 
     progress("scene.glb", 0.6);

@@ -166,8 +166,8 @@ fn the_glb_reads_back_with_world_positions_light_lights_and_camera() {
     let frame = frame_of(&ron, &[]);
     let scene = frame.ray_scene.as_ref().unwrap().value.get::<crate::raycast::RayScene>().unwrap();
     let light = vertex_light::vertex_light(&frame, Some(scene)).unwrap();
-    let baked = bake(&frame, None, Some(baked_camera()), &|_, _| {}).unwrap();
-    let again = bake(&frame, None, Some(baked_camera()), &|_, _| {}).unwrap();
+    let baked = bake(&frame, None, Some(baked_camera()), None, &|_, _| {}).unwrap();
+    let again = bake(&frame, None, Some(baked_camera()), None, &|_, _| {}).unwrap();
     assert_eq!(baked.files[0].bytes, again.files[0].bytes, "the same frame gives the same bytes");
     assert_eq!(baked.manifest_bytes(), again.manifest_bytes());
 
@@ -224,7 +224,7 @@ fn baked_camera() -> gltf_export::ExportCamera {
 #[test]
 fn writes_are_whole_or_nothing() {
     let frame = frame_of(LAMP_OVER_BALL, &[]);
-    let baked = bake(&frame, None, None, &|_, _| {}).unwrap();
+    let baked = bake(&frame, None, None, None, &|_, _| {}).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("out");
     write_atomically(&baked, &out).unwrap();
@@ -340,7 +340,7 @@ fn rgbm_round_trips_within_its_quantisation() {
 fn the_glb_carries_the_lightmap_and_its_uvs() {
     let (evaluation, frame, output) = default_evaluated(&["output.mode=sh_irradiance"]);
     let lightmap = LightmapInputs::gather(&evaluation, &output).unwrap();
-    let baked = bake(&frame, Some(&lightmap), None, &|_, _| {}).unwrap();
+    let baked = bake(&frame, Some(&lightmap), None, None, &|_, _| {}).unwrap();
     let glb = &baked.files.iter().find(|f| f.name == SCENE_FILE).unwrap().bytes;
     let (document, buffers, images) = gltf::import_slice(glb).unwrap();
     for mesh in document.meshes() {

@@ -6,8 +6,10 @@ use anyhow::{Result, anyhow, bail};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use lightloom_nodes::bake::{self, gltf_export::ExportCamera};
-use lightloom_nodes::engine::{CancelToken, StageStatus};
+use lightloom_nodes::engine::{CancelToken, Evaluation, Graph, StageStatus};
 use lightloom_nodes::kinds::output::{FrameInputs, find_output};
+use lightloom_nodes::project::{Camera, Project};
+use std::path::Path;
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex, OnceLock};
 use std::time::Instant;
@@ -60,42 +62,15 @@ pub fn run(args: &BakeArgs) -> Result<()> {
     if cancelled() {
         bail!("bake cancelled; {} is unchanged", args.out.display());
     }
-    fail_on_errors(&evaluation, &upstream_of(&graph, &output))?;
-    let frame = FrameInputs::gather(&evaluation, &graph, &output).map_err(|e| anyhow!(e))?;
-    if let Some(pending) = &frame.pending {
-        bail!("the bake needs the mode's transport: {pending}");
-    }
-
     let bar = if args.eval.quiet { ProgressBar::hidden() } else { ProgressBar::new(1000) };
     bar.set_style(
         ProgressStyle::with_template("{spinner} baking {msg} [{bar:30}] {percent}%").unwrap().progress_chars("=> "),
     );
-    let export_camera = ExportCamera {
-        name: camera.name.clone(),
-        position: camera.position,
-        target: camera.target,
-        fov_y_deg: camera.fov_y_deg,
-        aspect: f64::from(project.render.width) / f64::from(project.render.height.max(1)),
-    };
-    let lightmap = bake::LightmapInputs::gather(&evaluation, &output).map_err(|e| anyhow!(e))?;
-    let preview = args.preview.map(|size| bake::PreviewRequest {
-        camera: lightloom_nodes::reference::PinholeCamera {
-            position: camera.position.into(),
-            target: camera.target.into(),
-            fov_y_deg: camera.fov_y_deg,
-        },
-        size,
-    });
-    let baked = bake::bake(&frame, Some(&lightmap), Some(export_camera), preview, &|what, fraction| {
+    let baked = finish(&evaluation, &graph, &output, &project, &camera, args.preview, &args.out, &|what, fraction| {
         bar.set_message(what.to_string());
         bar.set_position((fraction * 1000.0) as u64);
-    })
-    .map_err(|e| anyhow!(e))?;
+    })?;
     bar.finish_and_clear();
-    if cancelled() {
-        bail!("bake cancelled; {} is unchanged", args.out.display());
-    }
-    bake::write_atomically(&baked, &args.out).map_err(|e| anyhow!("writing into {}: {e}", args.out.display()))?;
 
     if !args.eval.quiet {
         let m = &baked.manifest;
@@ -117,6 +92,17 @@ pub fn run(args: &BakeArgs) -> Result<()> {
         println!("files:");
         for (name, bytes) in &m.files {
             println!("  {name:<20} {:>10} bytes", bytes);
+        }
+        if let Some(l) = &m.lightmap {
+            println!(
+                "lightmap {}×{} at {:.1} texels/m, {} surface texels ({:.0}% of the page), RGBM range {}",
+                l.width,
+                l.height,
+                l.texels_per_metre,
+                l.surface_texels,
+                l.utilization * 100.0,
+                l.rgbm_range
+            );
         }
         for mat in &m.materials {
             println!(
@@ -141,4 +127,43 @@ fn parse_size(text: &str) -> Result<(usize, usize), String> {
         _ => Err(format!("`{v}` is not a size from 1 to 8192")),
     };
     Ok((parse(w)?, parse(h)?))
+}
+
+/// After the bake's evaluation: checks it, turns it into files and writes them into `out`
+/// whole (the CLI and the editor's File → Bake… share this).
+#[allow(clippy::too_many_arguments)]
+pub fn finish(
+    evaluation: &Evaluation,
+    graph: &Graph,
+    output: &str,
+    project: &Project,
+    camera: &Camera,
+    preview: Option<(usize, usize)>,
+    out: &Path,
+    progress: &dyn Fn(&str, f64),
+) -> Result<bake::Bake> {
+    fail_on_errors(evaluation, &upstream_of(graph, output))?;
+    let frame = FrameInputs::gather(evaluation, graph, output).map_err(|e| anyhow!(e))?;
+    if let Some(pending) = &frame.pending {
+        bail!("the bake needs the mode's transport: {pending}");
+    }
+    let export_camera = ExportCamera {
+        name: camera.name.clone(),
+        position: camera.position,
+        target: camera.target,
+        fov_y_deg: camera.fov_y_deg,
+        aspect: f64::from(project.render.width) / f64::from(project.render.height.max(1)),
+    };
+    let preview = preview.map(|size| bake::PreviewRequest {
+        camera: lightloom_nodes::reference::PinholeCamera {
+            position: camera.position.into(),
+            target: camera.target.into(),
+            fov_y_deg: camera.fov_y_deg,
+        },
+        size,
+    });
+    let lightmap = bake::LightmapInputs::gather(evaluation, output).map_err(|e| anyhow!(e))?;
+    let baked = bake::bake(&frame, Some(&lightmap), Some(export_camera), preview, progress).map_err(|e| anyhow!(e))?;
+    bake::write_atomically(&baked, out).map_err(|e| anyhow!("writing into {}: {e}", out.display()))?;
+    Ok(baked)
 }

@@ -278,6 +278,10 @@ impl EditorApp {
             self.image_dialog = None;
             self.render_image_to(path);
         }
+        if let Some(path) = self.bake_dialog.as_mut().and_then(|d| d.update(ctx).picked().map(PathBuf::from)) {
+            self.bake_dialog = None;
+            self.bake_to(path);
+        }
         self.file_dialog.update(ctx);
         let asset = self.asset_dialog.as_mut().and_then(|d| d.update(ctx).picked().map(PathBuf::from));
         if let Some(path) = self.file_dialog.take_picked().or(asset) {

@@ -110,6 +110,14 @@ impl EditorApp {
                     self.render_image_dialog();
                     ui.close();
                 }
+                let bake = ui.add_enabled(self.bake.is_none(), egui::Button::new("Bake…")).on_hover_text(
+                    "bake the Output's lighting for game engines into a folder: scene.glb (light per vertex and \
+                         a lightmap), lightmap.exr and bake.json",
+                );
+                if bake.clicked() {
+                    self.bake_dialog();
+                    ui.close();
+                }
                 ui.separator();
                 if ui.button("Quit").clicked() {
                     ui.ctx().send_viewport_cmd(egui::ViewportCommand::Close);
@@ -204,6 +212,7 @@ impl EditorApp {
                 let took = crate::project_commands::duration_text(job.started.elapsed().as_secs_f64());
                 ui.label(format!("rendering {} ({took})", job.path.display()));
             }
+            self.bake_status(ui);
             if let Some(job) = &self.view.reference {
                 ui.separator();
                 ui.add(

@@ -5,6 +5,7 @@
 //! bottom with the problems/log/timings panel above it; inspector on the right; graph on
 //! the left; viewport in the centre.
 
+mod bake;
 pub mod document;
 pub mod edits;
 mod files;
@@ -222,6 +223,10 @@ pub struct EditorApp {
     image_dialog: Option<egui_file_dialog::FileDialog>,
     /// A render of the view to an image file, while it runs.
     image_render: Option<files::ImageRender>,
+    /// The Bake… folder dialog, while open.
+    bake_dialog: Option<egui_file_dialog::FileDialog>,
+    /// A bake, while it runs.
+    bake: Option<bake::BakeJob>,
     file_action: Option<FileAction>,
     pending: Option<Pending>,
     close_confirmed: bool,
@@ -388,6 +393,8 @@ impl EditorApp {
             asset_dialog: None,
             image_dialog: None,
             image_render: None,
+            bake_dialog: None,
+            bake: None,
             file_action: None,
             pending: None,
             close_confirmed: false,
@@ -475,6 +482,7 @@ impl EditorApp {
 
         self.dialogs(&ctx);
         self.poll_image_render(&ctx);
+        self.poll_bake(&ctx);
         if !ctx.input(|i| i.pointer.any_down()) {
             self.doc.seal();
         }

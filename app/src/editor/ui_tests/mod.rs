@@ -10,6 +10,7 @@ use std::path::Path;
 
 mod adaptive;
 mod area_light;
+mod bake;
 mod blockers;
 mod fitted_spheres;
 

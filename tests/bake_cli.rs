@@ -88,7 +88,7 @@ fn baked_scenes_pass_the_khronos_validator_and_are_deterministic() {
         let second = dir.join(format!("{name}-2"));
         let out = bake(project, &second, &["--no-disk-cache", "-q"]);
         assert!(out.status.success());
-        for file in ["scene.glb", "bake.json"] {
+        for file in ["scene.glb", "bake.json", "lightmap.exr", "probes.json", "probes.bin"] {
             assert!(
                 std::fs::read(first.join(file)).unwrap() == std::fs::read(second.join(file)).unwrap(),
                 "{name}: {file} differs between two bakes"

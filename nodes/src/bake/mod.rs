@@ -14,6 +14,7 @@ pub mod baked_render;
 pub mod gltf_export;
 pub mod lightmap;
 pub mod material_fit;
+pub mod probes;
 pub mod vertex_light;
 
 use crate::engine::Evaluation;
@@ -25,6 +26,9 @@ use std::path::Path;
 
 /// The glTF file a bake writes.
 pub const SCENE_FILE: &str = "scene.glb";
+/// The SH probe grid: layout and conventions, and the numbers.
+pub const PROBES_JSON: &str = "probes.json";
+pub const PROBES_BIN: &str = "probes.bin";
 /// The lightmap as linear float RGB (`E/π`), beside the GLB.
 pub const LIGHTMAP_EXR: &str = "lightmap.exr";
 /// The manifest: conventions, settings, the materials' fits and the files, as JSON.
@@ -42,6 +46,7 @@ pub fn bake_request(graph: &Graph, output: &str) -> Request {
         stages.push(StageRef::new(output, "area_irradiance"));
     }
     stages.push(StageRef::new(output, "bake_atlas"));
+    stages.push(StageRef::new(output, "bake_probes"));
     match mode {
         Mode::ShPrt | Mode::ShAdaptive => stages.push(StageRef::new(output, "bake_texel_sh")),
         Mode::WaveletVertex | Mode::WaveletPixel => stages.push(StageRef::new(output, "bake_texel_products")),
@@ -81,6 +86,8 @@ pub struct Manifest {
     /// What `COLOR_0` is multiplied by to give `E/π`.
     pub vertex_light_scale: f32,
     pub lightmap: Option<ManifestLightmap>,
+    /// Probes along x, y, z and their spacing (m), when baked.
+    pub probes: Option<([usize; 3], f64)>,
     pub vertices: usize,
     pub triangles: usize,
     pub point_lights: usize,
@@ -151,14 +158,15 @@ pub struct ManifestMaterial {
     pub fit_error: f64,
 }
 
-/// The lightmap's stages from a bake's evaluation ([`bake_request`]).
-pub struct LightmapInputs<'a> {
+/// The bake's own stages from its evaluation ([`bake_request`]).
+pub struct BakedStages<'a> {
+    pub probes: Option<&'a probes::ProbeGrid>,
     pub atlas: &'a lightmap::LightmapAtlas,
     pub texel_sh: Option<&'a crate::transport::ShTransport>,
     pub texel_products: Option<&'a crate::triple_product::LocalProducts>,
 }
 
-impl<'a> LightmapInputs<'a> {
+impl<'a> BakedStages<'a> {
     /// Reads them from `evaluation` of the Output node `output`.
     pub fn gather(evaluation: &'a Evaluation, output: &str) -> Result<Self, String> {
         fn get<'e, T: crate::engine::StageType>(
@@ -175,6 +183,7 @@ impl<'a> LightmapInputs<'a> {
             }
         }
         Ok(Self {
+            probes: get(evaluation, output, "bake_probes")?,
             atlas: get(evaluation, output, "bake_atlas")?.ok_or("the lightmap atlas was not evaluated")?,
             texel_sh: get(evaluation, output, "bake_texel_sh")?,
             texel_products: get(evaluation, output, "bake_texel_products")?,
@@ -193,7 +202,7 @@ pub struct PreviewRequest {
 /// Turns an evaluated frame into the bake's files. `camera` is the project's render camera.
 pub fn bake(
     frame: &FrameInputs,
-    lightmap_inputs: Option<&LightmapInputs>,
+    lightmap_inputs: Option<&BakedStages>,
     camera: Option<gltf_export::ExportCamera>,
     preview: Option<PreviewRequest>,
     progress: &dyn Fn(&str, f64),
@@ -258,6 +267,12 @@ pub fn bake(
         timed("previews", start);
     }
 
+    if let Some(grid) = lightmap_inputs.and_then(|i| i.probes) {
+        let (json, bin) = probes::files(grid);
+        files.push(BakedFile { name: PROBES_JSON.into(), bytes: json });
+        files.push(BakedFile { name: PROBES_BIN.into(), bytes: bin });
+    }
+
     progress("scene.glb", 0.6);
     let start = std::time::Instant::now();
     let materials: Vec<(String, crate::kinds::brdf::Material)> =
@@ -308,6 +323,7 @@ pub fn bake(
             utilization: inputs.atlas.utilization,
             rgbm_range: lightmap_range,
         }),
+        probes: lightmap_inputs.and_then(|i| i.probes).map(|g| (g.counts, g.spacing)),
         vertices: light.len(),
         triangles: meshes.triangle_count(),
         point_lights: frame.medium.lights.len(),

@@ -25,6 +25,21 @@ pub fn params() -> Vec<ParamSpec> {
             doc: "Bake: empty texels around each lightmap chart (filled with the chart's edge light), so \
                   filtering and mipmaps do not bleed between charts.",
         },
+        ParamSpec {
+            name: "bake_probe_spacing",
+            label: "Probe spacing",
+            unit: "m",
+            kind: ParamKind::Float { min: 0.05, max: 1000.0, default: 1.0 },
+            doc: "Bake: distance between the SH light probes of the grid over the scene's bounds (for lighting \
+                  dynamic objects in a game engine).",
+        },
+        ParamSpec {
+            name: "bake_probe_bands",
+            label: "Probe SH bands",
+            unit: "",
+            kind: ParamKind::Int { min: 1, max: 5, default: 3 },
+            doc: "Bake: SH bands per probe (3 = L2, 9 coefficients, what Unity and Godot use).",
+        },
     ]
 }
 
@@ -38,6 +53,20 @@ pub fn stages() -> Vec<StageSpec> {
             inputs: &[("scene", "geometry")],
             persist: None,
             compute: bake_atlas,
+        },
+        StageSpec {
+            name: "bake_probes",
+            version: 1,
+            params: &["bake_probe_spacing", "bake_probe_bands"],
+            stages: &[],
+            inputs: &[
+                ("scene", "geometry"),
+                ("scene", "ray_scene"),
+                ("environment", "rotated_radiance"),
+                ("lights", "lights"),
+            ],
+            persist: None,
+            compute: bake_probes,
         },
         StageSpec {
             name: "bake_texel_sh",
@@ -149,4 +178,28 @@ fn bake_texel_products(ctx: &StageContext) -> Result<StageValue, StageError> {
         transport,
         ctx.cancel_token(),
     )?))
+}
+
+/// The SH probe grid over the scene's bounds.
+fn bake_probes(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let meshes = ctx.required_input::<crate::mesh::MeshSet>("scene", "geometry")?;
+    let scene = ctx.required_input::<crate::raycast::RayScene>("scene", "ray_scene")?;
+    let environment = ctx.input::<crate::cubemap::CubeMap>("environment", "rotated_radiance")?;
+    let lights = ctx.input::<Vec<crate::kinds::lights::PointLight>>("lights", "lights")?;
+    let grid = crate::bake::probes::bake(
+        scene,
+        meshes.bounds(),
+        ctx.float("bake_probe_spacing")?,
+        ctx.int("bake_probe_bands")? as usize,
+        environment,
+        lights.map_or(&[], |l| l.as_slice()),
+        ctx.cancel_token(),
+        &|f| ctx.progress(f),
+    )?;
+    let invalid = grid.valid.iter().filter(|v| !**v).count();
+    ctx.inform(format!(
+        "{}×{}×{} probes every {} m ({invalid} inside geometry)",
+        grid.counts[0], grid.counts[1], grid.counts[2], grid.spacing
+    ));
+    Ok(StageValue::new(grid))
 }

@@ -65,7 +65,8 @@ fn evaluate_frame(engine: &Engine, graph: &Graph) -> Evaluation {
 
 /// `expected` with the bake's stages added by their design rule: the lightmap atlas follows
 /// the scene's geometry, the texels' transports follow the vertices' (same parameters, same
-/// scene), and the texels' wavelet products follow the vertices' products.
+/// scene), the texels' wavelet products follow the vertices' products, and the probes follow
+/// the geometry, the drawn environment and the point lights.
 fn with_bake(expected: &[&str]) -> BTreeSet<String> {
     let mut out = set(expected);
     for (vertex_stage, bake_stage) in [
@@ -77,6 +78,10 @@ fn with_bake(expected: &[&str]) -> BTreeSet<String> {
         if out.contains(vertex_stage) {
             out.insert(bake_stage.to_string());
         }
+    }
+    // The probes see the geometry, the environment as drawn and the point lights.
+    if out.iter().any(|s| s == "scene.geometry" || s.ends_with(".rotated_radiance") || s.ends_with(".lights")) {
+        out.insert("output.bake_probes".to_string());
     }
     out
 }
@@ -368,7 +373,7 @@ fn each_parameter_recomputes_exactly_its_stages() {
     graph.set_param("scene", "tessellation", Int(12)).unwrap();
     let first = engine.evaluate(&graph, &CancelToken::default(), None);
     assert!(first.report.failed().is_empty(), "{:?}", first.report.failed());
-    assert_eq!(first.report.computed().len(), 40);
+    assert_eq!(first.report.computed().len(), 41);
     let again = engine.evaluate(&graph, &CancelToken::default(), None);
     assert!(ran(&again.report).is_empty(), "an unchanged graph recomputed {:?}", ran(&again.report));
     for (node, param, value, expected) in table {
@@ -1283,7 +1288,7 @@ fn each_mode_and_view_evaluates_exactly_the_stages_it_reads() {
         for s in eval.report.stages.iter().filter(|s| s.status == StageStatus::NotNeeded) {
             assert!(s.reasons[0].contains(&format!("mode {mode}")), "{}.{}: {:?}", s.node, s.stage, s.reasons);
         }
-        assert_eq!(eval.report.stages.len(), 40, "every stage is reported");
+        assert_eq!(eval.report.stages.len(), 41, "every stage is reported");
     }
 }
 

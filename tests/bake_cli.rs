@@ -231,3 +231,33 @@ fn three_js_draws_the_bake_as_lightloom_does() {
         "the variants differ by {between}: the metric cannot tell them apart"
     );
 }
+
+/// The baked environment's SH (environment.json) against `lightloom sh` on the same HDRI, and
+/// the specular cube's KTX2 header as a reader expects it.
+#[test]
+fn baked_environment_sh_matches_lightloom_sh() {
+    let dir = temp_dir("environment");
+    let project = repo().join("projects/samples/glossy_courtyard.ron");
+    let out = bake(&project, &dir, &["-q", "--set", "output.mode=sh_irradiance"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let baked: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("environment.json")).unwrap()).unwrap();
+    let hdri = repo().join("../shared/assets/envmaps/courtyard.hdr");
+    let sh = lightloom().arg("sh").arg(&hdri).args(["--bands", "3", "--json"]).output().unwrap();
+    assert!(sh.status.success(), "{}", String::from_utf8_lossy(&sh.stderr));
+    let printed: serde_json::Value = serde_json::from_slice(&sh.stdout).unwrap();
+    let (ours, theirs) = (baked["sh"]["coefficients"].as_array().unwrap(), printed["coefficients"].as_array().unwrap());
+    assert_eq!(ours.len(), 9);
+    let scale = theirs[0]["rgb"][1].as_f64().unwrap();
+    for (a, b) in ours.iter().zip(theirs) {
+        assert_eq!((&a["l"], &a["m"]), (&b["l"], &b["m"]));
+        for c in 0..3 {
+            let (x, y) = (a["rgb"][c].as_f64().unwrap(), b["rgb"][c].as_f64().unwrap());
+            assert!((x - y).abs() < 0.005 * scale, "L{}{}: {x} vs {y}", a["l"], a["m"]);
+        }
+    }
+    let ktx = std::fs::read(dir.join("environment_specular.ktx2")).unwrap();
+    assert_eq!(&ktx[..12], &[0xAB, 0x4B, 0x54, 0x58, 0x20, 0x32, 0x30, 0xBB, 0x0D, 0x0A, 0x1A, 0x0A]);
+    assert_eq!(u32::from_le_bytes(ktx[12..16].try_into().unwrap()), 97, "VK_FORMAT_R16G16B16A16_SFLOAT");
+    assert_eq!(u32::from_le_bytes(ktx[36..40].try_into().unwrap()), 6, "six faces");
+}

@@ -11,6 +11,7 @@
 //! the evaluation into files, and [`write_atomically`] puts them in place.
 
 pub mod baked_render;
+pub mod environment;
 pub mod gltf_export;
 pub mod lightmap;
 pub mod material_fit;
@@ -26,6 +27,10 @@ use std::path::Path;
 
 /// The glTF file a bake writes.
 pub const SCENE_FILE: &str = "scene.glb";
+/// The environment for image-based lighting: its SH and the specular cube's conventions, and
+/// the GGX-prefiltered cube.
+pub const ENVIRONMENT_JSON: &str = "environment.json";
+pub const ENVIRONMENT_KTX2: &str = "environment_specular.ktx2";
 /// The SH probe grid: layout and conventions, and the numbers.
 pub const PROBES_JSON: &str = "probes.json";
 pub const PROBES_BIN: &str = "probes.bin";
@@ -47,6 +52,9 @@ pub fn bake_request(graph: &Graph, output: &str) -> Request {
     }
     stages.push(StageRef::new(output, "bake_atlas"));
     stages.push(StageRef::new(output, "bake_probes"));
+    if graph.upstream(output, "environment").is_some() {
+        stages.push(StageRef::new(output, "bake_environment"));
+    }
     match mode {
         Mode::ShPrt | Mode::ShAdaptive => stages.push(StageRef::new(output, "bake_texel_sh")),
         Mode::WaveletVertex | Mode::WaveletPixel => stages.push(StageRef::new(output, "bake_texel_products")),
@@ -161,6 +169,7 @@ pub struct ManifestMaterial {
 /// The bake's own stages from its evaluation ([`bake_request`]).
 pub struct BakedStages<'a> {
     pub probes: Option<&'a probes::ProbeGrid>,
+    pub environment: Option<&'a environment::EnvironmentBake>,
     pub atlas: &'a lightmap::LightmapAtlas,
     pub texel_sh: Option<&'a crate::transport::ShTransport>,
     pub texel_products: Option<&'a crate::triple_product::LocalProducts>,
@@ -184,6 +193,7 @@ impl<'a> BakedStages<'a> {
         }
         Ok(Self {
             probes: get(evaluation, output, "bake_probes")?,
+            environment: get(evaluation, output, "bake_environment")?,
             atlas: get(evaluation, output, "bake_atlas")?.ok_or("the lightmap atlas was not evaluated")?,
             texel_sh: get(evaluation, output, "bake_texel_sh")?,
             texel_products: get(evaluation, output, "bake_texel_products")?,
@@ -271,6 +281,14 @@ pub fn bake(
         let (json, bin) = probes::files(grid);
         files.push(BakedFile { name: PROBES_JSON.into(), bytes: json });
         files.push(BakedFile { name: PROBES_BIN.into(), bytes: bin });
+    }
+
+    if let Some(env) = lightmap_inputs.and_then(|i| i.environment) {
+        files.push(BakedFile {
+            name: ENVIRONMENT_JSON.into(),
+            bytes: environment::json_bytes(&env.sh, &env.cube, ENVIRONMENT_KTX2),
+        });
+        files.push(BakedFile { name: ENVIRONMENT_KTX2.into(), bytes: environment::ktx2_bytes(&env.cube) });
     }
 
     progress("scene.glb", 0.6);

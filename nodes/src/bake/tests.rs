@@ -484,3 +484,65 @@ fn interpolated_probes_light_a_moving_sphere_consistently() {
         }
     }
 }
+
+/// The specular cube's rough levels against brute-force GGX convolution of the environment
+/// (every texel, no sampling) at 24 random texels per level; the sun is what makes it hard.
+#[test]
+fn specular_cube_levels_match_brute_force_ggx_convolution() {
+    use rand::{Rng, SeedableRng};
+    let (evaluation, frame, output) = default_evaluated(&["output.mode=sh_irradiance", "output.bake_cube_size=64"]);
+    let env = BakedStages::gather(&evaluation, &output).unwrap().environment.unwrap();
+    let source = frame.background.radiance.as_ref().unwrap().value.get::<crate::cubemap::CubeMap>().unwrap();
+    let source = source.box_downsampled(64);
+    let levels = env.cube.levels.len();
+    assert!(levels >= 4, "{levels} levels");
+    let mut rng = rand::rngs::SmallRng::seed_from_u64(4);
+    for (m, level) in env.cube.levels.iter().enumerate().skip(1) {
+        let alpha = environment::level_roughness(m, levels).powi(2);
+        let (mut diff, mut total) = (0.0, 0.0);
+        for _ in 0..24 {
+            let i = rng.random_range(0..level.texels.len());
+            let n = level.size;
+            let dir = crate::cubemap::face_uv_to_dir(
+                i / (n * n),
+                ((i % n) as f64 + 0.5) / n as f64,
+                ((i / n % n) as f64 + 0.5) / n as f64,
+            );
+            let got = DVec3::from(level.texels[i].map(f64::from));
+            let expected = DVec3::from(environment::brute_force(&source, dir, alpha));
+            diff += (got - expected).abs().element_sum();
+            total += expected.element_sum();
+        }
+        let error = diff / total;
+        eprintln!("level {m} (roughness {:.2}): relative L1 error {error:.4}", environment::level_roughness(m, levels));
+        assert!(error < 0.03, "level {m}: {error}");
+    }
+}
+
+/// The KTX2 file read back by the `ktx2` crate: RGBA16F cube, every level's size, the data
+/// format descriptor's four float channels, and level 0's texels as written.
+#[test]
+fn the_specular_ktx2_reads_back() {
+    let (evaluation, _, output) = default_evaluated(&["output.mode=sh_irradiance", "output.bake_cube_size=32"]);
+    let env = BakedStages::gather(&evaluation, &output).unwrap().environment.unwrap();
+    let bytes = environment::ktx2_bytes(&env.cube);
+    let reader = ktx2::Reader::new(&bytes[..]).expect("a valid KTX2 file");
+    let header = reader.header();
+    assert_eq!(header.format, Some(ktx2::Format::R16G16B16A16_SFLOAT));
+    assert_eq!((header.face_count, header.pixel_width, header.pixel_height), (6, 32, 32));
+    assert_eq!(header.level_count as usize, env.cube.levels.len());
+    for (m, level) in reader.levels().enumerate() {
+        let size = 32usize >> m;
+        assert_eq!(level.data.len(), 6 * size * size * 8, "level {m}");
+    }
+    let block = reader.dfd_blocks().next().unwrap();
+    let basic = ktx2::DfdBlockBasic::parse(block.data).unwrap();
+    assert_eq!(basic.sample_information().count(), 4);
+    let level0 = reader.levels().next().unwrap().data;
+    for (i, t) in env.cube.levels[0].texels.iter().enumerate() {
+        for c in 0..3 {
+            let h = half::f16::from_le_bytes([level0[i * 8 + c * 2], level0[i * 8 + c * 2 + 1]]).to_f32();
+            assert!((h - t[c]).abs() <= 1e-3 * t[c].abs().max(1e-2), "texel {i}: {h} vs {}", t[c]);
+        }
+    }
+}

@@ -26,6 +26,13 @@ pub fn params() -> Vec<ParamSpec> {
                   filtering and mipmaps do not bleed between charts.",
         },
         ParamSpec {
+            name: "bake_cube_size",
+            label: "Specular cube size",
+            unit: "px",
+            kind: ParamKind::Choice { options: &["32", "64", "128", "256"], default: "128", labels: &[] },
+            doc: "Bake: face size of the GGX-prefiltered specular cube map (mip 0; each further mip is rougher).",
+        },
+        ParamSpec {
             name: "bake_probe_spacing",
             label: "Probe spacing",
             unit: "m",
@@ -67,6 +74,15 @@ pub fn stages() -> Vec<StageSpec> {
             ],
             persist: None,
             compute: bake_probes,
+        },
+        StageSpec {
+            name: "bake_environment",
+            version: 1,
+            params: &["bake_cube_size"],
+            stages: &[],
+            inputs: &[("environment", "rotated_radiance"), ("environment", "sh")],
+            persist: None,
+            compute: bake_environment,
         },
         StageSpec {
             name: "bake_texel_sh",
@@ -202,4 +218,17 @@ fn bake_probes(ctx: &StageContext) -> Result<StageValue, StageError> {
         grid.counts[0], grid.counts[1], grid.counts[2], grid.spacing
     ));
     Ok(StageValue::new(grid))
+}
+
+/// The environment's SH (L2) and its GGX-prefiltered specular cube.
+fn bake_environment(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let cube = ctx.required_input::<crate::cubemap::CubeMap>("environment", "rotated_radiance")?;
+    let sh = ctx.required_input::<crate::sh::ShRgb>("environment", "sh")?;
+    let size: usize =
+        ctx.choice("bake_cube_size")?.parse().map_err(|_| StageError::Internal("bake_cube_size".into()))?;
+    let bands = sh.bands.min(3);
+    let sh = crate::sh::ShRgb { bands, coeffs: sh.coeffs[..bands * bands].to_vec() };
+    let specular = crate::bake::environment::prefilter(cube, size, ctx.cancel_token())?;
+    ctx.inform(format!("specular cube {}² with {} roughness levels", specular.levels[0].size, specular.levels.len()));
+    Ok(StageValue::new(crate::bake::environment::EnvironmentBake { sh, cube: specular }))
 }

@@ -71,15 +71,18 @@ fn validate(file: &Path) -> (u64, u64, Vec<String>) {
     (issues["numErrors"].as_u64().unwrap(), issues["numWarnings"].as_u64().unwrap(), serious)
 }
 
-/// The default scene (sky with a sun, wavelet per-pixel mode) and the foggy street (point
-/// lights, fog, SH transfer): valid glTF, and the same bytes from a second bake that computes
-/// everything again.
+/// The default scene (sky with a sun, wavelet per-pixel mode), the foggy street (point
+/// lights, fog, SH transfer) and the square-light sample (its lights as directional lights):
+/// valid glTF, and the same bytes from a second bake that computes everything again.
 #[test]
 fn baked_scenes_pass_the_khronos_validator_and_are_deterministic() {
     let dir = temp_dir("valid");
     let street = repo().join("projects/samples/fog_street.ron");
     let default = repo().join("projects/default.ron");
-    for (name, project) in [("default", default.as_path()), ("street", street.as_path())] {
+    let squares = repo().join("projects/samples/square_lights.ron");
+    for (name, project) in
+        [("default", default.as_path()), ("street", street.as_path()), ("squares", squares.as_path())]
+    {
         let first = dir.join(format!("{name}-1"));
         let out = bake(project, &first, &["--no-disk-cache"]);
         assert!(out.status.success(), "{name}: {}", String::from_utf8_lossy(&out.stderr));
@@ -98,6 +101,10 @@ fn baked_scenes_pass_the_khronos_validator_and_are_deterministic() {
     let manifest: serde_json::Value =
         serde_json::from_slice(&std::fs::read(dir.join("street-1/bake.json")).unwrap()).unwrap();
     assert_eq!(manifest["point_lights"], 3);
+    let manifest: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("squares-1/bake.json")).unwrap()).unwrap();
+    assert_eq!(manifest["mode"], "rsl");
+    assert!(manifest["square_lights"].as_u64().unwrap() >= 10, "{}", manifest["square_lights"]);
 }
 
 /// A bake that fails (a missing environment file) writes nothing and says why.

@@ -26,6 +26,17 @@ pub struct ExportCamera {
     pub aspect: f64,
 }
 
+/// A distant light of finite size (a square light of the `rsl` mode).
+#[derive(Clone, Debug, PartialEq)]
+pub struct DirectionalLight {
+    /// Unit direction towards the light.
+    pub direction: [f64; 3],
+    /// Its solid angle, sr.
+    pub solid_angle: f64,
+    /// Its mean radiance.
+    pub radiance: [f64; 3],
+}
+
 /// What [`write_glb`] writes.
 pub struct ExportScene<'a> {
     pub meshes: &'a MeshSet,
@@ -36,6 +47,8 @@ pub struct ExportScene<'a> {
     /// `(name, material)` in the frame's order.
     pub materials: &'a [(String, crate::kinds::brdf::Material)],
     pub lights: &'a [PointLight],
+    /// The square-light mode's lights, written as directional lights.
+    pub directional: &'a [DirectionalLight],
     pub camera: Option<ExportCamera>,
     pub lightmap: Option<ExportLightmap<'a>>,
 }
@@ -372,6 +385,51 @@ pub fn write_glb(scene: &ExportScene) -> Result<Glb, String> {
                 extensions: Some(json::extensions::scene::Node {
                     khr_lights_punctual: Some(json::extensions::scene::khr_lights_punctual::KhrLightsPunctual {
                         light: json::Index::new(i as u32),
+                    }),
+                    ..Default::default()
+                }),
+                ..Default::default()
+            }));
+        }
+    }
+
+    // Square lights as KHR directional lights: intensity is the irradiance on a surface facing
+    // the light (radiance × solid angle, the "lux" of the extension in the project's units);
+    // its size goes into extras: solid angle and the radius of the cone of equal solid angle.
+    if !scene.directional.is_empty() {
+        use_extension("KHR_lights_punctual");
+        for (k, light) in scene.directional.iter().enumerate() {
+            use json::extensions::scene::khr_lights_punctual as punctual;
+            let index = AsRef::<[punctual::Light]>::as_ref(&root).len();
+            let peak = light.radiance.iter().fold(0.0f64, |m, &c| m.max(c));
+            let color = light.radiance.map(|c| if peak > 0.0 { (c / peak) as f32 } else { 1.0 });
+            let radius = (1.0 - light.solid_angle / (2.0 * std::f64::consts::PI)).clamp(-1.0, 1.0).acos();
+            let name = format!("square light {}", k + 1);
+            let lights: &mut Vec<punctual::Light> = root.as_mut();
+            lights.push(punctual::Light {
+                color,
+                extensions: None,
+                extras: Some(json_raw(&serde_json::json!({ "lightloom": {
+                    "baked": true,
+                    "solidAngle": light.solid_angle,
+                    "angularRadius": radius,
+                    "shape": "square",
+                } }))),
+                intensity: (peak * light.solid_angle) as f32,
+                name: Some(name.clone()),
+                range: None,
+                spot: None,
+                type_: Valid(punctual::Type::Directional),
+            });
+            // A directional light shines down its node's -Z: +Z points at the light.
+            let towards = DVec3::from(light.direction).normalize_or(DVec3::Y);
+            let rotation = DQuat::from_rotation_arc(DVec3::Z, towards);
+            nodes.push(root.push(json::Node {
+                name: Some(name),
+                rotation: Some(json::scene::UnitQuaternion(rotation.as_quat().normalize().to_array())),
+                extensions: Some(json::extensions::scene::Node {
+                    khr_lights_punctual: Some(json::extensions::scene::khr_lights_punctual::KhrLightsPunctual {
+                        light: json::Index::new(index as u32),
                     }),
                     ..Default::default()
                 }),

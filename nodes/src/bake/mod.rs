@@ -99,6 +99,8 @@ pub struct Manifest {
     pub vertices: usize,
     pub triangles: usize,
     pub point_lights: usize,
+    /// The square-light mode's lights, written as KHR directional lights.
+    pub square_lights: usize,
     pub timings: Vec<StageTime>,
     /// `(file, bytes)`; the manifest itself is not listed.
     pub files: Vec<(String, usize)>,
@@ -133,7 +135,10 @@ impl Default for Conventions {
                        interpolate the vertices' light)",
             point_lights: "KHR_lights_punctual intensity is the light's radiant intensity (W/sr) in the project's \
                            units; their diffuse light is already baked (extras.lightloom.baked = true), so add them \
-                           for specular only",
+                           for specular only. In the square-light mode each square light is a directional light \
+                           (intensity = radiance x solid angle, the irradiance facing it) with its solid angle and \
+                           the radius of the cone of equal solid angle in extras.lightloom; its diffuse light is \
+                           baked too",
         }
     }
 }
@@ -295,12 +300,25 @@ pub fn bake(
     let start = std::time::Instant::now();
     let materials: Vec<(String, crate::kinds::brdf::Material)> =
         frame.materials.iter().map(|m| (m.node.clone(), m.material.clone())).collect();
+    let directional: Vec<gltf_export::DirectionalLight> = match &frame.surfaces {
+        crate::frame::Surfaces::Rsl(s) => s
+            .lights
+            .iter()
+            .map(|l| gltf_export::DirectionalLight {
+                direction: [l[0], l[1], l[2]].map(f64::from),
+                solid_angle: f64::from(l[3]),
+                radiance: [l[4], l[5], l[6]].map(f64::from),
+            })
+            .collect(),
+        _ => Vec::new(),
+    };
     let glb = gltf_export::write_glb(&gltf_export::ExportScene {
         meshes,
         vertex_light: &light,
         mesh_materials: &frame.geometry.mesh_materials,
         materials: &materials,
         lights: &frame.medium.lights,
+        directional: &directional,
         camera,
         lightmap: lightmap_inputs.map(|inputs| gltf_export::ExportLightmap {
             atlas: inputs.atlas,
@@ -345,6 +363,7 @@ pub fn bake(
         vertices: light.len(),
         triangles: meshes.triangle_count(),
         point_lights: frame.medium.lights.len(),
+        square_lights: directional.len(),
         timings,
         files: files.iter().map(|f| (f.name.clone(), f.bytes.len())).collect(),
     };

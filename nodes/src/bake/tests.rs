@@ -546,3 +546,47 @@ fn the_specular_ktx2_reads_back() {
         }
     }
 }
+
+/// A square light as a KHR directional light read back by the `gltf` crate: it shines along
+/// its node's -Z away from the light's direction, with intensity radiance × solid angle and its
+/// size in extras.
+#[test]
+fn square_lights_export_as_directional_lights_with_their_size() {
+    let mesh = crate::mesh::Mesh {
+        name: "tri".into(),
+        positions: vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]],
+        normals: vec![[0.0, 1.0, 0.0]; 3],
+        indices: vec![0, 1, 2],
+        ..Default::default()
+    };
+    let meshes = crate::mesh::MeshSet { meshes: vec![mesh] };
+    let direction = DVec3::new(0.3, 0.8, -0.52).normalize();
+    let light = gltf_export::DirectionalLight {
+        direction: direction.to_array(),
+        solid_angle: 0.05,
+        radiance: [40.0, 20.0, 10.0],
+    };
+    let glb = gltf_export::write_glb(&gltf_export::ExportScene {
+        meshes: &meshes,
+        vertex_light: &[[0.5; 3]; 3],
+        mesh_materials: &[0],
+        materials: &[(String::new(), crate::kinds::brdf::Material::default())],
+        lights: &[],
+        directional: std::slice::from_ref(&light),
+        camera: None,
+        lightmap: None,
+    })
+    .unwrap();
+    let (document, _, _) = gltf::import_slice(&glb.bytes).unwrap();
+    let node = document.nodes().find(|n| n.light().is_some()).unwrap();
+    let l = node.light().unwrap();
+    assert!(matches!(l.kind(), gltf::khr_lights_punctual::Kind::Directional));
+    assert!((f64::from(l.intensity()) - 40.0 * 0.05).abs() < 1e-5);
+    let m = glam::Mat4::from_cols_array_2d(&node.transform().matrix());
+    let shines = m.transform_vector3(glam::Vec3::NEG_Z).as_dvec3();
+    assert!(shines.dot(-direction) > 0.99999, "{shines} against {}", -direction);
+    let extras: serde_json::Value = serde_json::from_str(l.extras().as_ref().unwrap().get()).unwrap();
+    let radius = extras["lightloom"]["angularRadius"].as_f64().unwrap();
+    // A cone of that radius has the light's solid angle.
+    assert!((2.0 * PI * (1.0 - radius.cos()) - 0.05).abs() < 1e-9);
+}

@@ -162,7 +162,7 @@ pub fn finish(
         },
         size,
     });
-    let lightmap = bake::LightmapInputs::gather(evaluation, output).map_err(|e| anyhow!(e))?;
+    let lightmap = bake::BakedStages::gather(evaluation, output).map_err(|e| anyhow!(e))?;
     let baked = bake::bake(&frame, Some(&lightmap), Some(export_camera), preview, progress).map_err(|e| anyhow!(e))?;
     bake::write_atomically(&baked, out).map_err(|e| anyhow!("writing into {}: {e}", out.display()))?;
     Ok(baked)

@@ -74,6 +74,21 @@ impl Receivers {
         self.positions.len()
     }
 
+    /// Adds a receiver inside triangle `corners` of `mesh` at barycentric weights `b`, with
+    /// the interpolated position, normal and tangent (`tangents` per vertex).
+    pub fn push_interpolated(
+        &mut self,
+        mesh: &crate::mesh::Mesh,
+        tangents: &[[f32; 3]],
+        corners: [usize; 3],
+        b: [f64; 3],
+    ) {
+        let lerp = |v: &[[f32; 3]]| (0..3).map(|k| DVec3::from(v[corners[k]].map(f64::from)) * b[k]).sum::<DVec3>();
+        self.positions.push(lerp(&mesh.positions).as_vec3().to_array());
+        self.normals.push(lerp(&mesh.normals).normalize_or(DVec3::Y).as_vec3().to_array());
+        self.tangents.push(lerp(tangents).normalize_or(DVec3::X).as_vec3().to_array());
+    }
+
     pub fn is_empty(&self) -> bool {
         self.positions.is_empty()
     }
@@ -91,6 +106,33 @@ impl Receivers {
         let t = DVec3::from(self.tangents[i].map(f64::from));
         let t = (t - n * n.dot(t)).try_normalize().unwrap_or_else(|| n.any_orthonormal_vector());
         DMat3::from_cols(t, n.cross(t), n)
+    }
+}
+
+/// Calls `visit(x, y, barycentric weights)` for every texel centre of a `width × height` grid
+/// that the triangle `uv` (in texels) covers, edges included; a degenerate triangle covers none.
+pub fn for_each_covered_texel(
+    uv: [[f64; 2]; 3],
+    (width, height): (usize, usize),
+    mut visit: impl FnMut(usize, usize, [f64; 3]),
+) {
+    let det = (uv[1][0] - uv[0][0]) * (uv[2][1] - uv[0][1]) - (uv[2][0] - uv[0][0]) * (uv[1][1] - uv[0][1]);
+    if det.abs() < 1e-12 {
+        return;
+    }
+    let lo =
+        |c: usize, n: usize| uv.iter().map(|p| p[c]).fold(f64::MAX, f64::min).floor().clamp(0.0, n as f64) as usize;
+    let hi = |c: usize, n: usize| uv.iter().map(|p| p[c]).fold(f64::MIN, f64::max).ceil().clamp(0.0, n as f64) as usize;
+    for y in lo(1, height)..hi(1, height) {
+        for x in lo(0, width)..hi(0, width) {
+            let (px, py) = (x as f64 + 0.5, y as f64 + 0.5);
+            let b1 = ((px - uv[0][0]) * (uv[2][1] - uv[0][1]) - (uv[2][0] - uv[0][0]) * (py - uv[0][1])) / det;
+            let b2 = ((uv[1][0] - uv[0][0]) * (py - uv[0][1]) - (px - uv[0][0]) * (uv[1][1] - uv[0][1])) / det;
+            let b0 = 1.0 - b1 - b2;
+            if b0 >= -1e-9 && b1 >= -1e-9 && b2 >= -1e-9 {
+                visit(x, y, [b0, b1, b2]);
+            }
+        }
     }
 }
 
@@ -118,39 +160,14 @@ impl TexelReceivers {
             let tangents = crate::mesh::vertex_tangents(mesh);
             let mut covered = vec![false; size * size];
             for t in mesh.indices.chunks_exact(3) {
-                let t: [u32; 3] = [t[0], t[1], t[2]];
-                let uv = t.map(|i| mesh.uvs[i as usize].map(|c| c as f64 * size as f64));
-                let det = (uv[1][0] - uv[0][0]) * (uv[2][1] - uv[0][1]) - (uv[2][0] - uv[0][0]) * (uv[1][1] - uv[0][1]);
-                if det.abs() < 1e-12 {
-                    continue;
-                }
-                let lo = |c: usize| (uv.iter().map(|p| p[c]).fold(f64::MAX, f64::min).floor().max(0.0)) as usize;
-                let hi = |c: usize| (uv.iter().map(|p| p[c]).fold(f64::MIN, f64::max).ceil().min(size as f64)) as usize;
-                for y in lo(1)..hi(1) {
-                    for x in lo(0)..hi(0) {
-                        if covered[y * size + x] {
-                            continue;
-                        }
-                        let (px, py) = (x as f64 + 0.5, y as f64 + 0.5);
-                        let b1 =
-                            ((px - uv[0][0]) * (uv[2][1] - uv[0][1]) - (uv[2][0] - uv[0][0]) * (py - uv[0][1])) / det;
-                        let b2 =
-                            ((uv[1][0] - uv[0][0]) * (py - uv[0][1]) - (px - uv[0][0]) * (uv[1][1] - uv[0][1])) / det;
-                        let b0 = 1.0 - b1 - b2;
-                        if b0 < -1e-9 || b1 < -1e-9 || b2 < -1e-9 {
-                            continue;
-                        }
-                        covered[y * size + x] = true;
-                        let lerp = |v: &[[f32; 3]]| {
-                            let at = |k: usize| DVec3::from(v[t[k] as usize].map(f64::from));
-                            at(0) * b0 + at(1) * b1 + at(2) * b2
-                        };
-                        out.receivers.positions.push(lerp(&mesh.positions).as_vec3().to_array());
-                        out.receivers.normals.push(lerp(&mesh.normals).normalize_or(DVec3::Y).as_vec3().to_array());
-                        out.receivers.tangents.push(lerp(&tangents).normalize_or(DVec3::X).as_vec3().to_array());
+                let corners = [t[0], t[1], t[2]].map(|i| i as usize);
+                let uv = corners.map(|i| mesh.uvs[i].map(|c| c as f64 * size as f64));
+                for_each_covered_texel(uv, (size, size), |x, y, b| {
+                    if !std::mem::replace(&mut covered[y * size + x], true) {
+                        out.receivers.push_interpolated(mesh, &tangents, corners, b);
                         out.texels.push((m as u32, x as u16, y as u16));
                     }
-                }
+                });
             }
         }
         out

@@ -5,6 +5,7 @@ use super::EditorApp;
 use eframe::egui;
 use lightloom_nodes::engine::{CancelToken, EvalEvent};
 use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 
 /// A bake in progress.
@@ -13,12 +14,16 @@ pub(super) struct BakeJob {
     pub started: std::time::Instant,
     /// What runs now and how far the whole bake is (0..1).
     pub progress: Arc<Mutex<(String, f64)>>,
+    /// The evaluation's token, once the bake's thread has started it.
     cancel: Arc<Mutex<CancelToken>>,
+    /// Set by Cancel, so a click before the evaluation starts, or after it ends, still counts.
+    cancel_requested: Arc<AtomicBool>,
     result: std::sync::mpsc::Receiver<Result<String, String>>,
 }
 
 impl BakeJob {
     pub fn cancel(&self) {
+        self.cancel_requested.store(true, Ordering::SeqCst);
         self.cancel.lock().unwrap().cancel();
     }
 }
@@ -56,11 +61,19 @@ impl EditorApp {
         let progress = Arc::new(Mutex::new(("starting".to_string(), 0.0)));
         let cancel = Arc::new(Mutex::new(CancelToken::default()));
         let (send, result) = std::sync::mpsc::channel();
+        let cancel_requested = Arc::new(AtomicBool::new(false));
         let (shared_progress, shared_cancel, target) = (progress.clone(), cancel.clone(), out.clone());
+        let requested = cancel_requested.clone();
         let spawned = std::thread::Builder::new().name("lightloom-bake".into()).spawn(move || {
             let request = lightloom_nodes::bake::bake_request(&graph, &output);
             let job = engine.spawn_request(graph.clone(), request);
-            *shared_cancel.lock().unwrap() = job.cancel_token();
+            {
+                let mut token = shared_cancel.lock().unwrap();
+                *token = job.cancel_token();
+                if requested.load(Ordering::SeqCst) {
+                    token.cancel();
+                }
+            }
             let (mut total, mut done) = (1usize, 0usize);
             for event in job.events.iter() {
                 let mut p = shared_progress.lock().unwrap();
@@ -77,7 +90,7 @@ impl EditorApp {
                 p.1 = 0.9 * done as f64 / total as f64;
             }
             let evaluation = job.wait();
-            let outcome = if shared_cancel.lock().unwrap().is_cancelled() {
+            let outcome = if requested.load(Ordering::SeqCst) {
                 Err(format!("bake cancelled; {} is unchanged", target.display()))
             } else {
                 crate::bake_command::finish(
@@ -103,7 +116,14 @@ impl EditorApp {
         match spawned {
             Ok(_) => {
                 self.log_info(format!("baking into {}", out.display()));
-                self.bake = Some(BakeJob { out, started: std::time::Instant::now(), progress, cancel, result })
+                self.bake = Some(BakeJob {
+                    out,
+                    started: std::time::Instant::now(),
+                    progress,
+                    cancel,
+                    cancel_requested,
+                    result,
+                })
             }
             Err(e) => self.log_file_error(format!("cannot start baking into {}: {e}", out.display())),
         }
@@ -111,14 +131,7 @@ impl EditorApp {
 
     pub(super) fn poll_bake(&mut self, ctx: &egui::Context) {
         let Some(job) = &self.bake else { return };
-        let outcome = match job.result.try_recv() {
-            Ok(outcome) => outcome,
-            Err(std::sync::mpsc::TryRecvError::Empty) => {
-                ctx.request_repaint_after(std::time::Duration::from_millis(200));
-                return;
-            }
-            Err(std::sync::mpsc::TryRecvError::Disconnected) => Err("the bake stopped unexpectedly".into()),
-        };
+        let Some(outcome) = super::files::finished(&job.result, ctx, "the bake") else { return };
         let job = self.bake.take().expect("checked above");
         let took = crate::project_commands::duration_text(job.started.elapsed().as_secs_f64());
         match outcome {

@@ -30,6 +30,22 @@ fn window_pixels(ctx: &egui::Context, rect: egui::Rect) -> String {
     format!("{:.0},{:.0},{:.0},{:.0}", rect.left() * ppp, rect.top() * ppp, rect.right() * ppp, rect.bottom() * ppp)
 }
 
+/// A background job's result once it has arrived; until then `None`, and the UI polls again.
+pub(super) fn finished<T>(
+    result: &std::sync::mpsc::Receiver<Result<T, String>>,
+    ctx: &egui::Context,
+    what: &str,
+) -> Option<Result<T, String>> {
+    match result.try_recv() {
+        Ok(outcome) => Some(outcome),
+        Err(std::sync::mpsc::TryRecvError::Empty) => {
+            ctx.request_repaint_after(std::time::Duration::from_millis(200));
+            None
+        }
+        Err(std::sync::mpsc::TryRecvError::Disconnected) => Some(Err(format!("{what} stopped unexpectedly"))),
+    }
+}
+
 /// A render of the view to an image file, on its own thread.
 pub(super) struct ImageRender {
     pub path: PathBuf,
@@ -161,14 +177,7 @@ impl EditorApp {
 
     pub(super) fn poll_image_render(&mut self, ctx: &egui::Context) {
         let Some(job) = &self.image_render else { return };
-        let outcome = match job.result.try_recv() {
-            Ok(outcome) => outcome,
-            Err(std::sync::mpsc::TryRecvError::Empty) => {
-                ctx.request_repaint_after(std::time::Duration::from_millis(200));
-                return;
-            }
-            Err(std::sync::mpsc::TryRecvError::Disconnected) => Err("the render stopped unexpectedly".into()),
-        };
+        let Some(outcome) = finished(&job.result, ctx, "the render") else { return };
         let job = self.image_render.take().expect("checked above");
         let took = crate::project_commands::duration_text(job.started.elapsed().as_secs_f64());
         match outcome {

@@ -10,7 +10,6 @@
 
 use crate::mesh::MeshSet;
 use crate::transport::Receivers;
-use glam::DVec3;
 use serde::{Deserialize, Serialize};
 
 // Stage value types this module owns (see `engine::value`).
@@ -121,43 +120,14 @@ impl LightmapAtlas {
                     let p = atlas.uvs[tri[k] as usize];
                     [p[0] as f64 * w as f64, p[1] as f64 * h as f64]
                 });
-                let det = (uv[1][0] - uv[0][0]) * (uv[2][1] - uv[0][1]) - (uv[2][0] - uv[0][0]) * (uv[1][1] - uv[0][1]);
-                if det.abs() < 1e-12 {
-                    continue;
-                }
-                let lo = |c: usize, n: usize| {
-                    (uv.iter().map(|p| p[c]).fold(f64::MAX, f64::min).floor().clamp(0.0, n as f64)) as usize
-                };
-                let hi = |c: usize, n: usize| {
-                    (uv.iter().map(|p| p[c]).fold(f64::MIN, f64::max).ceil().clamp(0.0, n as f64)) as usize
-                };
-                let source = [0, 1, 2].map(|k| atlas.xref[tri[k] as usize] as usize);
-                for y in lo(1, h)..hi(1, h) {
-                    for x in lo(0, w)..hi(0, w) {
-                        if covered[y * w + x] {
-                            continue;
-                        }
-                        let (px, py) = (x as f64 + 0.5, y as f64 + 0.5);
-                        let b1 =
-                            ((px - uv[0][0]) * (uv[2][1] - uv[0][1]) - (uv[2][0] - uv[0][0]) * (py - uv[0][1])) / det;
-                        let b2 =
-                            ((uv[1][0] - uv[0][0]) * (py - uv[0][1]) - (px - uv[0][0]) * (uv[1][1] - uv[0][1])) / det;
-                        let b0 = 1.0 - b1 - b2;
-                        if b0 < -1e-9 || b1 < -1e-9 || b2 < -1e-9 {
-                            continue;
-                        }
-                        covered[y * w + x] = true;
-                        let lerp = |v: &[[f32; 3]]| {
-                            let at = |k: usize| DVec3::from(v[source[k]].map(f64::from));
-                            at(0) * b0 + at(1) * b1 + at(2) * b2
-                        };
-                        receivers.positions.push(lerp(&mesh.positions).as_vec3().to_array());
-                        receivers.normals.push(lerp(&mesh.normals).normalize_or(DVec3::Y).as_vec3().to_array());
-                        receivers.tangents.push(lerp(&tangents).normalize_or(DVec3::X).as_vec3().to_array());
+                let corners = [0, 1, 2].map(|k| atlas.xref[tri[k] as usize] as usize);
+                crate::transport::for_each_covered_texel(uv, (w, h), |x, y, b| {
+                    if !std::mem::replace(&mut covered[y * w + x], true) {
+                        receivers.push_interpolated(mesh, &tangents, corners, b);
                         self.texels.push((y * w + x) as u32);
-                        self.sources.push((m as u32, t as u32, [b0 as f32, b1 as f32, b2 as f32]));
+                        self.sources.push((m as u32, t as u32, b.map(|v| v as f32)));
                     }
-                }
+                });
             }
         }
         self.receivers = receivers;

@@ -268,3 +268,110 @@ fn baked_environment_sh_matches_lightloom_sh() {
     assert_eq!(u32::from_le_bytes(ktx[12..16].try_into().unwrap()), 97, "VK_FORMAT_R16G16B16A16_SFLOAT");
     assert_eq!(u32::from_le_bytes(ktx[36..40].try_into().unwrap()), 6, "six faces");
 }
+
+/// three.js's `KTX2Loader` (in headless Chromium) reads the baked specular cube, and the GPU's
+/// own cube lookup finds every texel where the file put it:
+/// - the texels read back through `textureLod` at texel centres of every face and level equal
+///   the file's half floats (as the `ktx2` crate reads them);
+/// - the roughest level's luminance follows the environment's L2 SH (`environment.json`, a
+///   separate code path) at the lookup directions, so faces and rows are the world's
+///   (a flipped face or swapped pair drops the correlation far below).
+///
+/// three r181's loader returns a raw (not Basis) cube file as a 2D texture of six faces per
+/// level; the page assembles the cube from three's decoded levels, as three does for Basis.
+#[test]
+fn three_js_reads_the_specular_cube() {
+    let dir = temp_dir("ktx2");
+    let out = bake(&repo().join("projects/default.ron"), &dir, &["--no-disk-cache", "-q"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let run = Command::new("node")
+        .arg(tools().join("threejs/shoot.mjs"))
+        .arg(&dir)
+        .arg("ktx2")
+        .output()
+        .expect("node is needed to drive three.js in Chromium: install nodejs and chromium (.ci/run does)");
+    assert!(run.status.success(), "three.js KTX2Loader: {}", String::from_utf8_lossy(&run.stderr));
+    let result: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    let texture = &result["texture"];
+    assert_eq!(texture["typeIsHalfFloat"], true, "{texture}");
+    assert_eq!(texture["formatIsRGBA"], true, "{texture}");
+
+    let bytes = std::fs::read(dir.join("environment_specular.ktx2")).unwrap();
+    let reader = ktx2::Reader::new(&bytes[..]).expect("a valid KTX2 file");
+    let size = reader.header().pixel_width as usize;
+    let levels: Vec<&[u8]> = reader.levels().map(|l| l.data).collect();
+    assert_eq!(result["levels"].as_u64().unwrap() as usize, levels.len());
+    let samples = result["samples"].as_array().unwrap();
+    assert!(samples.len() > 6 * levels.len() * 8, "{} samples", samples.len());
+    let sh = read_sh(&dir.join("environment.json"));
+    let (mut worst, mut roughest) = (0.0f64, Vec::new());
+    for s in samples {
+        let at = |k: &str| s[k].as_u64().unwrap() as usize;
+        let (level, face, x, y) = (at("level"), at("face"), at("x"), at("y"));
+        let n = (size >> level).max(1);
+        let texel = &levels[level][((face * n + y) * n + x) * 8..][..8];
+        let mut luminance = 0.0;
+        for c in 0..4 {
+            let file = f64::from(half::f16::from_le_bytes([texel[c * 2], texel[c * 2 + 1]]).to_f32());
+            let read = s["rgba"][c].as_f64().unwrap();
+            worst = worst.max((read - file).abs() / file.abs().max(1e-3));
+            luminance += if c < 3 { read } else { 0.0 };
+        }
+        if level + 1 == levels.len() {
+            roughest.push((luminance, sh_radiance(&sh, gl_direction(face, x, y, n))));
+        }
+    }
+    let correlation = pearson(&roughest);
+    eprintln!(
+        "three.js read {} texels: worst relative difference {worst:.2e}; roughest level against the SH r = {correlation:.3}",
+        samples.len()
+    );
+    assert!(worst < 1e-3, "texels differ from the file by up to {worst}");
+    assert!(correlation > 0.8, "the roughest level does not follow the environment's SH (r = {correlation})");
+}
+
+/// `environment.json`'s L2 radiance SH, luminance summed over RGB, by index `l(l+1)+m`.
+fn read_sh(path: &Path) -> Vec<f64> {
+    let json: serde_json::Value = serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap();
+    json["sh"]["coefficients"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c["rgb"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).sum())
+        .collect()
+}
+
+/// The real SH of the file's stated convention (no Condon-Shortley phase), up to l = 2.
+fn sh_radiance(coefficients: &[f64], [x, y, z]: [f64; 3]) -> f64 {
+    let basis = [
+        0.282095,
+        0.488603 * y,
+        0.488603 * z,
+        0.488603 * x,
+        1.092548 * x * y,
+        1.092548 * y * z,
+        0.315392 * (3.0 * z * z - 1.0),
+        1.092548 * x * z,
+        0.546274 * (x * x - y * y),
+    ];
+    coefficients.iter().zip(basis).map(|(c, b)| c * b).sum()
+}
+
+/// The direction of texel `(x, y)` of `face` at `n` texels a side, by the OpenGL/Vulkan table
+/// that KTX2 cube maps follow (faces +X −X +Y −Y +Z −Z, row 0 first in the file).
+fn gl_direction(face: usize, x: usize, y: usize, n: usize) -> [f64; 3] {
+    let u = 2.0 * (x as f64 + 0.5) / n as f64 - 1.0;
+    let v = 2.0 * (y as f64 + 0.5) / n as f64 - 1.0;
+    let d = [[1.0, -v, -u], [-1.0, -v, u], [u, 1.0, v], [u, -1.0, -v], [u, -v, 1.0], [-u, -v, -1.0]][face];
+    let length = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+    d.map(|c| c / length)
+}
+
+fn pearson(pairs: &[(f64, f64)]) -> f64 {
+    let n = pairs.len() as f64;
+    let (ma, mb) = (pairs.iter().map(|p| p.0).sum::<f64>() / n, pairs.iter().map(|p| p.1).sum::<f64>() / n);
+    let cov: f64 = pairs.iter().map(|p| (p.0 - ma) * (p.1 - mb)).sum();
+    let va: f64 = pairs.iter().map(|p| (p.0 - ma).powi(2)).sum();
+    let vb: f64 = pairs.iter().map(|p| (p.1 - mb).powi(2)).sum();
+    cov / (va * vb).sqrt()
+}

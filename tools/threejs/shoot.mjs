@@ -2,7 +2,8 @@
 // headless Chromium (puppeteer-core driving the system's `chromium`, or $CHROMIUM) and prints
 // the page's result (JSON) on stdout. Fails loudly (exit 1) when Chromium cannot start or the
 // page reports an error.
-// Usage: node tools/threejs/shoot.mjs BAKE_DIR vertex|lightmap WIDTH HEIGHT
+// Usage: node tools/threejs/shoot.mjs BAKE_DIR vertex|lightmap WIDTH HEIGHT (view.html)
+//        node tools/threejs/shoot.mjs BAKE_DIR ktx2 (ktx2.html: the specular cube's texels)
 import http from "node:http";
 import path from "node:path";
 import { readFile } from "node:fs/promises";
@@ -11,7 +12,7 @@ import puppeteer from "puppeteer-core";
 
 const [bakeDir, variant, width, height] = process.argv.slice(2);
 const root = path.resolve(path.dirname(fileURLToPath(import.meta.url)), "../..");
-const types = { ".html": "text/html", ".mjs": "text/javascript", ".js": "text/javascript", ".glb": "model/gltf-binary" };
+const types = { ".html": "text/html", ".mjs": "text/javascript", ".js": "text/javascript", ".glb": "model/gltf-binary", ".wasm": "application/wasm" };
 const server = http.createServer(async (req, res) => {
   const url = new URL(req.url, "http://localhost");
   const file = url.pathname.startsWith("/bake/")
@@ -27,7 +28,7 @@ const server = http.createServer(async (req, res) => {
   }
 });
 await new Promise((resolve) => server.listen(0, "127.0.0.1", resolve));
-const page = `http://127.0.0.1:${server.address().port}/tools/threejs/view.html?variant=${variant}&width=${width}&height=${height}`;
+const page = `http://127.0.0.1:${server.address().port}/tools/threejs/${variant === "ktx2" ? "ktx2" : "view"}.html?variant=${variant}&width=${width}&height=${height}`;
 const executablePath = process.env.CHROMIUM ?? "/usr/bin/chromium";
 let browser;
 try {

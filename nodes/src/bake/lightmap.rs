@@ -144,9 +144,12 @@ impl LightmapAtlas {
         self.sources
             .iter()
             .map(|&(m, t, b)| {
-                let mesh = &meshes.meshes[m as usize];
-                let tri = &mesh.indices[t as usize * 3..t as usize * 3 + 3];
-                std::array::from_fn(|c| (0..3).map(|k| b[k] * values[first[m as usize] + tri[k] as usize][c]).sum())
+                // The atlas's triangle `t`, its corners as the mesh's vertices (the unwrap may
+                // reorder both).
+                let atlas = &self.meshes[m as usize];
+                let tri = &atlas.indices[t as usize * 3..t as usize * 3 + 3];
+                let vertex = |k: usize| first[m as usize] + atlas.xref[tri[k] as usize] as usize;
+                std::array::from_fn(|c| (0..3).map(|k| b[k] * values[vertex(k)][c]).sum())
             })
             .collect()
     }

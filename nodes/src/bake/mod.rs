@@ -16,6 +16,7 @@ pub mod gltf_export;
 pub mod lightmap;
 pub mod material_fit;
 pub mod probes;
+pub mod square_light_texels;
 pub mod vertex_light;
 
 use crate::engine::Evaluation;
@@ -56,9 +57,13 @@ pub fn bake_request(graph: &Graph, output: &str) -> Request {
         stages.push(StageRef::new(output, "bake_environment"));
     }
     match mode {
-        Mode::ShPrt | Mode::ShAdaptive => stages.push(StageRef::new(output, "bake_texel_sh")),
+        Mode::ShPrt | Mode::ShAdaptive => stages.push(StageRef::new(output, "bake_texel_blocked")),
         Mode::WaveletVertex | Mode::WaveletPixel => stages.push(StageRef::new(output, "bake_texel_products")),
-        Mode::ShIrradiance | Mode::Rsl => {}
+        Mode::Rsl => stages.push(StageRef::new(output, "bake_texel_square_lights")),
+        Mode::ShIrradiance => {}
+    }
+    if !graph.upstream_all(output, "area_lights").is_empty() {
+        stages.push(StageRef::new(output, "bake_texel_area"));
     }
     Request::new(format!("bake of output `{output}` (mode {mode})"), stages)
 }
@@ -131,8 +136,8 @@ impl Default for Conventions {
                        overlapping; v down the image). Materials reference the lightmap with the \
                        LIGHTLOOM_lightmap extension: lightmapTexture (an RGBM PNG in the GLB, linear, value = rgb * \
                        a * range) and exr (the same as float RGB). Both hold E/pi like COLOR_0 * scale, per texel \
-                       from the texel's own transport in the mode (the square-light mode and area lights \
-                       interpolate the vertices' light)",
+                       from the texel's own transport in the mode: blockers, area lights and point-light \
+                       shadows included; square lights traced over their caps",
             point_lights: "KHR_lights_punctual intensity is the light's radiant intensity (W/sr) in the project's \
                            units; their diffuse light is already baked (extras.lightloom.baked = true), so add them \
                            for specular only. In the square-light mode each square light is a directional light \
@@ -176,8 +181,11 @@ pub struct BakedStages<'a> {
     pub probes: Option<&'a probes::ProbeGrid>,
     pub environment: Option<&'a environment::EnvironmentBake>,
     pub atlas: &'a lightmap::LightmapAtlas,
+    /// With the blocker spheres multiplied in.
     pub texel_sh: Option<&'a crate::transport::ShTransport>,
     pub texel_products: Option<&'a crate::triple_product::LocalProducts>,
+    pub texel_square_lights: Option<&'a square_light_texels::SquareLightTexels>,
+    pub texel_area: Option<&'a crate::kinds::output_area::AreaIrradiance>,
 }
 
 impl<'a> BakedStages<'a> {
@@ -200,8 +208,10 @@ impl<'a> BakedStages<'a> {
             probes: get(evaluation, output, "bake_probes")?,
             environment: get(evaluation, output, "bake_environment")?,
             atlas: get(evaluation, output, "bake_atlas")?.ok_or("the lightmap atlas was not evaluated")?,
-            texel_sh: get(evaluation, output, "bake_texel_sh")?,
+            texel_sh: get(evaluation, output, "bake_texel_blocked")?,
             texel_products: get(evaluation, output, "bake_texel_products")?,
+            texel_square_lights: get(evaluation, output, "bake_texel_square_lights")?,
+            texel_area: get(evaluation, output, "bake_texel_area")?,
         })
     }
 }
@@ -244,7 +254,7 @@ pub fn bake(
     if let Some(inputs) = lightmap_inputs {
         progress("lightmap", 0.3);
         let start = std::time::Instant::now();
-        let texels = vertex_light::texel_light(frame, inputs.atlas, inputs.texel_sh, inputs.texel_products, shadows)?;
+        let texels = vertex_light::texel_light(frame, inputs, shadows)?;
         let image = inputs.atlas.image(&texels);
         lightmap_image = image.clone();
         let (w, h) = (inputs.atlas.width, inputs.atlas.height);

@@ -114,10 +114,7 @@ fn each_modes_vertex_light_matches_monte_carlo_irradiance() {
         let meshes = frame.geometry.meshes.value.get::<crate::mesh::MeshSet>().unwrap();
         let mut points = vertex_light::vertex_points(meshes);
         let vertices = points.len();
-        light.extend(
-            vertex_light::texel_light(&frame, lightmap.atlas, lightmap.texel_sh, lightmap.texel_products, None)
-                .unwrap(),
-        );
+        light.extend(vertex_light::texel_light(&frame, &lightmap, None).unwrap());
         let r = &lightmap.atlas.receivers;
         points.extend((0..r.len()).map(|i| vertex_light::SurfacePoint {
             position: r.point(i).0,
@@ -589,4 +586,169 @@ fn square_lights_export_as_directional_lights_with_their_size() {
     let radius = extras["lightloom"]["angularRadius"].as_f64().unwrap();
     // A cone of that radius has the light's solid angle.
     assert!((2.0 * PI * (1.0 - radius.cos()) - 0.05).abs() < 1e-9);
+}
+
+/// A floor and a ball under a sky with a sun, coarsely tessellated (vertices about 0.5 m
+/// apart, wider than the ball's shadow detail), with `extra` nodes and links.
+fn coarse_floor_and_ball(mode: &str, ball_is_a_blocker: bool, extra_nodes: &str, extra_links: &str) -> String {
+    let ball = if ball_is_a_blocker {
+        String::new()
+    } else {
+        r#"(name: "ball", shape: Sphere(radius: 0.5), translation: (0.0, 0.7, 0.0)),"#.to_string()
+    };
+    format!(
+        r#"(
+    version: 4,
+    name: "a coarse floor and ball",
+    cameras: [(name: "main", position: (0.0, 2.0, 5.0), target: (0.0, 0.5, 0.0))],
+    nodes: [
+        (id: "sky", kind: "EnvironmentMap", params: {{"sun_elevation": Float(50.0), "sun_size": Float(6.0)}}),
+        (id: "scene", kind: "Scene", params: {{
+            "objects": Objects([(name: "floor", shape: Plane(size: 4.0)), {ball}]),
+            "tessellation": Int(8),
+            "transport_rays": Int(1024),
+        }}),
+        (id: "out", kind: "Output", params: {{"mode": Choice("{mode}"), "bake_lightmap_density": Float(12.0)}}),
+        {extra_nodes}
+    ],
+    links: [
+        (from: ("scene", "scene"), to: ("out", "scene")),
+        (from: ("sky", "environment"), to: ("out", "environment")),
+        {extra_links}
+    ],
+)"#
+    )
+}
+
+/// Per lightmap texel: (the baked texel light, the vertices' light interpolated there).
+fn texel_and_interpolated(
+    evaluation: &crate::engine::Evaluation,
+    frame: &FrameInputs,
+    output: &str,
+) -> Vec<(DVec3, DVec3)> {
+    let stages = BakedStages::gather(evaluation, output).unwrap();
+    let meshes = frame.geometry.meshes.value.get::<crate::mesh::MeshSet>().unwrap();
+    let texels = vertex_light::texel_light(frame, &stages, None).unwrap();
+    let vertices = vertex_light::vertex_light(frame, None).unwrap();
+    let interpolated = stages.atlas.interpolate(meshes, &vertices);
+    texels
+        .iter()
+        .zip(&interpolated)
+        .map(|(t, v)| (DVec3::from(t.map(f64::from)), DVec3::from(v.map(f64::from))))
+        .collect()
+}
+
+/// Relative L1 errors of the texels' own light and of the interpolated vertex light against
+/// Monte Carlo irradiance through `occluders`, at 300 random texels.
+fn texel_errors(
+    evaluation: &crate::engine::Evaluation,
+    frame: &FrameInputs,
+    output: &str,
+    occluders: &crate::raycast::RayScene,
+) -> (f64, f64) {
+    use rand::{Rng, SeedableRng};
+    let pairs = texel_and_interpolated(evaluation, frame, output);
+    let stages = BakedStages::gather(evaluation, output).unwrap();
+    let cube = frame.background.radiance.as_ref().unwrap().value.get::<crate::cubemap::CubeMap>().unwrap();
+    let sampler = crate::reference::EnvironmentSampler::new(cube);
+    let mut rng = rand::rngs::SmallRng::seed_from_u64(5);
+    let (mut texel, mut interpolated, mut total) = (0.0, 0.0, 0.0);
+    for _ in 0..300 {
+        let i = rng.random_range(0..pairs.len());
+        let (position, normal) = stages.atlas.receivers.point(i);
+        let e = crate::reference::irradiance(occluders, &sampler, position, normal, 1024, &mut rng) / PI;
+        texel += (pairs[i].0 - e).abs().element_sum();
+        interpolated += (pairs[i].1 - e).abs().element_sum();
+        total += e.element_sum();
+    }
+    (texel / total, interpolated / total)
+}
+
+/// Lightmap texels carry their own shadows where the vertices are too coarse to: against
+/// Monte Carlo irradiance at random texels, each texel's own light beats the vertices' light
+/// interpolated to it, for blocker spheres (SH exponentiation on the texels' transport; the
+/// reference traces the sphere the blocker stands for) and for square lights (traced caps).
+#[test]
+fn lightmap_texels_shadow_blockers_and_square_lights_themselves() {
+    // A blocker sphere where the ball would be; the reference sees the ball.
+    let blocked = coarse_floor_and_ball(
+        "sh_prt",
+        true,
+        r#"(id: "blockers", kind: "BlockerSpheres", params: {"spheres": Spheres([((0.0, 0.7, 0.0), 0.5)])}),"#,
+        r#"(from: ("blockers", "blockers"), to: ("out", "blockers")),"#,
+    );
+    let (evaluation, frame, output) = evaluated(&blocked, &[]);
+    let (reference, _, _) = evaluated(&coarse_floor_and_ball("sh_prt", false, "", ""), &[]);
+    let ball_scene = reference.get("scene", "ray_scene").unwrap().value.as_ref().unwrap();
+    let (texel, interpolated) =
+        texel_errors(&evaluation, &frame, &output, ball_scene.get::<crate::raycast::RayScene>().unwrap());
+    eprintln!("blockers: texels {texel:.4}, interpolated vertices {interpolated:.4}");
+    assert!(texel < 0.12 && texel < 0.8 * interpolated, "blockers: texels {texel}, vertices {interpolated}");
+    // Without the blocker the texels are lit where the shadow was: the blocker is in them.
+    let open = texel_and_interpolated(&evaluation, &frame, &output);
+    let (unblocked, unblocked_frame, _) = evaluated(&coarse_floor_and_ball("sh_prt", true, "", ""), &[]);
+    let bright = texel_and_interpolated(&unblocked, &unblocked_frame, &output);
+    let darker = open.iter().zip(&bright).filter(|(a, b)| a.0.element_sum() < 0.7 * b.0.element_sum()).count();
+    assert!(darker > 50, "{darker} texels darkened by the blocker");
+
+    let square = coarse_floor_and_ball(
+        "rsl",
+        false,
+        r#"(id: "lights", kind: "RslDecomposer"), (id: "matte", kind: "BrdfEditor"),"#,
+        r#"(from: ("sky", "environment"), to: ("lights", "environment")), (from: ("lights", "square_lights"), to: ("out", "square_lights")), (from: ("matte", "material"), to: ("out", "material")),"#,
+    );
+    let (evaluation, frame, output) = evaluated(&square, &[]);
+    let scene = frame.ray_scene.as_ref().unwrap().value.get::<crate::raycast::RayScene>().unwrap();
+    let (texel, interpolated) = texel_errors(&evaluation, &frame, &output, scene);
+    eprintln!("square lights: texels {texel:.4}, interpolated vertices {interpolated:.4}");
+    assert!(texel < 0.15 && texel < 0.8 * interpolated, "square lights: texels {texel}, vertices {interpolated}");
+}
+
+/// Area lights at lightmap texels: their own transport gives what the vertices' gives at the
+/// same places (ball texels within 1 cm of a ball vertex), and the light is there.
+#[test]
+fn lightmap_texels_carry_area_lights() {
+    let project = coarse_floor_and_ball(
+        "sh_irradiance",
+        false,
+        r#"(id: "panel", kind: "AreaLightPainter", params: {"position": Vec3((0.3, 2.0, 0.0)), "width": Float(1.6), "depth": Float(1.0), "intensity": Float(4.0)}),"#,
+        r#"(from: ("panel", "area_light"), to: ("out", "area_lights")),"#,
+    );
+    let overrides = ["sky.sun_intensity=0", "sky.exposure=-6", "scene.tessellation=32", "out.bake_lightmap_density=48"];
+    let (evaluation, frame, output) = evaluated(&project, &overrides);
+    let stages = BakedStages::gather(&evaluation, &output).unwrap();
+    let texels = &stages.texel_area.expect("the texels' area-light irradiance").irradiance;
+    let vertices = &frame
+        .area_lights
+        .as_ref()
+        .unwrap()
+        .irradiance
+        .value
+        .get::<crate::kinds::output_area::AreaIrradiance>()
+        .unwrap()
+        .irradiance;
+    let meshes = frame.geometry.meshes.value.get::<crate::mesh::MeshSet>().unwrap();
+    let ball = &meshes.meshes[1];
+    let first_ball_vertex = meshes.meshes[0].positions.len();
+    let r = &stages.atlas.receivers;
+    let (mut diff, mut total, mut compared) = (0.0, 0.0, 0);
+    for i in r.mesh_offsets[1]..r.len() {
+        let (p, _) = r.point(i);
+        let distance = |v: usize| (DVec3::from(ball.positions[v].map(f64::from)) - p).length();
+        let nearest = (0..ball.positions.len()).min_by(|&a, &b| distance(a).total_cmp(&distance(b))).unwrap();
+        if (DVec3::from(ball.positions[nearest].map(f64::from)) - p).length() < 0.01 {
+            let (t, v) = (texels[i], vertices[first_ball_vertex + nearest]);
+            diff += (0..3).map(|c| f64::from((t[c] - v[c]).abs())).sum::<f64>();
+            total += v.iter().map(|&c| f64::from(c)).sum::<f64>();
+            compared += 1;
+        }
+    }
+    let lit = texels.iter().filter(|e| e.iter().sum::<f32>() > 1e-3).count();
+    let error = diff / total;
+    eprintln!(
+        "area lights: ball texels against their nearest vertex {error:.4} ({compared} texels; {lit} of {} lit)",
+        texels.len()
+    );
+    assert!(compared > 30 && lit > texels.len() / 3, "{compared} compared, {lit} lit");
+    assert!(error < 0.05, "{error}");
 }

@@ -66,39 +66,39 @@ pub fn vertex_light(frame: &FrameInputs, shadows: Option<&RayScene>) -> Result<V
     Ok(finish(light))
 }
 
-/// `E / π` per texel of `atlas`, as [`vertex_light`] computes it per vertex: the environment
-/// from the texels' own transport (`texel_sh` in the SH transfer modes, `texel_products` in
-/// the wavelet modes), point lights with a shadow ray per texel. What has no per-texel
-/// transport is interpolated from the vertices: the square-light mode's visibility and the
-/// area lights.
+/// `E / π` per texel of the bake's atlas, as [`vertex_light`] computes it per vertex, from
+/// each texel's own transport: `texel_sh` (blockers included) in the SH transfer modes,
+/// `texel_products` in the wavelet modes, the traced square lights in their mode, the area
+/// lights' texel irradiance, and point lights with a shadow ray per texel.
 pub fn texel_light(
     frame: &FrameInputs,
-    atlas: &super::lightmap::LightmapAtlas,
-    texel_sh: Option<&crate::transport::ShTransport>,
-    texel_products: Option<&crate::triple_product::LocalProducts>,
+    stages: &super::BakedStages,
     shadows: Option<&RayScene>,
 ) -> Result<Vec<[f32; 3]>, String> {
-    let meshes = frame.geometry.meshes.value.expect::<MeshSet>().map_err(|e| e.to_string())?;
-    let r = &atlas.receivers;
+    let r = &stages.atlas.receivers;
     let points: Vec<SurfacePoint> = (0..r.len())
         .map(|i| {
             let (position, normal) = r.point(i);
             SurfacePoint { position, normal, tangent: DVec3::from(r.tangents[i].map(f64::from)) }
         })
         .collect();
-    let mut light = match (&frame.surfaces, texel_sh, texel_products) {
-        (Surfaces::Prt(_), Some(t), _) => environment_light(frame, &points, Transport::Sh(t))?,
-        (Surfaces::Prt(_), None, _) => return Err("the lightmap's SH transport was not evaluated".into()),
-        (Surfaces::Wavelet(_), _, Some(p)) => environment_light(frame, &points, Transport::Products(p))?,
-        (Surfaces::Wavelet(_), _, None) => return Err("the lightmap's wavelet products were not evaluated".into()),
-        (Surfaces::Irradiance(_), _, _) => environment_light(frame, &points, Transport::None)?,
-        (Surfaces::Rsl(_), _, _) => {
-            let vertices = environment_light(frame, &vertex_points(meshes), Transport::None)?;
-            widen(&atlas.interpolate(meshes, &finish(vertices)))
+    let transport = match &frame.surfaces {
+        Surfaces::Prt(_) => Transport::Sh(stages.texel_sh.ok_or("the lightmap's SH transport was not evaluated")?),
+        Surfaces::Wavelet(_) => {
+            Transport::Products(stages.texel_products.ok_or("the lightmap's wavelet products were not evaluated")?)
         }
+        Surfaces::Rsl(_) => Transport::SquareLights(
+            stages.texel_square_lights.ok_or("the lightmap's square-light visibility was not evaluated")?,
+        ),
+        Surfaces::Irradiance(_) => Transport::None,
     };
-    if let Some(area) = area_light(frame)? {
-        add(&mut light, &widen(&atlas.interpolate(meshes, &finish(area))));
+    let mut light = environment_light(frame, &points, transport)?;
+    if frame.area_lights.is_some() {
+        let area = stages.texel_area.ok_or("the lightmap's area-light irradiance was not evaluated")?;
+        if area.irradiance.len() != points.len() {
+            return Err(format!("the area lights cover {} of {} texels", area.irradiance.len(), points.len()));
+        }
+        add(&mut light, &area.irradiance.iter().map(|e| e.map(|c| f64::from(c) / PI)).collect::<Vec<_>>());
     }
     add_point_lights(frame, &points, shadows, &mut light)?;
     Ok(finish(light))
@@ -110,6 +110,8 @@ enum Transport<'a> {
     None,
     Sh(&'a crate::transport::ShTransport),
     Products(&'a crate::triple_product::LocalProducts),
+    /// Traced at lightmap texels, in place of the vertices' `V̄`.
+    SquareLights(&'a super::square_light_texels::SquareLightTexels),
 }
 
 fn add(light: &mut [[f64; 3]], more: &[[f64; 3]]) {
@@ -118,10 +120,6 @@ fn add(light: &mut [[f64; 3]], more: &[[f64; 3]]) {
             out[c] += m[c];
         }
     }
-}
-
-fn widen(values: &[[f32; 3]]) -> Vec<[f64; 3]> {
-    values.iter().map(|v| v.map(f64::from)).collect()
 }
 
 fn finish(light: Vec<[f64; 3]>) -> Vec<[f32; 3]> {
@@ -210,6 +208,24 @@ fn environment_light(
                         }
                     }
                     through_fog(sum, point.normal)
+                })
+                .collect()
+        }
+        (Surfaces::Rsl(s), Transport::SquareLights(traced)) => {
+            let k = traced.lights;
+            if k != s.lights.len() || traced.values.len() != points.len() * k {
+                return Err("the traced square lights do not cover the texels".into());
+            }
+            points
+                .par_iter()
+                .enumerate()
+                .map(|(i, point)| {
+                    let mut sum = DVec3::ZERO;
+                    for (light, &lit) in s.lights.iter().zip(&traced.values[i * k..(i + 1) * k]) {
+                        let intensity = DVec3::new(light[4].into(), light[5].into(), light[6].into());
+                        sum += intensity * f64::from(light[3]) * f64::from(lit);
+                    }
+                    through_fog(sum.to_array(), point.normal)
                 })
                 .collect()
         }

@@ -353,18 +353,28 @@ crate::stage_type!(BlockedPart, "blocked transport part", encoding = 1, |v| (v.v
 /// spheres within reach of its bounds, so moving one sphere recomputes only the parts it
 /// reached before or reaches now. Without blockers it is the scene's transport.
 fn blocked_transport(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let transport = ctx.required_input::<crate::transport::ShTransport>("scene", "transport_sh")?;
+    let receivers = ctx.required_input::<crate::transport::Receivers>("scene", "receivers")?;
+    Ok(StageValue::new(with_blockers(ctx, transport, receivers)?))
+}
+
+/// `transport` of `receivers` with the linked blocker spheres' visibility multiplied in (the
+/// transport itself without blockers), memoised per part as [`blocked_transport`] says.
+pub(super) fn with_blockers(
+    ctx: &StageContext,
+    transport: &crate::transport::ShTransport,
+    receivers: &crate::transport::Receivers,
+) -> Result<crate::transport::ShTransport, StageError> {
     use crate::sh_exponential::{BlockedProduct, blockers_in_reach, receiver_parts};
     use glam::DVec3;
-    let transport = ctx.required_input::<crate::transport::ShTransport>("scene", "transport_sh")?;
     let Some(set) = ctx.input::<crate::kinds::blockers::BlockerSet>("blockers", "spheres")? else {
-        return Ok(StageValue::new(transport.clone()));
+        return Ok(transport.clone());
     };
-    let receivers = ctx.required_input::<crate::transport::Receivers>("scene", "receivers")?;
     let positions: Vec<DVec3> = receivers.positions.iter().map(|p| DVec3::from(p.map(f64::from))).collect();
     let n = transport.bands * transport.bands;
     if transport.transfer.len() != positions.len() * n || transport.visibility.len() != positions.len() * n {
         return Err(StageError::Failed(format!(
-            "the transport has {} receivers for {} vertices",
+            "the transport covers {} of {} receivers",
             transport.transfer.len() / n.max(1),
             positions.len()
         )));
@@ -419,7 +429,7 @@ fn blocked_transport(ctx: &StageContext) -> Result<StageValue, StageError> {
             }
         }
     }
-    Ok(StageValue::new(out))
+    Ok(out)
 }
 
 /// Per-vertex `P_c = ΔΩ_c L^x_c V^x_c` for the wavelet modes (pulled only by them).

@@ -153,6 +153,16 @@ fn face_bytes(face: &TopFace) -> [u8; 16] {
 
 fn area_transport(ctx: &StageContext) -> Result<StageValue, StageError> {
     let receivers = ctx.required_input::<Receivers>("scene", "receivers")?;
+    Ok(StageValue::new(transport_of(ctx, receivers, "the scene's tessellation")?))
+}
+
+/// The top-face transports of `receivers` (the vertices, or a bake's lightmap texels); a
+/// budget overrun names `density` as what to lower.
+pub(super) fn transport_of(
+    ctx: &StageContext,
+    receivers: &Receivers,
+    density: &str,
+) -> Result<AreaTransport, StageError> {
     let scene = ctx.required_input::<RayScene>("scene", "ray_scene")?;
     let mut faces: Vec<TopFace> = Vec::new();
     for (_, face) in ctx.inputs_all::<TopFace>("area_lights", "face")? {
@@ -167,7 +177,7 @@ fn area_transport(ctx: &StageContext) -> Result<StageValue, StageError> {
         .map(|(_, p)| p.height)
         .fold(f64::NEG_INFINITY, f64::max);
     let cells: usize = faces.iter().map(|f| f.order * f.order).sum();
-    super::scene::check_ray_budget(receivers.len(), cells, "the scene's tessellation")?;
+    super::scene::check_ray_budget(receivers.len(), cells, density)?;
     // What every face's transport depends on besides the face: the receivers and the triangles.
     let mut geometry = xxhash_rust::xxh3::Xxh3::new();
     geometry.update(b"area transport v1");
@@ -207,18 +217,27 @@ fn area_transport(ctx: &StageContext) -> Result<StageValue, StageError> {
         out.faces.push(SharedTransport { key, transport: (*transport).clone(), visibility });
     }
     ctx.inform(format!(
-        "{} top face(s) of {} cells traced for {} vertices ({} KB per vertex)",
+        "{} top face(s) of {} cells traced for {} receivers ({} KB each)",
         faces.len(),
         faces.first().map_or(0, |f| f.order * f.order),
         receivers.len(),
         cells * 4 / 1024
     ));
-    Ok(StageValue::new(out))
+    Ok(out)
 }
 
 fn area_irradiance(ctx: &StageContext) -> Result<StageValue, StageError> {
     let receivers = ctx.required_input::<Receivers>("scene", "receivers")?;
     let transports = ctx.stage::<AreaTransport>("area_transport")?;
+    Ok(StageValue::new(irradiance_of(ctx, receivers, transports)?))
+}
+
+/// Every linked light's irradiance at `receivers` through their `transports`.
+pub(super) fn irradiance_of(
+    ctx: &StageContext,
+    receivers: &Receivers,
+    transports: &AreaTransport,
+) -> Result<AreaIrradiance, StageError> {
     let points = positions(receivers);
     let mut total = vec![[0.0f64; 3]; receivers.len()];
     for (_, light) in ctx.inputs_all::<AreaLight>("area_lights", "light")? {
@@ -227,7 +246,7 @@ fn area_irradiance(ctx: &StageContext) -> Result<StageValue, StageError> {
     }
     // Truncated products ring slightly below zero near a light's footprint; irradiance cannot.
     let irradiance = total.into_iter().map(|c| c.map(|v| v.max(0.0) as f32)).collect();
-    Ok(StageValue::new(AreaIrradiance { irradiance }))
+    Ok(AreaIrradiance { irradiance })
 }
 
 fn face_of<'a>(transports: &'a AreaTransport, light: &AreaLight) -> Result<&'a SharedTransport, StageError> {

@@ -94,6 +94,42 @@ pub fn stages() -> Vec<StageSpec> {
             compute: bake_texel_sh,
         },
         StageSpec {
+            name: "bake_texel_blocked",
+            version: 1,
+            params: &[],
+            stages: &["bake_atlas", "bake_texel_sh"],
+            inputs: &[("blockers", "spheres")],
+            persist: None,
+            compute: bake_texel_blocked,
+        },
+        StageSpec {
+            name: "bake_texel_square_lights",
+            version: 1,
+            params: &[],
+            stages: &["bake_atlas"],
+            inputs: &[("scene", "ray_scene"), ("square_lights", "turned_lights")],
+            persist: None,
+            compute: bake_texel_square_lights,
+        },
+        StageSpec {
+            name: "bake_texel_area_transport",
+            version: 1,
+            params: &[],
+            stages: &["bake_atlas"],
+            inputs: &[("scene", "ray_scene"), ("area_lights", "face"), ("area_lights", "placement")],
+            persist: None,
+            compute: bake_texel_area_transport,
+        },
+        StageSpec {
+            name: "bake_texel_area",
+            version: 1,
+            params: &[],
+            stages: &["bake_atlas", "bake_texel_area_transport"],
+            inputs: &[("area_lights", "light")],
+            persist: None,
+            compute: bake_texel_area,
+        },
+        StageSpec {
             name: "bake_texel_local",
             version: 1,
             params: &[],
@@ -150,6 +186,43 @@ fn bake_texel_sh(ctx: &StageContext) -> Result<StageValue, StageError> {
         ctx.cancel_token(),
         &|f| ctx.progress(f),
     )?))
+}
+
+/// The texels' SH transport with the blocker spheres multiplied in (as `blocked_transport`
+/// per vertex).
+fn bake_texel_blocked(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let atlas = ctx.stage::<crate::bake::lightmap::LightmapAtlas>("bake_atlas")?;
+    let transport = ctx.stage::<crate::transport::ShTransport>("bake_texel_sh")?;
+    Ok(StageValue::new(super::output::with_blockers(ctx, transport, &atlas.receivers)?))
+}
+
+/// The square lights' lit cosine at every texel, traced ([`crate::bake::square_light_texels`]).
+fn bake_texel_square_lights(ctx: &StageContext) -> Result<StageValue, StageError> {
+    use crate::bake::square_light_texels::{RINGS, SECTORS, SquareLightTexels, trace};
+    let atlas = ctx.stage::<crate::bake::lightmap::LightmapAtlas>("bake_atlas")?;
+    let scene = ctx.required_input::<crate::raycast::RayScene>("scene", "ray_scene")?;
+    let Some(lights) = ctx.input::<crate::rsl::WorldLights>("square_lights", "turned_lights")? else {
+        return Ok(StageValue::new(SquareLightTexels::default()));
+    };
+    super::scene::check_ray_budget(
+        atlas.receivers.len(),
+        lights.lights.len() * RINGS * SECTORS,
+        "the lightmap's texels per metre",
+    )?;
+    Ok(StageValue::new(trace(scene, &atlas.receivers, lights, ctx.cancel_token(), &|f| ctx.progress(f))?))
+}
+
+/// The area lights' top-face transport at every texel (as `area_transport` per vertex).
+fn bake_texel_area_transport(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let atlas = ctx.stage::<crate::bake::lightmap::LightmapAtlas>("bake_atlas")?;
+    Ok(StageValue::new(super::output_area::transport_of(ctx, &atlas.receivers, "the lightmap's texels per metre")?))
+}
+
+/// The area lights' irradiance at every texel.
+fn bake_texel_area(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let atlas = ctx.stage::<crate::bake::lightmap::LightmapAtlas>("bake_atlas")?;
+    let transports = ctx.stage::<super::output_area::AreaTransport>("bake_texel_area_transport")?;
+    Ok(StageValue::new(super::output_area::irradiance_of(ctx, &atlas.receivers, transports)?))
 }
 
 /// The texels' local-frame visibility, at the vertices' depth and terms.

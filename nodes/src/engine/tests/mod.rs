@@ -65,8 +65,10 @@ fn evaluate_frame(engine: &Engine, graph: &Graph) -> Evaluation {
 
 /// `expected` with the bake's stages added by their design rule: the lightmap atlas follows
 /// the scene's geometry, the texels' transports follow the vertices' (same parameters, same
-/// scene), the texels' wavelet products follow the vertices' products, and the probes follow
-/// the geometry, the drawn environment and the point lights.
+/// scene), the texels' wavelet products, blocked transport, square-light visibility and
+/// area-light stages follow the vertices' own, the traced square lights the BVH and the
+/// lights, and the probes follow the geometry, the drawn
+/// environment and the point lights.
 fn with_bake(expected: &[&str]) -> BTreeSet<String> {
     let mut out = set(expected);
     for (vertex_stage, bake_stage) in [
@@ -74,10 +76,17 @@ fn with_bake(expected: &[&str]) -> BTreeSet<String> {
         ("scene.transport_sh", "output.bake_texel_sh"),
         ("scene.transport_local", "output.bake_texel_local"),
         ("output.local_products", "output.bake_texel_products"),
+        ("output.blocked_transport", "output.bake_texel_blocked"),
+        ("output.area_transport", "output.bake_texel_area_transport"),
+        ("output.area_irradiance", "output.bake_texel_area"),
     ] {
         if out.contains(vertex_stage) {
             out.insert(bake_stage.to_string());
         }
+    }
+    // The texels' square lights are traced in the scene toward the turned lights (no tables).
+    if out.iter().any(|s| s == "scene.ray_scene" || s.ends_with(".turned_lights")) {
+        out.insert("output.bake_texel_square_lights".to_string());
     }
     // The environment's SH and specular cube follow the drawn environment and its SH.
     if out.iter().any(|s| s.ends_with(".rotated_radiance") || s.ends_with(".sh")) {
@@ -377,7 +386,7 @@ fn each_parameter_recomputes_exactly_its_stages() {
     graph.set_param("scene", "tessellation", Int(12)).unwrap();
     let first = engine.evaluate(&graph, &CancelToken::default(), None);
     assert!(first.report.failed().is_empty(), "{:?}", first.report.failed());
-    assert_eq!(first.report.computed().len(), 42);
+    assert_eq!(first.report.computed().len(), 46);
     let again = engine.evaluate(&graph, &CancelToken::default(), None);
     assert!(ran(&again.report).is_empty(), "an unchanged graph recomputed {:?}", ran(&again.report));
     for (node, param, value, expected) in table {
@@ -1292,7 +1301,7 @@ fn each_mode_and_view_evaluates_exactly_the_stages_it_reads() {
         for s in eval.report.stages.iter().filter(|s| s.status == StageStatus::NotNeeded) {
             assert!(s.reasons[0].contains(&format!("mode {mode}")), "{}.{}: {:?}", s.node, s.stage, s.reasons);
         }
-        assert_eq!(eval.report.stages.len(), 42, "every stage is reported");
+        assert_eq!(eval.report.stages.len(), 46, "every stage is reported");
     }
 }
 

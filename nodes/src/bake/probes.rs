@@ -5,7 +5,12 @@
 //!
 //! The environment is integrated texel by texel over its cube map box-filtered to 32² faces
 //! (every texel's energy kept, so a sun is neither missed nor aliased), one shadow ray per
-//! texel; point lights add their delta `I/d² Y_lm(ω_l)` when unblocked. A probe that sees
+//! texel; point lights add their delta `I/d² Y_lm(ω_l)` when unblocked, and painted area
+//! lights their texels (in blocks of at most [`AREA_CELLS`]² cells, each `L A cos θ_l / d²`
+//! when unblocked). Through fog (Sun 2008 §3.6.4, as the modes shade surfaces) the
+//! environment's light is attenuated by `e^{−βD}` and the medium's scattered environment light
+//! (unshadowed) added; the lights' direct light is attenuated by `e^{−βd}` (their airlight,
+//! which varies along every view ray, is left to the game engine's fog). A probe that sees
 //! nothing but geometry (inside an object) is marked invalid.
 
 use crate::cubemap::CubeMap;
@@ -25,6 +30,18 @@ pub const MAX_PROBES: usize = 1 << 18;
 
 /// Face size of the environment as probes integrate it.
 const ENVIRONMENT_FACE: usize = 32;
+
+/// Cells a side an area light is integrated in, at most.
+pub const AREA_CELLS: usize = 16;
+
+/// What lights the probes besides the environment, and the medium they see it through.
+#[derive(Default)]
+pub struct ProbeLighting<'a> {
+    pub points: &'a [PointLight],
+    pub areas: Vec<&'a crate::reference::AreaEmitter>,
+    /// The medium's scattering coefficient (1/m) and the environment's light through it.
+    pub fog: Option<([f64; 3], &'a crate::single_scattering::FoggedEnvironment)>,
+}
 
 /// A regular grid of SH radiance probes.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -153,7 +170,7 @@ pub fn bake(
     spacing: f64,
     bands: usize,
     environment: Option<&CubeMap>,
-    lights: &[PointLight],
+    lighting: &ProbeLighting,
     cancel: &CancelToken,
     progress: &(dyn Fn(f64) + Sync),
 ) -> Result<ProbeGrid, StageError> {
@@ -169,6 +186,17 @@ pub fn bake(
                 .collect()
         })
         .unwrap_or_default();
+    // Area lights as small patches: (centre, radiance × area).
+    let patches: Vec<(DVec3, [f64; 3])> = lighting.areas.iter().flat_map(|e| area_patches(e)).collect();
+    let attenuation = |d: f64| lighting.fog.map_or([1.0; 3], |(beta, _)| beta.map(|b| (-b * d).exp()));
+    let environment_attenuation = lighting.fog.map_or([1.0; 3], |(_, f)| f.fog.attenuation);
+    // The medium's scattered environment light, unshadowed, on the probes' bands.
+    let scattered: Vec<[f64; 3]> = match lighting.fog {
+        Some((_, f)) => {
+            (0..basis.len()).map(|k| std::array::from_fn(|c| f.scattered.coeffs.get(k).map_or(0.0, |v| v[c]))).collect()
+        }
+        None => vec![[0.0; 3]; basis.len()],
+    };
     // Directions that tell whether a probe is inside geometry (without an environment too).
     let probe_dirs = crate::transport::fibonacci_directions(64);
     let done = std::sync::atomic::AtomicUsize::new(0);
@@ -185,11 +213,35 @@ pub fn bake(
                 }
                 for (s, y) in sum.iter_mut().zip(y) {
                     for c in 0..3 {
-                        s[c] += radiance[c] * omega * y;
+                        s[c] += radiance[c] * environment_attenuation[c] * omega * y;
                     }
                 }
             }
-            for light in lights {
+            for (s, add) in sum.iter_mut().zip(&scattered) {
+                for c in 0..3 {
+                    s[c] += add[c];
+                }
+            }
+            for (centre, power) in &patches {
+                let to = *centre - p;
+                let d = to.length();
+                // The lights face down: a patch lights only what lies below it.
+                if d <= 1e-6 || to.y <= 0.0 {
+                    continue;
+                }
+                let l = to / d;
+                if scene.occluded(origin, l.as_vec3().into(), (d * (1.0 - 1e-4)) as f32) {
+                    continue;
+                }
+                let (y, fade) = (basis.eval_vec(l), attenuation(d));
+                let solid_angle_per_area = l.y / (d * d);
+                for (s, y) in sum.iter_mut().zip(&y) {
+                    for c in 0..3 {
+                        s[c] += power[c] * solid_angle_per_area * fade[c] * y;
+                    }
+                }
+            }
+            for light in lighting.points {
                 let to_light = DVec3::from(light.position) - p;
                 let d = to_light.length();
                 if d <= 1e-6 {
@@ -199,10 +251,10 @@ pub fn bake(
                 if scene.occluded(origin, l.as_vec3().into(), (d * (1.0 - 1e-4)) as f32) {
                     continue;
                 }
-                let y = basis.eval_vec(l);
+                let (y, fade) = (basis.eval_vec(l), attenuation(d));
                 for (s, y) in sum.iter_mut().zip(&y) {
                     for c in 0..3 {
-                        s[c] += light.intensity[c] / (d * d) * y;
+                        s[c] += light.intensity[c] * fade[c] / (d * d) * y;
                     }
                 }
             }
@@ -219,6 +271,37 @@ pub fn bake(
         grid.valid.push(valid);
     }
     Ok(grid)
+}
+
+/// `emitter`'s texels in blocks of at most [`AREA_CELLS`] a side: each block's centre and its
+/// radiance × area.
+fn area_patches(emitter: &crate::reference::AreaEmitter) -> Vec<(DVec3, [f64; 3])> {
+    let side = emitter.side.max(1);
+    let cells = side.min(AREA_CELLS);
+    let block = side.div_ceil(cells);
+    let texel_area = emitter.width * emitter.depth / (side * side) as f64;
+    let mut patches = Vec::new();
+    for by in (0..side).step_by(block) {
+        for bx in (0..side).step_by(block) {
+            let mut power = [0.0; 3];
+            for j in by..(by + block).min(side) {
+                for i in bx..(bx + block).min(side) {
+                    let l = emitter.radiance.get(j * side + i).copied().unwrap_or_default();
+                    for c in 0..3 {
+                        power[c] += l[c] * texel_area;
+                    }
+                }
+            }
+            if power.iter().any(|&p| p > 0.0) {
+                let width = ((bx + block).min(side) - bx) as f64;
+                let depth = ((by + block).min(side) - by) as f64;
+                let centre =
+                    emitter.point((bx as f64 + width / 2.0) / side as f64, (by as f64 + depth / 2.0) / side as f64);
+                patches.push((centre, power));
+            }
+        }
+    }
+    patches
 }
 
 /// `probes.json` (layout and conventions) and `probes.bin` (the numbers) for `grid`.
@@ -249,8 +332,9 @@ pub fn files(grid: &ProbeGrid) -> (Vec<u8>, Vec<u8>) {
                        A_1 = 2pi/3, A_2 = pi/4; E/pi is what COLOR_0 and the lightmap store. Unity's \
                        SphericalHarmonicsL2 and Godot's probes use other bases and scalings: convert with these \
                        definitions",
-        "includes": "the environment (shadowed by the scene) and point lights (shadowed); no interreflection, \
-                     area lights or fog",
+        "includes": "the environment (shadowed by the scene), point lights and painted area lights (shadowed); \
+                     through fog, the environment attenuated by exp(-beta D) plus the medium's scattered light, \
+                     and the lights' direct light attenuated by exp(-beta d); no interreflection",
     });
     let mut text = serde_json::to_vec_pretty(&json).expect("the probe description serialises");
     text.push(b'\n');

@@ -752,3 +752,87 @@ fn lightmap_texels_carry_area_lights() {
     assert!(compared > 30 && lit > texels.len() / 3, "{compared} compared, {lit} lit");
     assert!(error < 0.05, "{error}");
 }
+
+/// A painted area light's probes against Monte Carlo irradiance of the same emitter (texels
+/// sampled by their power, shadow rays), with the dim sky's own Monte Carlo added: L2 probes
+/// below the panel, 6 normals each.
+#[test]
+fn probes_see_area_lights() {
+    use rand::{Rng, SeedableRng};
+    let project = coarse_floor_and_ball(
+        "sh_irradiance",
+        false,
+        r#"(id: "panel", kind: "AreaLightPainter", params: {"position": Vec3((0.3, 2.5, 0.0)), "width": Float(1.6), "depth": Float(1.0), "intensity": Float(4.0)}),"#,
+        r#"(from: ("panel", "area_light"), to: ("out", "area_lights")),"#,
+    );
+    let overrides = ["sky.sun_intensity=0", "sky.exposure=-4", "out.bake_probe_spacing=0.7"];
+    let (evaluation, frame, output) = evaluated(&project, &overrides);
+    let grid = BakedStages::gather(&evaluation, &output).unwrap().probes.unwrap();
+    let scene = frame.ray_scene.as_ref().unwrap().value.get::<crate::raycast::RayScene>().unwrap();
+    let emitter = evaluation.get("panel", "light").unwrap().value.as_ref().unwrap();
+    let emitter = &emitter.get::<crate::kinds::area_light::AreaLight>().unwrap().emitter;
+    let cube = frame.background.radiance.as_ref().unwrap().value.get::<crate::cubemap::CubeMap>().unwrap();
+    let sampler = crate::reference::EnvironmentSampler::new(cube);
+    let mut rng = rand::rngs::SmallRng::seed_from_u64(9);
+    let (mut diff, mut total, mut from_panel, mut compared) = (0.0, 0.0, 0.0, 0);
+    for i in 0..grid.len() {
+        let p = grid.position(i);
+        if !grid.valid[i] || p.y > 2.0 {
+            continue;
+        }
+        let origin = glam::Vec3A::from(p.as_vec3());
+        for n in [DVec3::X, DVec3::NEG_X, DVec3::Y, DVec3::NEG_Y, DVec3::Z, DVec3::NEG_Z] {
+            let mut area = DVec3::ZERO;
+            let samples = 4096;
+            for _ in 0..samples {
+                let (q, radiance, pdf) = emitter.sample([rng.random(), rng.random(), rng.random()]).unwrap();
+                let Some((wi, d, g)) = emitter.towards(p, q) else { continue };
+                let cos = wi.dot(n);
+                if cos > 0.0 && !scene.occluded(origin, wi.as_vec3().into(), (d * (1.0 - 1e-4)) as f32) {
+                    area += radiance * cos * g / pdf;
+                }
+            }
+            let reference = area / samples as f64 + crate::reference::irradiance(scene, &sampler, p, n, 256, &mut rng);
+            diff += (grid.irradiance(i, n) - reference).abs().element_sum();
+            total += reference.element_sum();
+            from_panel += (area / samples as f64).element_sum();
+            compared += 1;
+        }
+    }
+    let error = diff / total;
+    eprintln!(
+        "probes with an area light: relative L1 error {error:.4} over {compared} pairs ({:.0}% of the light from the panel)",
+        100.0 * from_panel / total
+    );
+    assert!(compared > 100 && from_panel > 0.5 * total, "{compared} pairs; the panel gives {from_panel} of {total}");
+    assert!(error < 0.1, "{error}");
+}
+
+/// Fog dims the probes as it dims the surfaces: a probe's upward irradiance (nothing above it)
+/// changes by the same factor as a floor vertex's in the SH irradiance mode, whose fogged
+/// light (attenuated plus scattered, Sun 2008 eq. 3.36) comes from a separate path.
+#[test]
+fn probes_see_fog_as_the_surfaces_do() {
+    let fog = r#"(id: "fog", kind: "FogMedium", params: {"beta": Color((0.3, 0.2, 0.1)), "environment_distance": Float(6.0)}),"#;
+    let link = r#"(from: ("fog", "medium"), to: ("out", "medium")),"#;
+    let clear = evaluated(&coarse_floor_and_ball("sh_irradiance", false, "", ""), &["out.bake_probe_spacing=1"]);
+    let foggy = evaluated(&coarse_floor_and_ball("sh_irradiance", false, fog, link), &["out.bake_probe_spacing=1"]);
+    let up = |(evaluation, frame, output): &(crate::engine::Evaluation, FrameInputs, String)| {
+        let grid = BakedStages::gather(evaluation, output).unwrap().probes.unwrap();
+        // A probe away from the ball, above the floor: it sees the whole sky.
+        let i = (0..grid.len())
+            .find(|&i| {
+                let p = grid.position(i);
+                grid.valid[i] && p.y > 0.5 && p.x.abs() > 1.4 && p.z.abs() > 1.4
+            })
+            .unwrap();
+        let vertex = vertex_light::vertex_light(frame, None).unwrap()[0];
+        (grid.irradiance(i, DVec3::Y), DVec3::from(vertex.map(f64::from)))
+    };
+    let ((probe_clear, vertex_clear), (probe_fog, vertex_fog)) = (up(&clear), up(&foggy));
+    for c in 0..3 {
+        let (probe, vertex) = (probe_fog[c] / probe_clear[c], vertex_fog[c] / vertex_clear[c]);
+        eprintln!("channel {c}: fog scales the probe by {probe:.4}, the floor by {vertex:.4}");
+        assert!(probe < 0.95 && (probe - vertex).abs() < 0.03 * vertex, "channel {c}: {probe} against {vertex}");
+    }
+}

@@ -25,6 +25,17 @@ pub struct Medium {
     pub environment_distance: f64,
 }
 
+impl Medium {
+    /// Its phase function; `None` for an invalid polynomial.
+    pub fn phase_function(&self) -> Option<crate::single_scattering::Phase> {
+        if self.phase == "polynomial" {
+            crate::single_scattering::Phase::polynomial(&self.phase_coefficients)
+        } else {
+            Some(crate::single_scattering::Phase::isotropic())
+        }
+    }
+}
+
 pub fn spec() -> NodeKindSpec {
     NodeKindSpec {
         name: "FogMedium",

@@ -861,12 +861,7 @@ fn fog_frame(
     mode: Mode,
 ) -> Result<FogFrame, String> {
     let m: crate::kinds::fog::Medium = typed(&keyed(node, "medium")?, "medium")?;
-    let phase = if m.phase == "polynomial" {
-        crate::single_scattering::Phase::polynomial(&m.phase_coefficients)
-            .ok_or_else(|| format!("{node}: the phase polynomial is invalid"))?
-    } else {
-        crate::single_scattering::Phase::isotropic()
-    };
+    let phase = m.phase_function().ok_or_else(|| format!("{node}: the phase polynomial is invalid"))?;
     let f_tables = keyed(node, "f_tables")?;
     let environment = match sh {
         Some(sh) => {

@@ -70,7 +70,11 @@ pub fn stages() -> Vec<StageSpec> {
                 ("scene", "geometry"),
                 ("scene", "ray_scene"),
                 ("environment", "rotated_radiance"),
+                ("environment", "sh"),
                 ("lights", "lights"),
+                ("area_lights", "light"),
+                ("medium", "medium"),
+                ("medium", "f_tables"),
             ],
             persist: None,
             compute: bake_probes,
@@ -275,13 +279,41 @@ fn bake_probes(ctx: &StageContext) -> Result<StageValue, StageError> {
     let scene = ctx.required_input::<crate::raycast::RayScene>("scene", "ray_scene")?;
     let environment = ctx.input::<crate::cubemap::CubeMap>("environment", "rotated_radiance")?;
     let lights = ctx.input::<Vec<crate::kinds::lights::PointLight>>("lights", "lights")?;
+    let areas = ctx.inputs_all::<crate::kinds::area_light::AreaLight>("area_lights", "light")?;
+    let fogged = match (
+        ctx.input::<crate::kinds::fog::Medium>("medium", "medium")?,
+        ctx.input::<Vec<crate::single_scattering::FTable>>("medium", "f_tables")?,
+        ctx.input::<crate::sh::ShRgb>("environment", "sh")?,
+    ) {
+        (Some(medium), Some(tables), sh) => {
+            let phase = medium
+                .phase_function()
+                .ok_or_else(|| StageError::Failed("the fog's phase polynomial is invalid".into()))?;
+            let no_light = crate::sh::ShRgb { bands: 1, coeffs: vec![[0.0; 3]] };
+            let light = sh.unwrap_or(&no_light);
+            let environment = crate::single_scattering::FoggedEnvironment::new(
+                medium.beta,
+                medium.environment_distance,
+                &phase,
+                tables,
+                light,
+            );
+            Some((medium.beta, environment))
+        }
+        _ => None,
+    };
+    let lighting = crate::bake::probes::ProbeLighting {
+        points: lights.map_or(&[], |l| l.as_slice()),
+        areas: areas.iter().map(|(_, a)| &a.emitter).collect(),
+        fog: fogged.as_ref().map(|(beta, environment)| (*beta, environment)),
+    };
     let grid = crate::bake::probes::bake(
         scene,
         meshes.bounds(),
         ctx.float("bake_probe_spacing")?,
         ctx.int("bake_probe_bands")? as usize,
         environment,
-        lights.map_or(&[], |l| l.as_slice()),
+        &lighting,
         ctx.cancel_token(),
         &|f| ctx.progress(f),
     )?;

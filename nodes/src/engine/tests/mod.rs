@@ -92,8 +92,11 @@ fn with_bake(expected: &[&str]) -> BTreeSet<String> {
     if out.iter().any(|s| s.ends_with(".rotated_radiance") || s.ends_with(".sh")) {
         out.insert("output.bake_environment".to_string());
     }
-    // The probes see the geometry, the environment as drawn and the point lights.
-    if out.iter().any(|s| s == "scene.geometry" || s.ends_with(".rotated_radiance") || s.ends_with(".lights")) {
+    // The probes see the geometry, the environment as drawn (and its SH, through fog), the
+    // point lights, the linked area lights (whose irradiance follows them) and the medium.
+    let probe_inputs = [".rotated_radiance", ".sh", ".lights", ".medium", ".f_tables"];
+    let follows = |s: &String| s == "scene.geometry" || s == "output.area_irradiance";
+    if out.iter().any(|s| follows(s) || probe_inputs.iter().any(|i| s.ends_with(i))) {
         out.insert("output.bake_probes".to_string());
     }
     out

@@ -392,6 +392,16 @@ pub struct NodeKindSpec {
     /// Whether parameter `name` matters, given the node's parameter values (the inspector
     /// shows only those; evaluation reads every parameter regardless).
     pub relevant: RelevantFn,
+    /// Parameters the inspector folds under a header of their own (the rest come first).
+    pub groups: &'static [ParamGroup],
+}
+
+/// Parameters shown together under a collapsible header, closed at first.
+#[derive(Clone, Copy, Debug)]
+pub struct ParamGroup {
+    pub label: &'static str,
+    pub doc: &'static str,
+    pub params: &'static [&'static str],
 }
 
 /// Reads the node's parameter values (by name) and says whether parameter `name` matters.

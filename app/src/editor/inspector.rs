@@ -146,17 +146,21 @@ impl Inspector<'_> {
         ui.separator();
         let project = &self.doc.project;
         let value = |name: &str| kind.param(name).map(|p| param_value(project, id, p));
-        let shown: Vec<&ParamSpec> = kind.params.iter().filter(|p| (kind.relevant)(&value, p.name)).collect();
-        egui::Grid::new(("params", id)).num_columns(2).striped(true).show(ui, |ui| {
-            for spec in shown {
-                if matches!(spec.kind, ParamKind::Objects { .. } | ParamKind::Spheres { .. } | ParamKind::Paint) {
-                    continue;
-                }
-                let label = ui.label(spec.label).on_hover_text(spec.doc);
-                self.param_widget(ui, id, spec, label.id);
-                ui.end_row();
-            }
-        });
+        let grouped = |name: &str| kind.groups.iter().any(|g| g.params.contains(&name));
+        let shown: Vec<&ParamSpec> =
+            kind.params.iter().filter(|p| (kind.relevant)(&value, p.name) && !grouped(p.name)).collect();
+        self.param_grid(ui, id, ("params", id.to_string()), &shown);
+        for group in kind.groups {
+            let specs: Vec<&ParamSpec> = group.params.iter().filter_map(|name| kind.param(name)).collect();
+            egui::CollapsingHeader::new(group.label)
+                .id_salt(("group", id, group.label))
+                .show(ui, |ui| {
+                    ui.weak(group.doc);
+                    self.param_grid(ui, id, ("group params", format!("{id}/{}", group.label)), &specs);
+                })
+                .header_response
+                .on_hover_text(group.doc);
+        }
         for spec in &kind.params {
             match spec.kind {
                 ParamKind::Objects { .. } => self.objects_widget(ui, id, spec),
@@ -168,6 +172,26 @@ impl Inspector<'_> {
                 _ => {}
             }
         }
+    }
+
+    /// One labelled widget per row for `specs` (list-valued parameters have widgets of their own).
+    fn param_grid(
+        &mut self,
+        ui: &mut egui::Ui,
+        id: &str,
+        grid: impl std::hash::Hash + std::fmt::Debug,
+        specs: &[&ParamSpec],
+    ) {
+        egui::Grid::new(grid).num_columns(2).striped(true).show(ui, |ui| {
+            for spec in specs {
+                if matches!(spec.kind, ParamKind::Objects { .. } | ParamKind::Spheres { .. } | ParamKind::Paint) {
+                    continue;
+                }
+                let label = ui.label(spec.label).on_hover_text(spec.doc);
+                self.param_widget(ui, id, spec, label.id);
+                ui.end_row();
+            }
+        });
     }
 
     fn note(&mut self, result: Result<(), String>) {

@@ -231,6 +231,7 @@ pub fn spec() -> NodeKindSpec {
         }],
         availability: Availability::Ready,
         relevant: crate::node_kind::always_relevant,
+        groups: &[],
     }
 }
 

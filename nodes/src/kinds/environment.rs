@@ -221,6 +221,7 @@ pub fn spec() -> NodeKindSpec {
         ],
         availability: Availability::Ready,
         relevant: crate::node_kind::always_relevant,
+        groups: &[],
     }
 }
 

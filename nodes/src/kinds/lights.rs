@@ -50,6 +50,7 @@ pub fn point_light_spec() -> NodeKindSpec {
         previews: Vec::new(),
         availability: Availability::Ready,
         relevant: crate::node_kind::always_relevant,
+        groups: &[],
     }
 }
 

@@ -279,6 +279,7 @@ pub fn spec() -> NodeKindSpec {
         previews: Vec::new(),
         availability: Availability::Ready,
         relevant: relevant_to_mode,
+        groups: super::output_bake::GROUPS,
     }
 }
 

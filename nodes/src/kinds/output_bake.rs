@@ -4,7 +4,21 @@
 //! touched (a material edit no transport, a light move no atlas).
 
 use crate::engine::{Codec, StageContext, StageError, StageValue};
-use crate::node_kind::{ParamKind, ParamSpec, StageSpec};
+use crate::node_kind::{ParamGroup, ParamKind, ParamSpec, StageSpec};
+
+/// The bake's settings, folded in the Output's inspector.
+pub const GROUPS: &[ParamGroup] = &[ParamGroup {
+    label: "Bake",
+    doc: "What Bake… (File menu) and the lightloom bake command write for game engines: lightmaps, SH probes \
+          and the prefiltered environment.",
+    params: &[
+        "bake_lightmap_density",
+        "bake_lightmap_padding",
+        "bake_probe_spacing",
+        "bake_probe_bands",
+        "bake_cube_size",
+    ],
+}];
 
 pub fn params() -> Vec<ParamSpec> {
     vec![
@@ -13,7 +27,7 @@ pub fn params() -> Vec<ParamSpec> {
             label: "Lightmap texels per metre",
             unit: "1/m",
             kind: ParamKind::Float { min: 0.5, max: 1024.0, default: 16.0 },
-            doc: "Bake: lightmap resolution on the scene's surfaces (the same everywhere). The lightmap is at most \
+            doc: "Lightmap resolution on the scene's surfaces (the same everywhere). The lightmap is at most \
                   4096 texels a side; each texel gets its own shadow transport in the mode, so the bake's cost \
                   grows with the square of this.",
         },
@@ -22,7 +36,7 @@ pub fn params() -> Vec<ParamSpec> {
             label: "Lightmap padding",
             unit: "texels",
             kind: ParamKind::Int { min: 1, max: 16, default: 2 },
-            doc: "Bake: empty texels around each lightmap chart (filled with the chart's edge light), so \
+            doc: "Empty texels around each lightmap chart (filled with the chart's edge light), so \
                   filtering and mipmaps do not bleed between charts.",
         },
         ParamSpec {
@@ -30,14 +44,14 @@ pub fn params() -> Vec<ParamSpec> {
             label: "Specular cube size",
             unit: "px",
             kind: ParamKind::Choice { options: &["32", "64", "128", "256"], default: "128", labels: &[] },
-            doc: "Bake: face size of the GGX-prefiltered specular cube map (mip 0; each further mip is rougher).",
+            doc: "Face size of the GGX-prefiltered specular cube map (mip 0; each further mip is rougher).",
         },
         ParamSpec {
             name: "bake_probe_spacing",
             label: "Probe spacing",
             unit: "m",
             kind: ParamKind::Float { min: 0.05, max: 1000.0, default: 1.0 },
-            doc: "Bake: distance between the SH light probes of the grid over the scene's bounds (for lighting \
+            doc: "Distance between the SH light probes of the grid over the scene's bounds (for lighting \
                   dynamic objects in a game engine).",
         },
         ParamSpec {
@@ -45,7 +59,7 @@ pub fn params() -> Vec<ParamSpec> {
             label: "Probe SH bands",
             unit: "",
             kind: ParamKind::Int { min: 1, max: 5, default: 3 },
-            doc: "Bake: SH bands per probe (3 = L2, 9 coefficients, what Unity and Godot use).",
+            doc: "SH bands per probe (3 = L2, 9 coefficients, what Unity and Godot use).",
         },
     ]
 }

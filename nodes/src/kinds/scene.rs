@@ -334,6 +334,7 @@ pub fn spec() -> NodeKindSpec {
         previews: Vec::new(),
         availability: Availability::Ready,
         relevant: crate::node_kind::always_relevant,
+        groups: &[],
     }
 }
 

@@ -57,3 +57,22 @@ fn file_bake_writes_the_bake_and_cancel_writes_nothing() {
     let last = harness.state().log.last().unwrap();
     assert!(last.error && last.text.contains("cancelled"), "{}", last.text);
 }
+
+/// The bake's settings sit in the Output's inspector under a "Bake" header, folded at first,
+/// so the shading settings come first; opening it shows them.
+#[test]
+fn bake_settings_fold_under_their_own_header() {
+    let mut harness = default_harness();
+    harness.get_by_role_and_label(Role::ComboBox, "Mode");
+    assert!(harness.query_by_label("Lightmap texels per metre").is_none(), "folded at first");
+    harness.get_by_label("Bake").click();
+    harness.run_steps(3);
+    for label in
+        ["Lightmap texels per metre", "Lightmap padding", "Probe spacing", "Probe SH bands", "Specular cube size"]
+    {
+        harness.get_by_label(label);
+    }
+    if let Ok(path) = std::env::var("LIGHTLOOM_TEST_SCREENSHOT") {
+        harness.render().expect("the UI renders through wgpu").save(path).unwrap();
+    }
+}

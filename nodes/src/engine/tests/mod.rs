@@ -513,6 +513,7 @@ fn test_kind(name: &'static str, compute: StageFn, persist: bool) -> NodeKindSpe
         previews: Vec::new(),
         availability: Availability::Ready,
         relevant: crate::node_kind::always_relevant,
+        groups: &[],
     }
 }
 

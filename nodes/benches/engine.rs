@@ -47,6 +47,7 @@ fn registry() -> &'static [NodeKindSpec] {
         previews: Vec::new(),
         availability: Availability::Ready,
         relevant: lightloom_nodes::node_kind::always_relevant,
+        groups: &[],
     }]))
 }
 

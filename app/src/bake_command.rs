@@ -66,10 +66,12 @@ pub fn run(args: &BakeArgs) -> Result<()> {
     bar.set_style(
         ProgressStyle::with_template("{spinner} baking {msg} [{bar:30}] {percent}%").unwrap().progress_chars("=> "),
     );
-    let baked = finish(&evaluation, &graph, &output, &project, &camera, args.preview, &args.out, &|what, fraction| {
+    let progress = |what: &str, fraction: f64| {
         bar.set_message(what.to_string());
         bar.set_position((fraction * 1000.0) as u64);
-    })?;
+    };
+    let baked =
+        finish(&evaluation, &graph, &output, &project, &camera, args.preview, &args.out, &progress, &cancelled)?;
     bar.finish_and_clear();
 
     if !args.eval.quiet {
@@ -141,6 +143,7 @@ pub fn finish(
     preview: Option<(usize, usize)>,
     out: &Path,
     progress: &dyn Fn(&str, f64),
+    cancelled: &dyn Fn() -> bool,
 ) -> Result<bake::Bake> {
     fail_on_errors(evaluation, &upstream_of(graph, output))?;
     let frame = FrameInputs::gather(evaluation, graph, output).map_err(|e| anyhow!(e))?;
@@ -164,6 +167,9 @@ pub fn finish(
     });
     let lightmap = bake::BakedStages::gather(evaluation, output).map_err(|e| anyhow!(e))?;
     let baked = bake::bake(&frame, Some(&lightmap), Some(export_camera), preview, progress).map_err(|e| anyhow!(e))?;
+    if cancelled() {
+        bail!("bake cancelled; {} is unchanged", out.display());
+    }
     bake::write_atomically(&baked, out).map_err(|e| anyhow!("writing into {}: {e}", out.display()))?;
     Ok(baked)
 }

@@ -64,6 +64,8 @@ impl EditorApp {
         let cancel_requested = Arc::new(AtomicBool::new(false));
         let (shared_progress, shared_cancel, target) = (progress.clone(), cancel.clone(), out.clone());
         let requested = cancel_requested.clone();
+        #[cfg(test)]
+        let hold = self.bake_hold.clone();
         let spawned = std::thread::Builder::new().name("lightloom-bake".into()).spawn(move || {
             let request = lightloom_nodes::bake::bake_request(&graph, &output);
             let job = engine.spawn_request(graph.clone(), request);
@@ -90,7 +92,12 @@ impl EditorApp {
                 p.1 = 0.9 * done as f64 / total as f64;
             }
             let evaluation = job.wait();
-            let outcome = if requested.load(Ordering::SeqCst) {
+            #[cfg(test)]
+            if let Some(hold) = hold {
+                hold.wait();
+            }
+            let cancelled = || requested.load(Ordering::SeqCst);
+            let outcome = if cancelled() {
                 Err(format!("bake cancelled; {} is unchanged", target.display()))
             } else {
                 crate::bake_command::finish(
@@ -102,6 +109,7 @@ impl EditorApp {
                     None,
                     &target,
                     &|what, f| *shared_progress.lock().unwrap() = (what.to_string(), 0.9 + 0.1 * f),
+                    &cancelled,
                 )
                 .map(|baked| {
                     let m = &baked.manifest;

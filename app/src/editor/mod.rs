@@ -225,6 +225,9 @@ pub struct EditorApp {
     image_render: Option<files::ImageRender>,
     /// The Bake… folder dialog, while open.
     bake_dialog: Option<egui_file_dialog::FileDialog>,
+    /// Tests: the bake's thread waits here between its evaluation and its files.
+    #[cfg(test)]
+    bake_hold: Option<std::sync::Arc<std::sync::Barrier>>,
     /// A bake, while it runs.
     bake: Option<bake::BakeJob>,
     file_action: Option<FileAction>,
@@ -394,6 +397,8 @@ impl EditorApp {
             image_dialog: None,
             image_render: None,
             bake_dialog: None,
+            #[cfg(test)]
+            bake_hold: None,
             bake: None,
             file_action: None,
             pending: None,

@@ -44,14 +44,19 @@ fn file_bake_writes_the_bake_and_cancel_writes_nothing() {
     let manifest: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("bake.json")).unwrap()).unwrap();
     assert_eq!(manifest["mode"], "sh_irradiance");
 
-    // A denser lightmap (a new atlas and texels), cancelled at once: nothing is written.
-    inspector::set_param(&mut harness.state_mut().doc, "output", "bake_lightmap_density", ParamValue::Float(256.0))
+    // A denser lightmap (a new atlas and texels), cancelled while it runs: nothing is written.
+    // The bake's thread waits for the click before it writes, however fast the bake was.
+    inspector::set_param(&mut harness.state_mut().doc, "output", "bake_lightmap_density", ParamValue::Float(64.0))
         .unwrap();
     let cancelled = state_dir().join("cancelled");
     let _ = std::fs::remove_dir_all(&cancelled);
+    let hold = std::sync::Arc::new(std::sync::Barrier::new(2));
+    harness.state_mut().bake_hold = Some(hold.clone());
     harness.state_mut().bake_to(cancelled.clone());
     harness.run_steps(2);
     harness.get_by_label("Cancel bake").click();
+    harness.run_steps(2);
+    hold.wait();
     wait_for_bake(&mut harness, |_| {});
     assert!(!cancelled.join("scene.glb").exists(), "a cancelled bake writes nothing");
     let last = harness.state().log.last().unwrap();

@@ -73,7 +73,8 @@ fn validate(file: &Path) -> (u64, u64, Vec<String>) {
 
 /// The default scene (sky with a sun, wavelet per-pixel mode), the foggy street (point
 /// lights, fog, SH transfer) and the square-light sample (its lights as directional lights):
-/// valid glTF, and the same bytes from a second bake that computes everything again.
+/// valid glTF, and the same bytes from a second bake that computes everything again. The
+/// engine model (a glTF import) is valid too.
 #[test]
 fn baked_scenes_pass_the_khronos_validator_and_are_deterministic() {
     let dir = temp_dir("valid");
@@ -98,6 +99,13 @@ fn baked_scenes_pass_the_khronos_validator_and_are_deterministic() {
             );
         }
     }
+    // A glTF model without texture coordinates of its own (the lightmap's are its first set).
+    let engine = dir.join("engine");
+    let out = bake(&repo().join("projects/samples/engine.ron"), &engine, &["--no-disk-cache", "-q"]);
+    assert!(out.status.success(), "engine: {}", String::from_utf8_lossy(&out.stderr));
+    let (errors, warnings, messages) = validate(&engine.join("scene.glb"));
+    assert_eq!((errors, warnings), (0, 0), "engine: {messages:#?}");
+
     let manifest: serde_json::Value =
         serde_json::from_slice(&std::fs::read(dir.join("street-1/bake.json")).unwrap()).unwrap();
     assert_eq!(manifest["point_lights"], 3);

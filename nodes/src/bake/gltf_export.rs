@@ -301,7 +301,11 @@ pub fn write_glb(scene: &ExportScene) -> Result<Glb, String> {
         }
         if let Some(a) = atlas {
             let view = bin.view(&mut root, &floats(&a.uvs), ArrayBuffer);
-            attributes.insert(Valid(Semantic::TexCoords(1)), accessor(&mut root, view, count, F32, Vec2, None));
+            let uv1 = accessor(&mut root, view, count, F32, Vec2, None);
+            // glTF numbers texture coordinates from 0 without gaps: a mesh without its own
+            // shares the lightmap's.
+            attributes.entry(Valid(Semantic::TexCoords(0))).or_insert(uv1);
+            attributes.insert(Valid(Semantic::TexCoords(1)), uv1);
         }
         let light: Vec<[f32; 3]> = pick(light).iter().map(|l| l.map(|c| (c / scale).clamp(0.0, 1.0))).collect();
         let view = bin.view(&mut root, &floats(&light), ArrayBuffer);

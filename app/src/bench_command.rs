@@ -1,6 +1,7 @@
 //! `lightloom bench`: prints the relighting figures (the numbers behind the speed claims).
 //! Benchmarks print; tests never time anything.
 //!
+//! * Visibility rays (`bench_rays`): one at a time and in bundles, beside Embree's rate.
 //! * Edit-to-new-frame latency for a BRDF edit on the default project, per relighting mode
 //!   (evaluate the changed stages, upload, draw, wait for the GPU).
 //! * Frame time of the default project at 1280×720 per mode (nothing re-uploaded).
@@ -43,9 +44,14 @@ pub struct BenchArgs {
     /// Frames timed per figure (the median is printed).
     #[arg(long, default_value_t = 5)]
     pub frames: usize,
-    /// Only these sections (default, fog, rsl, blockers, adaptive, area, synthetic; all when empty).
+    /// Only these sections (rays, default, fog, rsl, blockers, adaptive, area, synthetic; all
+    /// when empty).
     #[arg(long, value_delimiter = ',')]
     pub only: Vec<String>,
+    /// Also write the rays section's mesh and rays into this folder, for
+    /// `tools/rays/compare_mitsuba.py` to trace the same rays with Mitsuba 3 (Embree).
+    #[arg(long, value_name = "DIR")]
+    pub rays_dump: Option<std::path::PathBuf>,
 }
 
 /// The view of the synthetic meshes: a unit object at the origin from 3 m.
@@ -94,9 +100,15 @@ pub(crate) fn timed_frame(
 }
 
 pub fn run(args: &BenchArgs) -> Result<()> {
+    let wanted = |section: &str| args.only.is_empty() || args.only.iter().any(|s| s == section);
+    if wanted("rays") {
+        crate::bench_rays::ray_figures(args.rays_dump.as_deref())?;
+        if args.only.iter().all(|s| s == "rays") && !args.only.is_empty() {
+            return Ok(());
+        }
+    }
     let gpu = GpuContext::headless()?;
     println!("device: {}", gpu.describe());
-    let wanted = |section: &str| args.only.is_empty() || args.only.iter().any(|s| s == section);
     if wanted("default") {
         default_project_figures(args, &gpu)?;
     }

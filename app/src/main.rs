@@ -6,6 +6,7 @@ mod bench_adaptive;
 mod bench_area;
 mod bench_blockers;
 mod bench_command;
+mod bench_rays;
 mod editor;
 mod project_commands;
 mod sh_command;

@@ -243,7 +243,11 @@ pub struct SphericalTransport {
 /// Casts one ray per direction from receiver `i`; returns visibility (true = unoccluded).
 fn visibility_along(scene: &RayScene, p: DVec3, n: DVec3, directions: &[DVec3]) -> Vec<bool> {
     let origin = scene.leave_surface(p, n);
-    directions.iter().map(|d| d.dot(n) > 0.0 && !scene.occluded(origin, d.as_vec3().into(), f32::INFINITY)).collect()
+    let rays: Vec<u32> = (0..directions.len() as u32).filter(|&k| directions[k as usize].dot(n) > 0.0).collect();
+    let single: Vec<glam::Vec3A> = directions.iter().map(|d| d.as_vec3().into()).collect();
+    let mut blocked = vec![false; directions.len()];
+    scene.occlude_bundle(origin, &single, &rays, f32::INFINITY, &mut blocked);
+    directions.iter().zip(blocked).map(|(d, blocked)| d.dot(n) > 0.0 && !blocked).collect()
 }
 
 /// Runs `f` over receivers in parallel chunks, checking for cancellation between chunks.

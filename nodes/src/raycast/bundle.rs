@@ -1,0 +1,243 @@
+//! Occlusion of many rays that share one origin (a receiver's hemisphere of directions), traced
+//! together as a ray stream: a 4-wide BVH is walked once per bundle, each node carrying the
+//! list of the bundle's rays that reach it, so deep nodes meet only the few rays that get
+//! there. Each ray meets a node's four boxes, or a leaf's four triangles, in one SIMD test.
+//!
+//! Triangles are tested as cones from the shared origin: a ray hits a triangle when its
+//! direction lies inside the three planes through the origin and the triangle's edges. The
+//! edge planes are shared exactly by neighbouring triangles, so a ray cannot slip across the
+//! edge between two triangles of a closed mesh, and a triangle whose plane contains the origin
+//! (a hit at `t = 0`) occludes nothing, as in Embree.
+
+use glam::{Vec3A, Vec4};
+use obvhs::bvh2::Bvh2;
+use obvhs::triangle::Triangle;
+
+/// Four child boxes side by side (one lane each), and what each child is.
+#[derive(Clone, Copy, Debug)]
+struct Node4 {
+    lo: [Vec4; 3],
+    hi: [Vec4; 3],
+    /// An inner child's node index, or a leaf child's first triangle pack.
+    child: [u32; 4],
+    /// A leaf child's number of packs (0 for an inner child).
+    packs: [u8; 4],
+    /// Which lanes hold a child.
+    used: u32,
+}
+
+/// Up to four triangles side by side; unused lanes are degenerate (they occlude nothing).
+#[derive(Clone, Copy, Debug)]
+struct TrianglePack {
+    corners: [[Vec4; 3]; 3],
+}
+
+/// A 4-wide BVH laid out for bundles of rays from one origin.
+#[derive(Default)]
+pub(super) struct BundleTree {
+    nodes: Vec<Node4>,
+    packs: Vec<TrianglePack>,
+}
+
+/// A stacked part of the walk: a node or a leaf, and its rays in `lists[start..end]`.
+#[derive(Clone, Copy)]
+struct Pending {
+    child: u32,
+    packs: u8,
+    start: u32,
+    end: u32,
+}
+
+impl BundleTree {
+    /// From an obvhs binary BVH over `triangles` (its leaves index `primitive_indices`): each
+    /// 4-wide node opens the binary children with the largest boxes until it has four.
+    pub fn from_bvh2(bvh: &Bvh2, triangles: &[Triangle]) -> Self {
+        let mut tree = BundleTree::default();
+        if bvh.nodes.is_empty() {
+            return tree;
+        }
+        // (binary node, 4-wide node to fill). A root leaf becomes the only child of a node.
+        let mut todo = vec![(0usize, tree.new_node())];
+        while let Some((binary, slot)) = todo.pop() {
+            let root = &bvh.nodes[binary];
+            let mut children = if root.is_leaf() {
+                vec![binary]
+            } else {
+                vec![root.first_index as usize, root.first_index as usize + 1]
+            };
+            while children.len() < 4 {
+                let widest = children
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, c)| !bvh.nodes[**c].is_leaf())
+                    .max_by(|a, b| bvh.nodes[*a.1].aabb.half_area().total_cmp(&bvh.nodes[*b.1].aabb.half_area()));
+                let Some((k, &c)) = widest else { break };
+                let first = bvh.nodes[c].first_index as usize;
+                children[k] = first;
+                children.push(first + 1);
+            }
+            for (lane, &c) in children.iter().enumerate() {
+                let node = &bvh.nodes[c];
+                // Grown by a few ulps, so float rounding in the slab test (a flat box, a ray
+                // through its corner) never culls a ray that reaches a triangle inside.
+                let pad = (node.aabb.max - node.aabb.min).max_element() * 1e-6
+                    + node.aabb.min.abs().max(node.aabb.max.abs()).max_element() * 4.0 * f32::EPSILON;
+                let (lo, hi) = (node.aabb.min - pad, node.aabb.max + pad);
+                let target = &mut tree.nodes[slot];
+                for axis in 0..3 {
+                    target.lo[axis][lane] = lo[axis];
+                    target.hi[axis][lane] = hi[axis];
+                }
+                target.used |= 1 << lane;
+                if node.is_leaf() {
+                    let range = node.first_index as usize..(node.first_index + node.prim_count) as usize;
+                    let first = tree.packs.len() as u32;
+                    for four in bvh.primitive_indices[range].chunks(4) {
+                        tree.packs.push(TrianglePack::new(four.iter().map(|&i| &triangles[i as usize])));
+                    }
+                    let packs = (tree.packs.len() as u32 - first) as u8;
+                    tree.nodes[slot].child[lane] = first;
+                    tree.nodes[slot].packs[lane] = packs;
+                } else {
+                    let index = tree.new_node();
+                    tree.nodes[slot].child[lane] = index as u32;
+                    todo.push((c, index));
+                }
+            }
+        }
+        tree
+    }
+
+    fn new_node(&mut self) -> usize {
+        let empty = Vec4::ZERO;
+        self.nodes.push(Node4 { lo: [empty; 3], hi: [empty; 3], child: [0; 4], packs: [0; 4], used: 0 });
+        self.nodes.len() - 1
+    }
+
+    pub fn byte_size(&self) -> usize {
+        self.nodes.len() * std::mem::size_of::<Node4>() + self.packs.len() * std::mem::size_of::<TrianglePack>()
+    }
+
+    /// Sets `blocked[i]` for each ray `i` of `rays` (indices into `directions`) that hits a
+    /// triangle at a distance in `(0, tmax)`. Rays already marked blocked are skipped.
+    pub fn occlude(&self, origin: Vec3A, directions: &[Vec3A], rays: &[u32], tmax: f32, blocked: &mut [bool]) {
+        if self.nodes.is_empty() || rays.is_empty() {
+            return;
+        }
+        // A zero component would make 0·∞ in the slab test: a tiny one gives the same slabs.
+        let inverse: Vec<Vec3A> = directions
+            .iter()
+            .map(|d| Vec3A::select(d.abs().cmplt(Vec3A::splat(1e-30)), Vec3A::splat(1e30).copysign(*d), d.recip()))
+            .collect();
+        // Each stacked entry owns a range of `lists`; the one on top owns the highest range, so
+        // popping it frees everything above its end.
+        let mut lists: Vec<u32> = rays.to_vec();
+        let mut stack: Vec<Pending> = Vec::with_capacity(64);
+        let mut split: [Vec<u32>; 4] = Default::default();
+        stack.push(Pending { child: 0, packs: 0, start: 0, end: rays.len() as u32 });
+        let (o, far_limit) = ([Vec4::splat(origin.x), Vec4::splat(origin.y), Vec4::splat(origin.z)], Vec4::splat(tmax));
+        while let Some(entry) = stack.pop() {
+            lists.truncate(entry.end as usize);
+            let listed = entry.start as usize..entry.end as usize;
+            if entry.packs > 0 {
+                for pack in &self.packs[entry.child as usize..entry.child as usize + entry.packs as usize] {
+                    pack.occlude(origin, directions, &lists[listed.clone()], tmax, blocked);
+                }
+                continue;
+            }
+            let node = &self.nodes[entry.child as usize];
+            let lo = [node.lo[0] - o[0], node.lo[1] - o[1], node.lo[2] - o[2]];
+            let hi = [node.hi[0] - o[0], node.hi[1] - o[1], node.hi[2] - o[2]];
+            for list in &mut split {
+                list.clear();
+            }
+            for k in listed {
+                let i = lists[k];
+                if blocked[i as usize] {
+                    continue;
+                }
+                let inv = inverse[i as usize];
+                let (ax, bx) = (lo[0] * inv.x, hi[0] * inv.x);
+                let (ay, by) = (lo[1] * inv.y, hi[1] * inv.y);
+                let (az, bz) = (lo[2] * inv.z, hi[2] * inv.z);
+                let near = ax.min(bx).max(ay.min(by)).max(az.min(bz)).max(Vec4::ZERO);
+                let far = ax.max(bx).min(ay.max(by)).min(az.max(bz)).min(far_limit);
+                let mut hits = near.cmple(far).bitmask() & node.used;
+                while hits != 0 {
+                    let lane = hits.trailing_zeros() as usize;
+                    split[lane].push(i);
+                    hits &= hits - 1;
+                }
+            }
+            // Nearer children are traced first (pushed last, their lists on top).
+            let centre = |lane: usize| {
+                let c = |axis: usize| (node.lo[axis][lane] + node.hi[axis][lane]) * 0.5;
+                (Vec3A::new(c(0), c(1), c(2)) - origin).length_squared()
+            };
+            let mut order: [(f32, usize); 4] = std::array::from_fn(|lane| (centre(lane), lane));
+            order.sort_unstable_by(|a, b| b.0.total_cmp(&a.0));
+            for (_, lane) in order {
+                if split[lane].is_empty() {
+                    continue;
+                }
+                let start = lists.len() as u32;
+                lists.extend_from_slice(&split[lane]);
+                stack.push(Pending {
+                    child: node.child[lane],
+                    packs: node.packs[lane],
+                    start,
+                    end: lists.len() as u32,
+                });
+            }
+        }
+    }
+}
+
+impl TrianglePack {
+    fn new<'a>(triangles: impl Iterator<Item = &'a Triangle>) -> Self {
+        let mut corners = [[Vec4::ZERO; 3]; 3];
+        for (lane, t) in triangles.enumerate() {
+            for (corner, v) in [t.v0, t.v1, t.v2].into_iter().enumerate() {
+                for axis in 0..3 {
+                    corners[corner][axis][lane] = v[axis];
+                }
+            }
+        }
+        Self { corners }
+    }
+
+    /// The cone test of the pack's triangles against the listed rays from `origin`.
+    fn occlude(&self, origin: Vec3A, directions: &[Vec3A], rays: &[u32], tmax: f32, blocked: &mut [bool]) {
+        let o = [Vec4::splat(origin.x), Vec4::splat(origin.y), Vec4::splat(origin.z)];
+        let [a, b, c] = self.corners.map(|v| [v[0] - o[0], v[1] - o[1], v[2] - o[2]]);
+        let cross = |p: [Vec4; 3], q: [Vec4; 3]| {
+            [p[1] * q[2] - p[2] * q[1], p[2] * q[0] - p[0] * q[2], p[0] * q[1] - p[1] * q[0]]
+        };
+        let (ab, bc, ca) = (cross(a, b), cross(b, c), cross(c, a));
+        // a·(b×c) is the plane's distance from the origin times twice the triangle's area: zero
+        // when the origin lies in the plane (t = 0) or the lane is unused, and its sign orients
+        // the edge planes inwards.
+        let volume = a[0] * bc[0] + a[1] * bc[1] + a[2] * bc[2];
+        let live = (volume.cmpne(Vec4::ZERO) & volume.abs().cmplt(Vec4::INFINITY)).bitmask();
+        if live == 0 {
+            return;
+        }
+        let sign = Vec4::ONE.copysign(volume);
+        let orient = |e: [Vec4; 3]| [e[0] * sign, e[1] * sign, e[2] * sign];
+        let (ab, bc, ca, depth) = (orient(ab), orient(bc), orient(ca), volume.abs());
+        let far_limit = Vec4::splat(tmax);
+        for &i in rays {
+            let d = directions[i as usize];
+            let (x, y, z) = (Vec4::splat(d.x), Vec4::splat(d.y), Vec4::splat(d.z));
+            let e0 = x * ab[0] + y * ab[1] + z * ab[2];
+            let e1 = x * bc[0] + y * bc[1] + z * bc[2];
+            let e2 = x * ca[0] + y * ca[1] + z * ca[2];
+            // The hit is at t = depth / (e0 + e1 + e2) (the sum is d·normal, scaled alike).
+            let inside = e0.cmpge(Vec4::ZERO) & e1.cmpge(Vec4::ZERO) & e2.cmpge(Vec4::ZERO);
+            let near = depth.cmplt(far_limit * (e0 + e1 + e2));
+            if (inside & near).bitmask() & live != 0 {
+                blocked[i as usize] = true;
+            }
+        }
+    }
+}

@@ -15,7 +15,7 @@ use obvhs::triangle::Triangle;
 crate::stage_type!(RayScene, "ray-tracing scene", |v| v.triangle_count() * 48 * 2 + v.bundles.byte_size());
 
 /// Triangles per leaf of the bundle BVH (obvhs's SAH collapse decides up to this).
-const BUNDLE_LEAF_TRIANGLES: u32 = 4;
+const BUNDLE_LEAF_TRIANGLES: u32 = 8;
 
 /// Triangles and their BVH. Not serialisable (obvhs has no serde): rebuilt on load.
 pub struct RayScene {
@@ -100,7 +100,7 @@ impl RayScene {
         );
         obvhs::bvh2::reinsertion::ReinsertionOptimizer::default().run(&mut bvh2, params.reinsertion_batch_ratio, None);
         let bvh = obvhs::cwbvh::bvh2_to_cwbvh::bvh2_to_cwbvh(&bvh2, 3, true, false);
-        obvhs::bvh2::leaf_collapser::collapse(&mut bvh2, BUNDLE_LEAF_TRIANGLES, 1.0);
+        obvhs::bvh2::leaf_collapser::collapse(&mut bvh2, BUNDLE_LEAF_TRIANGLES, 3.0);
         let bundles = bundle::BundleTree::from_bvh2(&bvh2, &triangles);
         let ordered: Vec<RtTriangle> =
             bvh.primitive_indices.iter().map(|&i| RtTriangle::from(&triangles[i as usize])).collect();

@@ -39,15 +39,6 @@ pub(super) struct BundleTree {
     packs: Vec<TrianglePack>,
 }
 
-/// A stacked part of the walk: a node or a leaf, and its rays in `lists[start..end]`.
-#[derive(Clone, Copy)]
-struct Pending {
-    child: u32,
-    packs: u8,
-    start: u32,
-    end: u32,
-}
-
 impl BundleTree {
     /// From an obvhs binary BVH over `triangles` (its leaves index `primitive_indices`): each
     /// 4-wide node opens the binary children with the largest boxes until it has four.
@@ -125,33 +116,48 @@ impl BundleTree {
             return;
         }
         // A zero component would make 0·∞ in the slab test: a tiny one gives the same slabs.
-        let inverse: Vec<Vec3A> = directions
-            .iter()
-            .map(|d| Vec3A::select(d.abs().cmplt(Vec3A::splat(1e-30)), Vec3A::splat(1e30).copysign(*d), d.recip()))
-            .collect();
-        // Each stacked entry owns a range of `lists`; the one on top owns the highest range, so
+        let mut inverse = vec![Vec3A::ZERO; directions.len()];
+        for &i in rays {
+            let d = directions[i as usize];
+            inverse[i as usize] =
+                Vec3A::select(d.abs().cmplt(Vec3A::splat(1e-30)), Vec3A::splat(1e30).copysign(d), d.recip());
+        }
+        // Each stacked node owns a range of `lists`; the one on top owns the highest range, so
         // popping it frees everything above its end.
-        let mut lists: Vec<u32> = rays.to_vec();
-        let mut stack: Vec<Pending> = Vec::with_capacity(64);
-        let mut split: [Vec<u32>; 4] = Default::default();
-        stack.push(Pending { child: 0, packs: 0, start: 0, end: rays.len() as u32 });
+        let mut lists: Vec<u32> = Vec::with_capacity(rays.len() * 32);
+        lists.extend_from_slice(rays);
+        let mut stack: Vec<(u32, u32, u32)> = Vec::with_capacity(64);
+        stack.push((0, 0, rays.len() as u32));
         let (o, far_limit) = ([Vec4::splat(origin.x), Vec4::splat(origin.y), Vec4::splat(origin.z)], Vec4::splat(tmax));
-        while let Some(entry) = stack.pop() {
-            lists.truncate(entry.end as usize);
-            let listed = entry.start as usize..entry.end as usize;
-            if entry.packs > 0 {
-                for pack in &self.packs[entry.child as usize..entry.child as usize + entry.packs as usize] {
-                    pack.occlude(origin, directions, &lists[listed.clone()], tmax, blocked);
-                }
-                continue;
-            }
-            let node = &self.nodes[entry.child as usize];
+        while let Some((index, start, end)) = stack.pop() {
+            let (start, end) = (start as usize, end as usize);
+            lists.truncate(end);
+            let node = &self.nodes[index as usize];
+            // Lanes from the farthest child to the nearest: the nearest is traced first, so its
+            // list goes last (on top).
             let lo = [node.lo[0] - o[0], node.lo[1] - o[1], node.lo[2] - o[2]];
             let hi = [node.hi[0] - o[0], node.hi[1] - o[1], node.hi[2] - o[2]];
-            for list in &mut split {
-                list.clear();
+            let centre = [lo[0] + hi[0], lo[1] + hi[1], lo[2] + hi[2]];
+            let distance = (centre[0] * centre[0] + centre[1] * centre[1] + centre[2] * centre[2]).to_array();
+            let mut order = [0usize, 1, 2, 3];
+            // Insertion sort of four, farthest first.
+            for k in 1..4 {
+                let mut j = k;
+                while j > 0 && distance[order[j - 1]] < distance[order[j]] {
+                    order.swap(j - 1, j);
+                    j -= 1;
+                }
             }
-            for k in listed {
+            // Child lists are written straight into `lists`: lane `l` at `slot[l]`, room for
+            // every parent ray in each.
+            let count = end - start;
+            let mut slot = [0usize; 4];
+            for (rank, &lane) in order.iter().enumerate() {
+                slot[lane] = end + rank * count;
+            }
+            lists.resize(end + 4 * count, 0);
+            let mut length = [0usize; 4];
+            for k in start..end {
                 let i = lists[k];
                 if blocked[i as usize] {
                     continue;
@@ -162,32 +168,28 @@ impl BundleTree {
                 let (az, bz) = (lo[2] * inv.z, hi[2] * inv.z);
                 let near = ax.min(bx).max(ay.min(by)).max(az.min(bz)).max(Vec4::ZERO);
                 let far = ax.max(bx).min(ay.max(by)).min(az.max(bz)).min(far_limit);
-                let mut hits = near.cmple(far).bitmask() & node.used;
-                while hits != 0 {
-                    let lane = hits.trailing_zeros() as usize;
-                    split[lane].push(i);
-                    hits &= hits - 1;
+                let hits = near.cmple(far).bitmask() & node.used;
+                for lane in 0..4 {
+                    lists[slot[lane] + length[lane]] = i;
+                    length[lane] += ((hits >> lane) & 1) as usize;
                 }
             }
-            // Nearer children are traced first (pushed last, their lists on top).
-            let centre = |lane: usize| {
-                let c = |axis: usize| (node.lo[axis][lane] + node.hi[axis][lane]) * 0.5;
-                (Vec3A::new(c(0), c(1), c(2)) - origin).length_squared()
-            };
-            let mut order: [(f32, usize); 4] = std::array::from_fn(|lane| (centre(lane), lane));
-            order.sort_unstable_by(|a, b| b.0.total_cmp(&a.0));
-            for (_, lane) in order {
-                if split[lane].is_empty() {
-                    continue;
+            // Leaves at once (cheap, and what they block leaves the other lists early), then
+            // the inner children.
+            for lane in 0..4 {
+                let packs = node.packs[lane] as usize;
+                if packs > 0 && length[lane] > 0 {
+                    let first = node.child[lane] as usize;
+                    let listed = &lists[slot[lane]..slot[lane] + length[lane]];
+                    for pack in &self.packs[first..first + packs] {
+                        pack.occlude(origin, directions, listed, tmax, blocked);
+                    }
                 }
-                let start = lists.len() as u32;
-                lists.extend_from_slice(&split[lane]);
-                stack.push(Pending {
-                    child: node.child[lane],
-                    packs: node.packs[lane],
-                    start,
-                    end: lists.len() as u32,
-                });
+            }
+            for lane in order {
+                if node.packs[lane] == 0 && length[lane] > 0 {
+                    stack.push((node.child[lane], slot[lane] as u32, (slot[lane] + length[lane]) as u32));
+                }
             }
         }
     }
@@ -227,6 +229,9 @@ impl TrianglePack {
         let (ab, bc, ca, depth) = (orient(ab), orient(bc), orient(ca), volume.abs());
         let far_limit = Vec4::splat(tmax);
         for &i in rays {
+            if blocked[i as usize] {
+                continue;
+            }
             let d = directions[i as usize];
             let (x, y, z) = (Vec4::splat(d.x), Vec4::splat(d.y), Vec4::splat(d.z));
             let e0 = x * ab[0] + y * ab[1] + z * ab[2];

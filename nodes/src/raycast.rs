@@ -283,6 +283,25 @@ mod tests {
         assert!(against_single <= rays / 5000, "{against_single} of {rays} rays differ from single rays");
     }
 
+    /// The AVX2 build of the bundle walk gives the same flags as the portable one.
+    #[test]
+    fn avx2_and_portable_bundles_agree() {
+        use rand::Rng;
+        let scene = RayScene::build(&cluttered_scene());
+        let mut rng = test_rng(54);
+        for _ in 0..40 {
+            let origin =
+                Vec3A::new(rng.random_range(-3.0..3.0), rng.random_range(0.01..2.0), rng.random_range(-3.0..3.0));
+            let directions: Vec<Vec3A> = (0..256).map(|_| random_unit_vector(&mut rng).as_vec3().into()).collect();
+            let rays: Vec<u32> = (0..256).collect();
+            let mut portable = vec![false; 256];
+            scene.bundles.occlude_portable(origin, &directions, &rays, 2.5, &mut portable);
+            let mut dispatched = vec![false; 256];
+            scene.occlude_bundle(origin, &directions, &rays, 2.5, &mut dispatched);
+            assert_eq!(portable, dispatched);
+        }
+    }
+
     /// A ray from a point exactly on a surface is not blocked by that surface (a hit at
     /// `t = 0`), whichever way it leaves, for single rays and bundles alike; the next surface
     /// still blocks it.

@@ -148,14 +148,14 @@ impl EditorApp {
         }
     }
 
-    /// The status bar's bake progress and Cancel.
+    /// The status bar's bake progress and Cancel (at its left end, so they never move).
     pub(super) fn bake_status(&mut self, ui: &mut egui::Ui) {
         let Some(job) = &self.bake else { return };
-        ui.separator();
         let (what, fraction) = job.progress.lock().unwrap().clone();
         ui.add(egui::ProgressBar::new(fraction as f32).desired_width(200.0).text(format!("baking: {what}")));
         if ui.button("Cancel bake").clicked() {
             job.cancel();
         }
+        ui.separator();
     }
 }

@@ -188,6 +188,8 @@ impl EditorApp {
 
     pub(super) fn status_bar(&mut self, ui: &mut egui::Ui) {
         ui.horizontal(|ui| {
+            // First, so its Cancel stays put while the evaluation's status comes and goes.
+            self.bake_status(ui);
             if let Some(p) = &self.evaluator.progress {
                 let fraction = if p.total > 0 { p.done as f32 / p.total as f32 } else { 0.0 };
                 let text = if p.total == 0 {
@@ -212,7 +214,6 @@ impl EditorApp {
                 let took = crate::project_commands::duration_text(job.started.elapsed().as_secs_f64());
                 ui.label(format!("rendering {} ({took})", job.path.display()));
             }
-            self.bake_status(ui);
             if let Some(job) = &self.view.reference {
                 ui.separator();
                 ui.add(

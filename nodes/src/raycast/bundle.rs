@@ -110,8 +110,32 @@ impl BundleTree {
     }
 
     /// Sets `blocked[i]` for each ray `i` of `rays` (indices into `directions`) that hits a
-    /// triangle at a distance in `(0, tmax)`. Rays already marked blocked are skipped.
+    /// triangle at a distance in `(0, tmax)`. Rays already marked blocked are skipped. Compiled
+    /// for AVX2 too (the same operations, VEX-encoded: the same bits), used where the CPU has it.
     pub fn occlude(&self, origin: Vec3A, directions: &[Vec3A], rays: &[u32], tmax: f32, blocked: &mut [bool]) {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU has AVX2 (checked just above).
+            return unsafe { self.occlude_avx2(origin, directions, rays, tmax, blocked) };
+        }
+        self.occlude_portable(origin, directions, rays, tmax, blocked);
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn occlude_avx2(&self, origin: Vec3A, directions: &[Vec3A], rays: &[u32], tmax: f32, blocked: &mut [bool]) {
+        self.occlude_portable(origin, directions, rays, tmax, blocked);
+    }
+
+    #[inline(always)]
+    pub(super) fn occlude_portable(
+        &self,
+        origin: Vec3A,
+        directions: &[Vec3A],
+        rays: &[u32],
+        tmax: f32,
+        blocked: &mut [bool],
+    ) {
         if self.nodes.is_empty() || rays.is_empty() {
             return;
         }
@@ -209,6 +233,7 @@ impl TrianglePack {
     }
 
     /// The cone test of the pack's triangles against the listed rays from `origin`.
+    #[inline(always)]
     fn occlude(&self, origin: Vec3A, directions: &[Vec3A], rays: &[u32], tmax: f32, blocked: &mut [bool]) {
         let o = [Vec4::splat(origin.x), Vec4::splat(origin.y), Vec4::splat(origin.z)];
         let [a, b, c] = self.corners.map(|v| [v[0] - o[0], v[1] - o[1], v[2] - o[2]]);

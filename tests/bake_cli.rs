@@ -383,3 +383,40 @@ fn pearson(pairs: &[(f64, f64)]) -> f64 {
     let vb: f64 = pairs.iter().map(|p| (p.1 - mb).powi(2)).sum();
     cov / (va * vb).sqrt()
 }
+
+/// The viewport's SH irradiance shader (per pixel, on the GPU) against the bake's CPU twin of
+/// it (per vertex, `--preview`'s albedo × baked light) from the same camera: the same light
+/// wherever a pixel lies inside a triangle. Silhouette pixels (coverage and interpolation
+/// differ there) are the top few percent, so the 95th percentile is what is bounded.
+#[test]
+fn the_viewport_sh_irradiance_is_the_cpu_irradiance() {
+    let dir = temp_dir("irradiance");
+    let project = repo().join("projects/default.ron");
+    let mode = ["--set", "output.mode=sh_irradiance"];
+    let out = bake(&project, &dir.join("bake"), &[&mode[..], &["--preview", "320x180", "-q"]].concat());
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let render = dir.join("render.exr");
+    let out = lightloom()
+        .args(["render", project.to_str().unwrap(), "-o", render.to_str().unwrap(), "-q"])
+        .args(mode)
+        .args(["--set", "output.background=false", "--width", "320", "--height", "180"])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let gpu = image::open(&render).unwrap().into_rgb32f();
+    let cpu = image::open(dir.join("bake/preview_vertex.exr")).unwrap().into_rgb32f();
+    let mut errors: Vec<f64> = gpu
+        .pixels()
+        .zip(cpu.pixels())
+        .filter(|(g, c)| g.0.iter().sum::<f32>() > 0.0 && c.0.iter().sum::<f32>() > 0.0)
+        .map(|(g, c)| {
+            let norm = |v: [f64; 3]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
+            let (g, c) = (g.0.map(f64::from), c.0.map(f64::from));
+            norm([g[0] - c[0], g[1] - c[1], g[2] - c[2]]) / norm(c)
+        })
+        .collect();
+    assert!(errors.len() > 320 * 180 / 3, "{} surface pixels", errors.len());
+    errors.sort_by(f64::total_cmp);
+    let (median, p95) = (errors[errors.len() / 2], errors[errors.len() * 95 / 100]);
+    assert!(median < 0.002 && p95 < 0.01, "per-pixel relative error: median {median}, 95th percentile {p95}");
+}

@@ -38,36 +38,76 @@ fn legendre_next(l: i32, m: i32, z: f32, p: f32, p_prev: f32) -> f32 {
 }
 
 // Real orthonormal SH without the Condon-Shortley phase, by the normalised associated-Legendre
-// recurrence of nodes/src/sh/mod.rs (ShBasis::eval).
+// recurrence of nodes/src/sh/mod.rs (ShBasis::eval), one (l, m) step at a time: after
+// `sh_walk_next` returns true, `cos_y` is Y_{l,m} (index l(l+1)+m) and, for m > 0, `sin_y` is
+// Y_{l,-m} (index l(l+1)-m). Passes sum as they walk: a basis array indexed at run time is
+// spilled to memory in every fragment by software rasterisers (lavapipe).
+struct ShWalk {
+    dir: vec3<f32>,
+    bands: i32,
+    l: i32,
+    m: i32,
+    // cos(mφ) and sin(mφ) times sin^m θ, the sectoral P_m^m and the last two P_l^m.
+    c: f32,
+    s: f32,
+    p_mm: f32,
+    p: f32,
+    p_prev: f32,
+    cos_y: f32,
+    sin_y: f32,
+};
+
+fn sh_walk(dir: vec3<f32>, bands: i32) -> ShWalk {
+    return ShWalk(dir, bands, -1, 0, 1.0, 0.0, sqrt(1.0 / (4.0 * PI)), 0.0, 0.0, 0.0, 0.0);
+}
+
+// Steps to the next (l, m): l runs from m to bands - 1, then m moves on.
+fn sh_walk_next(w: ptr<function, ShWalk>) -> bool {
+    if ((*w).l < 0) {
+        if ((*w).bands <= 0) {
+            return false;
+        }
+        (*w).l = 0;
+        (*w).p = (*w).p_mm;
+    } else if ((*w).l + 1 < (*w).bands) {
+        (*w).l = (*w).l + 1;
+        let next = legendre_next((*w).l, (*w).m, (*w).dir.z, (*w).p, (*w).p_prev);
+        (*w).p_prev = (*w).p;
+        (*w).p = next;
+    } else {
+        (*w).m = (*w).m + 1;
+        if ((*w).m >= (*w).bands) {
+            return false;
+        }
+        let mf = f32((*w).m);
+        (*w).p_mm = (*w).p_mm * sqrt((2.0 * mf + 1.0) / (2.0 * mf));
+        let nc = (*w).c * (*w).dir.x - (*w).s * (*w).dir.y;
+        let ns = (*w).c * (*w).dir.y + (*w).s * (*w).dir.x;
+        (*w).c = nc;
+        (*w).s = ns;
+        (*w).l = (*w).m;
+        (*w).p = (*w).p_mm;
+        (*w).p_prev = 0.0;
+    }
+    if ((*w).m == 0) {
+        (*w).cos_y = (*w).p;
+        (*w).sin_y = 0.0;
+    } else {
+        (*w).cos_y = (*w).p * sqrt(2.0) * (*w).c;
+        (*w).sin_y = (*w).p * sqrt(2.0) * (*w).s;
+    }
+    return true;
+}
+
+// The whole basis as an array (for the few passes that read it more than once).
 fn sh_basis(n: vec3<f32>, bands: i32) -> array<f32, MAX_COEFFS> {
     var y: array<f32, MAX_COEFFS>;
-    var c = 1.0;
-    var s = 0.0;
-    var p_mm = sqrt(1.0 / (4.0 * PI));
-    for (var m = 0; m < bands; m = m + 1) {
-        let mf = f32(m);
-        if (m > 0) {
-            p_mm = p_mm * sqrt((2.0 * mf + 1.0) / (2.0 * mf));
-            let nc = c * n.x - s * n.y;
-            let ns = c * n.y + s * n.x;
-            c = nc;
-            s = ns;
-        }
-        var p_prev = 0.0;
-        var p = p_mm;
-        for (var l = m; l < bands; l = l + 1) {
-            if (l > m) {
-                let next = legendre_next(l, m, n.z, p, p_prev);
-                p_prev = p;
-                p = next;
-            }
-            let base = l * (l + 1);
-            if (m == 0) {
-                y[base] = p;
-            } else {
-                y[base + m] = p * sqrt(2.0) * c;
-                y[base - m] = p * sqrt(2.0) * s;
-            }
+    var walk = sh_walk(n, bands);
+    while (sh_walk_next(&walk)) {
+        let base = walk.l * (walk.l + 1);
+        y[base + walk.m] = walk.cos_y;
+        if (walk.m > 0) {
+            y[base - walk.m] = walk.sin_y;
         }
     }
     return y;

@@ -131,46 +131,25 @@ fn fog_g(exponent: f32, t_sp: f32, theta_s: f32) -> f32 {
 }
 
 // sum_lm w_l c_lm Y_lm(dir) over the environment's scattered light c_lm, with w_l = 1 (radiance)
-// or A_l (irradiance, Sun 2008 eq. 2.24; bands above 4 are negligible). The recurrence of
-// common.wgsl `sh_basis`, summed as it goes: no 64-entry array, which software rasterisers
-// would spill in every fragment shader that inlines this.
+// or A_l (irradiance, Sun 2008 eq. 2.24; bands above 4 are negligible), summed as the shared
+// basis walk (common.wgsl) goes.
 fn fog_environment_sum(dir: vec3<f32>, irradiance: bool) -> vec3<f32> {
     var bands = i32(fog.environment.w);
     if (irradiance) {
         bands = min(bands, 5);
     }
     var sum = vec3<f32>(0.0);
-    var c = 1.0;
-    var s = 0.0;
-    var p_mm = sqrt(1.0 / (4.0 * PI));
-    for (var m = 0; m < bands; m = m + 1) {
-        let mf = f32(m);
-        if (m > 0) {
-            p_mm = p_mm * sqrt((2.0 * mf + 1.0) / (2.0 * mf));
-            let nc = c * dir.x - s * dir.y;
-            let ns = c * dir.y + s * dir.x;
-            c = nc;
-            s = ns;
+    var walk = sh_walk(dir, bands);
+    while (sh_walk_next(&walk)) {
+        let l = walk.l;
+        var w = 1.0;
+        if (irradiance) {
+            w = select(select(select(select(-PI / 24.0, 0.0, l == 3), PI / 4.0, l == 2), 2.0 * PI / 3.0, l == 1), PI, l == 0);
         }
-        var p_prev = 0.0;
-        var p = p_mm;
-        for (var l = m; l < bands; l = l + 1) {
-            if (l > m) {
-                let next = legendre_next(l, m, dir.z, p, p_prev);
-                p_prev = p;
-                p = next;
-            }
-            var w = 1.0;
-            if (irradiance) {
-                w = select(select(select(select(-PI / 24.0, 0.0, l == 3), PI / 4.0, l == 2), 2.0 * PI / 3.0, l == 1), PI, l == 0);
-            }
-            let base = l * (l + 1);
-            if (m == 0) {
-                sum = sum + w * p * fog.environment_scattered[base].rgb;
-            } else {
-                let q = w * p * sqrt(2.0);
-                sum = sum + q * (c * fog.environment_scattered[base + m].rgb + s * fog.environment_scattered[base - m].rgb);
-            }
+        let base = l * (l + 1);
+        sum = sum + w * walk.cos_y * fog.environment_scattered[base + walk.m].rgb;
+        if (walk.m > 0) {
+            sum = sum + w * walk.sin_y * fog.environment_scattered[base - walk.m].rgb;
         }
     }
     return max(sum, vec3<f32>(0.0));

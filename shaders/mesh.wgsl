@@ -32,38 +32,15 @@ fn vs_main(v: MeshVertex) -> VertexOut {
     return out;
 }
 
-// E(n) = sum_k E_k Y_k(n): the recurrence of `sh_basis` (common.wgsl), each basis value added
-// in as it is made. No array of basis values: a CPU Vulkan (lavapipe) spills a dynamically
-// indexed private array to memory per pixel, which made this pass slower than per-vertex PRT.
+// E(n) = sum_k E_k Y_k(n), summed as the shared basis walk (common.wgsl) goes.
 fn sh_irradiance(n: vec3<f32>, bands: i32) -> vec3<f32> {
     var result = vec3<f32>(0.0);
-    var c = 1.0;
-    var s = 0.0;
-    var p_mm = sqrt(1.0 / (4.0 * PI));
-    for (var m = 0; m < bands; m = m + 1) {
-        let mf = f32(m);
-        if (m > 0) {
-            p_mm = p_mm * sqrt((2.0 * mf + 1.0) / (2.0 * mf));
-            let nc = c * n.x - s * n.y;
-            let ns = c * n.y + s * n.x;
-            c = nc;
-            s = ns;
-        }
-        var p_prev = 0.0;
-        var p = p_mm;
-        for (var l = m; l < bands; l = l + 1) {
-            if (l > m) {
-                let next = legendre_next(l, m, n.z, p, p_prev);
-                p_prev = p;
-                p = next;
-            }
-            let base = l * (l + 1);
-            if (m == 0) {
-                result = result + sh.coeffs[base].rgb * p;
-            } else {
-                let q = p * sqrt(2.0);
-                result = result + sh.coeffs[base + m].rgb * (q * c) + sh.coeffs[base - m].rgb * (q * s);
-            }
+    var walk = sh_walk(n, bands);
+    while (sh_walk_next(&walk)) {
+        let base = walk.l * (walk.l + 1);
+        result = result + sh.coeffs[base + walk.m].rgb * walk.cos_y;
+        if (walk.m > 0) {
+            result = result + sh.coeffs[base - walk.m].rgb * walk.sin_y;
         }
     }
     return result;

@@ -27,38 +27,18 @@ fn incident_rgb(ib: u32, k: i32) -> vec3<f32> {
     return vec3<f32>(incident[o], incident[o + 1u], incident[o + 2u]);
 }
 
-// sum_lm f_l R_lm Y_lm(r) over `bands`, with the basis from common.wgsl's recurrence evaluated
-// as it goes (no basis array, so high orders fit in registers).
+// sum_lm f_l R_lm Y_lm(r) over `bands`, summed as the shared basis walk (common.wgsl) goes (no
+// basis array, so high orders fit in registers).
 fn glossy_sum(r: vec3<f32>, bands: i32, ib: u32, material: u32) -> vec3<f32> {
     var sum = vec3<f32>(0.0);
-    var c = 1.0;
-    var s = 0.0;
-    var p_mm = sqrt(1.0 / (4.0 * PI));
-    for (var m = 0; m < bands; m = m + 1) {
-        let mf = f32(m);
-        if (m > 0) {
-            p_mm = p_mm * sqrt((2.0 * mf + 1.0) / (2.0 * mf));
-            let nc = c * r.x - s * r.y;
-            let ns = c * r.y + s * r.x;
-            c = nc;
-            s = ns;
-        }
-        var p_prev = 0.0;
-        var p = p_mm;
-        for (var l = m; l < bands; l = l + 1) {
-            if (l > m) {
-                let next = legendre_next(l, m, r.z, p, p_prev);
-                p_prev = p;
-                p = next;
-            }
-            let f = prt.lobe[3u * material + u32(l / 4)][l % 4];
-            let base = l * (l + 1);
-            if (m == 0) {
-                sum = sum + f * p * incident_rgb(ib, base);
-            } else {
-                let k = p * sqrt(2.0);
-                sum = sum + f * k * (c * incident_rgb(ib, base + m) + s * incident_rgb(ib, base - m));
-            }
+    var walk = sh_walk(r, bands);
+    while (sh_walk_next(&walk)) {
+        let l = walk.l;
+        let f = prt.lobe[3u * material + u32(l / 4)][l % 4];
+        let base = l * (l + 1);
+        sum = sum + f * walk.cos_y * incident_rgb(ib, base + walk.m);
+        if (walk.m > 0) {
+            sum = sum + f * walk.sin_y * incident_rgb(ib, base - walk.m);
         }
     }
     return sum;

@@ -85,19 +85,6 @@ fn best_of<T>(runs: usize, mut f: impl FnMut() -> T) -> (T, f64) {
     (out.expect("at least one run"), best)
 }
 
-/// The receivers the transport bench uses: every n-th of the model's vertices, about 3,000.
-fn sample(meshes: &MeshSet) -> Receivers {
-    let all = Receivers::from_meshes(meshes);
-    let step = (all.len() / 3000).max(1);
-    let pick = |v: &Vec<[f32; 3]>| v.iter().step_by(step).copied().collect::<Vec<_>>();
-    Receivers {
-        positions: pick(&all.positions),
-        normals: pick(&all.normals),
-        tangents: pick(&all.tangents),
-        mesh_offsets: vec![0],
-    }
-}
-
 pub fn ray_figures(dump: Option<&Path>) -> Result<()> {
     let model = Path::new(ENGINE_MODEL);
     let scene = match lightloom_nodes::gltf_import::import(model) {
@@ -111,7 +98,7 @@ pub fn ray_figures(dump: Option<&Path>) -> Result<()> {
     let start = Instant::now();
     let rays = RayScene::build(&meshes);
     let build_ms = start.elapsed().as_secs_f64() * 1e3;
-    let receivers = sample(&meshes);
+    let receivers = Receivers::from_meshes(&meshes).every_nth(3000);
     println!(
         "Visibility rays, 2CylinderEngine.glb ({} triangles, BVH build {build_ms:.0} ms), {} receivers:",
         rays.triangle_count(),

@@ -1,7 +1,8 @@
 //! Visibility precompute figures: BVH build time, rays per second, total precompute time and
 //! transport memory per receiver, for `2CylinderEngine.glb` (from ../shared/assets, when
 //! present) and a ~100k-triangle procedural mesh, at 256 and 1024 rays per receiver.
-//! Run with `cargo bench -p lightloom-nodes --bench transport`.
+//! Run with `cargo bench -p lightloom-nodes --bench transport`. The rays alone, one at a time
+//! and in bundles beside Embree: `lightloom bench --only rays`.
 
 use glam::DVec3;
 use lightloom_nodes::engine::CancelToken;
@@ -11,62 +12,6 @@ use lightloom_nodes::transport::{self, Receivers};
 use std::path::Path;
 use std::time::Instant;
 
-fn subset(all: &Receivers, count: usize) -> Receivers {
-    let step = (all.len() / count).max(1);
-    let pick = |v: &Vec<[f32; 3]>| v.iter().step_by(step).copied().collect::<Vec<_>>();
-    Receivers {
-        positions: pick(&all.positions),
-        normals: pick(&all.normals),
-        tangents: pick(&all.tangents),
-        mesh_offsets: vec![0],
-    }
-}
-
-/// The rays alone (no projection), one at a time and as one bundle per receiver, over the
-/// receivers' upper hemispheres of 1024 Fibonacci directions; both must agree.
-fn rays_alone(scene: &RayScene, sample: &Receivers) {
-    use glam::Vec3A;
-    use rayon::prelude::*;
-    let directions: Vec<Vec3A> = transport::fibonacci_directions(1024).iter().map(|d| d.as_vec3().into()).collect();
-    let bundle = |i: usize| {
-        let (p, n) = sample.point(i);
-        let origin = scene.leave_surface(p, n);
-        let rays: Vec<u32> = (0..1024).filter(|&k| directions[k as usize].dot(n.as_vec3().into()) > 0.0).collect();
-        (origin, rays)
-    };
-    let t = Instant::now();
-    let single: Vec<Vec<bool>> = (0..sample.len())
-        .into_par_iter()
-        .map(|i| {
-            let (origin, rays) = bundle(i);
-            rays.iter().map(|&k| scene.occluded(origin, directions[k as usize], f32::INFINITY)).collect()
-        })
-        .collect();
-    let single_s = t.elapsed().as_secs_f64();
-    let t = Instant::now();
-    let bundled: Vec<Vec<bool>> = (0..sample.len())
-        .into_par_iter()
-        .map(|i| {
-            let (origin, rays) = bundle(i);
-            let mut blocked = vec![false; directions.len()];
-            scene.occlude_bundle(origin, &directions, &rays, f32::INFINITY, &mut blocked);
-            rays.iter().map(|&k| blocked[k as usize]).collect()
-        })
-        .collect();
-    let bundled_s = t.elapsed().as_secs_f64();
-    let cast: usize = single.iter().map(Vec::len).sum();
-    let differ: usize = single.iter().zip(&bundled).map(|(a, b)| a.iter().zip(b).filter(|(a, b)| a != b).count()).sum();
-    let blocked: usize = bundled.iter().map(|b| b.iter().filter(|b| **b).count()).sum();
-    println!(
-        "  rays alone, {cast} rays ({:.0}% blocked): single rays {:.2} M rays/s, bundles {:.2} M rays/s ({:.1}×); {differ} differ ({:.4}%)",
-        100.0 * blocked as f64 / cast as f64,
-        cast as f64 / single_s / 1e6,
-        cast as f64 / bundled_s / 1e6,
-        single_s / bundled_s,
-        100.0 * differ as f64 / cast as f64
-    );
-}
-
 fn run(name: &str, meshes: MeshSet) {
     let triangles = meshes.triangle_count();
     let t = Instant::now();
@@ -74,8 +19,7 @@ fn run(name: &str, meshes: MeshSet) {
     let build_ms = t.elapsed().as_secs_f64() * 1e3;
     let receivers = Receivers::from_meshes(&meshes);
     println!("{name}: {triangles} triangles, {} receivers, BVH build {build_ms:.0} ms", receivers.len());
-    let sample = subset(&receivers, 3000);
-    rays_alone(&scene, &sample);
+    let sample = receivers.every_nth(3000);
     for rays in [256usize, 1024] {
         let directions = transport::fibonacci_directions(rays);
         // Rays actually cast: directions above each receiver's tangent plane.
@@ -99,7 +43,7 @@ fn run(name: &str, meshes: MeshSet) {
             (sh.visibility.len() + sh.transfer.len()) * 4 / sample.len()
         );
     }
-    let small = subset(&receivers, 300);
+    let small = receivers.every_nth(300);
     let t = Instant::now();
     let haar = transport::haar_transport(&scene, &small, 16, 128, &CancelToken::default(), &|_| {}).unwrap();
     let haar_s = t.elapsed().as_secs_f64();

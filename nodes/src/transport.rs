@@ -58,6 +58,18 @@ pub struct Receivers {
 }
 
 impl Receivers {
+    /// About `count` receivers, every n-th of the list, as one mesh (benchmarks' samples).
+    pub fn every_nth(&self, count: usize) -> Receivers {
+        let step = (self.len() / count.max(1)).max(1);
+        let pick = |v: &Vec<[f32; 3]>| v.iter().step_by(step).copied().collect::<Vec<_>>();
+        Receivers {
+            positions: pick(&self.positions),
+            normals: pick(&self.normals),
+            tangents: pick(&self.tangents),
+            mesh_offsets: vec![0],
+        }
+    }
+
     pub fn from_meshes(meshes: &MeshSet) -> Self {
         let mut r = Receivers::default();
         for mesh in &meshes.meshes {

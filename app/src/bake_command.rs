@@ -59,9 +59,6 @@ pub fn run(args: &BakeArgs) -> Result<()> {
     *interrupt().lock().unwrap() = job.cancel_token();
     let evaluation = follow(job, args.eval.quiet);
     let cancelled = || interrupt().lock().unwrap().is_cancelled();
-    if cancelled() {
-        bail!("bake cancelled; {} is unchanged", args.out.display());
-    }
     let bar = if args.eval.quiet { ProgressBar::hidden() } else { ProgressBar::new(1000) };
     bar.set_style(
         ProgressStyle::with_template("{spinner} baking {msg} [{bar:30}] {percent}%").unwrap().progress_chars("=> "),
@@ -132,7 +129,8 @@ fn parse_size(text: &str) -> Result<(usize, usize), String> {
 }
 
 /// After the bake's evaluation: checks it, turns it into files and writes them into `out`
-/// whole (the CLI and the editor's File → Bake… share this).
+/// whole (the CLI and the editor's File → Bake… share this). A cancel before the files are
+/// written leaves `out` as it was.
 #[allow(clippy::too_many_arguments)]
 pub fn finish(
     evaluation: &Evaluation,
@@ -145,6 +143,10 @@ pub fn finish(
     progress: &dyn Fn(&str, f64),
     cancelled: &dyn Fn() -> bool,
 ) -> Result<bake::Bake> {
+    let unchanged = || anyhow!("bake cancelled; {} is unchanged", out.display());
+    if cancelled() {
+        return Err(unchanged());
+    }
     fail_on_errors(evaluation, &upstream_of(graph, output))?;
     let frame = FrameInputs::gather(evaluation, graph, output).map_err(|e| anyhow!(e))?;
     if let Some(pending) = &frame.pending {
@@ -168,7 +170,7 @@ pub fn finish(
     let lightmap = bake::BakedStages::gather(evaluation, output).map_err(|e| anyhow!(e))?;
     let baked = bake::bake(&frame, Some(&lightmap), Some(export_camera), preview, progress).map_err(|e| anyhow!(e))?;
     if cancelled() {
-        bail!("bake cancelled; {} is unchanged", out.display());
+        return Err(unchanged());
     }
     bake::write_atomically(&baked, out).map_err(|e| anyhow!("writing into {}: {e}", out.display()))?;
     Ok(baked)

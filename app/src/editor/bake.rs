@@ -96,29 +96,24 @@ impl EditorApp {
             if let Some(hold) = hold {
                 hold.wait();
             }
-            let cancelled = || requested.load(Ordering::SeqCst);
-            let outcome = if cancelled() {
-                Err(format!("bake cancelled; {} is unchanged", target.display()))
-            } else {
-                crate::bake_command::finish(
-                    &evaluation,
-                    &graph,
-                    &output,
-                    &project,
-                    &camera,
-                    None,
-                    &target,
-                    &|what, f| *shared_progress.lock().unwrap() = (what.to_string(), 0.9 + 0.1 * f),
-                    &cancelled,
-                )
-                .map(|baked| {
-                    let m = &baked.manifest;
-                    let lightmap =
-                        m.lightmap.as_ref().map_or(String::new(), |l| format!(", lightmap {}×{}", l.width, l.height));
-                    format!("{} vertices{lightmap}, mode {}", m.vertices, m.mode)
-                })
-                .map_err(|e| format!("{e:#}"))
-            };
+            let outcome = crate::bake_command::finish(
+                &evaluation,
+                &graph,
+                &output,
+                &project,
+                &camera,
+                None,
+                &target,
+                &|what, f| *shared_progress.lock().unwrap() = (what.to_string(), 0.9 + 0.1 * f),
+                &|| requested.load(Ordering::SeqCst),
+            )
+            .map(|baked| {
+                let m = &baked.manifest;
+                let lightmap =
+                    m.lightmap.as_ref().map_or(String::new(), |l| format!(", lightmap {}×{}", l.width, l.height));
+                format!("{} vertices{lightmap}, mode {}", m.vertices, m.mode)
+            })
+            .map_err(|e| format!("{e:#}"));
             let _ = send.send(outcome);
         });
         match spawned {

@@ -1,12 +1,12 @@
 // Mesh pass for the `wavelet_vertex` and `wavelet_pixel` modes (nodes/src/triple_product.rs,
 // Ma et al. eq. 7 in top-only cell form):
-//   B = albedo * sum_c P_c D_c + specular * sum_c P_c S_c(w_o)
-// P_c = dOmega_c L_c V_c is lighting x visibility on the local-frame cells, D the diffuse
-// cosine table, S the specular lobe table on a (theta_o, phi_o) grid, interpolated bilinearly
-// at the view direction expressed in the frame [t, n x t, n].
+//   B = albedo * E + specular * sum_c P_c S_c(w_o),   E = sum_c P_c D_c
+// P_c = dOmega_c L_c V_c is lighting x visibility on the local-frame cells and E the diffuse
+// transfer, both written by wavelet_relight.wgsl when the lighting changes; S is the specular
+// lobe table on a (theta_o, phi_o) grid, interpolated bilinearly at the view direction
+// expressed in the frame [t, n x t, n].
 // Per vertex everywhere; in `wavelet_pixel`, meshes with a visibility texture are shaded per
-// pixel from their texels instead: the diffuse sum from the per-texel transfer E (a filtered
-// texture), the specular sum from the four nearest texels' P (bilinear weights).
+// pixel from their texels instead: E and P of the four nearest texels, weighted bilinearly.
 
 
 struct WaveletParams {
@@ -22,14 +22,15 @@ struct WaveletParams {
 @group(2) @binding(0) var<uniform> wp: WaveletParams;
 // P_c per vertex and cell, RGB9E5-packed (render/src/packing.rs).
 @group(2) @binding(1) var<storage, read> products: array<u32>;
-@group(2) @binding(2) var<storage, read> diffuse_table: array<f32>;
+// E per vertex.
+@group(2) @binding(2) var<storage, read> irradiance: array<vec4<f32>>;
 @group(2) @binding(3) var<storage, read> specular_table: array<f32>;
-@group(2) @binding(4) var texel_diffuse: texture_2d_array<f32>;
-@group(2) @binding(5) var texel_sampler: sampler;
-// P_c per texel (layer-major, rows at increasing v), RGB9E5-packed.
-@group(2) @binding(6) var<storage, read> texel_products: array<u32>;
-// Per vertex: its mesh's layer in texel_diffuse, or -1.
-@group(2) @binding(7) var<storage, read> vertex_layers: array<i32>;
+// E per texel (layer-major, rows at increasing v).
+@group(2) @binding(4) var<storage, read> texel_irradiance: array<vec4<f32>>;
+// P_c per texel, RGB9E5-packed.
+@group(2) @binding(5) var<storage, read> texel_products: array<u32>;
+// Per vertex: its mesh's layer of texels, or -1.
+@group(2) @binding(6) var<storage, read> vertex_layers: array<i32>;
 
 fn rgb9e5(v: u32) -> vec3<f32> {
     let scale = exp2(f32(i32(v >> 27u) - 24));
@@ -115,11 +116,7 @@ fn vs_main(v: MeshVertex, @builtin(vertex_index) index: u32) -> VertexOut {
     out.specular = vec3<f32>(0.0);
     let cells = wp.counts.x;
     let base = index * cells;
-    var diffuse = vec3<f32>(0.0);
-    for (var c = 0u; c < cells; c = c + 1u) {
-        diffuse = diffuse + rgb9e5(products[base + c]) * diffuse_table[c];
-    }
-    out.diffuse = out.albedo * diffuse;
+    out.diffuse = out.albedo * irradiance[index].rgb;
     let wo = local_view(v.position, v.normal, v.tangent);
     if (wp.specular[m].w > 0.0 && wo.z > 0.0) {
         let rows = table_rows(wo, m);
@@ -138,26 +135,33 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     if (wp.texels.x == 0u || in.layer < 0) {
         return vec4<f32>(fog_shade(in.diffuse + in.specular, in.position, n, in.albedo / PI, in.material), 1.0);
     }
-    let diffuse = in.albedo * textureSample(texel_diffuse, texel_sampler, in.uv, in.layer).rgb;
     let m = in.material;
+    // The four texels around the pixel (texel centres at (x + 0.5) / size), clamped at the
+    // layer's edges.
+    let size = wp.texels.y;
+    let cells = wp.counts.x;
+    let f = clamp(in.uv * f32(size) - 0.5, vec2<f32>(0.0), vec2<f32>(f32(size - 1u)));
+    let x0 = u32(floor(f.x));
+    let y0 = u32(floor(f.y));
+    let x1 = min(x0 + 1u, size - 1u);
+    let y1 = min(y0 + 1u, size - 1u);
+    let w = f - floor(f);
+    let layer = u32(in.layer) * size * size;
+    let s00 = layer + y0 * size + x0;
+    let s01 = layer + y0 * size + x1;
+    let s10 = layer + y1 * size + x0;
+    let s11 = layer + y1 * size + x1;
+    let e_top = mix(texel_irradiance[s00].rgb, texel_irradiance[s01].rgb, w.x);
+    let e_bottom = mix(texel_irradiance[s10].rgb, texel_irradiance[s11].rgb, w.x);
+    let diffuse = in.albedo * mix(e_top, e_bottom, w.y);
     var specular = vec3<f32>(0.0);
     let wo = local_view(in.position, in.normal, in.tangent);
     if (wp.specular[m].w > 0.0 && wo.z > 0.0) {
-        let size = wp.texels.y;
-        let cells = wp.counts.x;
         let rows = table_rows(wo, m);
-        // The four texels around the pixel (texel centres at (x + 0.5) / size).
-        let f = clamp(in.uv * f32(size) - 0.5, vec2<f32>(0.0), vec2<f32>(f32(size - 1u)));
-        let x0 = u32(floor(f.x));
-        let y0 = u32(floor(f.y));
-        let x1 = min(x0 + 1u, size - 1u);
-        let y1 = min(y0 + 1u, size - 1u);
-        let w = f - floor(f);
-        let layer = u32(in.layer) * size * size;
-        let t00 = (layer + y0 * size + x0) * cells;
-        let t01 = (layer + y0 * size + x1) * cells;
-        let t10 = (layer + y1 * size + x0) * cells;
-        let t11 = (layer + y1 * size + x1) * cells;
+        let t00 = s00 * cells;
+        let t01 = s01 * cells;
+        let t10 = s10 * cells;
+        let t11 = s11 * cells;
         for (var c = 0u; c < cells; c = c + 1u) {
             let top = mix(rgb9e5(texel_products[t00 + c]), rgb9e5(texel_products[t01 + c]), w.x);
             let bottom = mix(rgb9e5(texel_products[t10 + c]), rgb9e5(texel_products[t11 + c]), w.x);

@@ -25,7 +25,7 @@ use clap::Args;
 use lightloom_nodes::engine::{CancelToken, Engine, Graph, StageValue};
 use lightloom_nodes::frame::{
     Background, FrameInputs, FrameMaterial, Geometry, IrradianceSurfaces, Keyed, MediumFrame, PrtSurfaces, Surfaces,
-    WaveletSurfaces,
+    WaveletLighting, WaveletSurfaces,
 };
 use lightloom_nodes::kinds::output::{Mode, Tonemap, View};
 use lightloom_nodes::node_kind::ParamValue;
@@ -450,9 +450,15 @@ fn default_project_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
     let camera = project.camera(None).map_err(|e| anyhow!(e))?;
     let view = CameraView::from_project(&camera);
     let base = project.graph(std::path::Path::new("default.ron")).map_err(|e| anyhow!("{e:?}"))?;
-    println!("\ndefault project, glossy Phong material (BRDF edit = exponent change), 1280x720");
-    println!("{:<18} {:>16} {:>16} {:>12}", "mode", "edit stages ms", "edit→frame ms", "frame ms");
-    for mode in ["sh_irradiance", "sh_prt", "wavelet_vertex"] {
+    println!(
+        "\ndefault project, glossy Phong material, 1280x720: edit→frame after a BRDF edit (exponent) and an \
+         environment rotation (yaw)"
+    );
+    println!(
+        "{:<18} {:>16} {:>16} {:>16} {:>16} {:>12}",
+        "mode", "BRDF stages ms", "BRDF→frame ms", "turn stages ms", "turn→frame ms", "frame ms"
+    );
+    for mode in ["sh_irradiance", "sh_prt", "wavelet_vertex", "wavelet_pixel"] {
         let mut graph = base.clone();
         graph.set_param("output", "mode", ParamValue::Choice(mode.into()))?;
         graph.set_param("material", "model", ParamValue::Choice("phong".into()))?;
@@ -462,20 +468,37 @@ fn default_project_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
         let frame_of = |graph: &Graph| evaluate_frame(&engine, graph, "output").map(|(frame, _, _)| frame);
         let frame = frame_of(&graph)?;
         timed_frame(gpu, &mut renderer, &frame, &view, (1280, 720))?;
-        let (mut latencies, mut stages) = (Vec::new(), Vec::new());
-        for i in 0..args.frames {
-            graph.set_param("material", "exponent", ParamValue::Float(10.0 + 7.0 * i as f64))?;
-            let start = Instant::now();
-            let frame = frame_of(&graph)?;
-            stages.push(start.elapsed().as_secs_f64() * 1e3);
-            timed_frame(gpu, &mut renderer, &frame, &view, (1280, 720))?;
-            latencies.push(start.elapsed().as_secs_f64() * 1e3);
-        }
+        // Median evaluation time and edit-to-frame time over `args.frames` edits.
+        let mut latency = |graph: &mut Graph, edit: &dyn Fn(&mut Graph, usize) -> Result<()>| -> Result<(f64, f64)> {
+            let (mut latencies, mut stages) = (Vec::new(), Vec::new());
+            for i in 0..args.frames {
+                edit(graph, i)?;
+                let start = Instant::now();
+                let frame = frame_of(graph)?;
+                stages.push(start.elapsed().as_secs_f64() * 1e3);
+                timed_frame(gpu, &mut renderer, &frame, &view, (1280, 720))?;
+                latencies.push(start.elapsed().as_secs_f64() * 1e3);
+            }
+            Ok((median(stages), median(latencies)))
+        };
+        let brdf = latency(&mut graph, &|g, i| {
+            Ok(g.set_param("material", "exponent", ParamValue::Float(10.0 + 7.0 * i as f64))?)
+        })?;
+        let turn = latency(&mut graph, &|g, i| {
+            Ok(g.set_param("sky", "rotation", ParamValue::Vec3([10.0 + 13.0 * i as f64, 0.0, 0.0]))?)
+        })?;
         let frame = frame_of(&graph)?;
         let frames: Vec<f64> = (0..args.frames)
             .map(|_| timed_frame(gpu, &mut renderer, &frame, &view, (1280, 720)))
             .collect::<Result<_>>()?;
-        println!("{mode:<18} {:>16.1} {:>16.1} {:>12.1}", median(stages), median(latencies), median(frames));
+        println!(
+            "{mode:<18} {:>16.1} {:>16.1} {:>16.1} {:>16.1} {:>12.1}",
+            brdf.0,
+            brdf.1,
+            turn.0,
+            turn.1,
+            median(frames)
+        );
     }
     Ok(())
 }
@@ -573,58 +596,58 @@ fn synthetic_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
             .collect();
         let transport = SphericalTransport { depth, keep: terms, visibility };
         let grid = lightloom_nodes::triple_product::CellGrid::for_coefficients(terms).map_err(|e| anyhow!(e))?;
+        let cell_visibility =
+            lightloom_nodes::triple_product::local_visibility(grid, &transport, &CancelToken::default())
+                .map_err(|e| anyhow!("{e}"))?;
+        let visibility = keyed(30 + terms as u128, StageValue::new(cell_visibility));
+        let receivers_keyed = keyed(3, StageValue::new(receivers.clone()));
+        // A new environment: prefiltering on the CPU, then the relight kernel in the next frame.
         let start = Instant::now();
-        // A lighting change: the pre-rotated table (big meshes) and the products.
-        let frame_table = (n > lightloom_nodes::triple_product::FRAME_TABLE_THRESHOLD)
-            .then(|| lightloom_nodes::triple_product::FrameTable::build(grid, &environment));
-        let lighting = lightloom_nodes::triple_product::Lighting {
-            environment: &environment,
-            rotation: glam::DMat3::IDENTITY,
-            table: frame_table.as_ref(),
+        let prefiltered = lightloom_nodes::triple_product::prefiltered(&environment, grid);
+        let prefilter_ms = start.elapsed().as_secs_f64() * 1e3;
+        let surfaces = |rotation: glam::DMat3, environment_key: u128| -> Result<WaveletSurfaces> {
+            let lighting = WaveletLighting {
+                visibility: visibility.clone(),
+                receivers: receivers_keyed.clone(),
+                environment: keyed(environment_key, StageValue::new(prefiltered.clone())),
+                rotation,
+            };
+            WaveletSurfaces::new(
+                lighting,
+                &[keyed(40, StageValue::new(table.clone()))],
+                None,
+                None,
+                &geometry,
+                &materials,
+            )
+            .map_err(|e| anyhow!(e))
         };
-        let products = lightloom_nodes::triple_product::local_products(
-            grid,
-            &lighting,
-            &receivers,
-            &transport,
-            &CancelToken::default(),
-        )
-        .map_err(|e| anyhow!("{e}"))?;
-        let change_ms = start.elapsed().as_secs_f64() * 1e3;
-        // An environment rotation: the table is reused, only the products are recomputed.
-        let start = Instant::now();
-        let rotated = lightloom_nodes::triple_product::Lighting {
-            environment: &environment,
-            rotation: glam::DMat3::from_rotation_y(0.7),
-            table: frame_table.as_ref(),
-        };
-        lightloom_nodes::triple_product::local_products(
-            grid,
-            &rotated,
-            &receivers,
-            &transport,
-            &CancelToken::default(),
-        )
-        .map_err(|e| anyhow!("{e}"))?;
-        let rotation_ms = start.elapsed().as_secs_f64() * 1e3;
-        let surfaces = WaveletSurfaces::new(
-            keyed(30 + terms as u128, StageValue::new(products)),
-            &[keyed(40, StageValue::new(table.clone()))],
-            None,
-            None,
-            &geometry,
-            &materials,
-        )
-        .map_err(|e| anyhow!(e))?;
-        let frame = frame_with(Mode::WaveletVertex, Surfaces::Wavelet(surfaces));
-        match frame_times(&mut renderer, &frame) {
-            Ok(ms) => println!(
-                "{:<24} {:>22} {:>14.1}",
-                format!("wavelet_vertex {terms}"),
-                format!("{change_ms:.1} (rotation {rotation_ms:.0})"),
-                ms
-            ),
-            Err(e) => println!("{:<24} {:>22.1}   not drawn: {e}", format!("wavelet_vertex {terms}"), change_ms),
+        // The first frame after a change rebuilds P and E (on the GPU, or on the CPU and
+        // uploaded); the rebuild's cost is that frame's excess over a steady frame.
+        for on in [lightloom_render::RelightOn::Cpu, lightloom_render::RelightOn::Gpu] {
+            renderer.set_relight_on(on);
+            let label = format!(
+                "wavelet_vertex {terms} ({})",
+                if on == lightloom_render::RelightOn::Cpu { "CPU" } else { "GPU" }
+            );
+            let key = |k: u128| 1000 * (on as u128 + 1) + 10 * terms as u128 + k;
+            let first =
+                frame_with(Mode::WaveletVertex, Surfaces::Wavelet(Box::new(surfaces(glam::DMat3::IDENTITY, key(1))?)));
+            let steady = match frame_times(&mut renderer, &first) {
+                Ok(ms) => ms,
+                Err(e) => {
+                    println!("{label:<24} {:>22}   not drawn: {e}", "-");
+                    continue;
+                }
+            };
+            let mut changed = |rotation: glam::DMat3, environment_key: u128| -> Result<f64> {
+                let frame =
+                    frame_with(Mode::WaveletVertex, Surfaces::Wavelet(Box::new(surfaces(rotation, environment_key)?)));
+                Ok(timed_frame(gpu, &mut renderer, &frame, &view, (1280, 720))? - steady)
+            };
+            let new_environment = changed(glam::DMat3::IDENTITY, key(2))? + prefilter_ms;
+            let rotation = changed(glam::DMat3::from_rotation_y(0.7), key(2))?;
+            println!("{label:<24} {:>22} {steady:>14.1}", format!("{new_environment:.1} (rotation {rotation:.0})"));
         }
     }
     Ok(())

@@ -94,7 +94,7 @@ pub struct FrameMaterial {
 pub enum Surfaces {
     Irradiance(IrradianceSurfaces),
     Prt(PrtSurfaces),
-    Wavelet(WaveletSurfaces),
+    Wavelet(Box<WaveletSurfaces>),
     Rsl(RslSurfaces),
 }
 
@@ -182,15 +182,74 @@ pub fn incident_sh(value: &crate::engine::StageValue) -> Result<&crate::prt::Inc
     }
 }
 
+/// What the wavelet modes multiply into `P_c = ΔΩ_c L_c V_c`: per-vertex visibility cells and
+/// frames, and the environment with its rotation. None of it changes with the rotation but
+/// the rotation itself, so a renderer rebuilds `P` from a uniform.
+#[derive(Clone, Debug)]
+pub struct WaveletLighting {
+    /// [`crate::triple_product::LocalVisibility`] per vertex.
+    pub visibility: Keyed,
+    /// [`crate::transport::Receivers`]: the vertices' frames.
+    pub receivers: Keyed,
+    /// The unrotated environment prefiltered for the cells ([`crate::triple_product::prefiltered`]).
+    pub environment: Keyed,
+    /// `R`: the lit world sees `L(R⁻¹ d)`.
+    pub rotation: glam::DMat3,
+}
+
+/// One set of receivers the viewport lights on the GPU: each one's frame and visibility cells.
+#[derive(Clone, Debug)]
+pub struct WaveletReceivers {
+    pub key: Key,
+    /// Per receiver `[t, 0]` then `[n, 0]`: its frame `[t, n × t, n]`.
+    pub frames: Arc<Vec<[f32; 4]>>,
+    /// [`crate::triple_product::LocalVisibility`] or [`crate::triple_product::TexelVisibility`].
+    pub visibility: Keyed,
+}
+
+impl WaveletReceivers {
+    fn new(receivers: &crate::transport::Receivers, key: Key, visibility: Keyed) -> Self {
+        let frames = (0..receivers.len())
+            .flat_map(|i| {
+                let f = receivers.frame(i);
+                [f.x_axis, f.z_axis].map(|a| [a.x as f32, a.y as f32, a.z as f32, 0.0])
+            })
+            .collect();
+        Self { key: key ^ visibility.key.rotate_left(17), frames: Arc::new(frames), visibility }
+    }
+
+    /// The visibility cells, whichever stage made them.
+    pub fn cells(&self) -> Result<&crate::triple_product::LocalVisibility, String> {
+        use crate::triple_product::{LocalVisibility, TexelVisibility};
+        if let Some(t) = self.visibility.value.get::<TexelVisibility>() {
+            return Ok(&t.visibility);
+        }
+        self.visibility.value.expect::<LocalVisibility>().map_err(|e| e.to_string())
+    }
+}
+
 /// The wavelet modes: the local-frame triple product `B = albedo Σ P_c D_c + specular Σ P_c
 /// S_c(ω_o)` per vertex, and per texel on meshes with a visibility texture (`wavelet_pixel`).
+/// `P` and the view-independent diffuse sum `E = Σ P_c D_c` are rebuilt only when the lighting
+/// or visibility change (a GPU kernel; [`Self::cpu_products`] is its CPU twin).
 #[derive(Clone, Debug)]
 pub struct WaveletSurfaces {
-    /// Changes whenever any buffer below does.
+    /// Changes whenever any buffer below but the environment does.
     pub key: Key,
     pub cells: usize,
-    /// [`crate::triple_product::LocalProducts`]: `P_c` per vertex.
-    pub products: Keyed,
+    pub vertices: WaveletReceivers,
+    /// `wavelet_pixel`: every texel slot of the visibility textures when it matches `cells`.
+    pub texels: Option<WaveletReceivers>,
+    /// Texels per side of the visibility textures.
+    pub texel_size: usize,
+    /// [`crate::cubemap::CubeMap`], prefiltered for the cells.
+    pub environment: Keyed,
+    /// `R⁻¹` (the lit world sees `L(R⁻¹ d)`), rows.
+    pub inverse_rotation: [[f32; 3]; 3],
+    pub rotation: glam::DMat3,
+    /// Per cell its sub-cell samples `[direction in the local frame, solid angle]`, the same
+    /// count per cell ([`crate::triple_product::CellGrid::samples`]).
+    pub cell_samples: Arc<Vec<[f32; 4]>>,
     /// `D_c`, shared by all materials.
     pub diffuse_table: Arc<Vec<f32>>,
     /// Every material's `S_c(ω_o)` table coarsened to `cells`, zeros without a lobe; each
@@ -200,8 +259,6 @@ pub struct WaveletSurfaces {
     /// by what reaches surfaces through fog (fog adds its scattered light separately).
     pub albedo: Vec<[f64; 3]>,
     pub specular: Vec<Option<[f64; 3]>>,
-    /// `wavelet_pixel`: [`crate::triple_product::TexelIrradiance`] when it matches `cells`.
-    pub texels: Option<Keyed>,
     /// Per vertex: its mesh's texel layer, or -1.
     pub vertex_layers: Arc<Vec<i32>>,
 }
@@ -209,58 +266,78 @@ pub struct WaveletSurfaces {
 impl WaveletSurfaces {
     /// `tables` are the materials' [`crate::triple_product::BrdfTable`]s, one per material.
     pub fn new(
-        products: Keyed,
+        lighting: WaveletLighting,
         tables: &[Keyed],
         texels: Option<Keyed>,
         fog: Option<&FoggedEnvironment>,
         geometry: &Geometry,
         materials: &[FrameMaterial],
     ) -> Result<Self, String> {
-        use crate::triple_product::{BrdfTable, LocalProducts, TexelIrradiance};
-        let p = products.value.expect::<LocalProducts>().map_err(|e| e.to_string())?;
+        use crate::triple_product::{BrdfTable, CellGrid, LocalVisibility, TexelVisibility};
+        let visibility = lighting.visibility.value.expect::<LocalVisibility>().map_err(|e| e.to_string())?;
+        let receivers = lighting.receivers.value.expect::<crate::transport::Receivers>().map_err(|e| e.to_string())?;
         let vertices = geometry.vertex_count();
-        if p.cells == 0 || p.values.len() != vertices * p.cells * 3 {
+        let cells = visibility.cells;
+        if cells == 0 || visibility.receivers() != vertices || receivers.len() != vertices {
             return Err(format!(
-                "the triple-product data covers {} receivers for {vertices} vertices",
-                p.values.len() / (p.cells * 3).max(1)
+                "the triple-product data covers {} receivers ({} frames) for {vertices} vertices",
+                visibility.receivers(),
+                receivers.len()
             ));
         }
+        let grid = CellGrid::for_coefficients(cells)?;
         let mut coarse = Vec::new();
-        let mut key = products.key ^ geometry.meshes.key.rotate_left(3);
+        let mut key =
+            lighting.visibility.key ^ lighting.receivers.key.rotate_left(5) ^ geometry.meshes.key.rotate_left(3);
         for keyed in tables {
             let table = keyed.value.expect::<BrdfTable>().map_err(|e| e.to_string())?;
-            coarse.push(table.coarsened(p.cells)?);
+            coarse.push(table.coarsened(cells)?);
             key = key.rotate_left(7) ^ keyed.key;
         }
         let Some(first) = coarse.first() else {
             return Err("the wavelet modes need a material: link a BRDF editor to the Output".into());
         };
-        let stride = Self::specular_stride(p.cells);
+        let stride = Self::specular_stride(cells);
         let mut specular_tables = vec![0.0f32; stride * coarse.len()];
         for (i, t) in coarse.iter().enumerate() {
             if !t.specular.is_empty() {
                 specular_tables[i * stride..(i + 1) * stride].copy_from_slice(&t.specular);
             }
         }
-        // Without any mesh that has a visibility texture there are no texels to bind.
+        // Without any mesh that has a visibility texture there are no texels to light.
         let texels = texels
-            .filter(|t| t.value.get::<TexelIrradiance>().is_some_and(|t| t.cells == p.cells && !t.texels.is_empty()));
-        let mesh_layers = texels.as_ref().and_then(|t| t.value.get::<TexelIrradiance>()).map(|t| &t.mesh_layers);
+            .filter(|t| t.value.get::<TexelVisibility>().is_some_and(|t| t.visibility.cells == cells && t.slots() > 0));
+        let texel_data = texels.as_ref().and_then(|t| t.value.get::<TexelVisibility>());
         let mut vertex_layers = Vec::with_capacity(vertices);
         if let Some(set) = geometry.meshes.value.get::<crate::mesh::MeshSet>() {
             for (m, mesh) in set.meshes.iter().enumerate() {
-                let layer = mesh_layers.and_then(|l| l.get(m)).copied().unwrap_or(-1);
+                let layer = texel_data.and_then(|t| t.mesh_layers.get(m)).copied().unwrap_or(-1);
                 vertex_layers.extend(std::iter::repeat_n(layer, mesh.positions.len()));
             }
         }
-        if let Some(t) = &texels {
-            key = key.rotate_left(11) ^ t.key;
-        }
+        let texel_size = texel_data.map_or(0, |t| t.size);
+        let texels = match (&texels, texel_data) {
+            (Some(keyed), Some(data)) => {
+                key = key.rotate_left(11) ^ keyed.key;
+                Some(WaveletReceivers::new(&data.receivers, keyed.key, keyed.clone()))
+            }
+            _ => None,
+        };
         let attenuation = fog.map_or([1.0; 3], |f| f.fog.attenuation);
         let scale = |c: [f64; 3]| std::array::from_fn(|i| c[i] * attenuation[i]);
+        let inverse = lighting.rotation.transpose();
         Ok(Self {
             key,
-            cells: p.cells,
+            cells,
+            vertices: WaveletReceivers::new(receivers, lighting.receivers.key, lighting.visibility),
+            texels,
+            texel_size,
+            environment: lighting.environment,
+            inverse_rotation: [inverse.row(0), inverse.row(1), inverse.row(2)].map(|r| r.as_vec3().to_array()),
+            rotation: lighting.rotation,
+            cell_samples: Arc::new(
+                grid.samples.iter().flatten().map(|(d, w)| [d.x as f32, d.y as f32, d.z as f32, *w as f32]).collect(),
+            ),
             diffuse_table: Arc::new(first.diffuse.clone()),
             specular_tables: Arc::new(specular_tables),
             albedo: materials.iter().map(|m| scale(m.material.albedo)).collect(),
@@ -268,10 +345,51 @@ impl WaveletSurfaces {
                 .iter()
                 .map(|t| (!t.specular.is_empty()).then(|| scale(t.specular_color.map(f64::from))))
                 .collect(),
-            products,
-            texels,
             vertex_layers: Arc::new(vertex_layers),
         })
+    }
+
+    /// What the relit products depend on besides the lighting: the receiver sets.
+    pub fn receivers_key(&self) -> Key {
+        self.vertices.key ^ self.texels.as_ref().map_or(0, |t| t.key.rotate_left(13)) ^ self.cells as Key
+    }
+
+    /// `P` per vertex on the CPU (the GPU kernel's twin; the bake's vertex light). Big meshes
+    /// read the lighting from a pre-rotated [`crate::triple_product::FrameTable`].
+    pub fn cpu_products(&self) -> Result<crate::triple_product::LocalProducts, String> {
+        let table = self.frame_table_for(&self.vertices)?;
+        self.cpu_products_of(&self.vertices, table.as_ref())
+    }
+
+    /// The pre-rotated lighting table when `set` has more receivers than
+    /// [`crate::triple_product::FRAME_TABLE_THRESHOLD`] (built once per environment).
+    pub fn frame_table_for(&self, set: &WaveletReceivers) -> Result<Option<crate::triple_product::FrameTable>, String> {
+        use crate::triple_product::{CellGrid, FRAME_TABLE_THRESHOLD, FrameTable};
+        if set.frames.len() / 2 <= FRAME_TABLE_THRESHOLD {
+            return Ok(None);
+        }
+        let environment = self.environment.value.expect::<crate::cubemap::CubeMap>().map_err(|e| e.to_string())?;
+        Ok(Some(FrameTable::build(CellGrid::for_coefficients(self.cells)?, environment)))
+    }
+
+    /// `P` of one receiver set on the CPU, with the lighting from `table` when given.
+    pub fn cpu_products_of(
+        &self,
+        set: &WaveletReceivers,
+        table: Option<&crate::triple_product::FrameTable>,
+    ) -> Result<crate::triple_product::LocalProducts, String> {
+        use crate::triple_product::{CellGrid, Lighting, local_products};
+        let grid = CellGrid::for_coefficients(self.cells)?;
+        let environment = self.environment.value.expect::<crate::cubemap::CubeMap>().map_err(|e| e.to_string())?;
+        let mut receivers = crate::transport::Receivers { mesh_offsets: vec![0], ..Default::default() };
+        for f in set.frames.chunks_exact(2) {
+            receivers.positions.push([0.0; 3]);
+            receivers.tangents.push([f[0][0], f[0][1], f[0][2]]);
+            receivers.normals.push([f[1][0], f[1][1], f[1][2]]);
+        }
+        let lighting = Lighting { environment, rotation: self.rotation, table };
+        local_products(grid, &lighting, &receivers, set.cells()?, &crate::engine::CancelToken::default())
+            .map_err(|e| e.to_string())
     }
 
     /// Floats of one material's specular table.

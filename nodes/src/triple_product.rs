@@ -39,11 +39,18 @@ crate::stage_type!(
     numbers = |v| v.values.iter().map(|x| f64::from(*x))
 );
 crate::stage_type!(
-    TexelIrradiance,
-    "per-texel diffuse transfer",
+    LocalVisibility,
+    "local-frame visibility cells",
     encoding = 1,
-    |v| v.texels.len() * 12 + v.products.len() * 4,
-    numbers = |v| v.texels.iter().flatten().chain(&v.products).map(|x| f64::from(*x))
+    |v| v.values.len() * 4,
+    numbers = |v| v.values.iter().map(|x| f64::from(*x))
+);
+crate::stage_type!(
+    TexelVisibility,
+    "per-texel local-frame visibility",
+    encoding = 1,
+    |v| v.visibility.values.len() * 4 + v.receivers.len() * 36,
+    numbers = |v| v.visibility.values.iter().map(|x| f64::from(*x))
 );
 crate::stage_type!(FrameTable, "pre-rotated lighting table", encoding = 1, |v| v.approx_bytes());
 
@@ -117,6 +124,59 @@ pub fn visibility_cells(visibility: &SparseVector, level: usize) -> Vec<f64> {
     visibility_cells_in(&SphericalHaar::new(level), visibility)
 }
 
+/// Per receiver its top-only visibility box-filtered onto the grid's cells, `V_c ∈ [0, 1]`
+/// (`receiver·cells + c`): the lighting-independent factor of `P_c = ΔΩ_c L_c V_c`. The
+/// viewport multiplies the lighting in on the GPU, so a new or rotated environment rebuilds
+/// none of it.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct LocalVisibility {
+    pub cells: usize,
+    pub values: Vec<f32>,
+}
+
+impl LocalVisibility {
+    pub fn receivers(&self) -> usize {
+        self.values.len() / self.cells.max(1)
+    }
+
+    pub fn of(&self, receiver: usize) -> &[f32] {
+        &self.values[receiver * self.cells..(receiver + 1) * self.cells]
+    }
+}
+
+/// [`LocalVisibility`] of every receiver of `transport` on `grid`'s cells.
+pub fn local_visibility(
+    grid: &CellGrid,
+    transport: &SphericalTransport,
+    cancel: &CancelToken,
+) -> Result<LocalVisibility, StageError> {
+    if transport.depth < grid.level {
+        return Err(StageError::Failed(format!(
+            "local-frame visibility depth {} is coarser than {} cells need (depth {})",
+            transport.depth,
+            grid.len(),
+            grid.level
+        )));
+    }
+    let basis = SphericalHaar::new(grid.level);
+    let chunks: Vec<Result<Vec<f32>, StageError>> = transport
+        .visibility
+        .par_chunks(256)
+        .map(|chunk| {
+            cancel.check()?;
+            Ok(chunk
+                .iter()
+                .flat_map(|v| visibility_cells_in(&basis, v).into_iter().map(|v| v.clamp(0.0, 1.0) as f32))
+                .collect())
+        })
+        .collect();
+    let mut values = Vec::with_capacity(transport.visibility.len() * grid.len());
+    for c in chunks {
+        values.extend(c?);
+    }
+    Ok(LocalVisibility { cells: grid.len(), values })
+}
+
 /// [`visibility_cells`] on a basis built once by the caller.
 fn visibility_cells_in(basis: &SphericalHaar, visibility: &SparseVector) -> Vec<f64> {
     let count = basis.len();
@@ -154,56 +214,58 @@ pub fn local_products(
     grid: &CellGrid,
     lighting: &Lighting,
     receivers: &Receivers,
-    transport: &SphericalTransport,
+    visibility: &LocalVisibility,
     cancel: &CancelToken,
 ) -> Result<LocalProducts, StageError> {
-    if transport.visibility.len() != receivers.len() {
+    if visibility.cells != grid.len() || visibility.receivers() != receivers.len() {
         return Err(StageError::Failed(format!(
-            "local-frame transport has {} receivers, the scene {}",
-            transport.visibility.len(),
-            receivers.len()
-        )));
-    }
-    if transport.depth < grid.level {
-        return Err(StageError::Failed(format!(
-            "local-frame visibility depth {} is coarser than {} cells need (depth {})",
-            transport.depth,
-            grid.len(),
-            grid.level
+            "local-frame visibility has {} receivers of {} cells, the scene {} receivers of {} cells",
+            visibility.receivers(),
+            visibility.cells,
+            receivers.len(),
+            grid.len()
         )));
     }
     let environment = &prefiltered(lighting.environment, grid);
-    let basis = SphericalHaar::new(grid.level);
     // The rotated environment seen in frame M is the unrotated one in frame R⁻¹M.
     let inverse_rotation = lighting.rotation.transpose();
-    // Receivers with the same frame (every texel of a flat floor, the faces of a box) share
-    // their lighting cells: each chunk computes each distinct frame once.
-    let cell_lighting = |frame: DMat3| -> Vec<DVec3> {
-        let frame = inverse_rotation * frame;
-        if let Some(table) = lighting.table {
-            return table.lighting(frame);
+    // ΔΩ_c × the cell's average radiance in the (rotated) frame.
+    let cell_light = |frame: &FrameLight, c: usize| -> DVec3 {
+        match frame {
+            FrameLight::Direct(frame) => {
+                grid.samples[c].iter().map(|(d, w)| DVec3::from(environment.sample(*frame * *d)) * *w).sum()
+            }
+            FrameLight::Table(table, corners) => table.cell(corners, c),
         }
-        grid.samples
-            .iter()
-            .map(|samples| {
-                // ΔΩ_c × the cell's average radiance.
-                samples.iter().map(|(d, w)| DVec3::from(environment.sample(frame * *d)) * *w).sum::<DVec3>()
-            })
-            .collect()
     };
     let chunks: Vec<Result<Vec<f32>, StageError>> = (0..receivers.len().div_ceil(256))
         .into_par_iter()
         .map(|chunk| {
             cancel.check()?;
             let mut out = Vec::with_capacity(256 * grid.len() * 3);
-            let mut cache: rustc_hash::FxHashMap<[u64; 9], Vec<DVec3>> = Default::default();
+            // Receivers with the same frame (every texel of a flat floor, the faces of a box)
+            // share their lighting cells, each computed once, and only where some receiver
+            // sees it (half the cells lie below every horizon).
+            let mut cache: rustc_hash::FxHashMap<[u64; 9], (FrameLight, Vec<DVec3>)> = Default::default();
             for i in chunk * 256..((chunk + 1) * 256).min(receivers.len()) {
                 let frame = receivers.frame(i);
-                let lighting =
-                    cache.entry(frame.to_cols_array().map(f64::to_bits)).or_insert_with(|| cell_lighting(frame));
-                let v = visibility_cells_in(&basis, &transport.visibility[i]);
-                for (l, v) in lighting.iter().zip(&v) {
-                    let p = *l * v.clamp(0.0, 1.0);
+                let (light, cells) = cache.entry(frame.to_cols_array().map(f64::to_bits)).or_insert_with(|| {
+                    let frame = inverse_rotation * frame;
+                    let light = match lighting.table {
+                        Some(table) => FrameLight::Table(table, table.corners(frame)),
+                        None => FrameLight::Direct(frame),
+                    };
+                    (light, vec![DVec3::NAN; grid.len()])
+                });
+                for (c, v) in visibility.of(i).iter().enumerate() {
+                    let p = if *v > 0.0 {
+                        if cells[c].x.is_nan() {
+                            cells[c] = cell_light(light, c);
+                        }
+                        cells[c] * f64::from(*v)
+                    } else {
+                        DVec3::ZERO
+                    };
                     out.extend([p.x as f32, p.y as f32, p.z as f32]);
                 }
             }
@@ -215,6 +277,33 @@ pub fn local_products(
         values.extend(c?);
     }
     Ok(LocalProducts { cells: grid.len(), values })
+}
+
+/// Where one frame's lighting cells come from.
+enum FrameLight<'a> {
+    /// Sampled from the environment in this frame.
+    Direct(DMat3),
+    /// Interpolated in a pre-rotated table.
+    Table(&'a FrameTable, [(usize, f64); 8]),
+}
+
+/// Per receiver the diffuse transfer `E = Σ_c P_c D_c` (RGB) with `D_c` the cell averages of
+/// `cos⁺/π`: a diffuse surface's exit radiance is `albedo · E` (the CPU twin of the viewport's
+/// relight kernel, `shaders/wavelet_relight.wgsl`).
+pub fn diffuse_transfer(products: &LocalProducts, diffuse: &[f32]) -> Vec<[f32; 3]> {
+    products
+        .values
+        .chunks_exact(products.cells * 3)
+        .map(|p| {
+            let mut e = [0.0f64; 3];
+            for (c, d) in diffuse.iter().enumerate() {
+                for k in 0..3 {
+                    e[k] += f64::from(p[c * 3 + k]) * f64::from(*d);
+                }
+            }
+            e.map(|v| v as f32)
+        })
+        .collect()
 }
 
 /// Receivers above which lighting comes from a [`FrameTable`] (whose build costs about as
@@ -293,34 +382,41 @@ impl FrameTable {
 
     /// Trilinearly interpolated cell integrals for a frame.
     pub fn lighting(&self, frame: DMat3) -> Vec<DVec3> {
+        let corners = self.corners(frame);
+        (0..self.cells).map(|c| self.cell(&corners, c)).collect()
+    }
+
+    /// The table rows around a frame (first cell's index) and their trilinear weights.
+    fn corners(&self, frame: DMat3) -> [(usize, f64); 8] {
         let (a, b, g) = Self::grid_coordinates(frame);
         let (a0, b0, g0) = (a.floor(), b.floor().min((FRAME_BETA - 2) as f64), g.floor());
         let (fa, fb, fg) = (a - a0, b - b0, g - g0);
-        let mut out = vec![DVec3::ZERO; self.cells];
-        for (da, wa) in [(0, 1.0 - fa), (1, fa)] {
-            for (db, wb) in [(0, 1.0 - fb), (1, fb)] {
-                for (dg, wg) in [(0, 1.0 - fg), (1, fg)] {
-                    let w = wa * wb * wg;
-                    if w == 0.0 {
-                        continue;
-                    }
-                    let ia = (a0 as usize + da) % FRAME_ALPHA;
-                    let ib = b0 as usize + db;
-                    let ig = (g0 as usize + dg) % FRAME_GAMMA;
-                    let row = ((ia * FRAME_BETA + ib) * FRAME_GAMMA + ig) * self.cells;
-                    for (o, v) in out.iter_mut().zip(&self.values[row..row + self.cells]) {
-                        *o += DVec3::new(v[0] as f64, v[1] as f64, v[2] as f64) * w;
-                    }
-                }
-            }
-        }
-        out
+        std::array::from_fn(|k| {
+            let (da, db, dg) = (k >> 2, (k >> 1) & 1, k & 1);
+            let w = [1.0 - fa, fa][da] * [1.0 - fb, fb][db] * [1.0 - fg, fg][dg];
+            let ia = (a0 as usize + da) % FRAME_ALPHA;
+            let ib = b0 as usize + db;
+            let ig = (g0 as usize + dg) % FRAME_GAMMA;
+            (((ia * FRAME_BETA + ib) * FRAME_GAMMA + ig) * self.cells, w)
+        })
+    }
+
+    /// Cell `c`'s integral interpolated between `corners`.
+    fn cell(&self, corners: &[(usize, f64); 8], c: usize) -> DVec3 {
+        corners
+            .iter()
+            .filter(|(_, w)| *w != 0.0)
+            .map(|(row, w)| DVec3::from(self.values[row + c].map(f64::from)) * *w)
+            .sum()
     }
 }
 
 /// The environment box-filtered so its texels are about as large as the grid's sub-cells
-/// (`4π/6N²` ≈ the sub-cell solid angle), on a power-of-two divisor of its size.
-fn prefiltered(environment: &CubeMap, grid: &CellGrid) -> CubeMap {
+/// (`4π/6N²` ≈ the sub-cell solid angle), on a power-of-two divisor of its size: what the
+/// cell averages sample, so a small bright source (a sun) gives its energy to the cells it
+/// lies in instead of being hit or missed by point samples. Filtering its own output again
+/// changes nothing.
+pub fn prefiltered(environment: &CubeMap, grid: &CellGrid) -> CubeMap {
     let sub_cell = 4.0 * PI / (grid.len() * (1 << (2 * SUBLEVELS))) as f64;
     let wanted = (4.0 * PI / (6.0 * sub_cell)).sqrt();
     let mut size = environment.size;
@@ -330,79 +426,91 @@ fn prefiltered(environment: &CubeMap, grid: &CellGrid) -> CubeMap {
     environment.box_downsampled(size)
 }
 
-/// Per-texel diffuse transfer of the visibility textures: `E = Σ_c P_c D_c` (RGB), where
-/// `D_c` is the cell average of `cos⁺/π`; a pixel's diffuse exit radiance is `albedo · E`.
-/// `D` is the same for every material, so `E` depends only on lighting and visibility: it is
-/// Ma et al.'s per-pixel triple product for the diffuse term, baked per texel (§3.4).
+/// The visibility textures' texels as receivers of Ma et al.'s per-pixel triple product
+/// (§3.4): every texel slot of `layers × size²` (layer-major, rows at increasing `v`) with its
+/// frame and visibility cells. The viewport lights them as it lights vertices and filters
+/// the diffuse transfer `E` and the products `P` bilinearly per pixel.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-pub struct TexelIrradiance {
+pub struct TexelVisibility {
     pub size: usize,
-    /// `layers × size²` texels, layer-major, rows at increasing `v`.
-    pub texels: Vec<[f32; 3]>,
-    /// Cells per texel of `products`.
-    pub cells: usize,
-    /// Per texel (same order as `texels`): its `P_c = ΔΩ_c L_c V_c`, RGB interleaved, for the
-    /// per-pixel specular sum `Σ P_c S_c(ω_o)`.
-    pub products: Vec<f32>,
+    /// One per slot (only the frames are read).
+    pub receivers: Receivers,
+    pub visibility: LocalVisibility,
     /// Per mesh of the scene: its layer, or -1 without a visibility texture.
     pub mesh_layers: Vec<i32>,
 }
 
-/// Builds [`TexelIrradiance`] from texel receivers and their local-frame visibility. Texels
-/// no triangle covers take their nearest covered neighbour's value, so bilinear filtering at
-/// UV seams does not darken.
-pub fn texel_irradiance(
+impl TexelVisibility {
+    pub fn slots(&self) -> usize {
+        self.receivers.len()
+    }
+}
+
+/// Builds [`TexelVisibility`] from texel receivers and their local-frame transport. Slots no
+/// triangle covers take their covered 8-neighbours' mean visibility and the first such
+/// neighbour's frame, four rings out, so bilinear filtering at UV seams does not darken;
+/// slots further out see nothing.
+pub fn texel_visibility(
     grid: &CellGrid,
-    lighting: &Lighting,
     texels: &crate::transport::TexelReceivers,
     transport: &SphericalTransport,
     mesh_count: usize,
     cancel: &CancelToken,
-) -> Result<TexelIrradiance, StageError> {
-    let products = local_products(grid, lighting, &texels.receivers, transport, cancel)?;
-    let diffuse = grid.average(|d| d.z.max(0.0) / PI);
+) -> Result<TexelVisibility, StageError> {
+    let visibility = local_visibility(grid, transport, cancel)?;
+    if visibility.receivers() != texels.receivers.len() {
+        return Err(StageError::Failed(format!(
+            "texel transport has {} receivers, the visibility textures {}",
+            visibility.receivers(),
+            texels.receivers.len()
+        )));
+    }
     let mut mesh_layers = vec![-1i32; mesh_count];
     let mut layers = 0usize;
     for &(mesh, ..) in &texels.texels {
-        if mesh_layers[mesh as usize] < 0 {
-            mesh_layers[mesh as usize] = layers as i32;
+        let layer = mesh_layers.get_mut(mesh as usize).ok_or_else(|| {
+            StageError::Failed(format!("a texel belongs to mesh {mesh} of a scene with {mesh_count} meshes"))
+        })?;
+        if *layer < 0 {
+            *layer = layers as i32;
             layers += 1;
         }
     }
-    let size = texels.size;
-    let cells = grid.len();
-    let mut out = vec![[0.0f32; 3]; layers * size * size];
-    let mut texel_products = vec![0.0f32; out.len() * cells * 3];
-    let mut covered = vec![false; out.len()];
+    let (size, cells) = (texels.size, grid.len());
+    let slots = layers * size * size;
+    let mut slot_visibility = vec![0.0f32; slots * cells];
+    let mut frames = vec![([0.0f32; 3], [0.0f32, 0.0, 1.0], [1.0f32, 0.0, 0.0]); slots];
+    let mut covered = vec![false; slots];
     for (i, &(mesh, x, y)) in texels.texels.iter().enumerate() {
-        let p = &products.values[i * cells * 3..(i + 1) * cells * 3];
-        let mut e = [0.0f64; 3];
-        for (c, d) in diffuse.iter().enumerate() {
-            for k in 0..3 {
-                e[k] += p[c * 3 + k] as f64 * d;
-            }
-        }
         let at = (mesh_layers[mesh as usize] as usize * size + y as usize) * size + x as usize;
-        out[at] = e.map(|v| v as f32);
-        texel_products[at * cells * 3..(at + 1) * cells * 3].copy_from_slice(p);
+        slot_visibility[at * cells..(at + 1) * cells].copy_from_slice(visibility.of(i));
+        let r = &texels.receivers;
+        frames[at] = (r.positions[i], r.normals[i], r.tangents[i]);
         covered[at] = true;
     }
-    dilate(&mut out, &mut texel_products, cells * 3, &mut covered, size);
-    Ok(TexelIrradiance { size, texels: out, cells, products: texel_products, mesh_layers })
+    dilate(&mut slot_visibility, &mut frames, cells, &mut covered, size);
+    let receivers = Receivers {
+        positions: frames.iter().map(|f| f.0).collect(),
+        normals: frames.iter().map(|f| f.1).collect(),
+        tangents: frames.iter().map(|f| f.2).collect(),
+        mesh_offsets: vec![0],
+    };
+    Ok(TexelVisibility { size, receivers, visibility: LocalVisibility { cells, values: slot_visibility }, mesh_layers })
 }
 
-/// Fills uncovered texels (and their product vectors of `stride` floats) from covered
+/// Fills uncovered slots (visibility vectors of `stride` floats, and frames) from covered
 /// 8-neighbours, a few rings out.
-fn dilate(texels: &mut [[f32; 3]], products: &mut [f32], stride: usize, covered: &mut [bool], size: usize) {
+fn dilate<F: Copy>(visibility: &mut [f32], frames: &mut [F], stride: usize, covered: &mut [bool], size: usize) {
+    let mut sum = vec![0.0f32; stride];
     for _ in 0..4 {
         let snapshot: Vec<bool> = covered.to_vec();
-        for i in 0..texels.len() {
+        for i in 0..frames.len() {
             if snapshot[i] {
                 continue;
             }
             let (layer, y, x) = (i / (size * size), (i / size) % size, i % size);
-            let (mut sum, mut n) = ([0.0f32; 3], 0);
-            let mut first = None;
+            sum.fill(0.0);
+            let (mut n, mut first) = (0, None);
             for (dx, dy) in [(-1i64, 0i64), (1, 0), (0, -1), (0, 1), (-1, -1), (1, 1), (-1, 1), (1, -1)] {
                 let (nx, ny) = (x as i64 + dx, y as i64 + dy);
                 if nx < 0 || ny < 0 || nx >= size as i64 || ny >= size as i64 {
@@ -410,16 +518,18 @@ fn dilate(texels: &mut [[f32; 3]], products: &mut [f32], stride: usize, covered:
                 }
                 let j = (layer * size + ny as usize) * size + nx as usize;
                 if snapshot[j] {
-                    for k in 0..3 {
-                        sum[k] += texels[j][k];
+                    for (s, v) in sum.iter_mut().zip(&visibility[j * stride..(j + 1) * stride]) {
+                        *s += v;
                     }
                     n += 1;
                     first.get_or_insert(j);
                 }
             }
             if let Some(j) = first {
-                texels[i] = sum.map(|s| s / n as f32);
-                products.copy_within(j * stride..(j + 1) * stride, i * stride);
+                for (v, s) in visibility[i * stride..(i + 1) * stride].iter_mut().zip(&sum) {
+                    *v = s / n as f32;
+                }
+                frames[i] = frames[j];
                 covered[i] = true;
             }
         }

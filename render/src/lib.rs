@@ -12,4 +12,5 @@ pub mod viewport;
 pub use capture::{CapturedFrame, write_exr, write_png};
 pub use device::{GpuContext, RenderError, device_descriptor};
 pub use passes::prt::MAX_PRT_BANDS;
+pub use passes::wavelet::RelightOn;
 pub use viewport::{CameraView, ViewportRenderer};

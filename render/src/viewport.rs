@@ -112,6 +112,12 @@ impl ViewportRenderer {
         }
     }
 
+    /// Where the wavelet modes rebuild their products after a lighting change (by default the
+    /// GPU's compute kernel, or the CPU on a CPU adapter).
+    pub fn set_relight_on(&mut self, on: crate::RelightOn) {
+        self.wavelet.relight_on = on;
+    }
+
     /// Uploads what changed and draws the frame into the offscreen targets.
     pub fn render(
         &mut self,

@@ -49,13 +49,15 @@ pub fn vertex_points(meshes: &MeshSet) -> Vec<SurfacePoint> {
 pub fn vertex_light(frame: &FrameInputs, shadows: Option<&RayScene>) -> Result<Vec<[f32; 3]>, String> {
     let meshes = frame.geometry.meshes.value.expect::<MeshSet>().map_err(|e| e.to_string())?;
     let points = vertex_points(meshes);
+    let products = match &frame.surfaces {
+        Surfaces::Wavelet(s) => Some(s.cpu_products()?),
+        _ => None,
+    };
     let environment = match &frame.surfaces {
         Surfaces::Prt(s) => {
             Transport::Sh(s.transport.value.expect::<crate::transport::ShTransport>().map_err(|e| e.to_string())?)
         }
-        Surfaces::Wavelet(s) => Transport::Products(
-            s.products.value.expect::<crate::triple_product::LocalProducts>().map_err(|e| e.to_string())?,
-        ),
+        Surfaces::Wavelet(_) => Transport::Products(products.as_ref().expect("computed above")),
         _ => Transport::None,
     };
     let mut light = environment_light(frame, &points, environment)?;

@@ -229,33 +229,31 @@ pub fn spec() -> NodeKindSpec {
                 compute: incident_sh,
             },
             StageSpec {
-                name: "local_products",
-                version: 2,
+                name: "local_visibility",
+                version: 1,
                 params: &["wavelet_terms"],
                 stages: &[],
-                inputs: &[
-                    ("scene", "receivers"),
-                    ("scene", "transport_local"),
-                    ("environment", "radiance"),
-                    ("environment", "rotation"),
-                ],
+                inputs: &[("scene", "transport_local")],
                 persist: None,
-                compute: local_products,
+                compute: local_visibility,
             },
             StageSpec {
-                name: "texel_irradiance",
-                version: 2,
+                name: "wavelet_environment",
+                version: 1,
                 params: &["wavelet_terms"],
                 stages: &[],
-                inputs: &[
-                    ("scene", "geometry"),
-                    ("scene", "texel_receivers"),
-                    ("scene", "transport_texels"),
-                    ("environment", "radiance"),
-                    ("environment", "rotation"),
-                ],
+                inputs: &[("environment", "radiance")],
                 persist: None,
-                compute: texel_irradiance,
+                compute: wavelet_environment,
+            },
+            StageSpec {
+                name: "texel_visibility",
+                version: 1,
+                params: &["wavelet_terms"],
+                stages: &[],
+                inputs: &[("scene", "geometry"), ("scene", "texel_receivers"), ("scene", "transport_texels")],
+                persist: None,
+                compute: texel_visibility,
             },
             StageSpec {
                 name: "rsl_visibility",
@@ -433,77 +431,40 @@ pub(super) fn with_blockers(
     Ok(out)
 }
 
-/// Per-vertex `P_c = ΔΩ_c L^x_c V^x_c` for the wavelet modes (pulled only by them).
-/// Depends on lighting and transport only: BRDF and camera edits reuse it.
-fn local_products(ctx: &StageContext) -> Result<StageValue, StageError> {
-    let terms: usize =
-        ctx.choice("wavelet_terms")?.parse().map_err(|_| StageError::Internal("wavelet_terms".into()))?;
-    let receivers = ctx.required_input::<crate::transport::Receivers>("scene", "receivers")?;
+/// Per-vertex visibility cells `V_c` for the wavelet modes (pulled only by them). The
+/// viewport multiplies the lighting in on the GPU, so lighting edits rebuild none of it.
+fn local_visibility(ctx: &StageContext) -> Result<StageValue, StageError> {
     let transport = ctx.required_input::<crate::transport::SphericalTransport>("scene", "transport_local")?;
-    let grid = crate::triple_product::CellGrid::for_coefficients(terms).map_err(StageError::Failed)?;
-    let Some((environment, rotation)) = wavelet_lighting(ctx)? else {
-        return Ok(StageValue::new(crate::triple_product::LocalProducts::default()));
-    };
-    // Big meshes: the pre-rotated table, memoised on the environment's content, so rotating
-    // the environment only re-reads it with rotated frames.
-    let table = if receivers.len() > crate::triple_product::FRAME_TABLE_THRESHOLD {
-        let key = environment_key(environment, terms);
-        Some(ctx.memo(key, || Ok(crate::triple_product::FrameTable::build(grid, environment)))?)
-    } else {
-        None
-    };
-    let lighting = crate::triple_product::Lighting { environment, rotation, table: table.as_deref() };
-    Ok(StageValue::new(crate::triple_product::local_products(
-        grid,
-        &lighting,
-        receivers,
-        transport,
-        ctx.cancel_token(),
-    )?))
+    let grid = wavelet_grid(ctx)?;
+    Ok(StageValue::new(crate::triple_product::local_visibility(grid, transport, ctx.cancel_token())?))
 }
 
-/// The unrotated environment and its rotation, or `None` without an environment.
-fn wavelet_lighting<'a>(
-    ctx: &'a StageContext,
-) -> Result<Option<(&'a crate::cubemap::CubeMap, glam::DMat3)>, StageError> {
-    match (
-        ctx.input::<crate::cubemap::CubeMap>("environment", "radiance")?,
-        ctx.input::<glam::DMat3>("environment", "rotation")?,
-    ) {
-        (Some(cube), Some(rotation)) => Ok(Some((cube, *rotation))),
-        _ => Ok(None),
-    }
-}
-
-/// A content key for memoising per-environment tables.
-fn environment_key(cube: &crate::cubemap::CubeMap, cells: usize) -> crate::engine::Key {
-    let mut bytes = Vec::with_capacity(cube.texels.len() * 12 + 32);
-    bytes.extend_from_slice(format!("frame-table v1 {} {cells}", cube.size).as_bytes());
-    for t in &cube.texels {
-        for c in t {
-            bytes.extend_from_slice(&c.to_le_bytes());
-        }
-    }
-    xxhash_rust::xxh3::xxh3_128(&bytes)
-}
-
-/// Per-texel diffuse transfer for the `wavelet_pixel` mode (pulled only by it).
-fn texel_irradiance(ctx: &StageContext) -> Result<StageValue, StageError> {
+fn wavelet_grid(ctx: &StageContext) -> Result<&'static crate::triple_product::CellGrid, StageError> {
     let terms: usize =
         ctx.choice("wavelet_terms")?.parse().map_err(|_| StageError::Internal("wavelet_terms".into()))?;
+    crate::triple_product::CellGrid::for_coefficients(terms).map_err(StageError::Failed)
+}
+
+/// The unrotated environment prefiltered to the wavelet grid's sub-cells (empty without an
+/// environment): what the cell averages sample. A rotation does not rebuild it.
+fn wavelet_environment(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let grid = wavelet_grid(ctx)?;
+    Ok(StageValue::new(match ctx.input::<crate::cubemap::CubeMap>("environment", "radiance")? {
+        Some(environment) => crate::triple_product::prefiltered(environment, grid),
+        None => crate::cubemap::CubeMap { size: 0, texels: Vec::new() },
+    }))
+}
+
+/// Per-texel-slot frames and visibility cells for the `wavelet_pixel` mode (pulled only by
+/// it).
+fn texel_visibility(ctx: &StageContext) -> Result<StageValue, StageError> {
     let meshes = ctx.required_input::<crate::mesh::MeshSet>("scene", "geometry")?;
     let texels = ctx.required_input::<crate::transport::TexelReceivers>("scene", "texel_receivers")?;
-    let t = ctx.required_input::<crate::transport::SphericalTransport>("scene", "transport_texels")?;
-    let Some((environment, rotation)) = wavelet_lighting(ctx)? else {
-        return Ok(StageValue::new(crate::triple_product::TexelIrradiance::default()));
-    };
-    let grid = crate::triple_product::CellGrid::for_coefficients(terms).map_err(StageError::Failed)?;
-    let lighting = crate::triple_product::Lighting { environment, rotation, table: None };
-    Ok(StageValue::new(crate::triple_product::texel_irradiance(
-        grid,
-        &lighting,
+    let transport = ctx.required_input::<crate::transport::SphericalTransport>("scene", "transport_texels")?;
+    Ok(StageValue::new(crate::triple_product::texel_visibility(
+        wavelet_grid(ctx)?,
         texels,
-        t,
+        transport,
         meshes.meshes.len(),
         ctx.cancel_token(),
     )?))
@@ -547,7 +508,7 @@ fn typed<T: crate::engine::StageType + Clone>(keyed: &Keyed, stage: &str) -> Res
 
 use crate::frame::{
     Background, FogFrame, FrameMaterial, Geometry, IrradianceSurfaces, MediumFrame, PrtSurfaces, RslSurfaces, Surfaces,
-    WaveletSurfaces,
+    WaveletLighting, WaveletSurfaces,
 };
 pub use crate::frame::{FrameInputs, Keyed, MAX_LIGHTS, MAX_MATERIALS};
 
@@ -614,10 +575,17 @@ pub fn mode_stages(graph: &Graph, output: &str, mode: Mode) -> Vec<StageRef> {
         Mode::ShIrradiance => {}
         Mode::ShPrt => stages.push(StageRef::new(output, "incident_sh")),
         Mode::ShAdaptive => stages.push(StageRef::new(output, "adaptive_incident")),
-        Mode::WaveletVertex => stages.push(StageRef::new(output, "local_products")),
-        Mode::WaveletPixel => {
-            stages.push(StageRef::new(output, "local_products"));
-            stages.push(StageRef::new(output, "texel_irradiance"));
+        Mode::WaveletVertex | Mode::WaveletPixel => {
+            stages.extend(["local_visibility", "wavelet_environment"].map(|s| StageRef::new(output, s)));
+            if let Some(environment) = upstream("environment") {
+                stages.push(StageRef::new(&environment, "rotation"));
+            }
+            if let Some(scene) = upstream("scene") {
+                stages.push(StageRef::new(&scene, "receivers"));
+            }
+            if mode == Mode::WaveletPixel {
+                stages.push(StageRef::new(output, "texel_visibility"));
+            }
         }
         Mode::Rsl => stages.push(StageRef::new(output, "rsl_visibility")),
     }
@@ -748,11 +716,12 @@ impl FrameInputs {
             }
         }
         let geometry = Geometry { meshes, mesh_materials };
-        let products = if mode.is_wavelet() { Some(keyed(output, "local_products")?) } else { None };
-        // Without an environment the products are empty: surfaces get no environment light.
-        let no_products = products
+        // Without an environment the wavelet modes have no lighting to multiply in: surfaces get
+        // no environment light.
+        let wavelet_environment = if mode.is_wavelet() { Some(keyed(output, "wavelet_environment")?) } else { None };
+        let no_environment = wavelet_environment
             .as_ref()
-            .is_some_and(|p| p.value.get::<crate::triple_product::LocalProducts>().is_some_and(|p| p.cells == 0));
+            .is_some_and(|e| e.value.get::<crate::cubemap::CubeMap>().is_some_and(|c| c.size == 0));
         let surfaces = match mode {
             Mode::ShPrt | Mode::ShAdaptive => Surfaces::Prt(PrtSurfaces::new(
                 keyed(output, "blocked_transport")?,
@@ -763,10 +732,21 @@ impl FrameInputs {
                 lobes,
                 geometry.vertex_count(),
             )?),
-            Mode::WaveletVertex | Mode::WaveletPixel if !no_products => {
-                let texels = if mode == Mode::WaveletPixel { Some(keyed(output, "texel_irradiance")?) } else { None };
-                let products = products.ok_or("the wavelet products were not evaluated")?;
-                Surfaces::Wavelet(WaveletSurfaces::new(products, &tables, texels, fogged, &geometry, &materials)?)
+            Mode::WaveletVertex | Mode::WaveletPixel if !no_environment => {
+                let environment = upstream("environment").ok_or("the wavelet modes need an environment")?;
+                let scene = upstream("scene").ok_or("the wavelet modes need a scene")?;
+                let rotation =
+                    *keyed(&environment, "rotation")?.value.expect::<glam::DMat3>().map_err(|e| e.to_string())?;
+                let lighting = WaveletLighting {
+                    visibility: keyed(output, "local_visibility")?,
+                    receivers: keyed(&scene, "receivers")?,
+                    environment: wavelet_environment.ok_or("the wavelet environment was not evaluated")?,
+                    rotation,
+                };
+                let texels = if mode == Mode::WaveletPixel { Some(keyed(output, "texel_visibility")?) } else { None };
+                Surfaces::Wavelet(Box::new(WaveletSurfaces::new(
+                    lighting, &tables, texels, fogged, &geometry, &materials,
+                )?))
             }
             Mode::Rsl => {
                 let node = upstream("square_lights").ok_or(

@@ -278,11 +278,12 @@ fn bake_texel_products(ctx: &StageContext) -> Result<StageValue, StageError> {
         return Ok(StageValue::new(crate::triple_product::LocalProducts::default()));
     };
     let lighting = crate::triple_product::Lighting { environment, rotation: *rotation, table: None };
+    let visibility = crate::triple_product::local_visibility(grid, transport, ctx.cancel_token())?;
     Ok(StageValue::new(crate::triple_product::local_products(
         grid,
         &lighting,
         &atlas.receivers,
-        transport,
+        &visibility,
         ctx.cancel_token(),
     )?))
 }

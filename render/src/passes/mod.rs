@@ -405,6 +405,13 @@ mod layout_tests {
         );
         check!(prt, "PrtParams", prt::PrtParams, [counts, albedo, specular, lobe, light]);
         check!(wavelet, "WaveletParams", wavelet::WaveletParams, [counts, albedo, specular, texels]);
+        // The relight kernel is a compute shader on its own.
+        let source = wavelet::RELIGHT_SHADER.1;
+        let relight = naga::front::wgsl::parse_str(source).unwrap_or_else(|e| panic!("{}", e.emit_to_string(source)));
+        naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::all())
+            .validate(&relight)
+            .unwrap_or_else(|e| panic!("wavelet_relight.wgsl does not validate: {e:?}"));
+        check!(&relight, "RelightParams", wavelet::RelightParams, [inverse_rotation, counts, dispatch]);
         check!(rsl, "RslParams", rsl::RslParams, [counts, albedo, specular, layouts]);
         check!(area, "AreaLights", area_light::AreaLightParams, [albedo]);
         check!(tone, "ToneParams", tonemap::ToneParams, [params]);

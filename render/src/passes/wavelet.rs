@@ -1,16 +1,25 @@
 //! The wavelet modes: the local-frame triple product per vertex, and per pixel from the
 //! visibility textures' texels (`nodes/src/triple_product.rs`, Ma et al. eq. 7).
+//!
+//! The receivers' visibility cells and frames stay on the GPU. When the lighting changes, a
+//! compute kernel (`wavelet_relight.wgsl`) rebuilds each receiver's products `P` and diffuse
+//! transfer `E` from the prefiltered environment; a rotation only changes its uniform, and
+//! camera moves rebuild nothing.
 
 use super::geometry::GeometryBuffers;
-use super::{
-    Draw, Pass, PassSetup, entry, linear_sampler, stage_value, storage_buffer, uniform_buffer, upload_layered, vec4,
-};
+use super::{Draw, Pass, PassSetup, entry, stage_value, storage_buffer, uniform_buffer, vec4};
 use crate::{GpuContext, RenderError};
+use lightloom_nodes::cubemap::CubeMap;
 use lightloom_nodes::engine::Key;
-use lightloom_nodes::frame::{MAX_MATERIALS, WaveletSurfaces};
-use lightloom_nodes::triple_product::{LocalProducts, PHI_STEPS, THETA_STEPS, TexelIrradiance};
+use lightloom_nodes::frame::{MAX_MATERIALS, WaveletReceivers, WaveletSurfaces};
+use lightloom_nodes::triple_product::{FrameTable, PHI_STEPS, THETA_STEPS, diffuse_transfer};
 
 pub(crate) const SHADER: (&str, &str) = ("mesh_wavelet.wgsl", include_str!("../../../shaders/mesh_wavelet.wgsl"));
+pub(crate) const RELIGHT_SHADER: (&str, &str) =
+    ("wavelet_relight.wgsl", include_str!("../../../shaders/wavelet_relight.wgsl"));
+
+/// Invocations per workgroup of the relight kernel.
+const WORKGROUP: u32 = 64;
 
 /// `mesh_wavelet.wgsl` `WaveletParams`.
 #[repr(C)]
@@ -22,19 +31,116 @@ pub(crate) struct WaveletParams {
     pub(crate) texels: [u32; 4],
 }
 
-/// What is bound: the frame data's key, and the texel size when per-texel data is.
-struct Bound {
+/// `wavelet_relight.wgsl` `RelightParams`.
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+pub(crate) struct RelightParams {
+    pub(crate) inverse_rotation: [[f32; 4]; 3],
+    pub(crate) counts: [u32; 4],
+    pub(crate) dispatch: [u32; 4],
+}
+
+/// One receiver set on the GPU (the vertices, or the texel slots): the kernel's inputs and
+/// what it writes.
+struct LitReceivers {
+    count: u32,
+    frames: wgpu::Buffer,
+    visibility: wgpu::Buffer,
+    products: wgpu::Buffer,
+    irradiance: wgpu::Buffer,
+    params: wgpu::Buffer,
+}
+
+impl LitReceivers {
+    fn upload(gpu: &GpuContext, label: &str, receivers: &WaveletReceivers) -> Result<Self, RenderError> {
+        let visibility = receivers.cells().map_err(RenderError::Invalid)?;
+        let count = visibility.receivers();
+        let limit = gpu.device.limits().max_storage_buffer_binding_size.min(gpu.device.limits().max_buffer_size);
+        let bytes = (count * visibility.cells * 4) as u64;
+        if bytes > limit {
+            return Err(RenderError::Invalid(format!(
+                "the wavelet mode's {label} need {} MiB of products ({count} × {} cells) but this GPU binds at most {} \
+                 MiB: use 80 coefficients, fewer vertices or a smaller visibility texture",
+                bytes >> 20,
+                visibility.cells,
+                limit >> 20
+            )));
+        }
+        // Two half floats per word (cell counts are even).
+        let halves: Vec<u32> = visibility
+            .values
+            .chunks_exact(2)
+            .map(|p| {
+                u32::from(half::f16::from_f32(p[0]).to_bits()) | u32::from(half::f16::from_f32(p[1]).to_bits()) << 16
+            })
+            .collect();
+        let output = |name: &str, size: u64| {
+            gpu.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(name),
+                size: size.max(16),
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            })
+        };
+        Ok(Self {
+            count: count as u32,
+            frames: storage_buffer(gpu, "wavelet-frames", &receivers.frames),
+            visibility: storage_buffer(gpu, "wavelet-visibility", &halves),
+            products: output("wavelet-products", bytes),
+            irradiance: output("wavelet-irradiance", count as u64 * 16),
+            params: uniform_buffer::<RelightParams>(&gpu.device, "wavelet-relight-params"),
+        })
+    }
+}
+
+/// Where the wavelet modes' products are rebuilt when the lighting changes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RelightOn {
+    /// The compute kernel on a real GPU; the CPU twin on a CPU adapter (lavapipe), where it
+    /// is faster than the kernel.
+    Auto,
+    /// The compute kernel (`wavelet_relight.wgsl`).
+    Gpu,
+    /// The CPU twin ([`WaveletSurfaces::cpu_products_of`]), uploaded.
+    Cpu,
+}
+
+/// The receiver sets on the GPU and what lighting them reads besides the environment.
+struct Receivers {
     key: Key,
     texel_size: Option<u32>,
+    vertices: LitReceivers,
+    texels: Option<LitReceivers>,
+    cell_samples: wgpu::Buffer,
+    diffuse_table: wgpu::Buffer,
+}
+
+/// The environment the kernel samples and its bind groups, one per receiver set.
+struct Lit {
+    environment_key: Key,
+    bind_groups: Vec<(u32, wgpu::BindGroup)>,
+    /// The pre-rotated lighting tables of the CPU twin's big receiver sets, per set.
+    tables: Vec<Option<FrameTable>>,
+}
+
+/// The draw's bind group: the receivers' products and the materials' tables.
+struct Bound {
+    key: Key,
     bind_group: wgpu::BindGroup,
 }
 
 pub(crate) struct WaveletPass {
     layout: wgpu::BindGroupLayout,
     pipeline: wgpu::RenderPipeline,
+    relight_layout: wgpu::BindGroupLayout,
+    relight: wgpu::ComputePipeline,
     params: wgpu::Buffer,
-    sampler: wgpu::Sampler,
+    pub(crate) relight_on: RelightOn,
+    receivers: Option<Receivers>,
+    lit: Option<Lit>,
     bound: Option<Bound>,
+    /// The receivers' key, the environment's key and the rotation `P` was last built for.
+    relit: Option<(Key, Key, [[f32; 3]; 3])>,
 }
 
 impl WaveletPass {
@@ -47,77 +153,206 @@ impl WaveletPass {
                 entry::storage(1, S::VERTEX),
                 entry::storage(2, S::VERTEX),
                 entry::storage(3, S::VERTEX_FRAGMENT),
-                entry::texture(4, wgpu::TextureViewDimension::D2Array, true),
-                entry::sampler(5),
-                entry::storage(6, S::FRAGMENT),
-                entry::storage(7, S::VERTEX),
+                entry::storage(4, S::FRAGMENT),
+                entry::storage(5, S::FRAGMENT),
+                entry::storage(6, S::VERTEX),
             ],
+        });
+        let compute = S::COMPUTE;
+        let relight_layout = setup.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("wavelet-relight"),
+            entries: &[
+                entry::uniform(0, compute),
+                entry::storage(1, compute),
+                entry::storage(2, compute),
+                entry::storage(3, compute),
+                entry::storage(4, compute),
+                entry::storage(5, compute),
+                entry::storage_read_write(6, compute),
+                entry::storage_read_write(7, compute),
+            ],
+        });
+        let module = setup.device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some(RELIGHT_SHADER.0),
+            source: wgpu::ShaderSource::Wgsl(RELIGHT_SHADER.1.into()),
+        });
+        let pipeline_layout = setup.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("wavelet-relight"),
+            bind_group_layouts: &[Some(&relight_layout)],
+            immediate_size: 0,
+        });
+        let relight = setup.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("wavelet-relight"),
+            layout: Some(&pipeline_layout),
+            module: &module,
+            entry_point: Some("relight"),
+            compilation_options: Default::default(),
+            cache: None,
         });
         Self {
             pipeline: setup.surface_pipeline(SHADER, &layout),
             params: uniform_buffer::<WaveletParams>(setup.device, "wavelet-params"),
-            sampler: linear_sampler(setup.device, "texel-diffuse"),
             layout,
+            relight_layout,
+            relight,
+            relight_on: RelightOn::Auto,
+            receivers: None,
+            lit: None,
             bound: None,
+            relit: None,
         }
     }
 
-    fn upload(&self, gpu: &GpuContext, data: &WaveletSurfaces) -> Result<Bound, RenderError> {
-        let limit = gpu.device.limits().max_storage_buffer_binding_size;
-        let p = stage_value::<LocalProducts>(&data.products)?;
-        let bytes = p.values.len() as u64 / 3 * 4;
-        if bytes > limit {
-            return Err(RenderError::Invalid(format!(
-                "the wavelet mode needs {} MiB per-vertex data ({} vertices × {} cells) but this GPU binds at \
-                 most {} MiB: use 80 coefficients or fewer vertices",
-                bytes >> 20,
-                data.vertex_layers.len(),
-                p.cells,
-                limit >> 20
-            )));
+    /// Whether the kernel runs on the GPU for this device.
+    fn kernel_on_gpu(&self, gpu: &GpuContext) -> bool {
+        match self.relight_on {
+            RelightOn::Gpu => true,
+            RelightOn::Cpu => false,
+            RelightOn::Auto => gpu.adapter.get_info().device_type != wgpu::DeviceType::Cpu,
         }
-        let texels = data.texels.as_ref().map(stage_value::<TexelIrradiance>).transpose()?;
-        // P packed as RGB9E5: 4 bytes per cell instead of 12.
-        let texel_packed = texels.map_or(Vec::new(), |t| crate::packing::rgb9e5_all(&t.products));
-        if texel_packed.len() as u64 * 4 > limit {
-            return Err(RenderError::Invalid(format!(
-                "the visibility textures' per-texel data needs {} MiB but this GPU binds at most {} MiB: \
-                 use a smaller visibility texture size or 80 coefficients",
-                (texel_packed.len() * 4) >> 20,
-                limit >> 20
-            )));
-        }
-        let products = storage_buffer(gpu, "wavelet-products", &crate::packing::rgb9e5_all(&p.values));
-        let diffuse = storage_buffer(gpu, "wavelet-diffuse", &data.diffuse_table);
+    }
+
+    fn upload_receivers(gpu: &GpuContext, data: &WaveletSurfaces) -> Result<Receivers, RenderError> {
+        let vertices = LitReceivers::upload(gpu, "vertices", &data.vertices)?;
+        let texels = data.texels.as_ref().map(|t| LitReceivers::upload(gpu, "texels", t)).transpose()?;
+        Ok(Receivers {
+            key: data.receivers_key(),
+            texel_size: texels.as_ref().map(|_| data.texel_size as u32),
+            vertices,
+            texels,
+            cell_samples: storage_buffer(gpu, "wavelet-cell-samples", &data.cell_samples),
+            diffuse_table: storage_buffer(gpu, "wavelet-diffuse", &data.diffuse_table),
+        })
+    }
+
+    fn bind(&self, gpu: &GpuContext, receivers: &Receivers, data: &WaveletSurfaces) -> Bound {
         let specular = storage_buffer(gpu, "wavelet-specular", &data.specular_tables);
-        let texel_view = match texels {
-            Some(t) => {
-                let layers = (t.texels.len() / (t.size * t.size).max(1)).max(1) as u32;
-                let size = t.size as u32;
-                upload_layered(gpu, "texel-diffuse", size, layers, &t.texels, wgpu::TextureViewDimension::D2Array)
-            }
-            None => upload_layered(gpu, "texel-diffuse", 1, 1, &[[0.0; 3]], wgpu::TextureViewDimension::D2Array),
-        };
-        let texel_products = storage_buffer(gpu, "wavelet-texel-products", &texel_packed);
         let layers = storage_buffer(gpu, "wavelet-vertex-layers", &data.vertex_layers);
+        let no_irradiance = storage_buffer::<[f32; 4]>(gpu, "wavelet-no-texels", &[]);
+        let no_products = storage_buffer::<u32>(gpu, "wavelet-no-texels", &[]);
         fn resource(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
             wgpu::BindGroupEntry { binding, resource: buffer.as_entire_binding() }
         }
+        let texels = receivers.texels.as_ref();
         let bind_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("wavelet"),
             layout: &self.layout,
             entries: &[
                 resource(0, &self.params),
-                resource(1, &products),
-                resource(2, &diffuse),
+                resource(1, &receivers.vertices.products),
+                resource(2, &receivers.vertices.irradiance),
                 resource(3, &specular),
-                wgpu::BindGroupEntry { binding: 4, resource: wgpu::BindingResource::TextureView(&texel_view) },
-                wgpu::BindGroupEntry { binding: 5, resource: wgpu::BindingResource::Sampler(&self.sampler) },
-                resource(6, &texel_products),
-                resource(7, &layers),
+                resource(4, texels.map_or(&no_irradiance, |t| &t.irradiance)),
+                resource(5, texels.map_or(&no_products, |t| &t.products)),
+                resource(6, &layers),
             ],
         });
-        Ok(Bound { key: data.key, texel_size: texels.map(|t| t.size as u32), bind_group })
+        Bound { key: data.key, bind_group }
+    }
+
+    /// Uploads the prefiltered environment and binds it with each receiver set.
+    fn light(&self, gpu: &GpuContext, receivers: &Receivers, data: &WaveletSurfaces) -> Result<Lit, RenderError> {
+        let environment = stage_value::<CubeMap>(&data.environment)?;
+        let kernel = self.kernel_on_gpu(gpu);
+        let texels: Vec<[f32; 4]> =
+            if kernel { environment.texels.iter().map(|t| [t[0], t[1], t[2], 0.0]).collect() } else { Vec::new() };
+        let buffer = storage_buffer(gpu, "wavelet-environment", &texels);
+        let bind = |set: &LitReceivers| {
+            let entries = [
+                &set.params,
+                &set.frames,
+                &set.visibility,
+                &buffer,
+                &receivers.cell_samples,
+                &receivers.diffuse_table,
+                &set.products,
+                &set.irradiance,
+            ];
+            let entries: Vec<wgpu::BindGroupEntry> = entries
+                .iter()
+                .enumerate()
+                .map(|(i, b)| wgpu::BindGroupEntry { binding: i as u32, resource: b.as_entire_binding() })
+                .collect();
+            let group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("wavelet-relight"),
+                layout: &self.relight_layout,
+                entries: &entries,
+            });
+            (set.count, group)
+        };
+        let bind_groups = std::iter::once(&receivers.vertices).chain(&receivers.texels).map(bind).collect();
+        let tables = if kernel {
+            Vec::new()
+        } else {
+            std::iter::once(&data.vertices)
+                .chain(&data.texels)
+                .map(|set| data.frame_table_for(set))
+                .collect::<Result<_, _>>()
+                .map_err(RenderError::Invalid)?
+        };
+        Ok(Lit { environment_key: data.environment.key, bind_groups, tables })
+    }
+
+    /// Rebuilds every receiver's `P` and `E` with the compute kernel.
+    fn relight_on_gpu(
+        &self,
+        gpu: &GpuContext,
+        receivers: &Receivers,
+        lit: &Lit,
+        data: &WaveletSurfaces,
+    ) -> Result<(), RenderError> {
+        let size = stage_value::<CubeMap>(&data.environment)?.size;
+        let max_columns = gpu.device.limits().max_compute_workgroups_per_dimension;
+        let samples_per_cell = (data.cell_samples.len() / data.cells.max(1)) as u32;
+        let sets = std::iter::once(&receivers.vertices).chain(&receivers.texels);
+        let mut dispatches = Vec::new();
+        for (set, (count, group)) in sets.zip(&lit.bind_groups) {
+            let groups = count.div_ceil(WORKGROUP).max(1);
+            let columns = groups.min(max_columns);
+            let params = RelightParams {
+                inverse_rotation: data.inverse_rotation.map(|r| [r[0], r[1], r[2], 0.0]),
+                counts: [*count, data.cells as u32, samples_per_cell, size as u32],
+                dispatch: [columns * WORKGROUP, 0, 0, 0],
+            };
+            gpu.queue.write_buffer(&set.params, 0, bytemuck::bytes_of(&params));
+            dispatches.push((group, columns, groups.div_ceil(columns)));
+        }
+        let mut encoder =
+            gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("wavelet-relight") });
+        {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor::default());
+            pass.set_pipeline(&self.relight);
+            for (group, columns, rows) in dispatches {
+                pass.set_bind_group(0, group, &[]);
+                pass.dispatch_workgroups(columns, rows, 1);
+            }
+        }
+        gpu.queue.submit([encoder.finish()]);
+        Ok(())
+    }
+
+    /// Rebuilds every receiver's `P` and `E` with the CPU twin and uploads them.
+    fn relight_on_cpu(
+        &self,
+        gpu: &GpuContext,
+        receivers: &Receivers,
+        lit: &Lit,
+        data: &WaveletSurfaces,
+    ) -> Result<(), RenderError> {
+        let sets =
+            std::iter::once((&receivers.vertices, &data.vertices)).chain(receivers.texels.iter().zip(&data.texels));
+        for ((buffers, set), table) in sets.zip(&lit.tables) {
+            let products = data.cpu_products_of(set, table.as_ref()).map_err(RenderError::Invalid)?;
+            let irradiance: Vec<[f32; 4]> =
+                diffuse_transfer(&products, &data.diffuse_table).into_iter().map(|e| [e[0], e[1], e[2], 0.0]).collect();
+            gpu.queue.write_buffer(
+                &buffers.products,
+                0,
+                bytemuck::cast_slice(&crate::packing::rgb9e5_all(&products.values)),
+            );
+            gpu.queue.write_buffer(&buffers.irradiance, 0, bytemuck::cast_slice(&irradiance));
+        }
+        Ok(())
     }
 }
 
@@ -125,11 +360,34 @@ impl Pass for WaveletPass {
     type Data = WaveletSurfaces;
 
     fn prepare(&mut self, gpu: &GpuContext, data: &WaveletSurfaces) -> Result<(), RenderError> {
-        if self.bound.as_ref().is_none_or(|b| b.key != data.key) {
-            self.bound = None;
-            self.bound = Some(self.upload(gpu, data)?);
+        if stage_value::<CubeMap>(&data.environment)?.size == 0 {
+            return Err(RenderError::Invalid("the wavelet modes were given no environment".into()));
         }
-        let bound = self.bound.as_ref().expect("uploaded above");
+        // A material edit rebinds the tables; only new receivers re-upload them and relight.
+        if self.receivers.as_ref().is_none_or(|r| r.key != data.receivers_key()) {
+            self.receivers = None;
+            self.lit = None;
+            self.bound = None;
+            self.receivers = Some(Self::upload_receivers(gpu, data)?);
+        }
+        let receivers = self.receivers.as_ref().expect("uploaded above");
+        if self.lit.as_ref().is_none_or(|l| l.environment_key != data.environment.key) {
+            self.lit = Some(self.light(gpu, receivers, data)?);
+        }
+        if self.bound.as_ref().is_none_or(|b| b.key != data.key) {
+            self.bound = Some(self.bind(gpu, receivers, data));
+        }
+        let state = (receivers.key, data.environment.key, data.inverse_rotation);
+        if self.relit != Some(state) {
+            self.relit = None;
+            let lit = self.lit.as_ref().expect("lit above");
+            if self.kernel_on_gpu(gpu) {
+                self.relight_on_gpu(gpu, receivers, lit, data)?;
+            } else {
+                self.relight_on_cpu(gpu, receivers, lit, data)?;
+            }
+            self.relit = Some(state);
+        }
         let cells = data.cells as u32;
         let mut params: WaveletParams = bytemuck::Zeroable::zeroed();
         params.counts =
@@ -140,7 +398,7 @@ impl Pass for WaveletPass {
         for (dst, specular) in params.specular.iter_mut().zip(&data.specular) {
             *dst = specular.map_or([0.0; 4], |s| vec4(s, 1.0));
         }
-        params.texels = [bound.texel_size.is_some() as u32, bound.texel_size.unwrap_or(0), 0, 0];
+        params.texels = [receivers.texel_size.is_some() as u32, receivers.texel_size.unwrap_or(0), 0, 0];
         gpu.queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
         Ok(())
     }
@@ -154,3 +412,6 @@ impl Draw for WaveletPass {
         geometry.draw(pass);
     }
 }
+
+#[cfg(test)]
+mod tests;

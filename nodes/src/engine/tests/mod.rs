@@ -65,8 +65,9 @@ fn evaluate_frame(engine: &Engine, graph: &Graph) -> Evaluation {
 
 /// `expected` with the bake's stages added by their design rule: the lightmap atlas follows
 /// the scene's geometry, the texels' transports follow the vertices' (same parameters, same
-/// scene), the texels' wavelet products, blocked transport, square-light visibility and
-/// area-light stages follow the vertices' own, the traced square lights the BVH and the
+/// scene), the texels' wavelet products follow the vertices' visibility cells, the wavelet
+/// environment and the rotation (they are lit on the CPU), blocked transport, square-light
+/// visibility and area-light stages follow the vertices' own, the traced square lights the BVH and the
 /// lights, and the probes follow the geometry, the drawn
 /// environment and the point lights.
 fn with_bake(expected: &[&str]) -> BTreeSet<String> {
@@ -75,7 +76,9 @@ fn with_bake(expected: &[&str]) -> BTreeSet<String> {
         ("scene.geometry", "output.bake_atlas"),
         ("scene.transport_sh", "output.bake_texel_sh"),
         ("scene.transport_local", "output.bake_texel_local"),
-        ("output.local_products", "output.bake_texel_products"),
+        ("output.local_visibility", "output.bake_texel_products"),
+        ("output.wavelet_environment", "output.bake_texel_products"),
+        ("sky.rotation", "output.bake_texel_products"),
         ("output.blocked_transport", "output.bake_texel_blocked"),
         ("output.area_transport", "output.bake_texel_area_transport"),
         ("output.area_irradiance", "output.bake_texel_area"),
@@ -145,19 +148,22 @@ const SCENE_ALL: &[&str] = &[
 ];
 const SKY_AFTER_SOURCE: &[&str] = &["sky.radiance", "sky.sh_unrotated", "sky.rotated_radiance", "sky.sh", "sky.haar"];
 
-/// Edits of the rotated lighting or the receivers also recompute the wavelet mode's products.
-fn with_lighting(stages: &[&'static str]) -> Vec<&'static str> {
-    [
-        stages,
-        &[
-            "output.incident_sh",
-            "output.local_products",
-            "output.texel_irradiance",
-            "output.adaptive_incident",
-            "output.adaptive_error",
-        ],
-    ]
-    .concat()
+/// Edits of the environment's content also recompute what the modes read of it: the SH
+/// incident radiance and the wavelet modes' prefiltered environment.
+fn with_environment(stages: &[&'static str]) -> Vec<&'static str> {
+    [stages, &["output.wavelet_environment"], with_rotation(&[]).as_slice()].concat()
+}
+
+/// Edits of the receivers also recompute the SH incident radiance and the wavelet modes'
+/// visibility cells.
+fn with_receivers(stages: &[&'static str]) -> Vec<&'static str> {
+    [stages, &["output.local_visibility", "output.texel_visibility"], with_rotation(&[]).as_slice()].concat()
+}
+
+/// A rotation of the environment recomputes only the SH modes' incident radiance: the wavelet
+/// modes rebuild their products from a uniform on the GPU.
+fn with_rotation(stages: &[&'static str]) -> Vec<&'static str> {
+    [stages, &["output.incident_sh", "output.adaptive_incident", "output.adaptive_error"]].concat()
 }
 
 #[test]
@@ -170,11 +176,16 @@ fn each_parameter_recomputes_exactly_its_stages() {
             "sky",
             "rotation",
             Vec3([30.0, 0.0, 0.0]),
-            with_lighting(&["sky.rotation", "sky.rotated_radiance", "sky.sh", "sky.haar"]),
+            with_rotation(&["sky.rotation", "sky.rotated_radiance", "sky.sh", "sky.haar"]),
         ),
-        ("sky", "exposure", Float(1.0), with_lighting(&[SKY_AFTER_SOURCE, &["sky.radiance_scale"]].concat())),
-        ("sky", "tint", Color([1.0, 0.9, 0.8]), with_lighting(&[SKY_AFTER_SOURCE, &["sky.radiance_scale"]].concat())),
-        ("sky", "resolution", Choice("32".into()), with_lighting(SKY_AFTER_SOURCE)),
+        ("sky", "exposure", Float(1.0), with_environment(&[SKY_AFTER_SOURCE, &["sky.radiance_scale"]].concat())),
+        (
+            "sky",
+            "tint",
+            Color([1.0, 0.9, 0.8]),
+            with_environment(&[SKY_AFTER_SOURCE, &["sky.radiance_scale"]].concat()),
+        ),
+        ("sky", "resolution", Choice("32".into()), with_environment(SKY_AFTER_SOURCE)),
         (
             "sky",
             "sh_bands",
@@ -188,17 +199,17 @@ fn each_parameter_recomputes_exactly_its_stages() {
             ],
         ),
         ("sky", "wavelet_terms", Int(64), vec!["sky.haar"]),
-        ("sky", "sun_elevation", Float(20.0), with_lighting(SKY_ALL)),
-        ("sky", "sun_azimuth", Float(-30.0), with_lighting(SKY_ALL)),
-        ("sky", "sun_intensity", Float(100.0), with_lighting(SKY_ALL)),
-        ("sky", "sun_size", Float(1.0), with_lighting(SKY_ALL)),
-        ("scene", "tessellation", Int(16), with_lighting(SCENE_ALL)),
-        ("scene", "objects", Objects(crate::kinds::scene::default_objects()[..2].to_vec()), with_lighting(SCENE_ALL)),
+        ("sky", "sun_elevation", Float(20.0), with_environment(SKY_ALL)),
+        ("sky", "sun_azimuth", Float(-30.0), with_environment(SKY_ALL)),
+        ("sky", "sun_intensity", Float(100.0), with_environment(SKY_ALL)),
+        ("sky", "sun_size", Float(1.0), with_environment(SKY_ALL)),
+        ("scene", "tessellation", Int(16), with_receivers(SCENE_ALL)),
+        ("scene", "objects", Objects(crate::kinds::scene::default_objects()[..2].to_vec()), with_receivers(SCENE_ALL)),
         (
             "scene",
             "visibility_texture_size",
             Choice("16".into()),
-            vec!["scene.texel_receivers", "scene.transport_texels", "output.texel_irradiance"],
+            vec!["scene.texel_receivers", "scene.transport_texels", "output.texel_visibility"],
         ),
         (
             "scene",
@@ -233,13 +244,23 @@ fn each_parameter_recomputes_exactly_its_stages() {
             "scene",
             "local_frame_depth",
             Int(2),
-            vec!["scene.transport_local", "scene.transport_texels", "output.local_products", "output.texel_irradiance"],
+            vec![
+                "scene.transport_local",
+                "scene.transport_texels",
+                "output.local_visibility",
+                "output.texel_visibility",
+            ],
         ),
         (
             "scene",
             "local_frame_terms",
             Int(80),
-            vec!["scene.transport_local", "scene.transport_texels", "output.local_products", "output.texel_irradiance"],
+            vec![
+                "scene.transport_local",
+                "scene.transport_texels",
+                "output.local_visibility",
+                "output.texel_visibility",
+            ],
         ),
         (
             "material",
@@ -361,7 +382,12 @@ fn each_parameter_recomputes_exactly_its_stages() {
         // The lighting products no longer read the mode: they are pulled by the modes that
         // draw them, so switching modes recomputes only the settings.
         ("output", "mode", Choice("sh_irradiance".into()), vec!["output.settings"]),
-        ("output", "wavelet_terms", Choice("80".into()), vec!["output.local_products", "output.texel_irradiance"]),
+        (
+            "output",
+            "wavelet_terms",
+            Choice("80".into()),
+            vec!["output.local_visibility", "output.wavelet_environment", "output.texel_visibility"],
+        ),
         ("output", "adaptive_level", Int(3), vec!["output.adaptive_incident", "output.adaptive_error"]),
         ("output", "adaptive_threshold", Float(0.1), vec!["output.adaptive_incident", "output.adaptive_error"]),
         ("output", "adaptive_refine", Bool(false), vec!["output.adaptive_incident", "output.adaptive_error"]),
@@ -389,7 +415,7 @@ fn each_parameter_recomputes_exactly_its_stages() {
     graph.set_param("scene", "tessellation", Int(12)).unwrap();
     let first = engine.evaluate(&graph, &CancelToken::default(), None);
     assert!(first.report.failed().is_empty(), "{:?}", first.report.failed());
-    assert_eq!(first.report.computed().len(), 46);
+    assert_eq!(first.report.computed().len(), 47);
     let again = engine.evaluate(&graph, &CancelToken::default(), None);
     assert!(ran(&again.report).is_empty(), "an unchanged graph recomputed {:?}", ran(&again.report));
     for (node, param, value, expected) in table {
@@ -977,7 +1003,7 @@ fn every_kind_recomputes_exactly_its_stages() {
                 // rerun; visibility reads the turned lights, which exposure leaves alone.
                 SKY_AFTER_SOURCE,
                 &["sky.radiance_scale", "rsl.world_lights"],
-                &["output.incident_sh", "output.local_products", "output.texel_irradiance"],
+                &["output.incident_sh", "output.wavelet_environment"],
                 &["output.adaptive_incident", "output.adaptive_error"],
             ]
             .concat(),
@@ -995,8 +1021,6 @@ fn every_kind_recomputes_exactly_its_stages() {
                 "rsl.world_lights",
                 "output.rsl_visibility",
                 "output.incident_sh",
-                "output.local_products",
-                "output.texel_irradiance",
                 "output.adaptive_incident",
                 "output.adaptive_error",
             ],
@@ -1244,7 +1268,8 @@ fn each_mode_and_view_evaluates_exactly_the_stages_it_reads() {
         "scene.transport_local",
         "sky.rotation",
         "material.local_table",
-        "output.local_products",
+        "output.local_visibility",
+        "output.wavelet_environment",
     ]);
     let table: Vec<(&str, &str, Vec<&str>)> = vec![
         ("sh_irradiance", "approximation", UNSHADOWED.to_vec()),
@@ -1280,7 +1305,7 @@ fn each_mode_and_view_evaluates_exactly_the_stages_it_reads() {
             "approximation",
             [
                 wavelet_vertex.as_slice(),
-                &["scene.texel_receivers", "scene.transport_texels", "output.texel_irradiance"],
+                &["scene.texel_receivers", "scene.transport_texels", "output.texel_visibility"],
             ]
             .concat(),
         ),
@@ -1305,7 +1330,7 @@ fn each_mode_and_view_evaluates_exactly_the_stages_it_reads() {
         for s in eval.report.stages.iter().filter(|s| s.status == StageStatus::NotNeeded) {
             assert!(s.reasons[0].contains(&format!("mode {mode}")), "{}.{}: {:?}", s.node, s.stage, s.reasons);
         }
-        assert_eq!(eval.report.stages.len(), 46, "every stage is reported");
+        assert_eq!(eval.report.stages.len(), 47, "every stage is reported");
     }
 }
 

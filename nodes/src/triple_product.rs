@@ -24,6 +24,8 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
 
+mod cell_light;
+
 // Stage value types this module owns (see `engine::value`).
 crate::stage_type!(
     BrdfTable,
@@ -229,13 +231,15 @@ pub fn local_products(
     let environment = &prefiltered(lighting.environment, grid);
     // The rotated environment seen in frame M is the unrotated one in frame R⁻¹M.
     let inverse_rotation = lighting.rotation.transpose();
+    let sampler = lighting.table.is_none().then(|| cell_light::CellSampler::new(grid, environment));
     // ΔΩ_c × the cell's average radiance in the (rotated) frame.
     let cell_light = |frame: &FrameLight, c: usize| -> DVec3 {
-        match frame {
-            FrameLight::Direct(frame) => {
+        match (frame, &sampler) {
+            (FrameLight::Direct(frame), Some(sampler)) => DVec3::from(sampler.cell(frame, c).map(f64::from)),
+            (FrameLight::Direct(frame), None) => {
                 grid.samples[c].iter().map(|(d, w)| DVec3::from(environment.sample(*frame * *d)) * *w).sum()
             }
-            FrameLight::Table(table, corners) => table.cell(corners, c),
+            (FrameLight::Table(table, corners), _) => table.cell(corners, c),
         }
     };
     let chunks: Vec<Result<Vec<f32>, StageError>> = (0..receivers.len().div_ceil(256))

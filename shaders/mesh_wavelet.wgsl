@@ -31,6 +31,9 @@ struct WaveletParams {
 @group(2) @binding(5) var<storage, read> texel_products: array<u32>;
 // Per vertex: its mesh's layer of texels, or -1.
 @group(2) @binding(6) var<storage, read> vertex_layers: array<i32>;
+// Per material and (theta_o, phi_o) patch: [first, count] of the cells its glossy sum reads.
+@group(2) @binding(7) var<storage, read> specular_ranges: array<vec2<u32>>;
+@group(2) @binding(8) var<storage, read> specular_cells: array<u32>;
 
 fn rgb9e5(v: u32) -> vec3<f32> {
     let scale = exp2(f32(i32(v >> 27u) - 24));
@@ -45,6 +48,8 @@ struct TableRows {
     r11: u32,
     fi: f32,
     fj: f32,
+    // The cells that carry the lobe here: [first, count] into specular_cells.
+    cells: vec2<u32>,
 };
 
 fn table_rows(wo: vec3<f32>, m: u32) -> TableRows {
@@ -70,6 +75,7 @@ fn table_rows(wo: vec3<f32>, m: u32) -> TableRows {
     rows.r11 = table + ((i + 1u) * phi_steps + j1) * cells;
     rows.fi = ft - f32(i);
     rows.fj = fp - f32(j);
+    rows.cells = specular_ranges[(m * (theta_steps - 1u) + i) * phi_steps + j];
     return rows;
 }
 
@@ -121,7 +127,8 @@ fn vs_main(v: MeshVertex, @builtin(vertex_index) index: u32) -> VertexOut {
     if (wp.specular[m].w > 0.0 && wo.z > 0.0) {
         let rows = table_rows(wo, m);
         var glossy = vec3<f32>(0.0);
-        for (var c = 0u; c < cells; c = c + 1u) {
+        for (var k = rows.cells.x; k < rows.cells.x + rows.cells.y; k = k + 1u) {
+            let c = specular_cells[k];
             glossy = glossy + rgb9e5(products[base + c]) * specular_at(rows, c);
         }
         out.specular = wp.specular[m].rgb * glossy;
@@ -162,7 +169,8 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
         let t01 = s01 * cells;
         let t10 = s10 * cells;
         let t11 = s11 * cells;
-        for (var c = 0u; c < cells; c = c + 1u) {
+        for (var k = rows.cells.x; k < rows.cells.x + rows.cells.y; k = k + 1u) {
+            let c = specular_cells[k];
             let top = mix(rgb9e5(texel_products[t00 + c]), rgb9e5(texel_products[t01 + c]), w.x);
             let bottom = mix(rgb9e5(texel_products[t10 + c]), rgb9e5(texel_products[t11 + c]), w.x);
             specular = specular + mix(top, bottom, w.y) * specular_at(rows, c);

@@ -255,6 +255,10 @@ pub struct WaveletSurfaces {
     /// Every material's `S_c(ω_o)` table coarsened to `cells`, zeros without a lobe; each
     /// [`Self::specular_stride`] long.
     pub specular_tables: Arc<Vec<f32>>,
+    /// Per material and patch of the outgoing grid, `[first, count]` into `specular_cells`:
+    /// the cells its glossy sum reads ([`crate::triple_product::significant_cells`]).
+    pub specular_ranges: Arc<Vec<[u32; 2]>>,
+    pub specular_cells: Arc<Vec<u32>>,
     /// Per material: diffuse albedo and specular colour (`None` without a lobe), both scaled
     /// by what reaches surfaces through fog (fog adds its scattered light separately).
     pub albedo: Vec<[f64; 3]>,
@@ -304,6 +308,17 @@ impl WaveletSurfaces {
                 specular_tables[i * stride..(i + 1) * stride].copy_from_slice(&t.specular);
             }
         }
+        let (mut specular_ranges, mut specular_cells) = (Vec::new(), Vec::new());
+        for t in &coarse {
+            let (ranges, cells) = if t.specular.is_empty() {
+                (vec![[0, 0]; (crate::triple_product::THETA_STEPS - 1) * crate::triple_product::PHI_STEPS], Vec::new())
+            } else {
+                crate::triple_product::significant_cells(&t.specular, grid)
+            };
+            let offset = specular_cells.len() as u32;
+            specular_ranges.extend(ranges.into_iter().map(|[first, count]| [first + offset, count]));
+            specular_cells.extend(cells);
+        }
         // Without any mesh that has a visibility texture there are no texels to light.
         let texels = texels
             .filter(|t| t.value.get::<TexelVisibility>().is_some_and(|t| t.visibility.cells == cells && t.slots() > 0));
@@ -340,6 +355,8 @@ impl WaveletSurfaces {
             ),
             diffuse_table: Arc::new(first.diffuse.clone()),
             specular_tables: Arc::new(specular_tables),
+            specular_ranges: Arc::new(specular_ranges),
+            specular_cells: Arc::new(specular_cells),
             albedo: materials.iter().map(|m| scale(m.material.albedo)).collect(),
             specular: coarse
                 .iter()

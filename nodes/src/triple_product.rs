@@ -336,23 +336,14 @@ impl FrameTable {
 
     /// The table for an (unrotated) environment, prefiltered for the grid.
     pub fn build(grid: &CellGrid, environment: &CubeMap) -> Self {
-        let environment = &prefiltered(environment, grid);
+        let sampler = &cell_light::CellSampler::new(grid, &prefiltered(environment, grid));
         let frames = FRAME_ALPHA * FRAME_BETA * FRAME_GAMMA;
         let values = (0..frames)
             .into_par_iter()
             .flat_map_iter(|f| {
                 let (a, b, g) = (f / (FRAME_BETA * FRAME_GAMMA), (f / FRAME_GAMMA) % FRAME_BETA, f % FRAME_GAMMA);
                 let frame = Self::frame(a as f64, b as f64, g as f64);
-                grid.samples
-                    .iter()
-                    .map(move |samples| {
-                        let l = samples
-                            .iter()
-                            .map(|(d, w)| DVec3::from(environment.sample(frame * *d)) * *w)
-                            .sum::<DVec3>();
-                        l.as_vec3().to_array()
-                    })
-                    .collect::<Vec<_>>()
+                (0..grid.len()).map(|c| sampler.cell(&frame, c)).collect::<Vec<_>>()
             })
             .collect();
         Self { cells: grid.len(), values }
@@ -629,6 +620,47 @@ pub fn tabulate_brdf(brdf: &Brdf, grid: &CellGrid, cancel: &CancelToken) -> Resu
     })
 }
 
+/// Share of each patch's specular mass [`significant_cells`] may leave out.
+pub const SPECULAR_DROPPED_MASS: f64 = 1e-3;
+
+/// The cells that carry a glossy lobe, per patch of the outgoing grid: for the patch between
+/// rows `(i, j)` and `(i + 1, j + 1)` (`i·PHI_STEPS + j`), the fewest cells whose mass
+/// `max over the patch's four rows of S_c ΔΩ_c` reaches all but [`SPECULAR_DROPPED_MASS`] of
+/// the patch's total, in increasing order. A sharp lobe's sum `Σ P_c S_c(ω_o)` then reads a
+/// few dozen of the 320 cells (Ma et al. keep the BRDF's largest coefficients the same way);
+/// the terms dropped are under that share of the sum for lighting no brighter than the kept
+/// cells'. Returns `[first, count]` per patch into the concatenated list.
+pub fn significant_cells(specular: &[f32], grid: &CellGrid) -> (Vec<[u32; 2]>, Vec<u32>) {
+    let cells = grid.len();
+    let mut ranges = Vec::with_capacity((THETA_STEPS - 1) * PHI_STEPS);
+    let mut list = Vec::new();
+    let mut mass: Vec<(f64, u32)> = Vec::with_capacity(cells);
+    for i in 0..THETA_STEPS - 1 {
+        for j in 0..PHI_STEPS {
+            let rows = [(i, j), (i, (j + 1) % PHI_STEPS), (i + 1, j), (i + 1, (j + 1) % PHI_STEPS)];
+            mass.clear();
+            for c in 0..cells {
+                let s = rows.iter().map(|(a, b)| specular[(a * PHI_STEPS + b) * cells + c]).fold(0.0f32, f32::max);
+                mass.push((f64::from(s) * grid.solid_angles[c], c as u32));
+            }
+            let total: f64 = mass.iter().map(|m| m.0).sum();
+            mass.sort_by(|a, b| b.0.total_cmp(&a.0));
+            let first = list.len();
+            let mut kept = 0.0;
+            for &(m, c) in &mass {
+                if kept >= total * (1.0 - SPECULAR_DROPPED_MASS) || m <= 0.0 {
+                    break;
+                }
+                kept += m;
+                list.push(c);
+            }
+            list[first..].sort_unstable();
+            ranges.push([first as u32, (list.len() - first) as u32]);
+        }
+    }
+    (ranges, list)
+}
+
 /// `S(ω_o)` bilinearly interpolated on the grid (CPU twin of the shader).
 pub fn specular_row(table: &BrdfTable, wo: DVec3) -> Vec<f64> {
     let (i, j, fi, fj) = grid_position(wo);
@@ -791,5 +823,46 @@ mod tests {
         .unwrap();
         let b: f64 = (0..grid.len()).map(|c| grid.solid_angles[c] * 2.0 * table.diffuse[c] as f64).sum();
         assert!((b - 2.0).abs() < 2.0 * 2e-3, "{b}");
+    }
+
+    /// The shader's glossy sum over a patch's significant cells against the sum over all
+    /// cells (`specular_row`), for lobes from sharp to rough under lighting that varies by a
+    /// factor of three across the cells: within the dropped mass's share, and reading few cells
+    /// for a sharp lobe.
+    #[test]
+    fn glossy_sums_over_the_significant_cells_equal_the_full_sums() {
+        let grid = CellGrid::for_coefficients(320).unwrap();
+        let mut state = 11u64;
+        let mut uniform = || {
+            state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let light: Vec<f64> = (0..grid.len()).map(|c| grid.solid_angles[c] * (1.0 + 2.0 * uniform())).collect();
+        for (model, exponent, roughness, most_cells) in
+            [("phong", 200.0, 0.5, 40.0), ("phong", 20.0, 0.5, 80.0), ("ggx", 1.0, 0.4, 200.0)]
+        {
+            let material = Material { model: model.into(), exponent, roughness, f0: 0.5, ..Default::default() };
+            let table = tabulate_brdf(&Brdf::from_material(&material), grid, &CancelToken::default()).unwrap();
+            let (ranges, list) = significant_cells(&table.specular, grid);
+            let mean = ranges.iter().map(|r| r[1] as f64).sum::<f64>() / ranges.len() as f64;
+            assert!(mean <= most_cells, "{model} {exponent}: {mean:.0} cells a patch");
+            for _ in 0..200 {
+                let (theta, phi) = (uniform() * 1.5, uniform() * 2.0 * PI);
+                let wo = DVec3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos());
+                let row = specular_row(&table, wo);
+                let (i, j, ..) = grid_position(wo);
+                let [first, count] = ranges[i * PHI_STEPS + j];
+                let full: f64 = row.iter().zip(&light).map(|(s, l)| s * l).sum();
+                let sparse: f64 = list[first as usize..(first + count) as usize]
+                    .iter()
+                    .map(|&c| row[c as usize] * light[c as usize])
+                    .sum();
+                assert!(
+                    (full - sparse).abs() <= 3.0 * SPECULAR_DROPPED_MASS * full + 1e-9,
+                    "{model} {exponent} at θ {theta:.2} φ {phi:.2}: {sparse} of {full}"
+                );
+            }
+            eprintln!("{model} {exponent}/{roughness}: {mean:.1} of 320 cells a patch");
+        }
     }
 }

@@ -156,6 +156,8 @@ impl WaveletPass {
                 entry::storage(4, S::FRAGMENT),
                 entry::storage(5, S::FRAGMENT),
                 entry::storage(6, S::VERTEX),
+                entry::storage(7, S::VERTEX_FRAGMENT),
+                entry::storage(8, S::VERTEX_FRAGMENT),
             ],
         });
         let compute = S::COMPUTE;
@@ -228,6 +230,8 @@ impl WaveletPass {
     fn bind(&self, gpu: &GpuContext, receivers: &Receivers, data: &WaveletSurfaces) -> Bound {
         let specular = storage_buffer(gpu, "wavelet-specular", &data.specular_tables);
         let layers = storage_buffer(gpu, "wavelet-vertex-layers", &data.vertex_layers);
+        let ranges = storage_buffer(gpu, "wavelet-specular-ranges", &data.specular_ranges);
+        let cells = storage_buffer(gpu, "wavelet-specular-cells", &data.specular_cells);
         let no_irradiance = storage_buffer::<[f32; 4]>(gpu, "wavelet-no-texels", &[]);
         let no_products = storage_buffer::<u32>(gpu, "wavelet-no-texels", &[]);
         fn resource(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
@@ -245,6 +249,8 @@ impl WaveletPass {
                 resource(4, texels.map_or(&no_irradiance, |t| &t.irradiance)),
                 resource(5, texels.map_or(&no_products, |t| &t.products)),
                 resource(6, &layers),
+                resource(7, &ranges),
+                resource(8, &cells),
             ],
         });
         Bound { key: data.key, bind_group }

@@ -96,11 +96,19 @@ impl ViewportRenderer {
             medium_layout: &medium.layout,
             sample_count,
         };
+        let mut wavelet = WaveletPass::new(&setup);
+        // `LIGHTLOOM_RELIGHT=gpu` or `cpu` picks where the wavelet modes relight (to compare the
+        // two); otherwise the device decides.
+        wavelet.relight_on = match std::env::var("LIGHTLOOM_RELIGHT").as_deref() {
+            Ok("gpu") => crate::RelightOn::Gpu,
+            Ok("cpu") => crate::RelightOn::Cpu,
+            _ => crate::RelightOn::Auto,
+        };
         Self {
             background: BackgroundPass::new(gpu, &setup),
             irradiance: IrradiancePass::new(&setup),
             prt: PrtPass::new(&setup),
-            wavelet: WaveletPass::new(&setup),
+            wavelet,
             rsl: RslPass::new(&setup),
             area_lights: AreaLightPass::new(&setup),
             tonemap: TonemapPass::new(&gpu.device),

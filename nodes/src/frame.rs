@@ -203,19 +203,34 @@ pub struct WaveletReceivers {
     pub key: Key,
     /// Per receiver `[t, 0]` then `[n, 0]`: its frame `[t, n × t, n]`.
     pub frames: Arc<Vec<[f32; 4]>>,
-    /// [`crate::triple_product::LocalVisibility`] or [`crate::triple_product::TexelVisibility`].
+    /// [`crate::triple_product::LocalVisibility`], or [`crate::triple_product::TexelVisibility`]
+    /// (which holds its receivers too).
     pub visibility: Keyed,
+    /// [`crate::transport::Receivers`] for vertices; for texels the same as `visibility`.
+    source: Keyed,
 }
 
 impl WaveletReceivers {
-    fn new(receivers: &crate::transport::Receivers, key: Key, visibility: Keyed) -> Self {
+    fn new(source: Keyed, visibility: Keyed) -> Result<Self, String> {
+        let mut set =
+            Self { key: source.key ^ visibility.key.rotate_left(17), frames: Arc::default(), visibility, source };
+        let receivers = set.receivers()?;
         let frames = (0..receivers.len())
             .flat_map(|i| {
                 let f = receivers.frame(i);
                 [f.x_axis, f.z_axis].map(|a| [a.x as f32, a.y as f32, a.z as f32, 0.0])
             })
             .collect();
-        Self { key: key ^ visibility.key.rotate_left(17), frames: Arc::new(frames), visibility }
+        set.frames = Arc::new(frames);
+        Ok(set)
+    }
+
+    /// The receivers whose frames these are.
+    pub fn receivers(&self) -> Result<&crate::transport::Receivers, String> {
+        if let Some(t) = self.source.value.get::<crate::triple_product::TexelVisibility>() {
+            return Ok(&t.receivers);
+        }
+        self.source.value.expect::<crate::transport::Receivers>().map_err(|e| e.to_string())
     }
 
     /// The visibility cells, whichever stage made them.
@@ -244,8 +259,7 @@ pub struct WaveletSurfaces {
     pub texel_size: usize,
     /// [`crate::cubemap::CubeMap`], prefiltered for the cells.
     pub environment: Keyed,
-    /// `R⁻¹` (the lit world sees `L(R⁻¹ d)`), rows.
-    pub inverse_rotation: [[f32; 3]; 3],
+    /// `R`: the lit world sees `L(R⁻¹ d)`.
     pub rotation: glam::DMat3,
     /// Per cell its sub-cell samples `[direction in the local frame, solid angle]`, the same
     /// count per cell ([`crate::triple_product::CellGrid::samples`]).
@@ -331,24 +345,22 @@ impl WaveletSurfaces {
             }
         }
         let texel_size = texel_data.map_or(0, |t| t.size);
-        let texels = match (&texels, texel_data) {
-            (Some(keyed), Some(data)) => {
+        let texels = match texels {
+            Some(keyed) => {
                 key = key.rotate_left(11) ^ keyed.key;
-                Some(WaveletReceivers::new(&data.receivers, keyed.key, keyed.clone()))
+                Some(WaveletReceivers::new(keyed.clone(), keyed)?)
             }
-            _ => None,
+            None => None,
         };
         let attenuation = fog.map_or([1.0; 3], |f| f.fog.attenuation);
         let scale = |c: [f64; 3]| std::array::from_fn(|i| c[i] * attenuation[i]);
-        let inverse = lighting.rotation.transpose();
         Ok(Self {
             key,
             cells,
-            vertices: WaveletReceivers::new(receivers, lighting.receivers.key, lighting.visibility),
+            vertices: WaveletReceivers::new(lighting.receivers, lighting.visibility)?,
             texels,
             texel_size,
             environment: lighting.environment,
-            inverse_rotation: [inverse.row(0), inverse.row(1), inverse.row(2)].map(|r| r.as_vec3().to_array()),
             rotation: lighting.rotation,
             cell_samples: Arc::new(
                 grid.samples.iter().flatten().map(|(d, w)| [d.x as f32, d.y as f32, d.z as f32, *w as f32]).collect(),
@@ -364,6 +376,12 @@ impl WaveletSurfaces {
                 .collect(),
             vertex_layers: Arc::new(vertex_layers),
         })
+    }
+
+    /// Rows of `R⁻¹`, in f32 (what the relight kernel reads).
+    pub fn inverse_rotation(&self) -> [[f32; 3]; 3] {
+        let inverse = self.rotation.transpose();
+        [inverse.row(0), inverse.row(1), inverse.row(2)].map(|r| r.as_vec3().to_array())
     }
 
     /// What the relit products depend on besides the lighting: the receiver sets.
@@ -398,14 +416,8 @@ impl WaveletSurfaces {
         use crate::triple_product::{CellGrid, Lighting, local_products};
         let grid = CellGrid::for_coefficients(self.cells)?;
         let environment = self.environment.value.expect::<crate::cubemap::CubeMap>().map_err(|e| e.to_string())?;
-        let mut receivers = crate::transport::Receivers { mesh_offsets: vec![0], ..Default::default() };
-        for f in set.frames.chunks_exact(2) {
-            receivers.positions.push([0.0; 3]);
-            receivers.tangents.push([f[0][0], f[0][1], f[0][2]]);
-            receivers.normals.push([f[1][0], f[1][1], f[1][2]]);
-        }
         let lighting = Lighting { environment, rotation: self.rotation, table };
-        local_products(grid, &lighting, &receivers, set.cells()?, &crate::engine::CancelToken::default())
+        local_products(grid, &lighting, set.receivers()?, set.cells()?, &crate::engine::CancelToken::default())
             .map_err(|e| e.to_string())
     }
 

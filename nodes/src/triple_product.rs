@@ -228,18 +228,17 @@ pub fn local_products(
             grid.len()
         )));
     }
-    let environment = &prefiltered(lighting.environment, grid);
     // The rotated environment seen in frame M is the unrotated one in frame R⁻¹M.
     let inverse_rotation = lighting.rotation.transpose();
-    let sampler = lighting.table.is_none().then(|| cell_light::CellSampler::new(grid, environment));
+    let source = match lighting.table {
+        Some(table) => LightSource::Table(table),
+        None => LightSource::Sampled(cell_light::CellSampler::new(grid, &prefiltered(lighting.environment, grid))),
+    };
     // ΔΩ_c × the cell's average radiance in the (rotated) frame.
     let cell_light = |frame: &FrameLight, c: usize| -> DVec3 {
-        match (frame, &sampler) {
-            (FrameLight::Direct(frame), Some(sampler)) => DVec3::from(sampler.cell(frame, c).map(f64::from)),
-            (FrameLight::Direct(frame), None) => {
-                grid.samples[c].iter().map(|(d, w)| DVec3::from(environment.sample(*frame * *d)) * *w).sum()
-            }
-            (FrameLight::Table(table, corners), _) => table.cell(corners, c),
+        match frame {
+            FrameLight::Direct(sampler, frame) => DVec3::from(sampler.cell(frame, c).map(f64::from)),
+            FrameLight::Table(table, corners) => table.cell(corners, c),
         }
     };
     let chunks: Vec<Result<Vec<f32>, StageError>> = (0..receivers.len().div_ceil(256))
@@ -255,9 +254,9 @@ pub fn local_products(
                 let frame = receivers.frame(i);
                 let (light, cells) = cache.entry(frame.to_cols_array().map(f64::to_bits)).or_insert_with(|| {
                     let frame = inverse_rotation * frame;
-                    let light = match lighting.table {
-                        Some(table) => FrameLight::Table(table, table.corners(frame)),
-                        None => FrameLight::Direct(frame),
+                    let light = match &source {
+                        LightSource::Table(table) => FrameLight::Table(table, table.corners(frame)),
+                        LightSource::Sampled(sampler) => FrameLight::Direct(sampler, frame),
                     };
                     (light, vec![DVec3::NAN; grid.len()])
                 });
@@ -283,10 +282,16 @@ pub fn local_products(
     Ok(LocalProducts { cells: grid.len(), values })
 }
 
+/// Where every frame's lighting cells come from.
+enum LightSource<'a> {
+    Sampled(cell_light::CellSampler),
+    Table(&'a FrameTable),
+}
+
 /// Where one frame's lighting cells come from.
 enum FrameLight<'a> {
     /// Sampled from the environment in this frame.
-    Direct(DMat3),
+    Direct(&'a cell_light::CellSampler, DMat3),
     /// Interpolated in a pre-rotated table.
     Table(&'a FrameTable, [(usize, f64); 8]),
 }

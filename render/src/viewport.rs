@@ -99,11 +99,11 @@ impl ViewportRenderer {
         let mut wavelet = WaveletPass::new(&setup);
         // `LIGHTLOOM_RELIGHT=gpu` or `cpu` picks where the wavelet modes relight (to compare the
         // two); otherwise the device decides.
-        wavelet.relight_on = match std::env::var("LIGHTLOOM_RELIGHT").as_deref() {
+        wavelet.set_relight_on(match std::env::var("LIGHTLOOM_RELIGHT").as_deref() {
             Ok("gpu") => crate::RelightOn::Gpu,
             Ok("cpu") => crate::RelightOn::Cpu,
             _ => crate::RelightOn::Auto,
-        };
+        });
         Self {
             background: BackgroundPass::new(gpu, &setup),
             irradiance: IrradiancePass::new(&setup),
@@ -123,7 +123,7 @@ impl ViewportRenderer {
     /// Where the wavelet modes rebuild their products after a lighting change (by default the
     /// GPU's compute kernel, or the CPU on a CPU adapter).
     pub fn set_relight_on(&mut self, on: crate::RelightOn) {
-        self.wavelet.relight_on = on;
+        self.wavelet.set_relight_on(on);
     }
 
     /// Uploads what changed and draws the frame into the offscreen targets.

@@ -135,7 +135,7 @@ pub(crate) struct WaveletPass {
     relight_layout: wgpu::BindGroupLayout,
     relight: wgpu::ComputePipeline,
     params: wgpu::Buffer,
-    pub(crate) relight_on: RelightOn,
+    relight_on: RelightOn,
     receivers: Option<Receivers>,
     lit: Option<Lit>,
     bound: Option<Bound>,
@@ -202,6 +202,16 @@ impl WaveletPass {
             lit: None,
             bound: None,
             relit: None,
+        }
+    }
+
+    /// Where the next relights run. What was built for the other side (the environment
+    /// buffer, the CPU's frame tables, the last products) is dropped.
+    pub(crate) fn set_relight_on(&mut self, on: RelightOn) {
+        if on != self.relight_on {
+            self.relight_on = on;
+            self.lit = None;
+            self.relit = None;
         }
     }
 
@@ -316,7 +326,7 @@ impl WaveletPass {
             let groups = count.div_ceil(WORKGROUP).max(1);
             let columns = groups.min(max_columns);
             let params = RelightParams {
-                inverse_rotation: data.inverse_rotation.map(|r| [r[0], r[1], r[2], 0.0]),
+                inverse_rotation: data.inverse_rotation().map(|r| [r[0], r[1], r[2], 0.0]),
                 counts: [*count, data.cells as u32, samples_per_cell, size as u32],
                 dispatch: [columns * WORKGROUP, 0, 0, 0],
             };
@@ -383,7 +393,7 @@ impl Pass for WaveletPass {
         if self.bound.as_ref().is_none_or(|b| b.key != data.key) {
             self.bound = Some(self.bind(gpu, receivers, data));
         }
-        let state = (receivers.key, data.environment.key, data.inverse_rotation);
+        let state = (receivers.key, data.environment.key, data.inverse_rotation());
         if self.relit != Some(state) {
             self.relit = None;
             let lit = self.lit.as_ref().expect("lit above");

@@ -79,7 +79,7 @@ fn the_relight_kernel_matches_the_cpu_twin() {
         sample_count: 1,
     };
     let mut pass = WaveletPass::new(&setup);
-    pass.relight_on = RelightOn::Gpu;
+    pass.set_relight_on(RelightOn::Gpu);
     for (cells, rotation) in
         [(80, glam::DMat3::IDENTITY), (320, glam::DMat3::from_euler(glam::EulerRot::YXZ, 0.7, -0.4, 2.1))]
     {

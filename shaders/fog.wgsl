@@ -177,7 +177,13 @@ fn fog_shade(lit_in: vec3<f32>, p: vec3<f32>, n: vec3<f32>, kd: vec3<f32>, mater
     let viewer = globals.camera_pos.xyz;
     let d_vp = length(viewer - p);
     let view = (p - viewer) / max(d_vp, 1e-6);
-    var lit = lit_in;
+    let lobe = fog.specular[material];
+    let exponent = max(lobe.w, 1.0);
+    let mirror = reflect(view, n);
+    let ks = lobe.rgb * (exponent + 2.0) / (2.0 * PI) * max(dot(mirror, n), 0.0);
+    let glossy = lobe.w > 0.0 && max(ks.r, max(ks.g, ks.b)) > 0.0;
+    // The environment's sun, when lit apart from the mode's transport (sun.wgsl).
+    var lit = lit_in + sun_direct(p, n, kd, ks, exponent, mirror, glossy);
     var glow = vec3<f32>(0.0);
     if (fogged) {
         glow = fog_environment_glow(view);
@@ -185,11 +191,6 @@ fn fog_shade(lit_in: vec3<f32>, p: vec3<f32>, n: vec3<f32>, kd: vec3<f32>, mater
             lit = lit * fog.environment.rgb + kd * fog_environment_glow_irradiance(n);
         }
     }
-    let lobe = fog.specular[material];
-    let exponent = max(lobe.w, 1.0);
-    let mirror = reflect(view, n);
-    let ks = lobe.rgb * (exponent + 2.0) / (2.0 * PI) * max(dot(mirror, n), 0.0);
-    let glossy = lobe.w > 0.0 && max(ks.r, max(ks.g, ks.b)) > 0.0;
     var out = vec3<f32>(0.0);
     for (var c = 0; c < 3; c = c + 1) {
         let beta = select(0.0, fog.beta[c], fogged);

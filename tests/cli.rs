@@ -425,11 +425,12 @@ fn eval_reports_that_rotating_the_environment_recomputes_no_projection() {
     let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     let recomputed: Vec<&str> = report["recomputed"].as_array().unwrap().iter().map(|v| v.as_str().unwrap()).collect();
     // Only what the Output's mode (wavelet_pixel) and its unshadowed preview read follow the
-    // rotation: the rotation itself and the rotated SH and cube map. The wavelet products are
-    // rebuilt from the rotation by the renderer; no transport, projection or product stage
-    // runs, and stages the mode does not read (the Haar projection, sh_prt's incident
-    // radiance) do not run.
-    assert_eq!(recomputed, ["sky.rotation", "sky.rotated_radiance", "sky.sh"]);
+    // rotation: the rotation itself and the rotated SH and cube map (of the whole sky and of
+    // the sky without its sun, which the viewport lights apart and turns as a uniform). The
+    // wavelet products are rebuilt from the rotation by the renderer; no transport, projection
+    // or product stage runs, and stages the mode does not read (the Haar projection, sh_prt's
+    // incident radiance) do not run.
+    assert_eq!(recomputed, ["sky.rotation", "sky.rotated_radiance", "sky.sh", "sky.residual_sh"]);
     let sh = report["after_overrides"]["stages"]
         .as_array()
         .unwrap()

@@ -6,7 +6,7 @@ use crate::project_commands::{evaluate, fail_on_errors, load, upstream_of};
 use anyhow::{Result, anyhow};
 use clap::Args;
 use lightloom_nodes::engine::{CancelToken, Graph};
-use lightloom_nodes::kinds::output::{FrameInputs, find_output, frame_request};
+use lightloom_nodes::kinds::output::{FrameInputs, SUN, find_output, frame_request, mode_stages};
 use lightloom_nodes::node_kind::ParamValue;
 use lightloom_nodes::reference::{self, ImageError, PinholeCamera};
 use lightloom_render::{CameraView, GpuContext, ViewportRenderer};
@@ -36,6 +36,10 @@ pub struct AccuracyArgs {
     pub height: u32,
     #[arg(long)]
     pub camera: Option<String>,
+    /// Rows for each way of lighting the environment's sun (`separate`, `in_environment`;
+    /// default: the project's own setting).
+    #[arg(long, value_delimiter = ',')]
+    pub sun: Vec<String>,
     /// Print JSON instead of a table.
     #[arg(long)]
     pub json: bool,
@@ -48,9 +52,21 @@ pub struct AccuracyArgs {
 pub struct Row {
     pub mode: String,
     pub coefficients: usize,
+    /// How the environment's sun was lit (the Output's `sun`).
+    pub sun: String,
     #[serde(flatten)]
     pub error: ImageError,
+    /// The relative RMSE with the reference's own noise taken out: √(rel² − noise²), the
+    /// approximation's error against the converged image.
+    pub relative_rmse_less_noise: f64,
+    /// The first frame: uploads, relighting and drawing.
     pub render_ms: f64,
+    /// A steady frame (nothing changed): what orbiting the camera costs.
+    pub frame_ms: f64,
+    /// What the mode's stages hold (transport, visibility, lighting), bytes.
+    pub memory_bytes: usize,
+    /// No other row has lower-or-equal error, frame time and memory (one strictly lower).
+    pub pareto: bool,
 }
 
 #[derive(Debug, Serialize)]
@@ -77,11 +93,20 @@ pub fn run(args: &AccuracyArgs) -> Result<()> {
     let pinhole =
         PinholeCamera { position: camera.position.into(), target: camera.target.into(), fov_y_deg: camera.fov_y_deg };
 
-    let frame_of = |graph: &Graph| -> Result<FrameInputs> {
+    let evaluated = |graph: &Graph| -> Result<(FrameInputs, usize)> {
         let evaluation = evaluate(engine.clone(), graph, frame_request(graph, &output, true), true);
         fail_on_errors(&evaluation, &upstream_of(graph, &output))?;
-        FrameInputs::gather(&evaluation, graph, &output).map_err(|e| anyhow!(e))
+        let frame = FrameInputs::gather(&evaluation, graph, &output).map_err(|e| anyhow!(e))?;
+        let memory = mode_stages(graph, &output, frame.mode)
+            .iter()
+            .filter(|r| !matches!(r.stage.as_str(), "settings" | "geometry" | "material"))
+            .filter_map(|r| evaluation.get(&r.node, &r.stage)?.value.as_ref().ok().map(|v| v.approx_bytes()))
+            .sum::<usize>();
+        // The viewport's shadow maps of a separately lit sun.
+        let memory = memory + if frame.sun.is_some() { lightloom_render::SUN_SHADOW_MAP_BYTES } else { 0 };
+        Ok((frame, memory))
     };
+    let frame_of = |graph: &Graph| evaluated(graph).map(|(frame, _)| frame);
     let mut base = graph.clone();
     base.set_param(&output, "reference_samples", ParamValue::Int(args.samples as i64))?;
     let base_frame = frame_of(&base)?;
@@ -100,21 +125,48 @@ pub fn run(args: &AccuracyArgs) -> Result<()> {
     noise.relative_rmse /= 2f64.sqrt();
     noise.psnr_db += 20.0 * 2f64.sqrt().log10();
 
-    let mut measure = |graph: &Graph, mode: &str, coefficients: usize| -> Result<Row> {
-        let frame = frame_of(graph)?;
+    let suns: Vec<Option<&str>> =
+        if args.sun.is_empty() { vec![None] } else { args.sun.iter().map(|s| Some(s.as_str())).collect() };
+    let mut measure_one = |graph: &Graph, mode: &str, coefficients: usize, sun: Option<&str>| -> Result<Row> {
+        let mut graph = graph.clone();
+        if let Some(sun) = sun {
+            graph.set_param(&output, SUN, ParamValue::Choice(sun.into()))?;
+        }
+        let sun = match graph.node(&output).and_then(|n| n.params.get(SUN)) {
+            Some(ParamValue::Choice(c)) => c.clone(),
+            _ => "separate".into(),
+        };
+        let (frame, memory_bytes) = evaluated(&graph)?;
         let start = Instant::now();
         let captured = renderer.render_offscreen(&gpu, &frame, &view, size.0, size.1)?;
         let render_ms = start.elapsed().as_secs_f64() * 1e3;
+        let start = Instant::now();
+        renderer.render_offscreen(&gpu, &frame, &view, size.0, size.1)?;
+        let frame_ms = start.elapsed().as_secs_f64() * 1e3;
         let pixels: Vec<[f32; 3]> = captured.hdr.iter().map(|p| [p[0], p[1], p[2]]).collect();
         let error = reference::compare(&pixels, &reference.pixels, Some(&mask)).map_err(|e| anyhow!(e))?;
-        Ok(Row { mode: mode.into(), coefficients, error, render_ms })
+        let relative_rmse_less_noise = (error.relative_rmse.powi(2) - noise.relative_rmse.powi(2)).max(0.0).sqrt();
+        Ok(Row {
+            mode: mode.into(),
+            coefficients,
+            sun,
+            error,
+            relative_rmse_less_noise,
+            render_ms,
+            frame_ms,
+            memory_bytes,
+            pareto: false,
+        })
+    };
+    let mut measure = |graph: &Graph, mode: &str, coefficients: usize| -> Result<Vec<Row>> {
+        suns.iter().map(|&sun| measure_one(graph, mode, coefficients, sun)).collect()
     };
     let scene = graph.upstream(&output, "scene").map(|n| n.id.clone()).ok_or_else(|| anyhow!("no scene"))?;
     let environment = graph.upstream(&output, "environment").map(|n| n.id.clone());
     let mut rows = Vec::new();
     let mut irradiance = base.clone();
     irradiance.set_param(&output, "mode", ParamValue::Choice("sh_irradiance".into()))?;
-    rows.push(measure(&irradiance, "sh_irradiance (unshadowed)", 25)?);
+    rows.extend(measure(&irradiance, "sh_irradiance (unshadowed sky)", 25)?);
     for &bands in &args.bands {
         let mut g = base.clone();
         g.set_param(&output, "mode", ParamValue::Choice("sh_prt".into()))?;
@@ -122,14 +174,14 @@ pub fn run(args: &AccuracyArgs) -> Result<()> {
         if let Some(env) = &environment {
             g.set_param(env, "sh_bands", ParamValue::Int(bands as i64))?;
         }
-        rows.push(measure(&g, "sh_prt", bands * bands)?);
+        rows.extend(measure(&g, "sh_prt", bands * bands)?);
     }
     for mode in ["wavelet_vertex", "wavelet_pixel"] {
         for &terms in &args.wavelets {
             let mut g = base.clone();
             g.set_param(&output, "mode", ParamValue::Choice(mode.into()))?;
             g.set_param(&output, "wavelet_terms", ParamValue::Choice(terms.to_string()))?;
-            rows.push(measure(&g, mode, terms)?);
+            rows.extend(measure(&g, mode, terms)?);
         }
     }
     if let Some(decomposer) = graph.upstream(&output, "square_lights").map(|n| n.id.clone()) {
@@ -137,9 +189,10 @@ pub fn run(args: &AccuracyArgs) -> Result<()> {
             let mut g = base.clone();
             g.set_param(&output, "mode", ParamValue::Choice("rsl".into()))?;
             g.set_param(&decomposer, "light_count", ParamValue::Int(k as i64))?;
-            rows.push(measure(&g, "rsl", k)?);
+            rows.extend(measure(&g, "rsl", k)?);
         }
     }
+    mark_pareto_front(&mut rows);
     let report = Report {
         project: args.project.display().to_string(),
         width: size.0,
@@ -162,17 +215,40 @@ pub fn run(args: &AccuracyArgs) -> Result<()> {
             noise.rmse,
             noise.relative_rmse * 100.0
         );
-        println!("{:<28} {:>6} {:>10} {:>9} {:>9}", "mode", "coeffs", "RMSE", "rel. %", "PSNR dB");
+        println!(
+            "{:<28} {:>6} {:<15} {:>10} {:>7} {:>9} {:>8} {:>9} {:>9} {:>7}",
+            "mode", "coeffs", "sun", "RMSE", "rel. %", "- noise %", "PSNR dB", "frame ms", "memory", "Pareto"
+        );
         for r in &report.rows {
             println!(
-                "{:<28} {:>6} {:>10.5} {:>9.2} {:>9.1}",
+                "{:<28} {:>6} {:<15} {:>10.5} {:>7.2} {:>9.2} {:>8.1} {:>9.1} {:>8.1}M {:>7}",
                 r.mode,
                 r.coefficients,
+                r.sun,
                 r.error.rmse,
                 r.error.relative_rmse * 100.0,
-                r.error.psnr_db
+                r.relative_rmse_less_noise * 100.0,
+                r.error.psnr_db,
+                r.frame_ms,
+                r.memory_bytes as f64 / (1 << 20) as f64,
+                if r.pareto { "*" } else { "" }
             );
         }
+        println!(
+            "(- noise: the error with the reference's own noise taken out; Pareto: no other row has lower-or-equal \
+             error, frame time and memory)"
+        );
     }
     Ok(())
+}
+
+/// Marks the rows no other row dominates in (error less noise, steady frame time, memory).
+fn mark_pareto_front(rows: &mut [Row]) {
+    let key = |r: &Row| [r.relative_rmse_less_noise, r.frame_ms, r.memory_bytes as f64];
+    let keys: Vec<[f64; 3]> = rows.iter().map(key).collect();
+    for (i, row) in rows.iter_mut().enumerate() {
+        row.pareto = !keys.iter().enumerate().any(|(j, other)| {
+            j != i && other.iter().zip(&keys[i]).all(|(o, m)| o <= m) && other.iter().zip(&keys[i]).any(|(o, m)| o < m)
+        });
+    }
 }

@@ -311,6 +311,7 @@ fn rsl_mode_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
             background: false,
             view: View::Approximation,
             reference_samples: 1,
+            separate_sun: false,
         },
         ignored_inputs: Vec::new(),
         lobe_limits: Vec::new(),
@@ -320,6 +321,7 @@ fn rsl_mode_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
         medium: MediumFrame::new(Vec::new(), &materials, None),
         area_lights: None,
         blockers: None,
+        sun: None,
     };
     let view = bench_view();
     let mut renderer = ViewportRenderer::new(gpu);
@@ -455,12 +457,14 @@ fn default_project_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
          environment rotation (yaw)"
     );
     println!(
-        "{:<18} {:>16} {:>16} {:>16} {:>16} {:>12}",
-        "mode", "BRDF stages ms", "BRDF→frame ms", "turn stages ms", "turn→frame ms", "frame ms"
+        "{:<18} {:<15} {:>16} {:>16} {:>16} {:>16} {:>12}",
+        "mode", "sun", "BRDF stages ms", "BRDF→frame ms", "turn stages ms", "turn→frame ms", "frame ms"
     );
-    for mode in ["sh_irradiance", "sh_prt", "wavelet_vertex", "wavelet_pixel"] {
+    let modes = ["sh_irradiance", "sh_prt", "wavelet_vertex", "wavelet_pixel"];
+    for (mode, sun) in modes.iter().flat_map(|m| ["separate", "in_environment"].map(|s| (*m, s))) {
         let mut graph = base.clone();
         graph.set_param("output", "mode", ParamValue::Choice(mode.into()))?;
+        graph.set_param("output", lightloom_nodes::kinds::output::SUN, ParamValue::Choice(sun.into()))?;
         graph.set_param("material", "model", ParamValue::Choice("phong".into()))?;
         graph.set_param("material", "f0", ParamValue::Float(0.3))?;
         let engine = Arc::new(Engine::in_memory());
@@ -492,7 +496,7 @@ fn default_project_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
             .map(|_| timed_frame(gpu, &mut renderer, &frame, &view, (1280, 720)))
             .collect::<Result<_>>()?;
         println!(
-            "{mode:<18} {:>16.1} {:>16.1} {:>16.1} {:>16.1} {:>12.1}",
+            "{mode:<18} {sun:<15} {:>16.1} {:>16.1} {:>16.1} {:>16.1} {:>12.1}",
             brdf.0,
             brdf.1,
             turn.0,
@@ -523,6 +527,7 @@ fn synthetic_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
         background: true,
         view: View::Approximation,
         reference_samples: 1,
+        separate_sun: false,
     };
     let material =
         lightloom_nodes::kinds::brdf::Material { model: "phong".into(), exponent: 20.0, f0: 0.3, ..Default::default() };
@@ -542,6 +547,7 @@ fn synthetic_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
         medium: MediumFrame::new(Vec::new(), &materials, None),
         area_lights: None,
         blockers: None,
+        sun: None,
     };
     let mut renderer = ViewportRenderer::new(gpu);
     let frame_times = |renderer: &mut ViewportRenderer, frame: &FrameInputs| -> Result<f64> {

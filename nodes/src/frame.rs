@@ -56,6 +56,34 @@ pub struct FrameInputs {
     pub area_lights: Option<AreaLightFrame>,
     /// The blocker spheres linked to the Output, when evaluated (the reference traces them).
     pub blockers: Option<crate::kinds::blockers::BlockerSet>,
+    /// The environment's sun, lit per pixel apart from the mode's transport ([`crate::sun`]).
+    pub sun: Option<SunFrame>,
+}
+
+/// A sun disc in world space (the environment's rotation applied), lit per pixel.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SunFrame {
+    /// Radiance inside the disc.
+    pub radiance: [f64; 3],
+    pub solid_angle: f64,
+    /// Unit vector to the disc's centre, and the cosine of its angular radius.
+    pub axis: [f32; 3],
+    pub cos_radius: f64,
+    /// Unit vectors towards the disc, spreading it evenly: each stands for
+    /// `solid_angle / directions.len()` of it.
+    pub directions: Vec<[f32; 3]>,
+}
+
+impl SunFrame {
+    pub fn new(sun: &crate::sun::Sun) -> Self {
+        Self {
+            radiance: sun.radiance,
+            solid_angle: sun.solid_angle(),
+            axis: glam::DVec3::from(sun.direction).as_vec3().to_array(),
+            cos_radius: sun.radius.cos(),
+            directions: sun.disc_directions(crate::sun::DISC_SAMPLES).iter().map(|d| d.as_vec3().to_array()).collect(),
+        }
+    }
 }
 
 /// The scene's meshes and which material each uses.

@@ -42,6 +42,7 @@ pub mod sh_exponential;
 pub mod single_scattering;
 pub mod sky;
 pub mod sphere_set;
+pub mod sun;
 pub mod transport;
 pub mod triple_product;
 pub mod wavelet;

@@ -306,9 +306,17 @@ impl PortType {
     /// The stages every producer of this type provides (what consumers may read).
     pub fn provided_stages(self) -> &'static [&'static str] {
         match self {
-            PortType::Environment => {
-                &["source", "radiance", "radiance_scale", "rotation", "rotated_radiance", "sh", "haar"]
-            }
+            PortType::Environment => &[
+                "source",
+                "radiance",
+                "radiance_scale",
+                "rotation",
+                "rotated_radiance",
+                "sh",
+                "haar",
+                "sun",
+                "residual_sh",
+            ],
             PortType::Material => &["material", "sh_lobe", "local_table", "rsl_tables"],
             PortType::Scene => &[
                 "geometry",

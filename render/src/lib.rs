@@ -12,5 +12,6 @@ pub mod viewport;
 pub use capture::{CapturedFrame, write_exr, write_png};
 pub use device::{GpuContext, RenderError, device_descriptor};
 pub use passes::prt::MAX_PRT_BANDS;
+pub use passes::sun::SHADOW_MAP_BYTES as SUN_SHADOW_MAP_BYTES;
 pub use passes::wavelet::RelightOn;
 pub use viewport::{CameraView, ViewportRenderer};

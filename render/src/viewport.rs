@@ -12,6 +12,7 @@ use crate::passes::irradiance::IrradiancePass;
 use crate::passes::medium::MediumPass;
 use crate::passes::prt::PrtPass;
 use crate::passes::rsl::RslPass;
+use crate::passes::sun::SunPass;
 use crate::passes::tonemap::TonemapPass;
 use crate::passes::wavelet::WaveletPass;
 use crate::passes::{DEPTH_FORMAT, Draw, HDR_FORMAT, LDR_FORMAT, Pass, PassSetup, to_rgba_f16};
@@ -72,6 +73,7 @@ struct Targets {
 pub struct ViewportRenderer {
     camera: CameraBinding,
     medium: MediumPass,
+    sun: SunPass,
     background: BackgroundPass,
     irradiance: IrradiancePass,
     prt: PrtPass,
@@ -90,10 +92,12 @@ impl ViewportRenderer {
             if gpu.adapter.get_texture_format_features(HDR_FORMAT).flags.sample_count_supported(4) { 4 } else { 1 };
         let camera = CameraBinding::new(&gpu.device);
         let medium = MediumPass::new(gpu);
+        let sun = SunPass::new(gpu);
         let setup = PassSetup {
             device: &gpu.device,
             camera_layout: &camera.layout,
             medium_layout: &medium.layout,
+            sun_layout: &sun.layout,
             sample_count,
         };
         let mut wavelet = WaveletPass::new(&setup);
@@ -114,6 +118,7 @@ impl ViewportRenderer {
             tonemap: TonemapPass::new(&gpu.device),
             camera,
             medium,
+            sun,
             geometry: None,
             targets: None,
             sample_count,
@@ -138,6 +143,7 @@ impl ViewportRenderer {
         self.check_size(gpu, width, height)?;
         GeometryBuffers::prepare(&mut self.geometry, gpu, &frame.geometry)?;
         self.medium.prepare(gpu, &frame.medium)?;
+        self.sun.prepare(gpu, frame.sun.as_ref(), self.geometry.as_ref());
         self.background.prepare(gpu, &frame.background)?;
         match &frame.surfaces {
             Surfaces::Irradiance(data) => self.irradiance.prepare(gpu, data)?,
@@ -183,6 +189,7 @@ impl ViewportRenderer {
             });
             pass.set_bind_group(0, &self.camera.bind_group, &[]);
             pass.set_bind_group(1, &self.medium.bind_group, &[]);
+            pass.set_bind_group(3, &self.sun.bind_group, &[]);
             self.background.draw(&mut pass, None);
             let surfaces: &dyn Draw = match &frame.surfaces {
                 Surfaces::Irradiance(_) => &self.irradiance,

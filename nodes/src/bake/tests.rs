@@ -110,11 +110,14 @@ fn each_modes_vertex_light_matches_monte_carlo_irradiance() {
     {
         let (evaluation, frame, output) = default_evaluated(&[&format!("output.mode={mode}")]);
         let lightmap = BakedStages::gather(&evaluation, &output).unwrap();
-        let mut light = vertex_light::vertex_light(&frame, None).unwrap();
+        // The shadowed modes trace the separately lit sun's shadows, as the bake does.
+        let scene = frame.ray_scene.as_ref().unwrap().value.get::<crate::raycast::RayScene>().unwrap();
+        let shadows = shadowed.then_some(scene);
+        let mut light = vertex_light::vertex_light(&frame, shadows).unwrap();
         let meshes = frame.geometry.meshes.value.get::<crate::mesh::MeshSet>().unwrap();
         let mut points = vertex_light::vertex_points(meshes);
         let vertices = points.len();
-        light.extend(vertex_light::texel_light(&frame, &lightmap, None).unwrap());
+        light.extend(vertex_light::texel_light(&frame, &lightmap, shadows).unwrap());
         let r = &lightmap.atlas.receivers;
         points.extend((0..r.len()).map(|i| vertex_light::SurfacePoint {
             position: r.point(i).0,

@@ -65,6 +65,7 @@ pub fn vertex_light(frame: &FrameInputs, shadows: Option<&RayScene>) -> Result<V
         add(&mut light, &area);
     }
     add_point_lights(frame, &points, shadows, &mut light)?;
+    add_sun(frame, &points, shadows, &mut light);
     Ok(finish(light))
 }
 
@@ -103,6 +104,10 @@ pub fn texel_light(
         add(&mut light, &area.irradiance.iter().map(|e| e.map(|c| f64::from(c) / PI)).collect::<Vec<_>>());
     }
     add_point_lights(frame, &points, shadows, &mut light)?;
+    // The wavelet texels' products light the whole sky, sun included (`bake_texel_products`).
+    if !matches!(frame.surfaces, Surfaces::Wavelet(_)) {
+        add_sun(frame, &points, shadows, &mut light);
+    }
     Ok(finish(light))
 }
 
@@ -149,6 +154,30 @@ fn add_point_lights(
         }
     });
     Ok(())
+}
+
+/// A separately lit sun's `E / π` ([`crate::sun`]): its directions' equal shares of the disc,
+/// each shadowed by one ray when `shadows` is given (the viewport's shadow maps, traced).
+fn add_sun(frame: &FrameInputs, points: &[SurfacePoint], shadows: Option<&RayScene>, light: &mut [[f64; 3]]) {
+    let Some(sun) = &frame.sun else { return };
+    let share = sun.solid_angle / sun.directions.len().max(1) as f64 / PI;
+    light.par_iter_mut().zip(points).for_each(|(out, p)| {
+        let origin = shadows.map(|scene| scene.leave_surface(p.position, p.normal));
+        let mut cosines = 0.0;
+        for d in &sun.directions {
+            let cos = DVec3::from(d.map(f64::from)).dot(p.normal);
+            let visible = cos > 0.0
+                && shadows
+                    .zip(origin)
+                    .is_none_or(|(scene, origin)| !scene.occluded(origin, Vec3A::from(*d), f32::INFINITY));
+            if visible {
+                cosines += cos;
+            }
+        }
+        for c in 0..3 {
+            out[c] += sun.radiance[c] * share * cosines;
+        }
+    });
 }
 
 /// The environment's share of `E / π` at each point, per the frame's mode, from `transport`

@@ -19,6 +19,7 @@ use serde::{Deserialize, Serialize};
 crate::stage_type!(WaveletLighting, "wavelet", |v| v.channels.iter().map(|c| c.len() * 16).sum());
 crate::stage_type!(DMat3, "rotation");
 crate::stage_type!(RadianceScale, "radiance scale");
+crate::stage_type!(crate::sun::SunSplit, "sun and residual sky", |v| v.residual.texels.len() * 12 + 64);
 
 /// Exposure and tint as one factor per RGB channel (`2^exposure · tint`): what consumers that
 /// keep the unscaled source (the RSL decomposer) multiply in, O(1) per edit.
@@ -196,6 +197,33 @@ pub fn spec() -> NodeKindSpec {
                 compute: sh_rotated,
             },
             StageSpec {
+                name: "sun",
+                version: 1,
+                params: &[],
+                stages: &["radiance"],
+                inputs: &[],
+                persist: None,
+                compute: sun,
+            },
+            StageSpec {
+                name: "residual_sh_unrotated",
+                version: 1,
+                params: &["sh_bands"],
+                stages: &["sun"],
+                inputs: &[],
+                persist: None,
+                compute: residual_sh_unrotated,
+            },
+            StageSpec {
+                name: "residual_sh",
+                version: 1,
+                params: &["rotation"],
+                stages: &["residual_sh_unrotated"],
+                inputs: &[],
+                persist: None,
+                compute: residual_sh_rotated,
+            },
+            StageSpec {
                 name: "haar",
                 version: 1,
                 params: &["wavelet_terms"],
@@ -310,6 +338,22 @@ fn sh_unrotated(ctx: &StageContext) -> Result<StageValue, StageError> {
 /// the unrotated `radiance`, so a rotation rebuilds nothing.
 fn rotation(ctx: &StageContext) -> Result<StageValue, StageError> {
     Ok(StageValue::new(rotation_matrix(ctx.vec3("rotation")?)))
+}
+
+/// The unrotated map's dominant light as a disc, and the sky without it ([`crate::sun`]).
+fn sun(ctx: &StageContext) -> Result<StageValue, StageError> {
+    Ok(StageValue::new(crate::sun::split(ctx.stage::<CubeMap>("radiance")?)))
+}
+
+fn residual_sh_unrotated(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let split = ctx.stage::<crate::sun::SunSplit>("sun")?;
+    Ok(StageValue::new(sh::project_samples(ctx.int("sh_bands")? as usize, split.residual.samples())))
+}
+
+fn residual_sh_rotated(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let sh = ctx.stage::<crate::sh::ShRgb>("residual_sh_unrotated")?;
+    let rotation = rotation_matrix(ctx.vec3("rotation")?);
+    Ok(StageValue::new(ShRotation::new(sh.bands, rotation).apply_rgb(sh)))
 }
 
 fn rotated_radiance(ctx: &StageContext) -> Result<StageValue, StageError> {

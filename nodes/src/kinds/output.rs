@@ -19,6 +19,9 @@ pub struct OutputSettings {
     pub view: View,
     /// Reference samples per pixel.
     pub reference_samples: usize,
+    /// Whether the environment's sun is lit apart from the transport where the mode can
+    /// ([`SUN`], [`separates_sun`]).
+    pub separate_sun: bool,
 }
 
 crate::choice_enum! {
@@ -151,6 +154,27 @@ pub fn spec() -> NodeKindSpec {
                 doc: "Top-only spherical Haar coefficients per function in the wavelet mode (Ma et al.'s 80 or 320).",
             },
             ParamSpec {
+                name: SUN,
+                label: "Sun",
+                unit: "",
+                kind: ParamKind::Choice {
+                    options: &["separate", "in_environment"],
+                    default: "separate",
+                    labels: &[
+                        (
+                            "Separate, shadow-mapped",
+                            "The sun lights each pixel as a disc with shadow maps; the transport carries the sky.",
+                        ),
+                        ("In the environment", "The transport carries the sun with the sky."),
+                    ],
+                },
+                doc: "separate: the environment's sun (its brightest compact source) lights each pixel as a disc, \
+                      shadowed through shadow maps over the disc, and the mode's transport carries the sky \
+                      without it, so small bright suns cast sharp, correct shadows and do not band. Applies to \
+                      sh_irradiance, sh_prt and the wavelet modes without a medium or blocker spheres linked. \
+                      in_environment: the transport carries the sun too.",
+            },
+            ParamSpec {
                 name: "exposure",
                 label: "Exposure",
                 unit: "EV",
@@ -204,7 +228,7 @@ pub fn spec() -> NodeKindSpec {
             StageSpec {
                 name: "settings",
                 version: 1,
-                params: &["mode", "exposure", "tonemap", "background", "view", "reference_samples"],
+                params: &["mode", "exposure", "tonemap", "background", "view", "reference_samples", SUN],
                 stages: &[],
                 inputs: &[],
                 persist: None,
@@ -229,6 +253,15 @@ pub fn spec() -> NodeKindSpec {
                 compute: incident_sh,
             },
             StageSpec {
+                name: "incident_residual_sh",
+                version: 1,
+                params: &[],
+                stages: &["blocked_transport"],
+                inputs: &[("environment", "residual_sh")],
+                persist: None,
+                compute: incident_residual_sh,
+            },
+            StageSpec {
                 name: "local_visibility",
                 version: 1,
                 params: &["wavelet_terms"],
@@ -245,6 +278,15 @@ pub fn spec() -> NodeKindSpec {
                 inputs: &[("environment", "radiance")],
                 persist: None,
                 compute: wavelet_environment,
+            },
+            StageSpec {
+                name: "wavelet_residual_environment",
+                version: 1,
+                params: &["wavelet_terms"],
+                stages: &[],
+                inputs: &[("environment", "sun")],
+                persist: None,
+                compute: wavelet_residual_environment,
             },
             StageSpec {
                 name: "texel_visibility",
@@ -321,14 +363,24 @@ fn settings(ctx: &StageContext) -> Result<StageValue, StageError> {
         background: ctx.boolean("background")?,
         view: ctx.option("view")?,
         reference_samples: ctx.int("reference_samples")? as usize,
+        separate_sun: ctx.choice(SUN)? == "separate",
     }))
 }
 
 /// Shadowed incident radiance `R = L·V` per receiver for the `sh_prt` mode (pulled only by it).
 /// Depends on lighting and transport only: BRDF and camera edits reuse it.
 fn incident_sh(ctx: &StageContext) -> Result<StageValue, StageError> {
+    incident_from(ctx, "sh")
+}
+
+/// [`incident_sh`] of the sky without its sun, when the sun is lit separately ([`SUN`]).
+fn incident_residual_sh(ctx: &StageContext) -> Result<StageValue, StageError> {
+    incident_from(ctx, "residual_sh")
+}
+
+fn incident_from(ctx: &StageContext, lighting: &str) -> Result<StageValue, StageError> {
     let transport = ctx.stage::<crate::transport::ShTransport>("blocked_transport")?;
-    let Some(light) = ctx.input::<crate::sh::ShRgb>("environment", "sh")? else {
+    let Some(light) = ctx.input::<crate::sh::ShRgb>("environment", lighting)? else {
         return Ok(StageValue::new(crate::prt::IncidentSh::default()));
     };
     Ok(StageValue::new(crate::prt::incident_radiance(light, transport, ctx.cancel_token())?))
@@ -455,6 +507,15 @@ fn wavelet_environment(ctx: &StageContext) -> Result<StageValue, StageError> {
     }))
 }
 
+/// [`wavelet_environment`] of the sky without its sun, when the sun is lit separately ([`SUN`]).
+fn wavelet_residual_environment(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let grid = wavelet_grid(ctx)?;
+    Ok(StageValue::new(match ctx.input::<crate::sun::SunSplit>("environment", "sun")? {
+        Some(split) => crate::triple_product::prefiltered(&split.residual, grid),
+        None => crate::cubemap::CubeMap { size: 0, texels: Vec::new() },
+    }))
+}
+
 /// Per-texel-slot frames and visibility cells for the `wavelet_pixel` mode (pulled only by
 /// it).
 fn texel_visibility(ctx: &StageContext) -> Result<StageValue, StageError> {
@@ -507,8 +568,8 @@ fn typed<T: crate::engine::StageType + Clone>(keyed: &Keyed, stage: &str) -> Res
 }
 
 use crate::frame::{
-    Background, FogFrame, FrameMaterial, Geometry, IrradianceSurfaces, MediumFrame, PrtSurfaces, RslSurfaces, Surfaces,
-    WaveletLighting, WaveletSurfaces,
+    Background, FogFrame, FrameMaterial, Geometry, IrradianceSurfaces, MediumFrame, PrtSurfaces, RslSurfaces, SunFrame,
+    Surfaces, WaveletLighting, WaveletSurfaces,
 };
 pub use crate::frame::{FrameInputs, Keyed, MAX_LIGHTS, MAX_MATERIALS};
 
@@ -571,12 +632,19 @@ pub fn mode_stages(graph: &Graph, output: &str, mode: Mode) -> Vec<StageRef> {
     if let Some(lights) = upstream("lights") {
         stages.push(StageRef::new(&lights, "lights"));
     }
+    let separate_sun = separates_sun(graph, output);
+    if separate_sun && let Some(env) = upstream("environment") {
+        stages.extend(["sun", "residual_sh", "rotation"].map(|s| StageRef::new(&env, s)));
+    }
     match mode {
         Mode::ShIrradiance => {}
-        Mode::ShPrt => stages.push(StageRef::new(output, "incident_sh")),
+        Mode::ShPrt => {
+            stages.push(StageRef::new(output, if separate_sun { "incident_residual_sh" } else { "incident_sh" }))
+        }
         Mode::ShAdaptive => stages.push(StageRef::new(output, "adaptive_incident")),
         Mode::WaveletVertex | Mode::WaveletPixel => {
-            stages.extend(["local_visibility", "wavelet_environment"].map(|s| StageRef::new(output, s)));
+            let environment = if separate_sun { "wavelet_residual_environment" } else { "wavelet_environment" };
+            stages.extend(["local_visibility", environment].map(|s| StageRef::new(output, s)));
             if let Some(environment) = upstream("environment") {
                 stages.push(StageRef::new(&environment, "rotation"));
             }
@@ -590,6 +658,26 @@ pub fn mode_stages(graph: &Graph, output: &str, mode: Mode) -> Vec<StageRef> {
         Mode::Rsl => stages.push(StageRef::new(output, "rsl_visibility")),
     }
     stages
+}
+
+/// The Output parameter choosing whether the environment's sun is lit apart from the
+/// transport ([`crate::sun`]).
+pub const SUN: &str = "sun";
+
+/// Whether the Output lights the environment's sun separately: it asks for it, its mode can
+/// (sh_irradiance, sh_prt and the wavelet modes; their unshadowed preview does too), an
+/// environment is linked, and neither a medium nor blocker spheres are (their transport of
+/// the sun is not shadow-mapped).
+pub fn separates_sun(graph: &Graph, output: &str) -> bool {
+    let Some(node) = graph.node(output) else { return false };
+    let asked = !matches!(node.params.get(SUN), Some(ParamValue::Choice(c)) if c == "in_environment");
+    let (mode, _) = output_mode_and_view(node);
+    let linked = |port: &str| graph.upstream(output, port).is_some();
+    asked
+        && matches!(mode, Mode::ShIrradiance | Mode::ShPrt | Mode::WaveletVertex | Mode::WaveletPixel)
+        && linked("environment")
+        && !linked("medium")
+        && !linked("blockers")
 }
 
 /// The Output's mode and view as set in the graph.
@@ -702,8 +790,22 @@ impl FrameInputs {
             None => None,
         };
         let fogged = fog.as_ref().and_then(|f| f.environment.as_ref());
-        let light =
-            sh.as_ref().map(|sh| sh.value.expect::<crate::sh::ShRgb>()).transpose().map_err(|e| e.to_string())?;
+        // With the sun lit apart, the transport carries the sky without it.
+        let separate_sun = separates_sun(graph, output);
+        let (lighting_sh, sun) = match upstream("environment") {
+            Some(env) if separate_sun => {
+                let split = keyed(&env, "sun")?;
+                let split = split.value.expect::<crate::sun::SunSplit>().map_err(|e| e.to_string())?;
+                let rotation = *keyed(&env, "rotation")?.value.expect::<glam::DMat3>().map_err(|e| e.to_string())?;
+                (Some(keyed(&env, "residual_sh")?), split.sun.map(|s| SunFrame::new(&s.rotated(rotation))))
+            }
+            _ => (sh.clone(), None),
+        };
+        let light = lighting_sh
+            .as_ref()
+            .map(|sh| sh.value.expect::<crate::sh::ShRgb>())
+            .transpose()
+            .map_err(|e| e.to_string())?;
         let mut mesh_materials = Vec::new();
         let mut unmatched: std::collections::BTreeMap<String, usize> = Default::default();
         if let Some(set) = meshes.value.get::<crate::mesh::MeshSet>() {
@@ -718,14 +820,25 @@ impl FrameInputs {
         let geometry = Geometry { meshes, mesh_materials };
         // Without an environment the wavelet modes have no lighting to multiply in: surfaces get
         // no environment light.
-        let wavelet_environment = if mode.is_wavelet() { Some(keyed(output, "wavelet_environment")?) } else { None };
+        let wavelet_environment = match mode.is_wavelet() {
+            true if separate_sun => Some(keyed(output, "wavelet_residual_environment")?),
+            true => Some(keyed(output, "wavelet_environment")?),
+            false => None,
+        };
         let no_environment = wavelet_environment
             .as_ref()
             .is_some_and(|e| e.value.get::<crate::cubemap::CubeMap>().is_some_and(|c| c.size == 0));
         let surfaces = match mode {
             Mode::ShPrt | Mode::ShAdaptive => Surfaces::Prt(PrtSurfaces::new(
                 keyed(output, "blocked_transport")?,
-                keyed(output, if mode == Mode::ShAdaptive { "adaptive_incident" } else { "incident_sh" })?,
+                keyed(
+                    output,
+                    match mode {
+                        Mode::ShAdaptive => "adaptive_incident",
+                        _ if separate_sun => "incident_residual_sh",
+                        _ => "incident_sh",
+                    },
+                )?,
                 light,
                 fogged,
                 &materials,
@@ -830,6 +943,7 @@ impl FrameInputs {
             medium,
             area_lights,
             blockers,
+            sun,
         })
     }
 }

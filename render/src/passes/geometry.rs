@@ -78,8 +78,18 @@ impl GeometryBuffers {
 
     /// Draws every mesh with the pipeline and groups already set.
     pub fn draw(&self, pass: &mut wgpu::RenderPass<'_>) {
+        self.draw_instance(pass, 0);
+    }
+
+    /// [`Self::draw`] as instance `instance` (a shader's index into per-draw data).
+    pub fn draw_instance(&self, pass: &mut wgpu::RenderPass<'_>, instance: u32) {
         pass.set_vertex_buffer(0, self.vertices.slice(..));
         pass.set_index_buffer(self.indices.slice(..), wgpu::IndexFormat::Uint32);
-        pass.draw_indexed(0..self.index_count, 0, 0..1);
+        pass.draw_indexed(0..self.index_count, 0, instance..instance + 1);
+    }
+
+    /// The meshes and material assignment these buffers hold.
+    pub fn key(&self) -> Key {
+        self.key
     }
 }

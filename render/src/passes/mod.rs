@@ -15,6 +15,7 @@ pub mod irradiance;
 pub mod medium;
 pub mod prt;
 pub mod rsl;
+pub mod sun;
 pub mod tonemap;
 pub mod wavelet;
 
@@ -47,6 +48,7 @@ pub(crate) struct PassSetup<'a> {
     pub device: &'a wgpu::Device,
     pub camera_layout: &'a wgpu::BindGroupLayout,
     pub medium_layout: &'a wgpu::BindGroupLayout,
+    pub sun_layout: &'a wgpu::BindGroupLayout,
     pub sample_count: u32,
 }
 
@@ -104,7 +106,7 @@ impl PassSetup<'_> {
         });
         let layout = self.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some(label),
-            bind_group_layouts: &[Some(self.camera_layout), Some(self.medium_layout), Some(own)],
+            bind_group_layouts: &[Some(self.camera_layout), Some(self.medium_layout), Some(own), Some(self.sun_layout)],
             immediate_size: 0,
         });
         let (write, compare) = match depth {
@@ -143,9 +145,13 @@ enum Depth {
 }
 
 /// The shared WGSL every scene pass includes, in order: the camera uniform, the vertex layout
-/// and the SH basis (`common.wgsl`), then the medium and point lights (`fog.wgsl`).
-pub(crate) const SHADER_PRELUDE: [&str; 2] =
-    [include_str!("../../../shaders/common.wgsl"), include_str!("../../../shaders/fog.wgsl")];
+/// and the SH basis (`common.wgsl`), the separately lit sun (`sun.wgsl`), then the medium and
+/// point lights (`fog.wgsl`).
+pub(crate) const SHADER_PRELUDE: [&str; 3] = [
+    include_str!("../../../shaders/common.wgsl"),
+    include_str!("../../../shaders/sun.wgsl"),
+    include_str!("../../../shaders/fog.wgsl"),
+];
 
 /// Every scene pass's shader (checked by `shaders_compose_and_match_the_rust_uniforms`).
 #[cfg(test)]
@@ -403,6 +409,12 @@ mod layout_tests {
             medium::FogParams,
             [beta, phase, counts, environment, environment_scattered, specular, light_position, light_intensity]
         );
+        check!(irr, "Sun", sun::SunParams, [irradiance, offset, axis, directions, view_proj]);
+        let source = sun::SHADER.1;
+        let depth = naga::front::wgsl::parse_str(source).unwrap_or_else(|e| panic!("{}", e.emit_to_string(source)));
+        naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::all())
+            .validate(&depth)
+            .unwrap_or_else(|e| panic!("sun_depth.wgsl does not validate: {e:?}"));
         check!(prt, "PrtParams", prt::PrtParams, [counts, albedo, specular, lobe, light]);
         check!(wavelet, "WaveletParams", wavelet::WaveletParams, [counts, albedo, specular, texels]);
         // The relight kernel is a compute shader on its own.

@@ -43,6 +43,8 @@ fn threshold_zero_equals_the_gaunt_product_of_sh_prt() {
     let prt = adaptive_graph(0.0);
     let mut prt = prt;
     prt.set_param("output", "mode", ParamValue::Choice("sh_prt".into())).unwrap();
+    // sh_adaptive keeps the sun in the environment; so must the product it is compared with.
+    prt.set_param("output", crate::kinds::output::SUN, ParamValue::Choice("in_environment".into())).unwrap();
     let gaunt = value_of::<IncidentSh>(&evaluate_frame(&engine, &prt), "output", "incident_sh");
     let scale = gaunt.coeffs.iter().fold(0.0f32, |m, x| m.max(x.abs()));
     let worst = adaptive.incident.coeffs.iter().zip(&gaunt.coeffs).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);

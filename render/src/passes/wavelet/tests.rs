@@ -72,10 +72,12 @@ fn the_relight_kernel_matches_the_cpu_twin() {
     let gpu = GpuContext::headless().expect("a wgpu device (lavapipe on machines without a GPU)");
     let camera = CameraBinding::new(&gpu.device);
     let medium = MediumPass::new(&gpu);
+    let sun = crate::passes::sun::SunPass::new(&gpu);
     let setup = PassSetup {
         device: &gpu.device,
         camera_layout: &camera.layout,
         medium_layout: &medium.layout,
+        sun_layout: &sun.layout,
         sample_count: 1,
     };
     let mut pass = WaveletPass::new(&setup);

@@ -1,0 +1,246 @@
+//! The environment's sun, lit per pixel apart from the mode's transport (`sun.wgsl`, group 3 of
+//! every scene pass): one orthographic shadow map per direction over the disc
+//! ([`lightloom_nodes::frame::SunFrame`]), re-rendered only when the sun turns or the geometry
+//! changes. Shaded in the same fragment as each surface (`fog.wgsl` `fog_shade`), so this pass
+//! draws nothing into the scene itself.
+
+use super::geometry::GeometryBuffers;
+use super::{entry, uniform_buffer};
+use crate::GpuContext;
+use glam::{Mat4, Vec3};
+use lightloom_nodes::engine::Key;
+use lightloom_nodes::frame::SunFrame;
+
+/// `sun.wgsl` `MAX_SUN_DIRECTIONS`.
+pub(crate) const MAX_DIRECTIONS: usize = 32;
+/// Texels per side of each shadow map.
+pub(crate) const SHADOW_MAP_SIZE: u32 = 1024;
+const SHADOW_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth16Unorm;
+/// GPU memory of the shadow maps of a sun with the most directions.
+pub const SHADOW_MAP_BYTES: usize = MAX_DIRECTIONS * (SHADOW_MAP_SIZE * SHADOW_MAP_SIZE) as usize * 2;
+/// Normal offset against self-shadowing, in shadow-map texels.
+const NORMAL_OFFSET_TEXELS: f32 = 1.5;
+
+pub(crate) const SHADER: (&str, &str) = ("sun-depth", include_str!("../../../shaders/sun_depth.wgsl"));
+
+/// `sun.wgsl` `Sun`.
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+pub(crate) struct SunParams {
+    /// rgb: radiance × solid angle ÷ direction count; w: direction count.
+    pub(crate) irradiance: [f32; 4],
+    /// x: normal offset (world units).
+    pub(crate) offset: [f32; 4],
+    /// xyz: the disc's axis; w: cos of its angular radius.
+    pub(crate) axis: [f32; 4],
+    pub(crate) directions: [[f32; 4]; MAX_DIRECTIONS],
+    pub(crate) view_proj: [[[f32; 4]; 4]; MAX_DIRECTIONS],
+}
+
+pub(crate) struct SunPass {
+    pub layout: wgpu::BindGroupLayout,
+    pub bind_group: wgpu::BindGroup,
+    params: wgpu::Buffer,
+    matrices: wgpu::Buffer,
+    depth_bind_group: wgpu::BindGroup,
+    depth_pipeline: wgpu::RenderPipeline,
+    /// One layer per direction.
+    shadow_maps: wgpu::Texture,
+    /// The directions and geometry the maps were drawn for.
+    drawn: Option<(Vec<[f32; 3]>, Key)>,
+}
+
+impl SunPass {
+    pub fn new(gpu: &GpuContext) -> Self {
+        let device = &gpu.device;
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("sun"),
+            entries: &[
+                entry::uniform(0, wgpu::ShaderStages::VERTEX_FRAGMENT),
+                wgpu::BindGroupLayoutEntry {
+                    binding: 1,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Depth,
+                        view_dimension: wgpu::TextureViewDimension::D2Array,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 2,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Comparison),
+                    count: None,
+                },
+            ],
+        });
+        let params = uniform_buffer::<SunParams>(device, "sun");
+        gpu.queue.write_buffer(&params, 0, bytemuck::bytes_of(&<SunParams as bytemuck::Zeroable>::zeroed()));
+        let matrices = uniform_buffer::<[[[f32; 4]; 4]; MAX_DIRECTIONS]>(device, "sun-depth");
+        let shadow_maps = Self::shadow_maps(device, 1, 1);
+        let bind_group = Self::bind(device, &layout, &params, &shadow_maps);
+        let depth_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("sun-depth"),
+            entries: &[entry::uniform(0, wgpu::ShaderStages::VERTEX)],
+        });
+        let depth_bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("sun-depth"),
+            layout: &depth_layout,
+            entries: &[wgpu::BindGroupEntry { binding: 0, resource: matrices.as_entire_binding() }],
+        });
+        let depth_pipeline = Self::depth_pipeline(device, &depth_layout);
+        Self { layout, bind_group, params, matrices, depth_bind_group, depth_pipeline, shadow_maps, drawn: None }
+    }
+
+    fn shadow_maps(device: &wgpu::Device, size: u32, layers: u32) -> wgpu::Texture {
+        device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("sun-shadow-maps"),
+            size: wgpu::Extent3d { width: size, height: size, depth_or_array_layers: layers },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: SHADOW_FORMAT,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+            view_formats: &[],
+        })
+    }
+
+    fn bind(
+        device: &wgpu::Device,
+        layout: &wgpu::BindGroupLayout,
+        params: &wgpu::Buffer,
+        shadow_maps: &wgpu::Texture,
+    ) -> wgpu::BindGroup {
+        let view = shadow_maps.create_view(&wgpu::TextureViewDescriptor {
+            dimension: Some(wgpu::TextureViewDimension::D2Array),
+            ..Default::default()
+        });
+        let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
+            label: Some("sun-shadow"),
+            mag_filter: wgpu::FilterMode::Linear,
+            min_filter: wgpu::FilterMode::Linear,
+            compare: Some(wgpu::CompareFunction::LessEqual),
+            ..Default::default()
+        });
+        device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("sun"),
+            layout,
+            entries: &[
+                wgpu::BindGroupEntry { binding: 0, resource: params.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::TextureView(&view) },
+                wgpu::BindGroupEntry { binding: 2, resource: wgpu::BindingResource::Sampler(&sampler) },
+            ],
+        })
+    }
+
+    fn depth_pipeline(device: &wgpu::Device, layout: &wgpu::BindGroupLayout) -> wgpu::RenderPipeline {
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some(SHADER.0),
+            source: wgpu::ShaderSource::Wgsl(SHADER.1.into()),
+        });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some(SHADER.0),
+            bind_group_layouts: &[Some(layout)],
+            immediate_size: 0,
+        });
+        let position = [wgpu::VertexAttribute { format: wgpu::VertexFormat::Float32x3, offset: 0, shader_location: 0 }];
+        device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some(SHADER.0),
+            layout: Some(&pipeline_layout),
+            vertex: wgpu::VertexState {
+                module: &module,
+                entry_point: Some("vs_main"),
+                compilation_options: Default::default(),
+                buffers: &[Some(wgpu::VertexBufferLayout {
+                    array_stride: std::mem::size_of::<super::geometry::Vertex>() as u64,
+                    step_mode: wgpu::VertexStepMode::Vertex,
+                    attributes: &position,
+                })],
+            },
+            primitive: Default::default(),
+            depth_stencil: Some(wgpu::DepthStencilState {
+                format: SHADOW_FORMAT,
+                depth_write_enabled: Some(true),
+                depth_compare: Some(wgpu::CompareFunction::Less),
+                stencil: Default::default(),
+                bias: wgpu::DepthBiasState { constant: 2, slope_scale: 1.5, clamp: 0.0 },
+            }),
+            multisample: Default::default(),
+            fragment: None,
+            multiview_mask: None,
+            cache: None,
+        })
+    }
+
+    /// Uploads the sun's uniforms and redraws its shadow maps when it turned or the geometry
+    /// changed; without a sun (or geometry) the scene passes add nothing.
+    pub fn prepare(&mut self, gpu: &GpuContext, sun: Option<&SunFrame>, geometry: Option<&GeometryBuffers>) {
+        let (Some(sun), Some(geometry)) = (sun, geometry) else {
+            if self.drawn.take().is_some() {
+                let zero = <SunParams as bytemuck::Zeroable>::zeroed();
+                gpu.queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&zero));
+            }
+            return;
+        };
+        let directions: Vec<[f32; 3]> = sun.directions.iter().take(MAX_DIRECTIONS).copied().collect();
+        if self.drawn.as_ref().is_some_and(|(d, key)| *d == directions && *key == geometry.key()) {
+            return;
+        }
+        let (lo, hi) = (Vec3::from(geometry.bounds.0), Vec3::from(geometry.bounds.1));
+        let centre = (lo + hi) * 0.5;
+        let radius = ((hi - lo).length() * 0.5).max(1e-3);
+        let mut params = <SunParams as bytemuck::Zeroable>::zeroed();
+        let share = sun.solid_angle / directions.len().max(1) as f64;
+        params.irradiance = super::vec4(sun.radiance.map(|l| l * share), directions.len() as f32);
+        params.offset[0] = NORMAL_OFFSET_TEXELS * 2.0 * radius / SHADOW_MAP_SIZE as f32;
+        params.axis = [sun.axis[0], sun.axis[1], sun.axis[2], sun.cos_radius as f32];
+        for (k, d) in directions.iter().enumerate() {
+            let d = Vec3::from(*d);
+            params.directions[k] = [d.x, d.y, d.z, 0.0];
+            params.view_proj[k] = light_view_proj(d, centre, radius).to_cols_array_2d();
+        }
+        gpu.queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
+        gpu.queue.write_buffer(&self.matrices, 0, bytemuck::bytes_of(&params.view_proj));
+        let layers = directions.len().max(1) as u32;
+        if self.shadow_maps.depth_or_array_layers() != layers || self.shadow_maps.width() != SHADOW_MAP_SIZE {
+            self.shadow_maps = Self::shadow_maps(&gpu.device, SHADOW_MAP_SIZE, layers);
+            self.bind_group = Self::bind(&gpu.device, &self.layout, &self.params, &self.shadow_maps);
+        }
+        let mut encoder = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("sun") });
+        for k in 0..directions.len() as u32 {
+            let view = self.shadow_maps.create_view(&wgpu::TextureViewDescriptor {
+                dimension: Some(wgpu::TextureViewDimension::D2),
+                base_array_layer: k,
+                array_layer_count: Some(1),
+                ..Default::default()
+            });
+            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("sun-shadow-map"),
+                color_attachments: &[],
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: &view,
+                    depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(1.0), store: wgpu::StoreOp::Store }),
+                    stencil_ops: None,
+                }),
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            pass.set_pipeline(&self.depth_pipeline);
+            pass.set_bind_group(0, &self.depth_bind_group, &[]);
+            geometry.draw_instance(&mut pass, k);
+        }
+        gpu.queue.submit(Some(encoder.finish()));
+        self.drawn = Some((directions, geometry.key()));
+    }
+}
+
+/// World to clip space of an orthographic view along `-towards_sun` framing the sphere
+/// (`centre`, `radius`), depth in [0, 1] front to back.
+pub(crate) fn light_view_proj(towards_sun: Vec3, centre: Vec3, radius: f32) -> Mat4 {
+    let eye = centre + towards_sun * (radius * 2.0);
+    let up = if towards_sun.y.abs() > 0.99 { Vec3::Z } else { Vec3::Y };
+    let view = glam::camera::rh::view::look_at_mat4(eye, centre, up);
+    glam::camera::rh::proj::directx::orthographic(-radius, radius, -radius, radius, radius * 0.5, radius * 3.5) * view
+}

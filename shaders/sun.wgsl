@@ -33,9 +33,9 @@ fn sun_visibility(k: i32, shifted: vec4<f32>) -> f32 {
 }
 
 // Light reflected towards the viewer at `p` (normal `n`) from the sun: per direction, the
-// shadow test times Lambert `kd cos` plus the Phong-equivalent lobe `ks cos_m^exponent` (the
-// point lights' model in fog.wgsl).
-fn sun_direct(p: vec3<f32>, n: vec3<f32>, kd: vec3<f32>, ks: vec3<f32>, exponent: f32, mirror: vec3<f32>, glossy: bool) -> vec3<f32> {
+// shadow test times the cosine times Lambert `kd` plus the material's Phong-equivalent lobe
+// `lobe_weight cos_m^exponent` (nodes/src/brdf.rs `Brdf::eval`, exact for Phong).
+fn sun_direct(p: vec3<f32>, n: vec3<f32>, kd: vec3<f32>, lobe_weight: vec3<f32>, exponent: f32, mirror: vec3<f32>, glossy: bool) -> vec3<f32> {
     let count = i32(sun.irradiance.w);
     if (count == 0) {
         return vec3<f32>(0.0);
@@ -72,10 +72,11 @@ fn sun_direct(p: vec3<f32>, n: vec3<f32>, kd: vec3<f32>, ks: vec3<f32>, exponent
         if (!lit) {
             visible = sun_visibility(k, shifted);
         }
-        var reflected = kd * cos_i;
+        var f = kd;
         if (glossy) {
-            reflected = reflected + ks * pow(max(dot(d, mirror), 0.0), exponent);
+            f = f + lobe_weight * pow(max(dot(d, mirror), 0.0), exponent);
         }
+        let reflected = f * cos_i;
         sum = sum + visible * reflected;
     }
     return sum * sun.irradiance.rgb;

@@ -88,9 +88,10 @@ def environment_image(width=2048, height=1024, supersample=3):
             u = (np.arange(width) + (sx + 0.5) / supersample) / width
             v = (np.arange(height) + (sy + 0.5) / supersample) / height
             uu, vv = np.meshgrid(u, v)
-            # Blender's equirect: u = atan2(y, -x) / 2pi + 1/2, v = atan2(z, hypot(x, y)) / pi + 1/2.
-            phi, el = (uu - 0.5) * 2.0 * math.pi, (vv - 0.5) * math.pi
-            bx, by, bz = -np.cos(phi) * np.cos(el), np.sin(phi) * np.cos(el), np.sin(el)
+            # Blender's equirect (direction_to_equirectangular): u = 1/2 - atan2(y, x) / 2pi,
+            # v = 1/2 + atan2(z, hypot(x, y)) / pi.
+            phi, el = (0.5 - uu) * 2.0 * math.pi, (vv - 0.5) * math.pi
+            bx, by, bz = np.cos(phi) * np.cos(el), np.sin(phi) * np.cos(el), np.sin(el)
             d = np.stack([bx, bz, -by], axis=-1).reshape(-1, 3)
             acc += sky_radiance(d).reshape(height, width, 3)
     rgb = acc / supersample**2
@@ -192,6 +193,7 @@ def relative_rmse(image, reference, mask):
 
 def main():
     out = tempfile.mkdtemp(prefix="lightloom-cycles-")
+    print(f"images in {out}")
     scene = build_scene()
     print(f"Cycles {bpy.app.version_string}, {THREADS} threads, {WIDTH}x{HEIGHT}, direct light only")
     reference_path = os.path.join(out, "reference.exr")

@@ -58,7 +58,14 @@ pub fn bake_request(graph: &Graph, output: &str) -> Request {
     }
     match mode {
         Mode::ShPrt | Mode::ShAdaptive => stages.push(StageRef::new(output, "bake_texel_blocked")),
-        Mode::WaveletVertex | Mode::WaveletPixel => stages.push(StageRef::new(output, "bake_texel_products")),
+        Mode::WaveletVertex | Mode::WaveletPixel => stages.push(StageRef::new(
+            output,
+            if crate::kinds::output::separates_sun(graph, output) {
+                "bake_texel_residual_products"
+            } else {
+                "bake_texel_products"
+            },
+        )),
         Mode::Rsl => stages.push(StageRef::new(output, "bake_texel_square_lights")),
         Mode::ShIrradiance => {}
     }
@@ -209,7 +216,11 @@ impl<'a> BakedStages<'a> {
             environment: get(evaluation, output, "bake_environment")?,
             atlas: get(evaluation, output, "bake_atlas")?.ok_or("the lightmap atlas was not evaluated")?,
             texel_sh: get(evaluation, output, "bake_texel_blocked")?,
-            texel_products: get(evaluation, output, "bake_texel_products")?,
+            // One of the two is requested: the residual sky's when the sun is lit apart.
+            texel_products: match get(evaluation, output, "bake_texel_residual_products")? {
+                Some(residual) => Some(residual),
+                None => get(evaluation, output, "bake_texel_products")?,
+            },
             texel_square_lights: get(evaluation, output, "bake_texel_square_lights")?,
             texel_area: get(evaluation, output, "bake_texel_area")?,
         })

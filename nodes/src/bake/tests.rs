@@ -106,7 +106,8 @@ fn point_lights_bake_as_inverse_square_cosine_with_shadows() {
 fn each_modes_vertex_light_matches_monte_carlo_irradiance() {
     use rand::{Rng, SeedableRng};
     for (mode, shadowed, tolerance) in
-        [("sh_irradiance", false, 0.08), ("sh_prt", true, 0.15), ("wavelet_vertex", true, 0.08)]
+        // With the sun lit apart (traced per point): measured 2.2%, 2.9% and 2.3%.
+        [("sh_irradiance", false, 0.05), ("sh_prt", true, 0.06), ("wavelet_vertex", true, 0.05)]
     {
         let (evaluation, frame, output) = default_evaluated(&[&format!("output.mode={mode}")]);
         let lightmap = BakedStages::gather(&evaluation, &output).unwrap();

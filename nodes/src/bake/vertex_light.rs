@@ -104,10 +104,7 @@ pub fn texel_light(
         add(&mut light, &area.irradiance.iter().map(|e| e.map(|c| f64::from(c) / PI)).collect::<Vec<_>>());
     }
     add_point_lights(frame, &points, shadows, &mut light)?;
-    // The wavelet texels' products light the whole sky, sun included (`bake_texel_products`).
-    if !matches!(frame.surfaces, Surfaces::Wavelet(_)) {
-        add_sun(frame, &points, shadows, &mut light);
-    }
+    add_sun(frame, &points, shadows, &mut light);
     Ok(finish(light))
 }
 
@@ -157,7 +154,9 @@ fn add_point_lights(
 }
 
 /// A separately lit sun's `E / π` ([`crate::sun`]): its directions' equal shares of the disc,
-/// each shadowed by one ray when `shadows` is given (the viewport's shadow maps, traced).
+/// each shadowed by one ray when `shadows` is given (the viewport's shadow maps, traced). The
+/// environment's share then lights the residual sky (for wavelet texels,
+/// `bake_texel_residual_products`).
 fn add_sun(frame: &FrameInputs, points: &[SurfacePoint], shadows: Option<&RayScene>, light: &mut [[f64; 3]]) {
     let Some(sun) = &frame.sun else { return };
     let share = sun.solid_angle / sun.directions.len().max(1) as f64 / PI;

@@ -165,6 +165,15 @@ pub fn stages() -> Vec<StageSpec> {
             persist: None,
             compute: bake_texel_products,
         },
+        StageSpec {
+            name: "bake_texel_residual_products",
+            version: 1,
+            params: &["wavelet_terms"],
+            stages: &["bake_atlas", "bake_texel_local"],
+            inputs: &[("environment", "sun"), ("environment", "rotation")],
+            persist: None,
+            compute: bake_texel_residual_products,
+        },
     ]
 }
 
@@ -266,15 +275,23 @@ fn bake_texel_local(ctx: &StageContext) -> Result<StageValue, StageError> {
 
 /// The texels' triple products with the environment (as `local_products` per vertex).
 fn bake_texel_products(ctx: &StageContext) -> Result<StageValue, StageError> {
+    texel_products(ctx, ctx.input::<crate::cubemap::CubeMap>("environment", "radiance")?)
+}
+
+/// [`bake_texel_products`] of the sky without its sun, when the sun is lit apart (the bake
+/// traces its shadows per texel instead).
+fn bake_texel_residual_products(ctx: &StageContext) -> Result<StageValue, StageError> {
+    texel_products(ctx, ctx.input::<crate::sun::SunSplit>("environment", "sun")?.map(|split| &split.residual))
+}
+
+fn texel_products(ctx: &StageContext, environment: Option<&crate::cubemap::CubeMap>) -> Result<StageValue, StageError> {
     let atlas = ctx.stage::<crate::bake::lightmap::LightmapAtlas>("bake_atlas")?;
     let transport = ctx.stage::<crate::transport::SphericalTransport>("bake_texel_local")?;
     let terms: usize =
         ctx.choice("wavelet_terms")?.parse().map_err(|_| StageError::Internal("wavelet_terms".into()))?;
     let grid = crate::triple_product::CellGrid::for_coefficients(terms).map_err(StageError::Failed)?;
-    let (Some(environment), Some(rotation)) = (
-        ctx.input::<crate::cubemap::CubeMap>("environment", "radiance")?,
-        ctx.input::<glam::DMat3>("environment", "rotation")?,
-    ) else {
+    let (Some(environment), Some(rotation)) = (environment, ctx.input::<glam::DMat3>("environment", "rotation")?)
+    else {
         return Ok(StageValue::new(crate::triple_product::LocalProducts::default()));
     };
     let lighting = crate::triple_product::Lighting { environment, rotation: *rotation, table: None };

@@ -109,13 +109,15 @@ pub fn split(map: &CubeMap) -> SunSplit {
     let peak_dir = dir_of(peak);
     let cos_max = MAX_RADIUS_DEG.to_radians().cos();
     let threshold = THRESHOLD * lum[peak];
-    let region: Vec<usize> =
-        (0..lum.len()).filter(|&i| lum[i] > threshold && dir_of(i).dot(peak_dir) >= cos_max).collect();
+    // Non-finite texels (a broken map) belong to neither the sun nor the sky around it.
+    let region: Vec<usize> = (0..lum.len())
+        .filter(|&i| lum[i].is_finite() && lum[i] > threshold && dir_of(i).dot(peak_dir) >= cos_max)
+        .collect();
     // The sky behind the sun: the median of a ring three texels wide around the region.
     let region_cos = region.iter().map(|&i| dir_of(i).dot(peak_dir)).fold(1.0f64, f64::min);
     let texel_angle = std::f64::consts::FRAC_PI_2 / n as f64;
     let ring_cos = (region_cos.clamp(-1.0, 1.0).acos() + 3.0 * texel_angle).cos();
-    let in_region = |i: usize| lum[i] > threshold && dir_of(i).dot(peak_dir) >= cos_max;
+    let in_region = |i: usize| lum[i].is_finite() && lum[i] > threshold && dir_of(i).dot(peak_dir) >= cos_max;
     let ring: Vec<usize> = (0..lum.len())
         .filter(|&i| !in_region(i) && lum[i].is_finite() && dir_of(i).dot(peak_dir) >= ring_cos)
         .collect();
@@ -279,6 +281,20 @@ mod tests {
         assert!(split(&wide).sun.is_none(), "a 45-degree bright cap is sky, not a sun");
         let empty = CubeMap::new(4, vec![[0.0; 3]; 96]);
         assert_eq!(split(&empty), SunSplit { sun: None, residual: empty.clone() });
+    }
+
+    #[test]
+    fn broken_texels_neither_panic_nor_make_an_infinite_sun() {
+        let mut map = sky_map(&ProceduralSky::default(), 32);
+        let n = map.texels.len();
+        map.texels[n / 3] = [f32::INFINITY; 3];
+        map.texels[n / 2] = [f32::NAN, 1.0, f32::NEG_INFINITY];
+        map.texels[n / 5] = [-5.0; 3];
+        let split = split(&map);
+        let sun = split.sun.expect("the real sun is still found");
+        assert!(sun.radiance.iter().all(|l| l.is_finite() && *l > 0.0), "{sun:?}");
+        let all_nan = CubeMap::new(4, vec![[f32::NAN; 3]; 96]);
+        assert!(super::split(&all_nan).sun.is_none());
     }
 
     #[test]

@@ -41,10 +41,14 @@ fn sun_direct(p: vec3<f32>, n: vec3<f32>, kd: vec3<f32>, lobe_weight: vec3<f32>,
         return vec3<f32>(0.0);
     }
     let shifted = vec4<f32>(p + n * sun.offset.x, 1.0);
-    // The last directions lie on the disc's rim, spread by the golden angle: where the four
-    // outermost agree (all wholly lit or all wholly shadowed), the whole disc does, and the
-    // other maps need not be read (outside penumbrae, nearly everywhere).
-    let probes = min(count, 4);
+    // The last quarter of the directions (from 16 on) lie evenly round the disc's rim
+    // (nodes/src/sun.rs `rim_directions`): where they all agree (all wholly lit or all wholly
+    // shadowed), the disc does up to the segment between two of them, and the other maps need
+    // not be read (outside penumbrae, nearly everywhere). Below 16 every direction is read.
+    var probes = count;
+    if (count >= 16) {
+        probes = count / 4;
+    }
     var probe_sum = 0.0;
     for (var j = 0; j < probes; j = j + 1) {
         probe_sum = probe_sum + sun_visibility(count - 1 - j, shifted);

@@ -48,6 +48,8 @@ pub(crate) struct SunPass {
     shadow_maps: wgpu::Texture,
     /// The directions and geometry the maps were drawn for.
     drawn: Option<(Vec<[f32; 3]>, Key)>,
+    /// The uniforms last written.
+    written: SunParams,
 }
 
 impl SunPass {
@@ -90,7 +92,17 @@ impl SunPass {
             entries: &[wgpu::BindGroupEntry { binding: 0, resource: matrices.as_entire_binding() }],
         });
         let depth_pipeline = Self::depth_pipeline(device, &depth_layout);
-        Self { layout, bind_group, params, matrices, depth_bind_group, depth_pipeline, shadow_maps, drawn: None }
+        Self {
+            layout,
+            bind_group,
+            params,
+            matrices,
+            depth_bind_group,
+            depth_pipeline,
+            shadow_maps,
+            drawn: None,
+            written: bytemuck::Zeroable::zeroed(),
+        }
     }
 
     fn shadow_maps(device: &wgpu::Device, size: u32, layers: u32) -> wgpu::Texture {
@@ -178,15 +190,12 @@ impl SunPass {
     pub fn prepare(&mut self, gpu: &GpuContext, sun: Option<&SunFrame>, geometry: Option<&GeometryBuffers>) {
         let (Some(sun), Some(geometry)) = (sun, geometry) else {
             if self.drawn.take().is_some() {
-                let zero = <SunParams as bytemuck::Zeroable>::zeroed();
-                gpu.queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&zero));
+                self.written = bytemuck::Zeroable::zeroed();
+                gpu.queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&self.written));
             }
             return;
         };
         let directions: Vec<[f32; 3]> = sun.directions.iter().take(MAX_DIRECTIONS).copied().collect();
-        if self.drawn.as_ref().is_some_and(|(d, key)| *d == directions && *key == geometry.key()) {
-            return;
-        }
         let (lo, hi) = (Vec3::from(geometry.bounds.0), Vec3::from(geometry.bounds.1));
         let centre = (lo + hi) * 0.5;
         let radius = ((hi - lo).length() * 0.5).max(1e-3);
@@ -200,7 +209,13 @@ impl SunPass {
             params.directions[k] = [d.x, d.y, d.z, 0.0];
             params.view_proj[k] = light_view_proj(d, centre, radius).to_cols_array_2d();
         }
+        // The radiance changes without the disc moving (exposure, tint, intensity): the uniforms
+        // are written every frame, the maps only when the disc or the geometry changed.
         gpu.queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
+        self.written = params;
+        if self.drawn.as_ref().is_some_and(|(d, key)| *d == directions && *key == geometry.key()) {
+            return;
+        }
         gpu.queue.write_buffer(&self.matrices, 0, bytemuck::bytes_of(&params.view_proj));
         let layers = directions.len().max(1) as u32;
         if self.shadow_maps.depth_or_array_layers() != layers || self.shadow_maps.width() != SHADOW_MAP_SIZE {
@@ -243,4 +258,35 @@ pub(crate) fn light_view_proj(towards_sun: Vec3, centre: Vec3, radius: f32) -> M
     let up = if towards_sun.y.abs() > 0.99 { Vec3::Z } else { Vec3::Y };
     let view = glam::camera::rh::view::look_at_mat4(eye, centre, up);
     glam::camera::rh::proj::directx::orthographic(-radius, radius, -radius, radius, radius * 0.5, radius * 3.5) * view
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use lightloom_nodes::engine::StageValue;
+    use lightloom_nodes::frame::{Geometry, Keyed};
+    use std::sync::Arc;
+
+    /// A change of the sun's radiance alone (exposure, tint, intensity: the disc does not
+    /// move) reaches the shader, and only a moved disc redraws the maps.
+    #[test]
+    fn a_brighter_sun_that_did_not_move_is_drawn_brighter() {
+        let gpu = GpuContext::headless().expect("a wgpu device (lavapipe on machines without a GPU)");
+        let meshes = lightloom_nodes::mesh::MeshSet { meshes: vec![lightloom_nodes::mesh::sphere(1.0, 8)] };
+        let geometry =
+            Geometry { meshes: Keyed { key: 1, value: Arc::new(StageValue::new(meshes)) }, mesh_materials: vec![0] };
+        let mut buffers = None;
+        GeometryBuffers::prepare(&mut buffers, &gpu, &geometry).unwrap();
+        let disc = lightloom_nodes::sun::Sun { direction: [0.3, 0.8, -0.2], radius: 0.02, radiance: [100.0; 3] };
+        let mut pass = SunPass::new(&gpu);
+        pass.prepare(&gpu, Some(&SunFrame::new(&disc)), buffers.as_ref());
+        let before = pass.written.irradiance;
+        let drawn = pass.drawn.clone();
+        let brighter = lightloom_nodes::sun::Sun { radiance: [200.0; 3], ..disc };
+        pass.prepare(&gpu, Some(&SunFrame::new(&brighter)), buffers.as_ref());
+        assert_eq!(pass.written.irradiance[0], 2.0 * before[0], "the radiance reaches the uniforms");
+        assert_eq!(pass.drawn, drawn, "the maps are not redrawn for a brightness change");
+        pass.prepare(&gpu, None, buffers.as_ref());
+        assert_eq!(pass.written.irradiance[3], 0.0, "no sun, no directions");
+    }
 }

@@ -132,11 +132,8 @@ pub fn run(args: &AccuracyArgs) -> Result<()> {
         if let Some(sun) = sun {
             graph.set_param(&output, SUN, ParamValue::Choice(sun.into()))?;
         }
-        let sun = match graph.node(&output).and_then(|n| n.params.get(SUN)) {
-            Some(ParamValue::Choice(c)) => c.clone(),
-            _ => "separate".into(),
-        };
         let (frame, memory_bytes) = evaluated(&graph)?;
+        let sun = if frame.settings.separate_sun { "separate" } else { "in_environment" }.to_string();
         let start = Instant::now();
         let captured = renderer.render_offscreen(&gpu, &frame, &view, size.0, size.1)?;
         let render_ms = start.elapsed().as_secs_f64() * 1e3;

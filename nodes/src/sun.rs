@@ -121,20 +121,18 @@ pub fn split(map: &CubeMap) -> SunSplit {
         return keep();
     }
     let peak_dir = dir_of(peak);
+    let cos_peak: Vec<f64> = map.samples().map(|(d, _, _)| d.dot(peak_dir)).collect();
     let cos_max = MAX_RADIUS_DEG.to_radians().cos();
     let threshold = THRESHOLD * lum[peak];
     // Non-finite texels (a broken map) belong to neither the sun nor the sky around it.
-    let region: Vec<usize> = (0..lum.len())
-        .filter(|&i| lum[i].is_finite() && lum[i] > threshold && dir_of(i).dot(peak_dir) >= cos_max)
-        .collect();
+    let in_region = |i: usize| lum[i].is_finite() && lum[i] > threshold && cos_peak[i] >= cos_max;
+    let region: Vec<usize> = (0..lum.len()).filter(|&i| in_region(i)).collect();
     // The sky behind the sun: the median of a ring three texels wide around the region.
-    let region_cos = region.iter().map(|&i| dir_of(i).dot(peak_dir)).fold(1.0f64, f64::min);
+    let region_cos = region.iter().map(|&i| cos_peak[i]).fold(1.0f64, f64::min);
     let texel_angle = std::f64::consts::FRAC_PI_2 / n as f64;
     let ring_cos = (region_cos.clamp(-1.0, 1.0).acos() + 3.0 * texel_angle).cos();
-    let in_region = |i: usize| lum[i].is_finite() && lum[i] > threshold && dir_of(i).dot(peak_dir) >= cos_max;
-    let ring: Vec<usize> = (0..lum.len())
-        .filter(|&i| !in_region(i) && lum[i].is_finite() && dir_of(i).dot(peak_dir) >= ring_cos)
-        .collect();
+    let ring: Vec<usize> =
+        (0..lum.len()).filter(|&i| !in_region(i) && lum[i].is_finite() && cos_peak[i] >= ring_cos).collect();
     // A bright area reaching past the widest sun is sky (an overcast patch, a window).
     if ring.iter().any(|&i| lum[i] > threshold) {
         return keep();

@@ -165,16 +165,14 @@ def build_scene():
     return scene
 
 
-def read_exr(path, flip):
+def read_exr(path):
+    """An EXR's RGBA pixels (rows as Blender stores them, the same for both renderers)."""
     image = bpy.data.images.load(path, check_existing=False)
     w, h = image.size
     pixels = np.empty(w * h * 4, dtype=np.float32)
     image.pixels.foreach_get(pixels)
     bpy.data.images.remove(image)
-    pixels = pixels.reshape(h, w, 4)
-    # Blender stores rows bottom-up; an EXR read through it comes back the same way for both
-    # renderers, so no flip is needed unless asked.
-    return pixels[::-1] if flip else pixels
+    return pixels.reshape(h, w, 4)
 
 
 def render(scene, spp, path, seed):
@@ -198,19 +196,19 @@ def main():
     print(f"Cycles {bpy.app.version_string}, {THREADS} threads, {WIDTH}x{HEIGHT}, direct light only")
     reference_path = os.path.join(out, "reference.exr")
     reference_s = render(scene, REFERENCE_SPP, reference_path, 1)
-    reference = read_exr(reference_path, False)
+    reference = read_exr(reference_path)
     mask = reference[..., 3] > 0.999
     print(f"converged reference: {REFERENCE_SPP} spp in {reference_s:.1f} s ({int(mask.sum())} covered pixels)")
     # The reference's own noise: a second one, differenced, over sqrt(2).
     second_path = os.path.join(out, "reference2.exr")
     render(scene, REFERENCE_SPP, second_path, 2)
-    noise = relative_rmse(read_exr(second_path, False), reference, mask) / math.sqrt(2.0)
+    noise = relative_rmse(read_exr(second_path), reference, mask) / math.sqrt(2.0)
     print(f"its own noise: {100 * noise:.2f}% relative RMSE\n")
     rows = []
     for spp in SPP:
         path = os.path.join(out, f"cycles_{spp}.exr")
         seconds = render(scene, spp, path, 100 + spp)
-        error = relative_rmse(read_exr(path, False), reference, mask)
+        error = relative_rmse(read_exr(path), reference, mask)
         rows.append(("Cycles", f"{spp} spp", seconds * 1e3, None, error))
     report = subprocess.run(
         [LIGHTLOOM, "accuracy", PROJECT, "--json", "--samples", "16", "--width", str(WIDTH), "--height", str(HEIGHT),
@@ -227,7 +225,7 @@ def main():
             overrides += ["--set", f"output.wavelet_terms={coefficients}"]
         subprocess.run([LIGHTLOOM, "render", PROJECT, "-o", path, "--width", str(WIDTH), "--height", str(HEIGHT), "-q"]
                        + overrides, check=True, capture_output=True)
-        error = relative_rmse(read_exr(path, False), reference, mask)
+        error = relative_rmse(read_exr(path), reference, mask)
         rows.append((f"Lightloom {mode}", f"{coefficients}, sun {sun}", row["render_ms"], row["frame_ms"], error))
     print(f"{'renderer':<28} {'setting':<28} {'first frame ms':>15} {'steady ms':>10} {'rel. RMSE %':>12}")
     for name, setting, first, steady, error in rows:

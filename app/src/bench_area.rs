@@ -78,12 +78,20 @@ pub fn area_light_figures() {
             })
             .collect();
         let (first, seconds) = (times[0], median(times));
+        let rate = positions.len() as f64 / seconds / 1e6;
+        let anchors =
+            crate::bench_anchors::sun_area_relights(source_pct, target_pct).map_or(String::new(), |(eight, one)| {
+                format!(
+                    "; {}; per thread {}",
+                    eight.beside(rate),
+                    one.beside(rate / rayon::current_num_threads() as f64)
+                )
+            });
         println!(
-            "  keep {source_pct}% / {target_pct}%: {:.0} ms per relight (median of 5; first {:.0} ms) = {:.2} M \
-             relights/s ({} source coefficients)",
+            "  keep {source_pct}% / {target_pct}%: {:.0} ms per relight (median of 5; first {:.0} ms) = {rate:.2} M \
+             relights/s ({} source coefficients){anchors}",
             seconds * 1e3,
             first * 1e3,
-            positions.len() as f64 / seconds / 1e6,
             source.coefficients.len()
         );
     }

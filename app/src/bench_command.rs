@@ -330,9 +330,11 @@ fn rsl_mode_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
         .map(|_| timed_frame(gpu, &mut renderer, &frame, &view, (1280, 720)))
         .collect::<Result<_>>()?;
     let frame_ms = median(times);
+    let rate = n as f64 * 30.0 / frame_ms / 1e3;
     println!(
-        "  GPU frame at 1280x720, {n} vertices x 30 lights: {frame_ms:.1} ms = {:.1} M vertex-RSL/s (this device: {})",
-        n as f64 * 30.0 / frame_ms / 1e3,
+        "  GPU frame at 1280x720, {n} vertices x 30 lights: {frame_ms:.1} ms = {rate:.1} M vertex-RSL/s, {} (this \
+         device: {})",
+        crate::bench_anchors::XU_TABLE_1.beside(rate),
         gpu.describe()
     );
     square_light_sample_figures(args, gpu)
@@ -526,8 +528,13 @@ fn synthetic_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
     let meshes = lightloom_nodes::mesh::MeshSet { meshes: vec![mesh] };
     let n = meshes.meshes[0].positions.len();
     let receivers = Receivers::from_meshes(&meshes);
-    println!("\nsynthetic sphere: {n} vertices, 1280x720");
-    println!("{:<24} {:>22} {:>14}", "mode", "lighting change ms", "frame ms");
+    let bandwidth = crate::bench_anchors::copy_bandwidth();
+    println!(
+        "\nsynthetic sphere: {n} vertices, 1280x720; memory bandwidth {:.1} GB/s (parallel copy, read + write); \
+         \"bound\": the least time to read and write a relight's bytes per vertex at that bandwidth",
+        bandwidth / 1e9
+    );
+    println!("{:<24} {:>22} {:>14}  against the anchors", "mode", "lighting change ms", "frame ms");
     let mut rng = rand::rngs::SmallRng::seed_from_u64(7);
     let view = bench_view();
     let environment = lightloom_nodes::cubemap::CubeMap::from_fn(64, 1, |d| [1.0 + d.y, 0.8, 0.5 + d.x.abs()]);
@@ -592,7 +599,16 @@ fn synthetic_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
         .map_err(|e| anyhow!(e))?;
         let frame = frame_with(Mode::ShPrt, Surfaces::Prt(surfaces));
         let ms = frame_times(&mut renderer, &frame)?;
-        println!("{:<24} {:>22.1} {:>14.1}", format!("sh_prt {bands} bands"), change_ms, ms);
+        // The relight reads each vertex's visibility and writes its RGB incident radiance (f32).
+        let bytes = 4 * bands * bands * 4;
+        let bound = crate::bench_anchors::bandwidth_bound_ms(n, bytes, bandwidth);
+        println!(
+            "{:<24} {:>22.1} {:>14.1}  {:.1}× the bandwidth bound ({bound:.1} ms for {bytes} B per vertex)",
+            format!("sh_prt {bands} bands"),
+            change_ms,
+            ms,
+            change_ms / bound
+        );
     }
     let table = {
         let grid = lightloom_nodes::triple_product::CellGrid::for_coefficients(320).map_err(|e| anyhow!(e))?;
@@ -666,7 +682,19 @@ fn synthetic_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
             };
             let new_environment = changed(glam::DMat3::IDENTITY, key(2))? + prefilter_ms;
             let rotation = changed(glam::DMat3::from_rotation_y(0.7), key(2))?;
-            println!("{label:<24} {:>22} {steady:>14.1}", format!("{new_environment:.1} (rotation {rotation:.0})"));
+            // The relight reads each vertex's frame (32 B) and f16 visibility cells and writes its
+            // RGB9E5 products and diffuse transfer (16 B), as the GPU kernel stores them.
+            let bytes = 32 + 2 * terms + 4 * terms + 16;
+            let bound = crate::bench_anchors::bandwidth_bound_ms(n, bytes, bandwidth);
+            // Ma recomputes every product every frame: its fps is a rotation's edit-to-frame rate.
+            let rate = n as f64 / (rotation + steady) / 1e3;
+            let ma = crate::bench_anchors::ma_interpolated(terms).map_or(String::new(), |a| a.beside(rate));
+            println!(
+                "{label:<24} {:>22} {steady:>14.1}  rotation {:.1}× the bandwidth bound ({bound:.1} ms for {bytes} B \
+                 per vertex); rotation to frame {rate:.2} M vertices/s = {ma}",
+                format!("{new_environment:.1} (rotation {rotation:.0})"),
+                rotation / bound
+            );
         }
     }
     Ok(())

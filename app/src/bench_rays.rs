@@ -15,11 +15,6 @@ use std::io::Write;
 use std::path::Path;
 use std::time::Instant;
 
-/// Embree 3.13 through Mitsuba 3.9.1's `ray_test` (LLVM variant) on these rays and this
-/// machine (2 cores), best of 5, in million rays per second: 256 and 1,024 directions
-/// (`tools/rays/compare_mitsuba.py`).
-const EMBREE: [(usize, f64); 2] = [(256, 12.1), (1024, 12.9)];
-
 pub const ENGINE_MODEL: &str = "../shared/assets/gltf/assimp-glTF2/2CylinderEngine-glTF-Binary/2CylinderEngine.glb";
 
 /// One bundle per receiver: its origin and its rays (directions above its surface).
@@ -116,13 +111,12 @@ pub fn ray_figures(dump: Option<&Path>) -> Result<()> {
         let differ: usize =
             single.iter().zip(&bundled).map(|(a, b)| a.iter().zip(b).filter(|(a, b)| a != b).count()).sum();
         let rate = cast / bundled_s / 1e6;
-        let embree = EMBREE.iter().find(|(n, _)| *n == count).map_or(f64::NAN, |(_, rate)| *rate);
+        let embree = crate::bench_anchors::embree(count).map_or(String::new(), |a| a.beside(rate));
         println!(
-            "  {count:>4} directions, {cast} rays: one at a time {:.2} M rays/s, bundles {rate:.2} M rays/s ({:.1}× single); \
-             Embree (Mitsuba 3.9.1 ray_test) {embree:.1} M rays/s: {:.2}× Embree; {differ} rays differ between the two ({:.3}%)",
+            "  {count:>4} directions, {cast} rays: one at a time {:.2} M rays/s, bundles {rate:.2} M rays/s ({:.1}× single), \
+             {embree}; {differ} rays differ between the two ({:.3}%)",
             cast / single_s / 1e6,
             single_s / bundled_s,
-            rate / embree,
             100.0 * differ as f64 / cast
         );
         if let Some(dir) = dump {

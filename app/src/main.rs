@@ -3,6 +3,7 @@
 mod accuracy_command;
 mod bake_command;
 mod bench_adaptive;
+mod bench_anchors;
 mod bench_area;
 mod bench_blockers;
 mod bench_command;

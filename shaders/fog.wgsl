@@ -183,8 +183,7 @@ fn fog_shade(lit_in: vec3<f32>, p: vec3<f32>, n: vec3<f32>, kd: vec3<f32>, mater
     let ks = lobe.rgb * (exponent + 2.0) / (2.0 * PI) * max(dot(mirror, n), 0.0);
     let glossy = lobe.w > 0.0 && max(ks.r, max(ks.g, ks.b)) > 0.0;
     // The environment's sun, when lit apart from the mode's transport (sun.wgsl).
-    let lobe_weight = lobe.rgb * (exponent + 2.0) / (2.0 * PI);
-    var lit = lit_in + sun_direct(p, n, kd, lobe_weight, exponent, mirror, glossy);
+    var lit = lit_in + sun_direct(p, n, -view, kd, material);
     var glow = vec3<f32>(0.0);
     if (fogged) {
         glow = fog_environment_glow(view);

@@ -3,6 +3,8 @@
 // power and is shadowed by its own orthographic shadow map (2x2 PCF by the comparison sampler).
 
 const MAX_SUN_DIRECTIONS: i32 = 32;
+const SUN_MATERIALS: i32 = 8;
+const SUN_PI: f32 = 3.14159265358979;
 
 struct Sun {
     // rgb: radiance x solid angle / direction count (irradiance at normal incidence per
@@ -16,6 +18,11 @@ struct Sun {
     directions: array<vec4<f32>, MAX_SUN_DIRECTIONS>,
     // World to each shadow map's clip space (orthographic, depth in [0, 1]).
     view_proj: array<mat4x4<f32>, MAX_SUN_DIRECTIONS>,
+    // Per material, its specular lobe (nodes/src/brdf.rs `Brdf::directional_lobe`): x: model
+    // (0 none, 1 Phong, 2 Blinn-Phong, 3 GGX); y: exponent or alpha; z: f0.
+    lobes: array<vec4<f32>, SUN_MATERIALS>,
+    // Per material: the lobe's colour (rgb).
+    lobe_colours: array<vec4<f32>, SUN_MATERIALS>,
 };
 
 @group(3) @binding(0) var<uniform> sun: Sun;
@@ -32,15 +39,54 @@ fn sun_visibility(k: i32, shifted: vec4<f32>) -> f32 {
     return textureSampleCompareLevel(sun_shadow_maps, sun_shadow_sampler, uv, k, clip.z);
 }
 
-// Light reflected towards the viewer at `p` (normal `n`) from the sun: per direction, the
-// shadow test times the cosine times Lambert `kd` plus the material's Phong-equivalent lobe
-// `lobe_weight cos_m^exponent` (nodes/src/brdf.rs `Brdf::eval`, exact for Phong).
-fn sun_direct(p: vec3<f32>, n: vec3<f32>, kd: vec3<f32>, lobe_weight: vec3<f32>, exponent: f32, mirror: vec3<f32>, glossy: bool) -> vec3<f32> {
+// Smith's Lambda for isotropic GGX at cosine `c` (nodes/src/brdf.rs `ggx_lambda`).
+fn sun_ggx_lambda(c: f32, alpha: f32) -> f32 {
+    let tan2 = max(1.0 - c * c, 0.0) / max(c * c, 1e-12);
+    return (-1.0 + sqrt(1.0 + alpha * alpha * tan2)) * 0.5;
+}
+
+// Material `m`'s specular lobe from `wi` toward `wo` about the normal `n`, without its colour
+// (nodes/src/brdf.rs `Brdf::lobe_value`: normalised Phong and Blinn-Phong weighted by f0;
+// GGX with height-correlated Smith masking and Schlick's Fresnel).
+fn sun_lobe(m: u32, n: vec3<f32>, wi: vec3<f32>, wo: vec3<f32>) -> f32 {
+    let lobe = sun.lobes[m];
+    let cos_i = dot(n, wi);
+    let cos_o = dot(n, wo);
+    if (cos_i <= 0.0 || cos_o <= 0.0) {
+        return 0.0;
+    }
+    let model = i32(lobe.x + 0.5);
+    if (model == 1) {
+        let c = max(dot(wi, reflect(-wo, n)), 0.0);
+        return lobe.z * (lobe.y + 2.0) / (2.0 * SUN_PI) * pow(c, lobe.y);
+    }
+    let h = normalize(wi + wo);
+    let cos_h = max(dot(n, h), 0.0);
+    if (model == 2) {
+        return lobe.z * (lobe.y + 8.0) / (8.0 * SUN_PI) * pow(cos_h, lobe.y);
+    }
+    if (model == 3) {
+        let a2 = lobe.y * lobe.y;
+        let s = 1.0 + cos_h * cos_h * (a2 - 1.0);
+        let d = a2 / (SUN_PI * s * s);
+        let g = 1.0 / (1.0 + sun_ggx_lambda(cos_i, lobe.y) + sun_ggx_lambda(cos_o, lobe.y));
+        let f = lobe.z + (1.0 - lobe.z) * pow(1.0 - clamp(dot(wi, h), 0.0, 1.0), 5.0);
+        return f * d * g / (4.0 * cos_i * cos_o);
+    }
+    return 0.0;
+}
+
+// Light reflected towards `wo` (unit, to the viewer) at `p` (normal `n`) from the sun: per
+// direction, the shadow test times the cosine times Lambert `kd` plus material `m`'s lobe
+// (nodes/src/brdf.rs `Brdf::eval`).
+fn sun_direct(p: vec3<f32>, n: vec3<f32>, wo: vec3<f32>, kd: vec3<f32>, m: u32) -> vec3<f32> {
     let count = i32(sun.irradiance.w);
     if (count == 0) {
         return vec3<f32>(0.0);
     }
     let shifted = vec4<f32>(p + n * sun.offset.x, 1.0);
+    let colour = sun.lobe_colours[m].rgb;
+    let glossy = sun.lobes[m].x > 0.5 && sun.lobes[m].z > 0.0 && max(colour.r, max(colour.g, colour.b)) > 0.0;
     // The last quarter of the directions (from 16 on) lie evenly round the disc's rim
     // (nodes/src/sun.rs `rim_directions`): where they all agree (all wholly lit or all wholly
     // shadowed), the disc does up to the segment between two of them, and the other maps need
@@ -78,7 +124,7 @@ fn sun_direct(p: vec3<f32>, n: vec3<f32>, kd: vec3<f32>, lobe_weight: vec3<f32>,
         }
         var f = kd;
         if (glossy) {
-            f = f + lobe_weight * pow(max(dot(d, mirror), 0.0), exponent);
+            f = f + colour * sun_lobe(m, n, d, wo);
         }
         let reflected = f * cos_i;
         sum = sum + visible * reflected;

@@ -441,6 +441,36 @@ fn a_separately_lit_sun_brings_every_mode_within_a_few_percent_on_a_sharp_sun() 
 }
 
 #[test]
+fn the_suns_highlight_on_a_ggx_material_follows_the_reference_after_a_brdf_edit() {
+    // The sharp-sun scene edited from Lambert to GGX (roughness 0.5, F0 1: Fresnel is 1, the
+    // lobe is D G / 4 cos cos): the sun lit apart reflects through the model's own lobe per
+    // direction. Errors are after the edit, against the edited project's reference.
+    let project = workspace().join("tests/projects/sharp_sun.ron");
+    let out = lightloom()
+        .args(["accuracy", project.to_str().unwrap(), "--json", "--samples", "512", "--width", "160"])
+        .args(["--height", "90", "--bands", "6", "--wavelets", "320", "--sun", "separate,in_environment"])
+        .args(["--edit", "material.model=ggx", "--edit", "material.roughness=0.5", "--edit", "material.f0=1"])
+        .args(["--edit", "material.specular=0.3,0.3,0.3", "--no-disk-cache"])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(report["edits"].as_array().unwrap().len(), 4);
+    let rows = report["rows"].as_array().unwrap();
+    assert!(rows.iter().all(|r| r["edit_ms"].as_f64().unwrap() >= r["edit_stages_ms"].as_f64().unwrap()));
+    let error = |mode: &str, sun: &str| {
+        let row = rows.iter().find(|r| r["mode"].as_str().unwrap().starts_with(mode) && r["sun"] == sun).unwrap();
+        row["relative_rmse_less_noise"].as_f64().unwrap()
+    };
+    let (apart, within) = (error("wavelet_pixel", "separate"), error("wavelet_pixel", "in_environment"));
+    eprintln!("wavelet_pixel on GGX: sun apart {apart:.4}, in the environment {within:.4}");
+    // Measured 3.8% (2.6% at 320x180), 29% with the sun in the cells; a Phong-equivalent lobe
+    // for the sun's highlight gave 17.6%.
+    assert!(apart < 0.06, "wavelet_pixel, sun apart: {apart}");
+    assert!(apart < 0.3 * within, "{apart} apart against {within} in the environment");
+}
+
+#[test]
 fn eval_reports_that_rotating_the_environment_recomputes_no_projection() {
     let project = workspace().join("projects/default.ron");
     let out = lightloom()

@@ -40,6 +40,11 @@ pub struct AccuracyArgs {
     /// default: the project's own setting).
     #[arg(long, value_delimiter = ',')]
     pub sun: Vec<String>,
+    /// Time an edit (repeatable, applied together): each row draws the project, then sets these
+    /// parameters and reports the edit→frame time (the changed stages, relight, draw). Errors
+    /// are then the edited image's against the edited project's reference.
+    #[arg(long = "edit", value_name = "NODE.PARAM=VALUE")]
+    pub edits: Vec<String>,
     /// Print JSON instead of a table.
     #[arg(long)]
     pub json: bool,
@@ -63,6 +68,10 @@ pub struct Row {
     pub render_ms: f64,
     /// A steady frame (nothing changed): what orbiting the camera costs.
     pub frame_ms: f64,
+    /// With `--edit`: from the edit to its frame drawn (the changed stages, relight, draw).
+    pub edit_ms: Option<f64>,
+    /// With `--edit`: of `edit_ms`, evaluating the stages the edit changed.
+    pub edit_stages_ms: Option<f64>,
     /// What the mode's stages hold (transport, visibility, lighting), bytes.
     pub memory_bytes: usize,
     /// No other row has lower-or-equal error, frame time and memory (one strictly lower).
@@ -78,6 +87,8 @@ pub struct Report {
     pub reference_ms: f64,
     /// The reference's own noise: RMSE between two independent references, divided by √2.
     pub reference_noise: ImageError,
+    /// The `--edit` assignments the rows were timed and measured after.
+    pub edits: Vec<String>,
     pub rows: Vec<Row>,
 }
 
@@ -107,9 +118,21 @@ pub fn run(args: &AccuracyArgs) -> Result<()> {
         Ok((frame, memory))
     };
     let frame_of = |graph: &Graph| evaluated(graph).map(|(frame, _)| frame);
+    let edits = args
+        .edits
+        .iter()
+        .map(|e| project.parse_override(e).map_err(|e| anyhow!(e.replacen("--set", "--edit", 1))))
+        .collect::<Result<Vec<_>>>()?;
+    let edited = |graph: &Graph| -> Result<Graph> {
+        let mut graph = graph.clone();
+        for (node, param, value) in &edits {
+            graph.set_param(node, param, value.clone())?;
+        }
+        Ok(graph)
+    };
     let mut base = graph.clone();
     base.set_param(&output, "reference_samples", ParamValue::Int(args.samples as i64))?;
-    let base_frame = frame_of(&base)?;
+    let base_frame = frame_of(&edited(&base)?)?;
     let start = Instant::now();
     let reference_with = |seed| {
         base_frame
@@ -132,6 +155,22 @@ pub fn run(args: &AccuracyArgs) -> Result<()> {
         if let Some(sun) = sun {
             graph.set_param(&output, SUN, ParamValue::Choice(sun.into()))?;
         }
+        let (mut edit_ms, mut edit_stages_ms) = (None, None);
+        if !edits.is_empty() {
+            // The project drawn as it was, then the edit to its frame on screen.
+            let before = frame_of(&graph)?;
+            for _ in 0..2 {
+                renderer.render(&gpu, &before, &view, size.0, size.1)?;
+                gpu.wait()?;
+            }
+            graph = edited(&graph)?;
+            let start = Instant::now();
+            let after = frame_of(&graph)?;
+            edit_stages_ms = Some(start.elapsed().as_secs_f64() * 1e3);
+            renderer.render(&gpu, &after, &view, size.0, size.1)?;
+            gpu.wait()?;
+            edit_ms = Some(start.elapsed().as_secs_f64() * 1e3);
+        }
         let (frame, memory_bytes) = evaluated(&graph)?;
         let sun = if frame.settings.separate_sun { "separate" } else { "in_environment" }.to_string();
         let start = Instant::now();
@@ -151,6 +190,8 @@ pub fn run(args: &AccuracyArgs) -> Result<()> {
             relative_rmse_less_noise,
             render_ms,
             frame_ms,
+            edit_ms,
+            edit_stages_ms,
             memory_bytes,
             pareto: false,
         })
@@ -197,6 +238,7 @@ pub fn run(args: &AccuracyArgs) -> Result<()> {
         reference_samples: args.samples,
         reference_ms,
         reference_noise: noise,
+        edits: args.edits.clone(),
         rows,
     };
     if args.json {
@@ -212,13 +254,26 @@ pub fn run(args: &AccuracyArgs) -> Result<()> {
             noise.rmse,
             noise.relative_rmse * 100.0
         );
+        if !edits.is_empty() {
+            println!("after the edit {}; edit ms: from the edit to its frame drawn", args.edits.join(" "));
+        }
         println!(
-            "{:<28} {:>6} {:<15} {:>10} {:>7} {:>9} {:>8} {:>9} {:>9} {:>7}",
-            "mode", "coeffs", "sun", "RMSE", "rel. %", "- noise %", "PSNR dB", "frame ms", "memory", "Pareto"
+            "{:<28} {:>6} {:<15} {:>10} {:>7} {:>9} {:>8} {:>9} {:>9} {:>9} {:>7}",
+            "mode",
+            "coeffs",
+            "sun",
+            "RMSE",
+            "rel. %",
+            "- noise %",
+            "PSNR dB",
+            "frame ms",
+            "edit ms",
+            "memory",
+            "Pareto"
         );
         for r in &report.rows {
             println!(
-                "{:<28} {:>6} {:<15} {:>10.5} {:>7.2} {:>9.2} {:>8.1} {:>9.1} {:>8.1}M {:>7}",
+                "{:<28} {:>6} {:<15} {:>10.5} {:>7.2} {:>9.2} {:>8.1} {:>9.1} {:>9} {:>8.1}M {:>7}",
                 r.mode,
                 r.coefficients,
                 r.sun,
@@ -227,6 +282,7 @@ pub fn run(args: &AccuracyArgs) -> Result<()> {
                 r.relative_rmse_less_noise * 100.0,
                 r.error.psnr_db,
                 r.frame_ms,
+                r.edit_ms.map_or("-".to_string(), |ms| format!("{ms:.1}")),
                 r.memory_bytes as f64 / (1 << 20) as f64,
                 if r.pareto { "*" } else { "" }
             );

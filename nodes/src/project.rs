@@ -402,12 +402,21 @@ impl Project {
 
     /// Applies `node.param=value` overrides (command line `--set`).
     pub fn apply_override(&mut self, assignment: &str) -> Result<(), String> {
+        let (node_id, param, value) = self.parse_override(assignment)?;
+        let node = self.nodes.iter_mut().find(|n| n.id == node_id).expect("parse_override found the node");
+        node.params.insert(param, value);
+        Ok(())
+    }
+
+    /// `NODE.PARAM=VALUE` as the node, the parameter and the value it names, checked against
+    /// the node kind's parameter.
+    pub fn parse_override(&self, assignment: &str) -> Result<(String, String, ParamValue), String> {
         let (target, value) =
             assignment.split_once('=').ok_or_else(|| format!("`{assignment}` is not NODE.PARAM=VALUE"))?;
         let (node_id, param) = target.split_once('.').ok_or_else(|| format!("`{target}` is not NODE.PARAM"))?;
         let node = self
             .nodes
-            .iter_mut()
+            .iter()
             .find(|n| n.id == node_id)
             .ok_or_else(|| format!("--set {assignment}: no node `{node_id}`"))?;
         let kind = crate::kinds::kind(&node.kind)
@@ -418,8 +427,7 @@ impl Project {
         })?;
         let parsed = ParamValue::parse_for(&spec.kind, value).map_err(|e| format!("--set {assignment}: {e}"))?;
         spec.check(&parsed).map_err(|e| format!("--set {assignment}: {e}"))?;
-        node.params.insert(param.to_string(), parsed);
-        Ok(())
+        Ok((node_id.to_string(), param.to_string(), parsed))
     }
 }
 

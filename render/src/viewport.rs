@@ -143,7 +143,7 @@ impl ViewportRenderer {
         self.check_size(gpu, width, height)?;
         GeometryBuffers::prepare(&mut self.geometry, gpu, &frame.geometry)?;
         self.medium.prepare(gpu, &frame.medium)?;
-        self.sun.prepare(gpu, frame.sun.as_ref(), self.geometry.as_ref());
+        self.sun.prepare(gpu, frame.sun.as_ref(), &frame.materials, self.geometry.as_ref());
         self.background.prepare(gpu, &frame.background)?;
         match &frame.surfaces {
             Surfaces::Irradiance(data) => self.irradiance.prepare(gpu, data)?,

@@ -8,8 +8,9 @@ use super::geometry::GeometryBuffers;
 use super::{entry, uniform_buffer};
 use crate::GpuContext;
 use glam::{Mat4, Vec3};
+use lightloom_nodes::brdf::{Brdf, DirectionalLobe};
 use lightloom_nodes::engine::Key;
-use lightloom_nodes::frame::SunFrame;
+use lightloom_nodes::frame::{FrameMaterial, MAX_MATERIALS, SunFrame};
 
 /// `sun.wgsl` `MAX_SUN_DIRECTIONS`.
 pub(crate) const MAX_DIRECTIONS: usize = 32;
@@ -35,6 +36,24 @@ pub(crate) struct SunParams {
     pub(crate) axis: [f32; 4],
     pub(crate) directions: [[f32; 4]; MAX_DIRECTIONS],
     pub(crate) view_proj: [[[f32; 4]; 4]; MAX_DIRECTIONS],
+    /// Per material, its specular lobe toward each direction ([`Brdf::directional_lobe`]):
+    /// x: model (0 none, 1 Phong, 2 Blinn-Phong, 3 GGX); y: exponent or α; z: f0.
+    pub(crate) lobes: [[f32; 4]; MAX_MATERIALS],
+    /// Per material: the lobe's colour (rgb).
+    pub(crate) lobe_colours: [[f32; 4]; MAX_MATERIALS],
+}
+
+/// A material's lobe as `sun.wgsl` `sun_lobe` reads it: `[model, exponent or α, f0, 0]` and
+/// its colour.
+fn packed_lobe(material: &FrameMaterial) -> ([f32; 4], [f32; 4]) {
+    let (lobe, colour, f0) = Brdf::from_material(&material.material).directional_lobe();
+    let (model, shape) = match lobe {
+        DirectionalLobe::None => (0.0, 0.0),
+        DirectionalLobe::Phong { exponent } => (1.0, exponent),
+        DirectionalLobe::BlinnPhong { exponent } => (2.0, exponent),
+        DirectionalLobe::Ggx { alpha } => (3.0, alpha),
+    };
+    ([model, shape as f32, f0 as f32, 0.0], super::vec4(colour.to_array(), 0.0))
 }
 
 pub(crate) struct SunPass {
@@ -187,7 +206,13 @@ impl SunPass {
 
     /// Uploads the sun's uniforms and redraws its shadow maps when it turned or the geometry
     /// changed; without a sun (or geometry) the scene passes add nothing.
-    pub fn prepare(&mut self, gpu: &GpuContext, sun: Option<&SunFrame>, geometry: Option<&GeometryBuffers>) {
+    pub fn prepare(
+        &mut self,
+        gpu: &GpuContext,
+        sun: Option<&SunFrame>,
+        materials: &[FrameMaterial],
+        geometry: Option<&GeometryBuffers>,
+    ) {
         let (Some(sun), Some(geometry)) = (sun, geometry) else {
             if self.drawn.take().is_some() {
                 self.written = bytemuck::Zeroable::zeroed();
@@ -208,6 +233,9 @@ impl SunPass {
             let d = Vec3::from(*d);
             params.directions[k] = [d.x, d.y, d.z, 0.0];
             params.view_proj[k] = light_view_proj(d, centre, radius).to_cols_array_2d();
+        }
+        for (k, material) in materials.iter().take(MAX_MATERIALS).enumerate() {
+            (params.lobes[k], params.lobe_colours[k]) = packed_lobe(material);
         }
         // The radiance changes without the disc moving (exposure, tint, intensity): the uniforms
         // are written every frame, the maps only when the disc or the geometry changed.
@@ -279,14 +307,14 @@ mod tests {
         GeometryBuffers::prepare(&mut buffers, &gpu, &geometry).unwrap();
         let disc = lightloom_nodes::sun::Sun { direction: [0.3, 0.8, -0.2], radius: 0.02, radiance: [100.0; 3] };
         let mut pass = SunPass::new(&gpu);
-        pass.prepare(&gpu, Some(&SunFrame::new(&disc)), buffers.as_ref());
+        pass.prepare(&gpu, Some(&SunFrame::new(&disc)), &[], buffers.as_ref());
         let before = pass.written.irradiance;
         let drawn = pass.drawn.clone();
         let brighter = lightloom_nodes::sun::Sun { radiance: [200.0; 3], ..disc };
-        pass.prepare(&gpu, Some(&SunFrame::new(&brighter)), buffers.as_ref());
+        pass.prepare(&gpu, Some(&SunFrame::new(&brighter)), &[], buffers.as_ref());
         assert_eq!(pass.written.irradiance[0], 2.0 * before[0], "the radiance reaches the uniforms");
         assert_eq!(pass.drawn, drawn, "the maps are not redrawn for a brightness change");
-        pass.prepare(&gpu, None, buffers.as_ref());
+        pass.prepare(&gpu, None, &[], buffers.as_ref());
         assert_eq!(pass.written.irradiance[3], 0.0, "no sun, no directions");
     }
 }

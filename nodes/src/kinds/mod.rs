@@ -11,6 +11,7 @@ pub mod output;
 mod output_adaptive;
 pub mod output_area;
 mod output_bake;
+mod output_sun;
 pub use output_adaptive::AdaptiveError;
 pub mod rsl;
 pub mod scene;

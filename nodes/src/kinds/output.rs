@@ -153,27 +153,7 @@ pub fn spec() -> NodeKindSpec {
                 kind: ParamKind::Choice { options: WAVELET_TERMS, default: "320", labels: &[] },
                 doc: "Top-only spherical Haar coefficients per function in the wavelet mode (Ma et al.'s 80 or 320).",
             },
-            ParamSpec {
-                name: SUN,
-                label: "Sun",
-                unit: "",
-                kind: ParamKind::Choice {
-                    options: &["separate", "in_environment"],
-                    default: "separate",
-                    labels: &[
-                        (
-                            "Separate, shadow-mapped",
-                            "The sun lights each pixel as a disc with shadow maps; the transport carries the sky.",
-                        ),
-                        ("In the environment", "The transport carries the sun with the sky."),
-                    ],
-                },
-                doc: "separate: the environment's sun (its brightest compact source) lights each pixel as a disc, \
-                      shadowed through shadow maps over the disc, and the mode's transport carries the sky \
-                      without it, so small bright suns cast sharp, correct shadows and do not band. Applies to \
-                      sh_irradiance, sh_prt and the wavelet modes without a medium or blocker spheres linked. \
-                      in_environment: the transport carries the sun too.",
-            },
+            super::output_sun::param(),
             ParamSpec {
                 name: "exposure",
                 label: "Exposure",
@@ -259,7 +239,7 @@ pub fn spec() -> NodeKindSpec {
                 stages: &["blocked_transport"],
                 inputs: &[("environment", "residual_sh")],
                 persist: None,
-                compute: incident_residual_sh,
+                compute: super::output_sun::incident_residual_sh,
             },
             StageSpec {
                 name: "local_visibility",
@@ -286,7 +266,7 @@ pub fn spec() -> NodeKindSpec {
                 stages: &[],
                 inputs: &[("environment", "sun")],
                 persist: None,
-                compute: wavelet_residual_environment,
+                compute: super::output_sun::wavelet_residual_environment,
             },
             StageSpec {
                 name: "texel_visibility",
@@ -373,12 +353,7 @@ fn incident_sh(ctx: &StageContext) -> Result<StageValue, StageError> {
     incident_from(ctx, "sh")
 }
 
-/// [`incident_sh`] of the sky without its sun, when the sun is lit separately ([`SUN`]).
-fn incident_residual_sh(ctx: &StageContext) -> Result<StageValue, StageError> {
-    incident_from(ctx, "residual_sh")
-}
-
-fn incident_from(ctx: &StageContext, lighting: &str) -> Result<StageValue, StageError> {
+pub(super) fn incident_from(ctx: &StageContext, lighting: &str) -> Result<StageValue, StageError> {
     let transport = ctx.stage::<crate::transport::ShTransport>("blocked_transport")?;
     let Some(light) = ctx.input::<crate::sh::ShRgb>("environment", lighting)? else {
         return Ok(StageValue::new(crate::prt::IncidentSh::default()));
@@ -491,7 +466,7 @@ fn local_visibility(ctx: &StageContext) -> Result<StageValue, StageError> {
     Ok(StageValue::new(crate::triple_product::local_visibility(grid, transport, ctx.cancel_token())?))
 }
 
-fn wavelet_grid(ctx: &StageContext) -> Result<&'static crate::triple_product::CellGrid, StageError> {
+pub(super) fn wavelet_grid(ctx: &StageContext) -> Result<&'static crate::triple_product::CellGrid, StageError> {
     let terms: usize =
         ctx.choice("wavelet_terms")?.parse().map_err(|_| StageError::Internal("wavelet_terms".into()))?;
     crate::triple_product::CellGrid::for_coefficients(terms).map_err(StageError::Failed)
@@ -503,15 +478,6 @@ fn wavelet_environment(ctx: &StageContext) -> Result<StageValue, StageError> {
     let grid = wavelet_grid(ctx)?;
     Ok(StageValue::new(match ctx.input::<crate::cubemap::CubeMap>("environment", "radiance")? {
         Some(environment) => crate::triple_product::prefiltered(environment, grid),
-        None => crate::cubemap::CubeMap { size: 0, texels: Vec::new() },
-    }))
-}
-
-/// [`wavelet_environment`] of the sky without its sun, when the sun is lit separately ([`SUN`]).
-fn wavelet_residual_environment(ctx: &StageContext) -> Result<StageValue, StageError> {
-    let grid = wavelet_grid(ctx)?;
-    Ok(StageValue::new(match ctx.input::<crate::sun::SunSplit>("environment", "sun")? {
-        Some(split) => crate::triple_product::prefiltered(&split.residual, grid),
         None => crate::cubemap::CubeMap { size: 0, texels: Vec::new() },
     }))
 }
@@ -567,6 +533,7 @@ fn typed<T: crate::engine::StageType + Clone>(keyed: &Keyed, stage: &str) -> Res
     keyed.value.expect::<T>().cloned().map_err(|e| format!("stage `{stage}`: {e}"))
 }
 
+pub use super::output_sun::{SUN, separates_sun};
 use crate::frame::{
     Background, FogFrame, FrameMaterial, Geometry, IrradianceSurfaces, MediumFrame, PrtSurfaces, RslSurfaces, SunFrame,
     Surfaces, WaveletLighting, WaveletSurfaces,
@@ -658,26 +625,6 @@ pub fn mode_stages(graph: &Graph, output: &str, mode: Mode) -> Vec<StageRef> {
         Mode::Rsl => stages.push(StageRef::new(output, "rsl_visibility")),
     }
     stages
-}
-
-/// The Output parameter choosing whether the environment's sun is lit apart from the
-/// transport ([`crate::sun`]).
-pub const SUN: &str = "sun";
-
-/// Whether the Output lights the environment's sun separately: it asks for it, its mode can
-/// (sh_irradiance, sh_prt and the wavelet modes; their unshadowed preview does too), an
-/// environment is linked, and neither a medium nor blocker spheres are (their transport of
-/// the sun is not shadow-mapped).
-pub fn separates_sun(graph: &Graph, output: &str) -> bool {
-    let Some(node) = graph.node(output) else { return false };
-    let asked = !matches!(node.params.get(SUN), Some(ParamValue::Choice(c)) if c == "in_environment");
-    let (mode, _) = output_mode_and_view(node);
-    let linked = |port: &str| graph.upstream(output, port).is_some();
-    asked
-        && matches!(mode, Mode::ShIrradiance | Mode::ShPrt | Mode::WaveletVertex | Mode::WaveletPixel)
-        && linked("environment")
-        && !linked("medium")
-        && !linked("blockers")
 }
 
 /// The Output's mode and view as set in the graph.

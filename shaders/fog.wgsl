@@ -172,7 +172,7 @@ fn fog_environment_glow_irradiance(n: vec3<f32>) -> vec3<f32> {
 // airlight, and the environment's glow in the view direction scattered in along the path
 // (the glow per unit length is about constant along the ray, so the path's share of the
 // infinite ray's glow is 1 - e^{-beta d}).
-fn fog_shade(lit_in: vec3<f32>, p: vec3<f32>, n: vec3<f32>, kd: vec3<f32>, material: u32) -> vec3<f32> {
+fn fog_shade(lit_in: vec3<f32>, p: vec3<f32>, n: vec3<f32>, tangent: vec3<f32>, kd: vec3<f32>, material: u32) -> vec3<f32> {
     let fogged = fog.beta.w > 0.5;
     let viewer = globals.camera_pos.xyz;
     let d_vp = length(viewer - p);
@@ -183,7 +183,7 @@ fn fog_shade(lit_in: vec3<f32>, p: vec3<f32>, n: vec3<f32>, kd: vec3<f32>, mater
     let ks = lobe.rgb * (exponent + 2.0) / (2.0 * PI) * max(dot(mirror, n), 0.0);
     let glossy = lobe.w > 0.0 && max(ks.r, max(ks.g, ks.b)) > 0.0;
     // The environment's sun, when lit apart from the mode's transport (sun.wgsl).
-    var lit = lit_in + sun_direct(p, n, -view, kd, material);
+    var lit = lit_in + sun_direct(p, n, tangent, -view, kd, material);
     var glow = vec3<f32>(0.0);
     if (fogged) {
         glow = fog_environment_glow(view);

@@ -19,6 +19,7 @@ struct VertexOut {
     @location(1) color: vec3<f32>,
     @location(2) @interpolate(flat) material: u32,
     @location(3) world: vec3<f32>,
+    @location(4) tangent: vec3<f32>,
 };
 
 @vertex
@@ -29,6 +30,7 @@ fn vs_main(v: MeshVertex) -> VertexOut {
     out.color = v.color;
     out.material = v.material;
     out.world = v.position;
+    out.tangent = v.tangent;
     return out;
 }
 
@@ -58,5 +60,5 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) ve
         irradiance = max(sh_irradiance(n, bands), vec3<f32>(0.0));
     }
     let kd = sh.albedo[in.material].rgb * in.color / PI;
-    return vec4<f32>(fog_shade(kd * irradiance, in.world, n, kd, in.material), 1.0);
+    return vec4<f32>(fog_shade(kd * irradiance, in.world, n, in.tangent, kd, in.material), 1.0);
 }

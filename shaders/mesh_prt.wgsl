@@ -51,6 +51,7 @@ struct VertexOut {
     @location(2) normal: vec3<f32>,
     @location(3) kd: vec3<f32>,
     @location(4) @interpolate(flat) material: u32,
+    @location(5) tangent: vec3<f32>,
 };
 
 @vertex
@@ -76,6 +77,7 @@ fn vs_main(v: MeshVertex, @builtin(vertex_index) index: u32) -> VertexOut {
     out.color = color;
     out.world = v.position;
     out.normal = v.normal;
+    out.tangent = v.tangent;
     out.kd = prt.albedo[m].rgb * v.color / PI;
     out.material = m;
     return out;
@@ -83,5 +85,5 @@ fn vs_main(v: MeshVertex, @builtin(vertex_index) index: u32) -> VertexOut {
 
 @fragment
 fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
-    return vec4<f32>(fog_shade(in.color, in.world, normalize(in.normal), in.kd, in.material), 1.0);
+    return vec4<f32>(fog_shade(in.color, in.world, normalize(in.normal), in.tangent, in.kd, in.material), 1.0);
 }

@@ -113,6 +113,7 @@ struct VertexOut {
     @location(2) @interpolate(flat) material: u32,
     @location(3) position: vec3<f32>,
     @location(4) normal: vec3<f32>,
+    @location(5) tangent: vec3<f32>,
 };
 
 @vertex
@@ -123,6 +124,7 @@ fn vs_main(v: MeshVertex, @builtin(vertex_index) index: u32) -> VertexOut {
     out.material = m;
     out.position = v.position;
     out.normal = v.normal;
+    out.tangent = v.tangent;
     out.albedo = rp.albedo[m].rgb * v.color;
     let n = normalize(v.normal);
     let t = normalize(v.tangent - n * dot(n, v.tangent));
@@ -151,5 +153,5 @@ fn vs_main(v: MeshVertex, @builtin(vertex_index) index: u32) -> VertexOut {
 @fragment
 fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     let n = normalize(in.normal);
-    return vec4<f32>(fog_shade(in.radiance, in.position, n, in.albedo / PI, in.material), 1.0);
+    return vec4<f32>(fog_shade(in.radiance, in.position, n, in.tangent, in.albedo / PI, in.material), 1.0);
 }

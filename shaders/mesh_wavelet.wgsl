@@ -140,7 +140,7 @@ fn vs_main(v: MeshVertex, @builtin(vertex_index) index: u32) -> VertexOut {
 fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     let n = normalize(in.normal);
     if (wp.texels.x == 0u || in.layer < 0) {
-        return vec4<f32>(fog_shade(in.diffuse + in.specular, in.position, n, in.albedo / PI, in.material), 1.0);
+        return vec4<f32>(fog_shade(in.diffuse + in.specular, in.position, n, in.tangent, in.albedo / PI, in.material), 1.0);
     }
     let m = in.material;
     // The four texels around the pixel (texel centres at (x + 0.5) / size), clamped at the
@@ -177,5 +177,5 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
         }
         specular = wp.specular[m].rgb * specular;
     }
-    return vec4<f32>(fog_shade(diffuse + specular, in.position, n, in.albedo / PI, in.material), 1.0);
+    return vec4<f32>(fog_shade(diffuse + specular, in.position, n, in.tangent, in.albedo / PI, in.material), 1.0);
 }

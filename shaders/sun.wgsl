@@ -18,8 +18,9 @@ struct Sun {
     directions: array<vec4<f32>, MAX_SUN_DIRECTIONS>,
     // World to each shadow map's clip space (orthographic, depth in [0, 1]).
     view_proj: array<mat4x4<f32>, MAX_SUN_DIRECTIONS>,
-    // Per material, its specular lobe (nodes/src/brdf.rs `Brdf::directional_lobe`): x: model
-    // (0 none, 1 Phong, 2 Blinn-Phong, 3 GGX); y: exponent or alpha; z: f0.
+    // Per material, its specular lobe (nodes/src/brdf.rs `Lobe`): x: model (0 none, 1 Phong,
+    // 2 Blinn-Phong, 3 GGX, 4 Ward); y: exponent or alpha along the tangent; z: f0; w: alpha
+    // along the bitangent.
     lobes: array<vec4<f32>, SUN_MATERIALS>,
     // Per material: the lobe's colour (rgb).
     lobe_colours: array<vec4<f32>, SUN_MATERIALS>,
@@ -39,16 +40,17 @@ fn sun_visibility(k: i32, shifted: vec4<f32>) -> f32 {
     return textureSampleCompareLevel(sun_shadow_maps, sun_shadow_sampler, uv, k, clip.z);
 }
 
-// Smith's Lambda for isotropic GGX at cosine `c` (nodes/src/brdf.rs `ggx_lambda`).
-fn sun_ggx_lambda(c: f32, alpha: f32) -> f32 {
-    let tan2 = max(1.0 - c * c, 0.0) / max(c * c, 1e-12);
-    return (-1.0 + sqrt(1.0 + alpha * alpha * tan2)) * 0.5;
+// Smith's Lambda for anisotropic GGX (nodes/src/brdf.rs `ggx_lambda`), `w` in the local frame.
+fn sun_ggx_lambda(w: vec3<f32>, ax: f32, ay: f32) -> f32 {
+    let t2 = ((ax * w.x) * (ax * w.x) + (ay * w.y) * (ay * w.y)) / max(w.z * w.z, 1e-12);
+    return (-1.0 + sqrt(1.0 + t2)) * 0.5;
 }
 
-// Material `m`'s specular lobe from `wi` toward `wo` about the normal `n`, without its colour
-// (nodes/src/brdf.rs `Brdf::lobe_value`: normalised Phong and Blinn-Phong weighted by f0;
-// GGX with height-correlated Smith masking and Schlick's Fresnel).
-fn sun_lobe(m: u32, n: vec3<f32>, wi: vec3<f32>, wo: vec3<f32>) -> f32 {
+// Material `m`'s specular lobe from `wi` toward `wo`, without its colour, in the frame of the
+// normal `n` and the tangent `tangent` (nodes/src/brdf.rs `Brdf::lobe_value`: normalised Phong
+// and Blinn-Phong and Ward weighted by f0; GGX with height-correlated Smith masking and
+// Schlick's Fresnel).
+fn sun_lobe(m: u32, n: vec3<f32>, tangent: vec3<f32>, wi: vec3<f32>, wo: vec3<f32>) -> f32 {
     let lobe = sun.lobes[m];
     let cos_i = dot(n, wi);
     let cos_o = dot(n, wo);
@@ -60,26 +62,44 @@ fn sun_lobe(m: u32, n: vec3<f32>, wi: vec3<f32>, wo: vec3<f32>) -> f32 {
         let c = max(dot(wi, reflect(-wo, n)), 0.0);
         return lobe.z * (lobe.y + 2.0) / (2.0 * SUN_PI) * pow(c, lobe.y);
     }
-    let h = normalize(wi + wo);
-    let cos_h = max(dot(n, h), 0.0);
+    let h_world = normalize(wi + wo);
     if (model == 2) {
-        return lobe.z * (lobe.y + 8.0) / (8.0 * SUN_PI) * pow(cos_h, lobe.y);
+        return lobe.z * (lobe.y + 8.0) / (8.0 * SUN_PI) * pow(max(dot(n, h_world), 0.0), lobe.y);
+    }
+    // The local frame [t, n x t, n] (as the reference and the wavelet tables take it).
+    var t = tangent - n * dot(n, tangent);
+    if (dot(t, t) < 1e-12) {
+        t = select(vec3<f32>(1.0, 0.0, 0.0), vec3<f32>(0.0, 1.0, 0.0), abs(n.x) > 0.9);
+        t = t - n * dot(n, t);
+    }
+    t = normalize(t);
+    let b = cross(n, t);
+    let h = vec3<f32>(dot(h_world, t), dot(h_world, b), dot(h_world, n));
+    let ax = lobe.y;
+    let ay = lobe.w;
+    if (h.z <= 0.0) {
+        return 0.0;
     }
     if (model == 3) {
-        let a2 = lobe.y * lobe.y;
-        let s = 1.0 + cos_h * cos_h * (a2 - 1.0);
-        let d = a2 / (SUN_PI * s * s);
-        let g = 1.0 / (1.0 + sun_ggx_lambda(cos_i, lobe.y) + sun_ggx_lambda(cos_o, lobe.y));
-        let f = lobe.z + (1.0 - lobe.z) * pow(1.0 - clamp(dot(wi, h), 0.0, 1.0), 5.0);
+        let s = (h.x / ax) * (h.x / ax) + (h.y / ay) * (h.y / ay) + h.z * h.z;
+        let d = 1.0 / (SUN_PI * ax * ay * s * s);
+        let li = vec3<f32>(dot(wi, t), dot(wi, b), cos_i);
+        let lo = vec3<f32>(dot(wo, t), dot(wo, b), cos_o);
+        let g = 1.0 / (1.0 + sun_ggx_lambda(li, ax, ay) + sun_ggx_lambda(lo, ax, ay));
+        let f = lobe.z + (1.0 - lobe.z) * pow(1.0 - clamp(dot(wi, h_world), 0.0, 1.0), 5.0);
         return f * d * g / (4.0 * cos_i * cos_o);
+    }
+    if (model == 4) {
+        let e = ((h.x / ax) * (h.x / ax) + (h.y / ay) * (h.y / ay)) / (h.z * h.z);
+        return lobe.z * exp(-e) / (4.0 * SUN_PI * ax * ay * sqrt(cos_i * cos_o));
     }
     return 0.0;
 }
 
-// Light reflected towards `wo` (unit, to the viewer) at `p` (normal `n`) from the sun: per
-// direction, the shadow test times the cosine times Lambert `kd` plus material `m`'s lobe
-// (nodes/src/brdf.rs `Brdf::eval`).
-fn sun_direct(p: vec3<f32>, n: vec3<f32>, wo: vec3<f32>, kd: vec3<f32>, m: u32) -> vec3<f32> {
+// Light reflected towards `wo` (unit, to the viewer) at `p` (normal `n`, tangent `tangent`)
+// from the sun: per direction, the shadow test times the cosine times Lambert `kd` plus
+// material `m`'s lobe (nodes/src/brdf.rs `Brdf::eval`).
+fn sun_direct(p: vec3<f32>, n: vec3<f32>, tangent: vec3<f32>, wo: vec3<f32>, kd: vec3<f32>, m: u32) -> vec3<f32> {
     let count = i32(sun.irradiance.w);
     if (count == 0) {
         return vec3<f32>(0.0);
@@ -124,7 +144,7 @@ fn sun_direct(p: vec3<f32>, n: vec3<f32>, wo: vec3<f32>, kd: vec3<f32>, m: u32) 
         }
         var f = kd;
         if (glossy) {
-            f = f + colour * sun_lobe(m, n, d, wo);
+            f = f + colour * sun_lobe(m, n, tangent, d, wo);
         }
         let reflected = f * cos_i;
         sum = sum + visible * reflected;

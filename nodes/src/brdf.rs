@@ -43,16 +43,6 @@ pub enum Lobe {
     },
 }
 
-/// A specular lobe a shader evaluates per light direction ([`Brdf::directional_lobe`]), with
-/// the formulas of [`Brdf::lobe_value`].
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum DirectionalLobe {
-    None,
-    Phong { exponent: f64 },
-    BlinnPhong { exponent: f64 },
-    Ggx { alpha: f64 },
-}
-
 /// A BRDF ready to evaluate.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Brdf {
@@ -228,23 +218,6 @@ impl Brdf {
             Lobe::BlinnPhong { exponent } => Some(exponent / 4.0),
             Lobe::Ggx { alpha_x, alpha_y } | Lobe::Ward { alpha_x, alpha_y } => Some(from_alpha(alpha_x, alpha_y)),
         }
-    }
-
-    /// The specular lobe as a shader evaluates it toward one light direction at a time (the
-    /// separately lit sun, `shaders/sun.wgsl` `sun_lobe`): the model's own lobe for Phong,
-    /// Blinn-Phong and isotropic GGX; for the anisotropic models, whose tangent the shaders do
-    /// not receive, the Phong-equivalent lobe. With its colour (`specular`, no `f0`) and `f0`.
-    pub fn directional_lobe(&self) -> (DirectionalLobe, DVec3, f64) {
-        let lobe = match self.lobe {
-            Lobe::None => DirectionalLobe::None,
-            Lobe::Phong { exponent } => DirectionalLobe::Phong { exponent },
-            Lobe::BlinnPhong { exponent } => DirectionalLobe::BlinnPhong { exponent },
-            Lobe::Ggx { alpha_x, alpha_y } if alpha_x == alpha_y => DirectionalLobe::Ggx { alpha: alpha_x },
-            Lobe::Ggx { .. } | Lobe::Ward { .. } => {
-                DirectionalLobe::Phong { exponent: self.equivalent_phong_exponent().unwrap_or(1.0).max(1.0) }
-            }
-        };
-        (lobe, self.specular, self.f0)
     }
 
     /// Zonal SH coefficients of the normalised Phong lobe `(s+2)/2π · cos^s α` about +Z (with

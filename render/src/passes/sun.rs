@@ -8,7 +8,7 @@ use super::geometry::GeometryBuffers;
 use super::{entry, uniform_buffer};
 use crate::GpuContext;
 use glam::{Mat4, Vec3};
-use lightloom_nodes::brdf::{Brdf, DirectionalLobe};
+use lightloom_nodes::brdf::{Brdf, Lobe};
 use lightloom_nodes::engine::Key;
 use lightloom_nodes::frame::{FrameMaterial, MAX_MATERIALS, SunFrame};
 
@@ -36,24 +36,25 @@ pub(crate) struct SunParams {
     pub(crate) axis: [f32; 4],
     pub(crate) directions: [[f32; 4]; MAX_DIRECTIONS],
     pub(crate) view_proj: [[[f32; 4]; 4]; MAX_DIRECTIONS],
-    /// Per material, its specular lobe toward each direction ([`Brdf::directional_lobe`]):
-    /// x: model (0 none, 1 Phong, 2 Blinn-Phong, 3 GGX); y: exponent or α; z: f0.
+    /// Per material, its specular lobe (`Brdf::lobe`): x: model (0 none, 1 Phong, 2 Blinn-Phong,
+    /// 3 GGX, 4 Ward); y: exponent or α along the tangent; z: f0; w: α along the bitangent.
     pub(crate) lobes: [[f32; 4]; MAX_MATERIALS],
     /// Per material: the lobe's colour (rgb).
     pub(crate) lobe_colours: [[f32; 4]; MAX_MATERIALS],
 }
 
-/// A material's lobe as `sun.wgsl` `sun_lobe` reads it: `[model, exponent or α, f0, 0]` and
-/// its colour.
+/// A material's lobe as `sun.wgsl` `sun_lobe` reads it, `[model, exponent or α_x, f0, α_y]`,
+/// and its colour.
 fn packed_lobe(material: &FrameMaterial) -> ([f32; 4], [f32; 4]) {
-    let (lobe, colour, f0) = Brdf::from_material(&material.material).directional_lobe();
-    let (model, shape) = match lobe {
-        DirectionalLobe::None => (0.0, 0.0),
-        DirectionalLobe::Phong { exponent } => (1.0, exponent),
-        DirectionalLobe::BlinnPhong { exponent } => (2.0, exponent),
-        DirectionalLobe::Ggx { alpha } => (3.0, alpha),
+    let brdf = Brdf::from_material(&material.material);
+    let (model, x, y) = match brdf.lobe {
+        Lobe::None => (0.0, 0.0, 0.0),
+        Lobe::Phong { exponent } => (1.0, exponent, 0.0),
+        Lobe::BlinnPhong { exponent } => (2.0, exponent, 0.0),
+        Lobe::Ggx { alpha_x, alpha_y } => (3.0, alpha_x, alpha_y),
+        Lobe::Ward { alpha_x, alpha_y } => (4.0, alpha_x, alpha_y),
     };
-    ([model, shape as f32, f0 as f32, 0.0], super::vec4(colour.to_array(), 0.0))
+    ([model, x as f32, brdf.f0 as f32, y as f32], super::vec4(brdf.specular.to_array(), 0.0))
 }
 
 pub(crate) struct SunPass {

@@ -106,7 +106,9 @@ fn sun_direct(p: vec3<f32>, n: vec3<f32>, tangent: vec3<f32>, wo: vec3<f32>, kd:
     }
     let shifted = vec4<f32>(p + n * sun.offset.x, 1.0);
     let colour = sun.lobe_colours[m].rgb;
-    let glossy = sun.lobes[m].x > 0.5 && sun.lobes[m].z > 0.0 && max(colour.r, max(colour.g, colour.b)) > 0.0;
+    // Phong, Blinn-Phong and Ward are weighted by f0; GGX's Schlick term is not zero at f0 = 0.
+    let model = i32(sun.lobes[m].x + 0.5);
+    let glossy = model > 0 && (model == 3 || sun.lobes[m].z > 0.0) && max(colour.r, max(colour.g, colour.b)) > 0.0;
     // The last quarter of the directions (from 16 on) lie evenly round the disc's rim
     // (nodes/src/sun.rs `rim_directions`): where they all agree (all wholly lit or all wholly
     // shadowed), the disc does up to the segment between two of them, and the other maps need

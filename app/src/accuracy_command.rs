@@ -64,7 +64,8 @@ pub struct Row {
     /// The relative RMSE with the reference's own noise taken out: √(rel² − noise²), the
     /// approximation's error against the converged image.
     pub relative_rmse_less_noise: f64,
-    /// The first frame: uploads, relighting and drawing.
+    /// The first frame: uploads, relighting and drawing (with `--edit`, the first offscreen
+    /// frame after the edit's own).
     pub render_ms: f64,
     /// A steady frame (nothing changed): what orbiting the camera costs.
     pub frame_ms: f64,
@@ -104,7 +105,7 @@ pub fn run(args: &AccuracyArgs) -> Result<()> {
     let pinhole =
         PinholeCamera { position: camera.position.into(), target: camera.target.into(), fov_y_deg: camera.fov_y_deg };
 
-    let evaluated = |graph: &Graph| -> Result<(FrameInputs, usize)> {
+    let evaluated_in = |engine: &Arc<lightloom_nodes::engine::Engine>, graph: &Graph| -> Result<(FrameInputs, usize)> {
         let evaluation = evaluate(engine.clone(), graph, frame_request(graph, &output, true), true);
         fail_on_errors(&evaluation, &upstream_of(graph, &output))?;
         let frame = FrameInputs::gather(&evaluation, graph, &output).map_err(|e| anyhow!(e))?;
@@ -117,6 +118,7 @@ pub fn run(args: &AccuracyArgs) -> Result<()> {
         let memory = memory + if frame.sun.is_some() { lightloom_render::SUN_SHADOW_MAP_BYTES } else { 0 };
         Ok((frame, memory))
     };
+    let evaluated = |graph: &Graph| evaluated_in(&engine, graph);
     let frame_of = |graph: &Graph| evaluated(graph).map(|(frame, _)| frame);
     let edits = args
         .edits
@@ -157,15 +159,18 @@ pub fn run(args: &AccuracyArgs) -> Result<()> {
         }
         let (mut edit_ms, mut edit_stages_ms) = (None, None);
         if !edits.is_empty() {
-            // The project drawn as it was, then the edit to its frame on screen.
-            let before = frame_of(&graph)?;
+            // The project drawn as it was, then the edit to its frame on screen, in an engine of
+            // its own: the shared one already holds the edited project's stages (the reference
+            // and earlier rows computed them). Transports still come from the disk cache.
+            let own = Arc::new(args.eval.engine());
+            let (before, _) = evaluated_in(&own, &graph)?;
             for _ in 0..2 {
                 renderer.render(&gpu, &before, &view, size.0, size.1)?;
                 gpu.wait()?;
             }
             graph = edited(&graph)?;
             let start = Instant::now();
-            let after = frame_of(&graph)?;
+            let (after, _) = evaluated_in(&own, &graph)?;
             edit_stages_ms = Some(start.elapsed().as_secs_f64() * 1e3);
             renderer.render(&gpu, &after, &view, size.0, size.1)?;
             gpu.wait()?;

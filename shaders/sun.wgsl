@@ -10,7 +10,8 @@ struct Sun {
     // rgb: radiance x solid angle / direction count (irradiance at normal incidence per
     // direction); w: direction count (0: no separate sun).
     irradiance: vec4<f32>,
-    // x: normal offset against self-shadowing (world units); yzw unused.
+    // x: normal offset against self-shadowing (world units); y: how many of the last directions
+    // lie evenly on the disc's rim (nodes/src/sun.rs `rim_directions`; 0: none); zw unused.
     offset: vec4<f32>,
     // xyz: the disc's axis; w: cos of its angular radius.
     axis: vec4<f32>,
@@ -109,13 +110,12 @@ fn sun_direct(p: vec3<f32>, n: vec3<f32>, tangent: vec3<f32>, wo: vec3<f32>, kd:
     // Phong, Blinn-Phong and Ward are weighted by f0; GGX's Schlick term is not zero at f0 = 0.
     let model = i32(sun.lobes[m].x + 0.5);
     let glossy = model > 0 && (model == 3 || sun.lobes[m].z > 0.0) && max(colour.r, max(colour.g, colour.b)) > 0.0;
-    // The last quarter of the directions (from 16 on) lie evenly round the disc's rim
-    // (nodes/src/sun.rs `rim_directions`): where they all agree (all wholly lit or all wholly
-    // shadowed), the disc does up to the segment between two of them, and the other maps need
-    // not be read (outside penumbrae, nearly everywhere). Below 16 every direction is read.
-    var probes = count;
-    if (count >= 16) {
-        probes = count / 4;
+    // The rim directions first: where they all agree (all wholly lit or all wholly shadowed),
+    // the disc does up to the segment between two of them, and the other maps need not be read
+    // (outside penumbrae, nearly everywhere). Without rim directions every direction is read.
+    var probes = i32(sun.offset.y);
+    if (probes == 0) {
+        probes = count;
     }
     var probe_sum = 0.0;
     for (var j = 0; j < probes; j = j + 1) {

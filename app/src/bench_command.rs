@@ -682,22 +682,18 @@ fn synthetic_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
             };
             let new_environment = changed(glam::DMat3::IDENTITY, key(2))? + prefilter_ms;
             let rotation = changed(glam::DMat3::from_rotation_y(0.7), key(2))?;
-            // The relight reads each vertex's frame (32 B) and f16 visibility cells and writes its
-            // RGB9E5 products and diffuse transfer (16 B), as the GPU kernel stores them.
-            let bytes = 32 + 2 * terms + 4 * terms + 16;
-            let bound = crate::bench_anchors::bandwidth_bound_ms(n, bytes, bandwidth);
             // Ma recomputes every product every frame: its fps is a rotation's edit-to-frame rate.
             let rate = n as f64 / (rotation + steady) / 1e3;
             let ma = crate::bench_anchors::ma_interpolated(terms).map_or(String::new(), |a| a.beside(rate));
-            // The bound is host memory's: it says nothing of the kernel on a GPU's own memory.
-            let bound = match on {
-                lightloom_render::RelightOn::Cpu => {
-                    format!(
-                        "rotation {:.1}× the bandwidth bound ({bound:.1} ms for {bytes} B per vertex); ",
-                        rotation / bound
-                    )
-                }
-                _ => String::new(),
+            // The relight reads each vertex's frame (32 B) and f16 visibility cells and writes its
+            // RGB9E5 products and diffuse transfer (16 B), as the GPU kernel stores them. The bound
+            // is host memory's: it says nothing of the kernel on a GPU's own memory.
+            let bound = if on == lightloom_render::RelightOn::Cpu {
+                let bytes = 32 + 2 * terms + 4 * terms + 16;
+                let ms = crate::bench_anchors::bandwidth_bound_ms(n, bytes, bandwidth);
+                format!("rotation {:.1}× the bandwidth bound ({ms:.1} ms for {bytes} B per vertex); ", rotation / ms)
+            } else {
+                String::new()
             };
             println!(
                 "{label:<24} {:>22} {steady:>14.1}  {bound}rotation to frame {rate:.2} M vertices/s = {ma}",

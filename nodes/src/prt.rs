@@ -68,9 +68,7 @@ pub fn incident_radiance(
     if n == 0 || transport.visibility.is_empty() {
         return Ok(IncidentSh { bands, coeffs: Vec::new() });
     }
-    let light = light_to_bands(light, bands);
-    let gaunt = GauntTable::new(bands, bands, bands);
-    let matrices: Vec<Vec<f64>> = (0..3).map(|c| gaunt.product_matrix(&light.channel(c))).collect();
+    let matrices = product_matrices(light, bands);
     // Column-major `Bᵀ` (3n² × n²): entry (3k + c, j) is (M_c)_kj.
     let product = nalgebra::DMatrix::<f32>::from_fn(3 * n, n, |row, j| matrices[row % 3][(row / 3) * n + j] as f32);
     let receivers = transport.visibility.len() / n;
@@ -89,13 +87,19 @@ pub fn incident_radiance(
     Ok(IncidentSh { bands, coeffs })
 }
 
+/// Per channel the `n² × n²` row-major matrix `(M_c)_kj = Σ_i C_ijk L_ci` of multiplying by
+/// the lighting truncated to `bands`.
+fn product_matrices(light: &ShRgb, bands: usize) -> Vec<Vec<f64>> {
+    let light = light_to_bands(light, bands);
+    let gaunt = GauntTable::new(bands, bands, bands);
+    (0..3).map(|c| gaunt.product_matrix(&light.channel(c))).collect()
+}
+
 /// The plain per-receiver product in double precision, [`incident_radiance`]'s reference.
 #[cfg(test)]
 fn incident_radiance_plain(light: &ShRgb, transport: &ShTransport) -> Vec<f32> {
     let n = transport.bands * transport.bands;
-    let light = light_to_bands(light, transport.bands);
-    let gaunt = GauntTable::new(transport.bands, transport.bands, transport.bands);
-    let matrices: Vec<Vec<f64>> = (0..3).map(|c| gaunt.product_matrix(&light.channel(c))).collect();
+    let matrices = product_matrices(light, transport.bands);
     let mut out = Vec::new();
     for v in transport.visibility.chunks(n) {
         for k in 0..n {

@@ -81,7 +81,7 @@ impl Sun {
 }
 
 /// How many of [`Sun::disc_directions`]'s directions (the last ones) lie evenly on its rim:
-/// a quarter of them from 16 on, none below (`sun.wgsl` tests them first).
+/// a quarter of them from 16 on, none below (the viewport tests them first, told the count).
 pub fn rim_directions(count: usize) -> usize {
     if count >= 16 { count / 4 } else { 0 }
 }

@@ -30,7 +30,7 @@ pub(crate) const SHADER: (&str, &str) = ("sun-depth", include_str!("../../../sha
 pub(crate) struct SunParams {
     /// rgb: radiance × solid angle ÷ direction count; w: direction count.
     pub(crate) irradiance: [f32; 4],
-    /// x: normal offset (world units).
+    /// x: normal offset (world units); y: how many of the last directions lie on the rim.
     pub(crate) offset: [f32; 4],
     /// xyz: the disc's axis; w: cos of its angular radius.
     pub(crate) axis: [f32; 4],
@@ -229,6 +229,7 @@ impl SunPass {
         let share = sun.solid_angle / directions.len().max(1) as f64;
         params.irradiance = super::vec4(sun.radiance.map(|l| l * share), directions.len() as f32);
         params.offset[0] = NORMAL_OFFSET_TEXELS * 2.0 * radius / SHADOW_MAP_SIZE as f32;
+        params.offset[1] = lightloom_nodes::sun::rim_directions(directions.len()) as f32;
         params.axis = [sun.axis[0], sun.axis[1], sun.axis[2], sun.cos_radius as f32];
         for (k, d) in directions.iter().enumerate() {
             let d = Vec3::from(*d);

@@ -283,23 +283,31 @@ mod tests {
         assert!(against_single <= rays / 5000, "{against_single} of {rays} rays differ from single rays");
     }
 
-    /// The AVX2 build of the bundle walk gives the same flags as the portable one.
+    /// The walk with two rays per AVX instruction gives the same flags as the portable one
+    /// (one ray per SSE instruction), on odd and even ray lists, with some rays already marked
+    /// blocked (they must stay blocked and be skipped) and finite and infinite reaches.
     #[test]
     fn avx2_and_portable_bundles_agree() {
         use rand::Rng;
         let scene = RayScene::build(&cluttered_scene());
         let mut rng = test_rng(54);
-        for _ in 0..40 {
+        let mut blocked_total = 0;
+        for case in 0..60 {
             let origin =
                 Vec3A::new(rng.random_range(-3.0..3.0), rng.random_range(0.01..2.0), rng.random_range(-3.0..3.0));
             let directions: Vec<Vec3A> = (0..256).map(|_| random_unit_vector(&mut rng).as_vec3().into()).collect();
-            let rays: Vec<u32> = (0..256).collect();
-            let mut portable = vec![false; 256];
-            scene.bundles.occlude_portable(origin, &directions, &rays, 2.5, &mut portable);
-            let mut dispatched = vec![false; 256];
-            scene.occlude_bundle(origin, &directions, &rays, 2.5, &mut dispatched);
-            assert_eq!(portable, dispatched);
+            let rays: Vec<u32> = (0..256).filter(|_| rng.random_bool(0.7)).collect();
+            let tmax = if case % 2 == 0 { f32::INFINITY } else { rng.random_range(0.2..4.0) };
+            let preset: Vec<bool> = (0..256).map(|_| rng.random_bool(0.1)).collect();
+            let mut portable = preset.clone();
+            scene.bundles.occlude_portable(origin, &directions, &rays, tmax, &mut portable);
+            let mut dispatched = preset.clone();
+            scene.occlude_bundle(origin, &directions, &rays, tmax, &mut dispatched);
+            assert_eq!(portable, dispatched, "case {case}, {} rays", rays.len());
+            assert!(preset.iter().zip(&dispatched).all(|(p, d)| !p || *d), "a preset flag was cleared");
+            blocked_total += dispatched.iter().zip(&preset).filter(|(d, p)| **d && !**p).count();
         }
+        assert!(blocked_total > 1000, "only {blocked_total} rays newly blocked: the cases test too little");
     }
 
     /// A ray from a point exactly on a surface is not blocked by that surface (a hit at

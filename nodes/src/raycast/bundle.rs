@@ -13,6 +13,9 @@ use glam::{Vec3A, Vec4};
 use obvhs::bvh2::Bvh2;
 use obvhs::triangle::Triangle;
 
+#[cfg(target_arch = "x86_64")]
+mod pairs;
+
 /// Four child boxes side by side (one lane each), and what each child is.
 #[derive(Clone, Copy, Debug)]
 struct Node4 {
@@ -110,24 +113,23 @@ impl BundleTree {
     }
 
     /// Sets `blocked[i]` for each ray `i` of `rays` (indices into `directions`) that hits a
-    /// triangle at a distance in `(0, tmax)`. Rays already marked blocked are skipped. Compiled
-    /// for AVX2 too (the same operations, VEX-encoded: the same bits), used where the CPU has it.
+    /// triangle at a distance in `(0, tmax)`. Rays already marked blocked are skipped. Where the
+    /// CPU has AVX2, two rays share each instruction ([`pairs`]); the flags are the same bits.
     pub fn occlude(&self, origin: Vec3A, directions: &[Vec3A], rays: &[u32], tmax: f32, blocked: &mut [bool]) {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU has AVX2 (checked just above).
-            return unsafe { self.occlude_avx2(origin, directions, rays, tmax, blocked) };
+            return unsafe { self.occlude_pairs(origin, directions, rays, tmax, blocked) };
         }
         self.occlude_portable(origin, directions, rays, tmax, blocked);
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    fn occlude_avx2(&self, origin: Vec3A, directions: &[Vec3A], rays: &[u32], tmax: f32, blocked: &mut [bool]) {
-        self.occlude_portable(origin, directions, rays, tmax, blocked);
+    fn occlude_pairs(&self, origin: Vec3A, directions: &[Vec3A], rays: &[u32], tmax: f32, blocked: &mut [bool]) {
+        self.walk::<pairs::Pairs>(origin, directions, rays, tmax, blocked);
     }
 
-    #[inline(always)]
     pub(super) fn occlude_portable(
         &self,
         origin: Vec3A,
@@ -136,6 +138,12 @@ impl BundleTree {
         tmax: f32,
         blocked: &mut [bool],
     ) {
+        self.walk::<OneRay>(origin, directions, rays, tmax, blocked);
+    }
+
+    /// The walk itself, with the per-ray tests of kernel `K`.
+    #[inline(always)]
+    fn walk<K: Kernel>(&self, origin: Vec3A, directions: &[Vec3A], rays: &[u32], tmax: f32, blocked: &mut [bool]) {
         if self.nodes.is_empty() || rays.is_empty() {
             return;
         }
@@ -152,16 +160,19 @@ impl BundleTree {
         lists.extend_from_slice(rays);
         let mut stack: Vec<(u32, u32, u32)> = Vec::with_capacity(64);
         stack.push((0, 0, rays.len() as u32));
-        let (o, far_limit) = ([Vec4::splat(origin.x), Vec4::splat(origin.y), Vec4::splat(origin.z)], Vec4::splat(tmax));
+        let o = [Vec4::splat(origin.x), Vec4::splat(origin.y), Vec4::splat(origin.z)];
         while let Some((index, start, end)) = stack.pop() {
             let (start, end) = (start as usize, end as usize);
-            lists.truncate(end);
             let node = &self.nodes[index as usize];
             // Lanes from the farthest child to the nearest: the nearest is traced first, so its
             // list goes last (on top).
-            let lo = [node.lo[0] - o[0], node.lo[1] - o[1], node.lo[2] - o[2]];
-            let hi = [node.hi[0] - o[0], node.hi[1] - o[1], node.hi[2] - o[2]];
-            let centre = [lo[0] + hi[0], lo[1] + hi[1], lo[2] + hi[2]];
+            let boxes = Boxes {
+                lo: [node.lo[0] - o[0], node.lo[1] - o[1], node.lo[2] - o[2]],
+                hi: [node.hi[0] - o[0], node.hi[1] - o[1], node.hi[2] - o[2]],
+                used: node.used,
+                tmax,
+            };
+            let centre = [boxes.lo[0] + boxes.hi[0], boxes.lo[1] + boxes.hi[1], boxes.lo[2] + boxes.hi[2]];
             let distance = (centre[0] * centre[0] + centre[1] * centre[1] + centre[2] * centre[2]).to_array();
             let mut order = [0usize, 1, 2, 3];
             // Insertion sort of four, farthest first.
@@ -173,31 +184,18 @@ impl BundleTree {
                 }
             }
             // Child lists are written straight into `lists`: lane `l` at `slot[l]`, room for
-            // every parent ray in each.
+            // every parent ray in each. `lists` only grows: what lies past `end` is stale, and
+            // overwritten before it is read.
             let count = end - start;
             let mut slot = [0usize; 4];
             for (rank, &lane) in order.iter().enumerate() {
                 slot[lane] = end + rank * count;
             }
-            lists.resize(end + 4 * count, 0);
-            let mut length = [0usize; 4];
-            for k in start..end {
-                let i = lists[k];
-                if blocked[i as usize] {
-                    continue;
-                }
-                let inv = inverse[i as usize];
-                let (ax, bx) = (lo[0] * inv.x, hi[0] * inv.x);
-                let (ay, by) = (lo[1] * inv.y, hi[1] * inv.y);
-                let (az, bz) = (lo[2] * inv.z, hi[2] * inv.z);
-                let near = ax.min(bx).max(ay.min(by)).max(az.min(bz)).max(Vec4::ZERO);
-                let far = ax.max(bx).min(ay.max(by)).min(az.max(bz)).min(far_limit);
-                let hits = near.cmple(far).bitmask() & node.used;
-                for lane in 0..4 {
-                    lists[slot[lane] + length[lane]] = i;
-                    length[lane] += ((hits >> lane) & 1) as usize;
-                }
+            if lists.len() < end + 4 * count {
+                lists.resize(end + 4 * count, 0);
             }
+            let (parent, children) = lists.split_at_mut(end);
+            let length = K::split(&boxes, &inverse, &parent[start..], children, slot.map(|s| s - end), blocked);
             // Leaves at once (cheap, and what they block leaves the other lists early), then
             // the inner children.
             for lane in 0..4 {
@@ -206,7 +204,7 @@ impl BundleTree {
                     let first = node.child[lane] as usize;
                     let listed = &lists[slot[lane]..slot[lane] + length[lane]];
                     for pack in &self.packs[first..first + packs] {
-                        pack.occlude(origin, directions, listed, tmax, blocked);
+                        K::occlude_pack(pack, origin, directions, listed, tmax, blocked);
                     }
                 }
             }
@@ -217,6 +215,114 @@ impl BundleTree {
             }
         }
     }
+}
+
+/// A node's four child boxes relative to the bundle's origin.
+struct Boxes {
+    lo: [Vec4; 3],
+    hi: [Vec4; 3],
+    /// Which lanes hold a child.
+    used: u32,
+    tmax: f32,
+}
+
+/// The per-ray tests of the walk.
+trait Kernel {
+    /// Appends each unblocked ray of `rays` to the list of every child box it enters within
+    /// `(0, tmax)`: lane `l`'s list starts at `children[slot[l]]`. Returns the lists' lengths.
+    fn split(
+        boxes: &Boxes,
+        inverse: &[Vec3A],
+        rays: &[u32],
+        children: &mut [u32],
+        slot: [usize; 4],
+        blocked: &mut [bool],
+    ) -> [usize; 4];
+
+    /// Marks each unblocked ray of `rays` that hits one of the pack's triangles within `(0, tmax)`.
+    fn occlude_pack(
+        pack: &TrianglePack,
+        origin: Vec3A,
+        directions: &[Vec3A],
+        rays: &[u32],
+        tmax: f32,
+        blocked: &mut [bool],
+    );
+}
+
+/// One ray against four boxes or four triangles per SIMD test.
+struct OneRay;
+
+impl Kernel for OneRay {
+    #[inline(always)]
+    fn split(
+        boxes: &Boxes,
+        inverse: &[Vec3A],
+        rays: &[u32],
+        children: &mut [u32],
+        slot: [usize; 4],
+        blocked: &mut [bool],
+    ) -> [usize; 4] {
+        let (lo, hi, far_limit) = (&boxes.lo, &boxes.hi, Vec4::splat(boxes.tmax));
+        let mut length = [0usize; 4];
+        for &i in rays {
+            if blocked[i as usize] {
+                continue;
+            }
+            let inv = inverse[i as usize];
+            let (ax, bx) = (lo[0] * inv.x, hi[0] * inv.x);
+            let (ay, by) = (lo[1] * inv.y, hi[1] * inv.y);
+            let (az, bz) = (lo[2] * inv.z, hi[2] * inv.z);
+            let near = ax.min(bx).max(ay.min(by)).max(az.min(bz)).max(Vec4::ZERO);
+            let far = ax.max(bx).min(ay.max(by)).min(az.max(bz)).min(far_limit);
+            let hits = near.cmple(far).bitmask() & boxes.used;
+            for lane in 0..4 {
+                children[slot[lane] + length[lane]] = i;
+                length[lane] += ((hits >> lane) & 1) as usize;
+            }
+        }
+        length
+    }
+
+    #[inline(always)]
+    fn occlude_pack(
+        pack: &TrianglePack,
+        origin: Vec3A,
+        directions: &[Vec3A],
+        rays: &[u32],
+        tmax: f32,
+        blocked: &mut [bool],
+    ) {
+        let Some(edges) = pack.edges(origin) else { return };
+        let far_limit = Vec4::splat(tmax);
+        for &i in rays {
+            if blocked[i as usize] {
+                continue;
+            }
+            let d = directions[i as usize];
+            let (x, y, z) = (Vec4::splat(d.x), Vec4::splat(d.y), Vec4::splat(d.z));
+            let [ab, bc, ca] = &edges.planes;
+            let e0 = x * ab[0] + y * ab[1] + z * ab[2];
+            let e1 = x * bc[0] + y * bc[1] + z * bc[2];
+            let e2 = x * ca[0] + y * ca[1] + z * ca[2];
+            // The hit is at t = depth / (e0 + e1 + e2) (the sum is d·normal, scaled alike).
+            let inside = e0.cmpge(Vec4::ZERO) & e1.cmpge(Vec4::ZERO) & e2.cmpge(Vec4::ZERO);
+            let near = edges.depth.cmplt(far_limit * (e0 + e1 + e2));
+            if (inside & near).bitmask() & edges.live != 0 {
+                blocked[i as usize] = true;
+            }
+        }
+    }
+}
+
+/// A pack's triangles seen from one origin: the planes through the origin and each edge,
+/// oriented inwards, and the triangles' depth.
+struct PackEdges {
+    planes: [[Vec4; 3]; 3],
+    /// a·(b×c): the plane's distance from the origin times twice the triangle's area.
+    depth: Vec4,
+    /// Lanes with a triangle whose plane misses the origin.
+    live: u32,
 }
 
 impl TrianglePack {
@@ -232,42 +338,24 @@ impl TrianglePack {
         Self { corners }
     }
 
-    /// The cone test of the pack's triangles against the listed rays from `origin`.
+    /// The pack's edge planes from `origin`, or `None` when no lane can occlude.
     #[inline(always)]
-    fn occlude(&self, origin: Vec3A, directions: &[Vec3A], rays: &[u32], tmax: f32, blocked: &mut [bool]) {
+    fn edges(&self, origin: Vec3A) -> Option<PackEdges> {
         let o = [Vec4::splat(origin.x), Vec4::splat(origin.y), Vec4::splat(origin.z)];
         let [a, b, c] = self.corners.map(|v| [v[0] - o[0], v[1] - o[1], v[2] - o[2]]);
         let cross = |p: [Vec4; 3], q: [Vec4; 3]| {
             [p[1] * q[2] - p[2] * q[1], p[2] * q[0] - p[0] * q[2], p[0] * q[1] - p[1] * q[0]]
         };
         let (ab, bc, ca) = (cross(a, b), cross(b, c), cross(c, a));
-        // a·(b×c) is the plane's distance from the origin times twice the triangle's area: zero
-        // when the origin lies in the plane (t = 0) or the lane is unused, and its sign orients
-        // the edge planes inwards.
+        // a·(b×c) is zero when the origin lies in the plane (t = 0) or the lane is unused, and
+        // its sign orients the edge planes inwards.
         let volume = a[0] * bc[0] + a[1] * bc[1] + a[2] * bc[2];
         let live = (volume.cmpne(Vec4::ZERO) & volume.abs().cmplt(Vec4::INFINITY)).bitmask();
         if live == 0 {
-            return;
+            return None;
         }
         let sign = Vec4::ONE.copysign(volume);
         let orient = |e: [Vec4; 3]| [e[0] * sign, e[1] * sign, e[2] * sign];
-        let (ab, bc, ca, depth) = (orient(ab), orient(bc), orient(ca), volume.abs());
-        let far_limit = Vec4::splat(tmax);
-        for &i in rays {
-            if blocked[i as usize] {
-                continue;
-            }
-            let d = directions[i as usize];
-            let (x, y, z) = (Vec4::splat(d.x), Vec4::splat(d.y), Vec4::splat(d.z));
-            let e0 = x * ab[0] + y * ab[1] + z * ab[2];
-            let e1 = x * bc[0] + y * bc[1] + z * bc[2];
-            let e2 = x * ca[0] + y * ca[1] + z * ca[2];
-            // The hit is at t = depth / (e0 + e1 + e2) (the sum is d·normal, scaled alike).
-            let inside = e0.cmpge(Vec4::ZERO) & e1.cmpge(Vec4::ZERO) & e2.cmpge(Vec4::ZERO);
-            let near = depth.cmplt(far_limit * (e0 + e1 + e2));
-            if (inside & near).bitmask() & live != 0 {
-                blocked[i as usize] = true;
-            }
-        }
+        Some(PackEdges { planes: [orient(ab), orient(bc), orient(ca)], depth: volume.abs(), live })
     }
 }

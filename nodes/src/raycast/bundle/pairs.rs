@@ -1,0 +1,156 @@
+//! The bundle walk's tests with two rays per 8-lane AVX instruction: the first ray in the low
+//! four lanes, the second in the high four, each against the same four boxes or triangles. The
+//! arithmetic is [`super::OneRay`]'s, operation for operation (no fused multiply-adds), so the
+//! flags are the same bits.
+
+use super::{Boxes, Kernel, TrianglePack};
+use glam::{Vec3A, Vec4};
+use std::arch::x86_64::*;
+
+pub(super) struct Pairs;
+
+impl Kernel for Pairs {
+    #[inline(always)]
+    fn split(
+        boxes: &Boxes,
+        inverse: &[Vec3A],
+        rays: &[u32],
+        children: &mut [u32],
+        slot: [usize; 4],
+        blocked: &mut [bool],
+    ) -> [usize; 4] {
+        // SAFETY: `Pairs` is walked only from `BundleTree::occlude_pairs`, where the CPU has AVX2.
+        unsafe { split(boxes, inverse, rays, children, slot, blocked) }
+    }
+
+    #[inline(always)]
+    fn occlude_pack(
+        pack: &TrianglePack,
+        origin: Vec3A,
+        directions: &[Vec3A],
+        rays: &[u32],
+        tmax: f32,
+        blocked: &mut [bool],
+    ) {
+        // SAFETY: as above.
+        unsafe { occlude_pack(pack, origin, directions, rays, tmax, blocked) }
+    }
+}
+
+/// One 4-lane value in both halves.
+#[target_feature(enable = "avx2")]
+#[inline]
+fn both(v: Vec4) -> __m256 {
+    let m: __m128 = v.into();
+    _mm256_set_m128(m, m)
+}
+
+/// `a` in the low four lanes, `b` in the high four.
+#[target_feature(enable = "avx2")]
+#[inline]
+fn halves(a: f32, b: f32) -> __m256 {
+    _mm256_set_m128(_mm_set1_ps(b), _mm_set1_ps(a))
+}
+
+/// The unblocked rays of `rays` two at a time, in order, from `*next` on; a last odd ray
+/// comes alone (`None` second).
+#[inline(always)]
+fn next_pair(rays: &[u32], next: &mut usize, blocked: &[bool]) -> Option<(u32, Option<u32>)> {
+    let mut unblocked = || {
+        while let Some(&i) = rays.get(*next) {
+            *next += 1;
+            if !blocked[i as usize] {
+                return Some(i);
+            }
+        }
+        None
+    };
+    let first = unblocked()?;
+    Some((first, unblocked()))
+}
+
+#[target_feature(enable = "avx2")]
+fn split(
+    boxes: &Boxes,
+    inverse: &[Vec3A],
+    rays: &[u32],
+    children: &mut [u32],
+    slot: [usize; 4],
+    blocked: &[bool],
+) -> [usize; 4] {
+    let lo = [both(boxes.lo[0]), both(boxes.lo[1]), both(boxes.lo[2])];
+    let hi = [both(boxes.hi[0]), both(boxes.hi[1]), both(boxes.hi[2])];
+    let far_limit = _mm256_set1_ps(boxes.tmax);
+    let zero = _mm256_setzero_ps();
+    let mut length = [0usize; 4];
+    let mut next = 0;
+    while let Some((i, second)) = next_pair(rays, &mut next, blocked) {
+        let j = second.unwrap_or(i);
+        let (a, b) = (inverse[i as usize], inverse[j as usize]);
+        let (ix, iy, iz) = (halves(a.x, b.x), halves(a.y, b.y), halves(a.z, b.z));
+        let (px, qx) = (_mm256_mul_ps(lo[0], ix), _mm256_mul_ps(hi[0], ix));
+        let (py, qy) = (_mm256_mul_ps(lo[1], iy), _mm256_mul_ps(hi[1], iy));
+        let (pz, qz) = (_mm256_mul_ps(lo[2], iz), _mm256_mul_ps(hi[2], iz));
+        let near = _mm256_max_ps(
+            _mm256_max_ps(_mm256_max_ps(_mm256_min_ps(px, qx), _mm256_min_ps(py, qy)), _mm256_min_ps(pz, qz)),
+            zero,
+        );
+        let far = _mm256_min_ps(
+            _mm256_min_ps(_mm256_min_ps(_mm256_max_ps(px, qx), _mm256_max_ps(py, qy)), _mm256_max_ps(pz, qz)),
+            far_limit,
+        );
+        let hits = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(near, far)) as u32;
+        for lane in 0..4 {
+            children[slot[lane] + length[lane]] = i;
+            length[lane] += ((hits >> lane) & boxes.used >> lane & 1) as usize;
+        }
+        if second.is_some() {
+            for lane in 0..4 {
+                children[slot[lane] + length[lane]] = j;
+                length[lane] += ((hits >> (lane + 4)) & boxes.used >> lane & 1) as usize;
+            }
+        }
+    }
+    length
+}
+
+#[target_feature(enable = "avx2")]
+fn occlude_pack(
+    pack: &TrianglePack,
+    origin: Vec3A,
+    directions: &[Vec3A],
+    rays: &[u32],
+    tmax: f32,
+    blocked: &mut [bool],
+) {
+    let Some(edges) = pack.edges(origin) else { return };
+    let plane = |k: usize| [both(edges.planes[k][0]), both(edges.planes[k][1]), both(edges.planes[k][2])];
+    let (ab, bc, ca) = (plane(0), plane(1), plane(2));
+    let depth = both(edges.depth);
+    let far_limit = _mm256_set1_ps(tmax);
+    let zero = _mm256_setzero_ps();
+    let mut next = 0;
+    while let Some((i, second)) = next_pair(rays, &mut next, blocked) {
+        let j = second.unwrap_or(i);
+        let (a, b) = (directions[i as usize], directions[j as usize]);
+        let (x, y, z) = (halves(a.x, b.x), halves(a.y, b.y), halves(a.z, b.z));
+        let e0 =
+            _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(x, ab[0]), _mm256_mul_ps(y, ab[1])), _mm256_mul_ps(z, ab[2]));
+        let e1 =
+            _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(x, bc[0]), _mm256_mul_ps(y, bc[1])), _mm256_mul_ps(z, bc[2]));
+        let e2 =
+            _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(x, ca[0]), _mm256_mul_ps(y, ca[1])), _mm256_mul_ps(z, ca[2]));
+        let inside = _mm256_and_ps(
+            _mm256_and_ps(_mm256_cmp_ps::<_CMP_GE_OQ>(e0, zero), _mm256_cmp_ps::<_CMP_GE_OQ>(e1, zero)),
+            _mm256_cmp_ps::<_CMP_GE_OQ>(e2, zero),
+        );
+        // The hit is at t = depth / (e0 + e1 + e2), as in `OneRay`.
+        let sum = _mm256_add_ps(_mm256_add_ps(e0, e1), e2);
+        let near = _mm256_cmp_ps::<_CMP_LT_OQ>(depth, _mm256_mul_ps(far_limit, sum));
+        let mask = _mm256_movemask_ps(_mm256_and_ps(inside, near)) as u32;
+        blocked[i as usize] |= mask & edges.live != 0;
+        if second.is_some() {
+            blocked[j as usize] |= (mask >> 4) & edges.live != 0;
+        }
+    }
+}

@@ -174,15 +174,7 @@ impl BundleTree {
             };
             let centre = [boxes.lo[0] + boxes.hi[0], boxes.lo[1] + boxes.hi[1], boxes.lo[2] + boxes.hi[2]];
             let distance = (centre[0] * centre[0] + centre[1] * centre[1] + centre[2] * centre[2]).to_array();
-            let mut order = [0usize, 1, 2, 3];
-            // Insertion sort of four, farthest first.
-            for k in 1..4 {
-                let mut j = k;
-                while j > 0 && distance[order[j - 1]] < distance[order[j]] {
-                    order.swap(j - 1, j);
-                    j -= 1;
-                }
-            }
+            let order = farthest_first(distance);
             // Child lists are written straight into `lists`: lane `l` at `slot[l]`, room for
             // every parent ray in each. `lists` only grows: what lies past `end` is stale, and
             // overwritten before it is read.
@@ -215,6 +207,21 @@ impl BundleTree {
             }
         }
     }
+}
+
+/// The lanes `0..4` ordered by decreasing `distance` (non-negative): a sorting network on
+/// keys that hold a distance's bits with the lane in their lowest two (ties and the dropped
+/// bits only reorder nearly equal children), without the branches an insertion sort
+/// mispredicts.
+#[inline(always)]
+fn farthest_first(distance: [f32; 4]) -> [usize; 4] {
+    let mut key: [u32; 4] = std::array::from_fn(|lane| (distance[lane].to_bits() & !3) | lane as u32);
+    for (a, b) in [(0, 1), (2, 3), (0, 2), (1, 3), (1, 2)] {
+        let (high, low) = (key[a].max(key[b]), key[a].min(key[b]));
+        key[a] = high;
+        key[b] = low;
+    }
+    key.map(|k| (k & 3) as usize)
 }
 
 /// A node's four child boxes relative to the bundle's origin.

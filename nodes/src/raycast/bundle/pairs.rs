@@ -70,6 +70,7 @@ fn next_pair(rays: &[u32], next: &mut usize, blocked: &[bool]) -> Option<(u32, O
 }
 
 #[target_feature(enable = "avx2")]
+#[inline]
 fn split(
     boxes: &Boxes,
     inverse: &[Vec3A],
@@ -115,6 +116,7 @@ fn split(
 }
 
 #[target_feature(enable = "avx2")]
+#[inline]
 fn occlude_pack(
     pack: &TrianglePack,
     origin: Vec3A,

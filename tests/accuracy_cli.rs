@@ -228,3 +228,20 @@ fn blocker_sphere_shadows_match_the_monte_carlo_reference() {
         assert!(with < 0.8 * without, "{count} spheres: {with} with the spheres, {without} without");
     }
 }
+
+/// An `--edit` of what the rows set themselves (the mode, a coefficient count) would silently
+/// replace every row's value: it is refused, naming the parameter, before any rendering.
+#[test]
+fn an_edit_of_what_the_rows_set_is_refused() {
+    let project = workspace().join("tests/projects/sharp_sun.ron");
+    for edit in ["output.mode=sh_prt", "output.wavelet_terms=80"] {
+        let out = lightloom()
+            .args(["accuracy", project.to_str().unwrap(), "--no-disk-cache", "--edit", edit])
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{edit} was accepted");
+        let param = edit.split('=').next().unwrap();
+        assert!(stderr.contains(&format!("--edit {param}")) && stderr.contains("each row sets"), "{stderr}");
+    }
+}

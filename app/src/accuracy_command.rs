@@ -3,7 +3,7 @@
 //! numbers behind "honest about its error". Errors are over pixels wholly covered by geometry.
 
 use crate::project_commands::{evaluate, fail_on_errors, load, upstream_of};
-use anyhow::{Result, anyhow};
+use anyhow::{Result, anyhow, bail};
 use clap::Args;
 use lightloom_nodes::engine::{CancelToken, Graph};
 use lightloom_nodes::kinds::output::{FrameInputs, SUN, find_output, frame_request, mode_stages};
@@ -125,6 +125,24 @@ pub fn run(args: &AccuracyArgs) -> Result<()> {
         .iter()
         .map(|e| project.parse_override(e).map_err(|e| anyhow!(e.replacen("--set", "--edit", 1))))
         .collect::<Result<Vec<_>>>()?;
+    // What the rows set themselves: an edit of it would silently replace each row's value.
+    let upstream_id = |input: &str| graph.upstream(&output, input).map(|n| n.id.clone());
+    let (scene_id, environment_id, decomposer_id) =
+        (upstream_id("scene"), upstream_id("environment"), upstream_id("square_lights"));
+    let set_by_rows = |node: &str, param: &str| {
+        let is = |id: &Option<String>| id.as_deref() == Some(node);
+        (node == output && ["mode", "wavelet_terms", SUN, "reference_samples"].contains(&param))
+            || (is(&scene_id) && param == "transport_bands")
+            || (is(&environment_id) && param == "sh_bands")
+            || (is(&decomposer_id) && param == "light_count")
+    };
+    if let Some((node, param, _)) = edits.iter().find(|(node, param, _)| set_by_rows(node, param)) {
+        bail!(
+            "--edit {node}.{param}: each row sets {node}.{param} itself (the mode, coefficient counts, sun handling \
+             and reference samples come from --bands, --wavelets, --square-lights, --sun and --samples); edit a \
+             light, material, camera or scene parameter instead"
+        );
+    }
     let edited = |graph: &Graph| -> Result<Graph> {
         let mut graph = graph.clone();
         for (node, param, value) in &edits {
@@ -204,8 +222,8 @@ pub fn run(args: &AccuracyArgs) -> Result<()> {
     let mut measure = |graph: &Graph, mode: &str, coefficients: usize| -> Result<Vec<Row>> {
         suns.iter().map(|&sun| measure_one(graph, mode, coefficients, sun)).collect()
     };
-    let scene = graph.upstream(&output, "scene").map(|n| n.id.clone()).ok_or_else(|| anyhow!("no scene"))?;
-    let environment = graph.upstream(&output, "environment").map(|n| n.id.clone());
+    let scene = scene_id.clone().ok_or_else(|| anyhow!("no scene"))?;
+    let environment = environment_id.clone();
     let mut rows = Vec::new();
     let mut irradiance = base.clone();
     irradiance.set_param(&output, "mode", ParamValue::Choice("sh_irradiance".into()))?;
@@ -227,7 +245,7 @@ pub fn run(args: &AccuracyArgs) -> Result<()> {
             rows.extend(measure(&g, mode, terms)?);
         }
     }
-    if let Some(decomposer) = graph.upstream(&output, "square_lights").map(|n| n.id.clone()) {
+    if let Some(decomposer) = decomposer_id.clone() {
         for &k in &args.square_lights {
             let mut g = base.clone();
             g.set_param(&output, "mode", ParamValue::Choice("rsl".into()))?;

@@ -22,6 +22,22 @@ struct MeshVertex {
 };
 
 const PI: f32 = 3.14159265358979;
+
+// The unit tangent of the frame [t, n x t, n] at unit normal `n`: `tangent` made orthogonal to
+// `n`, or, where that leaves nothing (a tangent along the normal, or interpolated tangents that
+// cancel), glam's `any_orthonormal_vector(n)` (Duff et al. 2017), as the Monte Carlo reference
+// and the CPU shading take it (nodes/src/reference.rs, nodes/src/mesh.rs).
+fn frame_tangent(n: vec3<f32>, tangent: vec3<f32>) -> vec3<f32> {
+    let t = tangent - n * dot(n, tangent);
+    let length2 = dot(t, t);
+    if (length2 > 0.0 && length2 < 3.0e38) {
+        return t * inverseSqrt(length2);
+    }
+    // glam's signum: -1 for a negative z, -0 included.
+    let sign = select(1.0, -1.0, (bitcast<u32>(n.z) & 0x80000000u) != 0u);
+    let a = -1.0 / (sign + n.z);
+    return vec3<f32>(n.x * n.y * a, sign + n.y * n.y * a, -n.y);
+}
 const MAX_COEFFS: i32 = 64;
 
 // One step in l of the normalised associated-Legendre recurrence at fixed m (l > m): from

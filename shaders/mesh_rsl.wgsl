@@ -127,7 +127,7 @@ fn vs_main(v: MeshVertex, @builtin(vertex_index) index: u32) -> VertexOut {
     out.tangent = v.tangent;
     out.albedo = rp.albedo[m].rgb * v.color;
     let n = normalize(v.normal);
-    let t = normalize(v.tangent - n * dot(n, v.tangent));
+    let t = frame_tangent(n, v.tangent);
     let b = cross(n, t);
     let view = normalize(globals.camera_pos.xyz - v.position);
     let wo = vec3<f32>(dot(view, t), dot(view, b), dot(view, n));

@@ -88,7 +88,7 @@ fn specular_at(rows: TableRows, c: u32) -> f32 {
 // The view direction in the frame [t, n x t, n].
 fn local_view(position: vec3<f32>, normal: vec3<f32>, tangent: vec3<f32>) -> vec3<f32> {
     let n = normalize(normal);
-    let t = normalize(tangent - n * dot(n, tangent));
+    let t = frame_tangent(n, tangent);
     let b = cross(n, t);
     let view = normalize(globals.camera_pos.xyz - position);
     return vec3<f32>(dot(view, t), dot(view, b), dot(view, n));

@@ -68,12 +68,7 @@ fn sun_lobe(m: u32, n: vec3<f32>, tangent: vec3<f32>, wi: vec3<f32>, wo: vec3<f3
         return lobe.z * (lobe.y + 8.0) / (8.0 * SUN_PI) * pow(max(dot(n, h_world), 0.0), lobe.y);
     }
     // The local frame [t, n x t, n] (as the reference and the wavelet tables take it).
-    var t = tangent - n * dot(n, tangent);
-    if (dot(t, t) < 1e-12) {
-        t = select(vec3<f32>(1.0, 0.0, 0.0), vec3<f32>(0.0, 1.0, 0.0), abs(n.x) > 0.9);
-        t = t - n * dot(n, t);
-    }
-    t = normalize(t);
+    let t = frame_tangent(n, tangent);
     let b = cross(n, t);
     let h = vec3<f32>(dot(h_world, t), dot(h_world, b), dot(h_world, n));
     let ax = lobe.y;

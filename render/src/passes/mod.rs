@@ -360,6 +360,9 @@ pub(crate) fn stage_value<T: StageType>(keyed: &Keyed) -> Result<&T, RenderError
 }
 
 #[cfg(test)]
+mod common_tests;
+
+#[cfg(test)]
 mod layout_tests {
     use super::*;
     use wgpu::naga;

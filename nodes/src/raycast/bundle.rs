@@ -127,7 +127,8 @@ impl BundleTree {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     fn occlude_pairs(&self, origin: Vec3A, directions: &[Vec3A], rays: &[u32], tmax: f32, blocked: &mut [bool]) {
-        self.walk::<pairs::Pairs>(origin, directions, rays, tmax, blocked);
+        // SAFETY: this function runs only where the CPU has AVX2, all that `Pairs` needs.
+        unsafe { self.walk::<pairs::Pairs>(origin, directions, rays, tmax, blocked) };
     }
 
     pub(super) fn occlude_portable(
@@ -138,12 +139,23 @@ impl BundleTree {
         tmax: f32,
         blocked: &mut [bool],
     ) {
-        self.walk::<OneRay>(origin, directions, rays, tmax, blocked);
+        // SAFETY: `OneRay` needs only the target's baseline features.
+        unsafe { self.walk::<OneRay>(origin, directions, rays, tmax, blocked) };
     }
 
     /// The walk itself, with the per-ray tests of kernel `K`.
+    ///
+    /// # Safety
+    /// The CPU has the features `K` is compiled for (see [`Kernel`]).
     #[inline(always)]
-    fn walk<K: Kernel>(&self, origin: Vec3A, directions: &[Vec3A], rays: &[u32], tmax: f32, blocked: &mut [bool]) {
+    unsafe fn walk<K: Kernel>(
+        &self,
+        origin: Vec3A,
+        directions: &[Vec3A],
+        rays: &[u32],
+        tmax: f32,
+        blocked: &mut [bool],
+    ) {
         if self.nodes.is_empty() || rays.is_empty() {
             return;
         }
@@ -164,8 +176,6 @@ impl BundleTree {
         while let Some((index, start, end)) = stack.pop() {
             let (start, end) = (start as usize, end as usize);
             let node = &self.nodes[index as usize];
-            // Lanes from the farthest child to the nearest: the nearest is traced first, so its
-            // list goes last (on top).
             let boxes = Boxes {
                 lo: [node.lo[0] - o[0], node.lo[1] - o[1], node.lo[2] - o[2]],
                 hi: [node.hi[0] - o[0], node.hi[1] - o[1], node.hi[2] - o[2]],
@@ -174,6 +184,8 @@ impl BundleTree {
             };
             let centre = [boxes.lo[0] + boxes.hi[0], boxes.lo[1] + boxes.hi[1], boxes.lo[2] + boxes.hi[2]];
             let distance = (centre[0] * centre[0] + centre[1] * centre[1] + centre[2] * centre[2]).to_array();
+            // Lanes from the farthest child to the nearest: the nearest is traced first, so its
+            // list goes last (on top).
             let order = farthest_first(distance);
             // Child lists are written straight into `lists`: lane `l` at `slot[l]`, room for
             // every parent ray in each. `lists` only grows: what lies past `end` is stale, and
@@ -187,7 +199,9 @@ impl BundleTree {
                 lists.resize(end + 4 * count, 0);
             }
             let (parent, children) = lists.split_at_mut(end);
-            let length = K::split(&boxes, &inverse, &parent[start..], children, slot.map(|s| s - end), blocked);
+            // SAFETY: the caller's promise.
+            let length =
+                unsafe { K::split(&boxes, &inverse, &parent[start..], children, slot.map(|s| s - end), blocked) };
             // Leaves at once (cheap, and what they block leaves the other lists early), then
             // the inner children.
             for lane in 0..4 {
@@ -196,7 +210,8 @@ impl BundleTree {
                     let first = node.child[lane] as usize;
                     let listed = &lists[slot[lane]..slot[lane] + length[lane]];
                     for pack in &self.packs[first..first + packs] {
-                        K::occlude_pack(pack, origin, directions, listed, tmax, blocked);
+                        // SAFETY: the caller's promise.
+                        unsafe { K::occlude_pack(pack, origin, directions, listed, tmax, blocked) };
                     }
                 }
             }
@@ -215,6 +230,7 @@ impl BundleTree {
 /// mispredicts.
 #[inline(always)]
 fn farthest_first(distance: [f32; 4]) -> [usize; 4] {
+    debug_assert!(distance.iter().all(|d| *d >= 0.0), "{distance:?}: keys need non-negative distances");
     let mut key: [u32; 4] = std::array::from_fn(|lane| (distance[lane].to_bits() & !3) | lane as u32);
     for (a, b) in [(0, 1), (2, 3), (0, 2), (1, 3), (1, 2)] {
         let (high, low) = (key[a].max(key[b]), key[a].min(key[b]));
@@ -233,11 +249,17 @@ struct Boxes {
     tmax: f32,
 }
 
-/// The per-ray tests of the walk.
+/// The per-ray tests of the walk. An implementation may be compiled for CPU features beyond
+/// the target's baseline (`Pairs`: AVX2), hence `unsafe`: its caller promises the CPU has them.
 trait Kernel {
     /// Appends each unblocked ray of `rays` to the list of every child box it enters within
-    /// `(0, tmax)`: lane `l`'s list starts at `children[slot[l]]`. Returns the lists' lengths.
-    fn split(
+    /// `[0, tmax]`: lane `l`'s list is written from `children[slot[l]]` on, over as many entries
+    /// as `rays` has (scratch: what lies past a list's length is overwritten). Returns the
+    /// lists' lengths.
+    ///
+    /// # Safety
+    /// The CPU has the features the implementation is compiled for.
+    unsafe fn split(
         boxes: &Boxes,
         inverse: &[Vec3A],
         rays: &[u32],
@@ -247,7 +269,10 @@ trait Kernel {
     ) -> [usize; 4];
 
     /// Marks each unblocked ray of `rays` that hits one of the pack's triangles within `(0, tmax)`.
-    fn occlude_pack(
+    ///
+    /// # Safety
+    /// As for [`Kernel::split`].
+    unsafe fn occlude_pack(
         pack: &TrianglePack,
         origin: Vec3A,
         directions: &[Vec3A],
@@ -262,7 +287,7 @@ struct OneRay;
 
 impl Kernel for OneRay {
     #[inline(always)]
-    fn split(
+    unsafe fn split(
         boxes: &Boxes,
         inverse: &[Vec3A],
         rays: &[u32],
@@ -292,7 +317,7 @@ impl Kernel for OneRay {
     }
 
     #[inline(always)]
-    fn occlude_pack(
+    unsafe fn occlude_pack(
         pack: &TrianglePack,
         origin: Vec3A,
         directions: &[Vec3A],
@@ -364,5 +389,33 @@ impl TrianglePack {
         let sign = Vec4::ONE.copysign(volume);
         let orient = |e: [Vec4; 3]| [e[0] * sign, e[1] * sign, e[2] * sign];
         Some(PackEdges { planes: [orient(ab), orient(bc), orient(ca)], depth: volume.abs(), live })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::farthest_first;
+
+    /// The sorting network orders all 256 arrangements of four distances drawn from four values
+    /// (every permutation, and every tie) farthest first, each lane once.
+    #[test]
+    fn children_are_ordered_farthest_first() {
+        let values = [0.5f32, 3.0, 17.25, 1e6];
+        for a in 0..4 {
+            for b in 0..4 {
+                for c in 0..4 {
+                    for d in 0..4 {
+                        let lanes = [a, b, c, d];
+                        let distance = lanes.map(|k| values[k]);
+                        let order = farthest_first(distance);
+                        let mut seen = order;
+                        seen.sort();
+                        assert_eq!(seen, [0, 1, 2, 3], "{distance:?} gave {order:?}");
+                        let sorted: Vec<f32> = order.iter().map(|&l| distance[l]).collect();
+                        assert!(sorted.windows(2).all(|w| w[0] >= w[1]), "{distance:?} gave {order:?}");
+                    }
+                }
+            }
+        }
     }
 }

@@ -11,7 +11,7 @@ pub(super) struct Pairs;
 
 impl Kernel for Pairs {
     #[inline(always)]
-    fn split(
+    unsafe fn split(
         boxes: &Boxes,
         inverse: &[Vec3A],
         rays: &[u32],
@@ -19,12 +19,12 @@ impl Kernel for Pairs {
         slot: [usize; 4],
         blocked: &mut [bool],
     ) -> [usize; 4] {
-        // SAFETY: `Pairs` is walked only from `BundleTree::occlude_pairs`, where the CPU has AVX2.
+        // SAFETY: the caller promises AVX2 (`Kernel`'s contract).
         unsafe { split(boxes, inverse, rays, children, slot, blocked) }
     }
 
     #[inline(always)]
-    fn occlude_pack(
+    unsafe fn occlude_pack(
         pack: &TrianglePack,
         origin: Vec3A,
         directions: &[Vec3A],
@@ -83,7 +83,14 @@ fn split(
     let hi = [both(boxes.hi[0]), both(boxes.hi[1]), both(boxes.hi[2])];
     let far_limit = _mm256_set1_ps(boxes.tmax);
     let zero = _mm256_setzero_ps();
-    let mut length = [0usize; 4];
+    let used = boxes.used | boxes.used << 4;
+    // Each list's end as a pointer: the lengths stay in registers and the writes unchecked
+    // (the checks and the spilled lengths were most of this loop).
+    assert!(slot.iter().all(|&s| s + rays.len() <= children.len()), "a child list could overflow its room");
+    let base = children.as_mut_ptr();
+    // SAFETY: each `slot[l] + rays.len()` is within `children` (asserted above).
+    let start = slot.map(|s| unsafe { base.add(s) });
+    let mut end = start;
     let mut next = 0;
     while let Some((i, second)) = next_pair(rays, &mut next, blocked) {
         let j = second.unwrap_or(i);
@@ -100,19 +107,25 @@ fn split(
             _mm256_min_ps(_mm256_min_ps(_mm256_max_ps(px, qx), _mm256_max_ps(py, qy)), _mm256_max_ps(pz, qz)),
             far_limit,
         );
-        let hits = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(near, far)) as u32;
-        for lane in 0..4 {
-            children[slot[lane] + length[lane]] = i;
-            length[lane] += ((hits >> lane) & boxes.used >> lane & 1) as usize;
-        }
-        if second.is_some() {
+        let hits = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(near, far)) as u32 & used;
+        // SAFETY: a list holds at most one entry per ray of `rays`, and each ray is written
+        // once (at the list's end, which advances only past the rays it keeps), so every write
+        // lands below `start[l] + rays.len()`.
+        unsafe {
             for lane in 0..4 {
-                children[slot[lane] + length[lane]] = j;
-                length[lane] += ((hits >> (lane + 4)) & boxes.used >> lane & 1) as usize;
+                *end[lane] = i;
+                end[lane] = end[lane].add((hits >> lane & 1) as usize);
+            }
+            if second.is_some() {
+                for lane in 0..4 {
+                    *end[lane] = j;
+                    end[lane] = end[lane].add((hits >> (lane + 4) & 1) as usize);
+                }
             }
         }
     }
-    length
+    // SAFETY: `end[l]` lies in the same allocation as `start[l]`, at or after it.
+    std::array::from_fn(|lane| unsafe { end[lane].offset_from(start[lane]) } as usize)
 }
 
 #[target_feature(enable = "avx2")]

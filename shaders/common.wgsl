@@ -23,10 +23,11 @@ struct MeshVertex {
 
 const PI: f32 = 3.14159265358979;
 
-// The unit tangent of the frame [t, n x t, n] at unit normal `n`: `tangent` made orthogonal to
-// `n`, or, where that leaves nothing (a tangent along the normal, or interpolated tangents that
-// cancel), glam's `any_orthonormal_vector(n)` (Duff et al. 2017), as the Monte Carlo reference
-// and the CPU shading take it (nodes/src/reference.rs, nodes/src/mesh.rs).
+// The unit tangent of the frame [t, n x t, n] at unit normal `n`, by the rule of the Monte
+// Carlo reference and the CPU shading (nodes/src/rsl/shade.rs `shading_frame`): `tangent` made
+// orthogonal to `n`, or, where that leaves a zero vector (interpolated tangents that cancel),
+// glam's `any_orthonormal_vector(n)` (Duff et al. 2017). Lengths beyond f32's square range
+// (|t| above about 1e19 or below 1e-19) also take the fallback, where f64 would not.
 fn frame_tangent(n: vec3<f32>, tangent: vec3<f32>) -> vec3<f32> {
     let t = tangent - n * dot(n, tangent);
     let length2 = dot(t, t);
@@ -38,6 +39,7 @@ fn frame_tangent(n: vec3<f32>, tangent: vec3<f32>) -> vec3<f32> {
     let a = -1.0 / (sign + n.z);
     return vec3<f32>(n.x * n.y * a, sign + n.y * n.y * a, -n.y);
 }
+
 const MAX_COEFFS: i32 = 64;
 
 // One step in l of the normalised associated-Legendre recurrence at fixed m (l > m): from

@@ -229,19 +229,31 @@ fn blocker_sphere_shadows_match_the_monte_carlo_reference() {
     }
 }
 
-/// An `--edit` of what the rows set themselves (the mode, a coefficient count) would silently
-/// replace every row's value: it is refused, naming the parameter, before any rendering.
+/// An `--edit` of what the rows set themselves (the mode, a coefficient count, the reference's
+/// samples, the sun's handling when `--sun` lists it) would silently replace every row's value:
+/// it is refused, naming the parameter and the flag that sets it, before anything is computed.
 #[test]
 fn an_edit_of_what_the_rows_set_is_refused() {
     let project = workspace().join("tests/projects/sharp_sun.ron");
-    for edit in ["output.mode=sh_prt", "output.wavelet_terms=80"] {
+    let cases = [
+        ("output.mode=sh_prt", "one per mode"),
+        ("output.wavelet_terms=80", "--wavelets"),
+        ("output.reference_samples=16", "--samples"),
+        ("scene.transport_bands=4", "--bands"),
+        ("sky.sh_bands=4", "--bands"),
+    ];
+    let with_sun = ["--sun", "separate,in_environment"];
+    let refused = |edit: &str, extra: &[&str]| {
         let out = lightloom()
             .args(["accuracy", project.to_str().unwrap(), "--no-disk-cache", "--edit", edit])
+            .args(extra)
             .output()
             .unwrap();
-        let stderr = String::from_utf8_lossy(&out.stderr);
-        assert!(!out.status.success(), "{edit} was accepted");
+        (!out.status.success()).then(|| String::from_utf8_lossy(&out.stderr).into_owned())
+    };
+    for (edit, flag) in cases.into_iter().chain([("output.sun=in_environment", "--sun")]) {
+        let stderr = refused(edit, &with_sun).unwrap_or_else(|| panic!("{edit} was accepted"));
         let param = edit.split('=').next().unwrap();
-        assert!(stderr.contains(&format!("--edit {param}")) && stderr.contains("each row sets"), "{stderr}");
+        assert!(stderr.contains(&format!("--edit {param}: each row sets")) && stderr.contains(flag), "{stderr}");
     }
 }

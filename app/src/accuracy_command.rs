@@ -96,6 +96,37 @@ pub struct Report {
 pub fn run(args: &AccuracyArgs) -> Result<()> {
     let (project, graph) = load(&args.project, &args.eval.overrides)?;
     let output = find_output(&graph, project.render.output_node()).map_err(|e| anyhow!(e))?.id.clone();
+    let edits = args
+        .edits
+        .iter()
+        .map(|e| project.parse_override(e).map_err(|e| anyhow!(e.replacen("--set", "--edit", 1))))
+        .collect::<Result<Vec<_>>>()?;
+    // What the rows set themselves, and the flag that sets it: an edit of it would silently
+    // replace each row's value.
+    let upstream_id = |input: &str| graph.upstream(&output, input).map(|n| n.id.clone());
+    let (scene_id, environment_id, decomposer_id) =
+        (upstream_id("scene"), upstream_id("environment"), upstream_id("square_lights"));
+    let set_by_rows = |node: &str, param: &str| -> Option<&'static str> {
+        let is = |id: &Option<String>| id.as_deref() == Some(node);
+        match param {
+            "mode" if node == output => Some("the rows themselves (one per mode)"),
+            "wavelet_terms" if node == output => Some("--wavelets"),
+            "reference_samples" if node == output => Some("--samples"),
+            SUN if node == output && !args.sun.is_empty() => Some("--sun"),
+            "transport_bands" if is(&scene_id) => Some("--bands"),
+            "sh_bands" if is(&environment_id) => Some("--bands"),
+            "light_count" if is(&decomposer_id) => Some("--square-lights"),
+            _ => None,
+        }
+    };
+    for (node, param, _) in &edits {
+        if let Some(flag) = set_by_rows(node, param) {
+            bail!(
+                "--edit {node}.{param}: each row sets {node}.{param} itself (from {flag}); edit a light, material, \
+                 camera or scene parameter instead"
+            );
+        }
+    }
     let camera = project.camera(args.camera.as_deref()).map_err(|e| anyhow!(e))?;
     let engine = Arc::new(args.eval.engine());
     let size = (args.width, args.height);
@@ -120,29 +151,6 @@ pub fn run(args: &AccuracyArgs) -> Result<()> {
     };
     let evaluated = |graph: &Graph| evaluated_in(&engine, graph);
     let frame_of = |graph: &Graph| evaluated(graph).map(|(frame, _)| frame);
-    let edits = args
-        .edits
-        .iter()
-        .map(|e| project.parse_override(e).map_err(|e| anyhow!(e.replacen("--set", "--edit", 1))))
-        .collect::<Result<Vec<_>>>()?;
-    // What the rows set themselves: an edit of it would silently replace each row's value.
-    let upstream_id = |input: &str| graph.upstream(&output, input).map(|n| n.id.clone());
-    let (scene_id, environment_id, decomposer_id) =
-        (upstream_id("scene"), upstream_id("environment"), upstream_id("square_lights"));
-    let set_by_rows = |node: &str, param: &str| {
-        let is = |id: &Option<String>| id.as_deref() == Some(node);
-        (node == output && ["mode", "wavelet_terms", SUN, "reference_samples"].contains(&param))
-            || (is(&scene_id) && param == "transport_bands")
-            || (is(&environment_id) && param == "sh_bands")
-            || (is(&decomposer_id) && param == "light_count")
-    };
-    if let Some((node, param, _)) = edits.iter().find(|(node, param, _)| set_by_rows(node, param)) {
-        bail!(
-            "--edit {node}.{param}: each row sets {node}.{param} itself (the mode, coefficient counts, sun handling \
-             and reference samples come from --bands, --wavelets, --square-lights, --sun and --samples); edit a \
-             light, material, camera or scene parameter instead"
-        );
-    }
     let edited = |graph: &Graph| -> Result<Graph> {
         let mut graph = graph.clone();
         for (node, param, value) in &edits {

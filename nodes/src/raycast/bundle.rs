@@ -159,6 +159,7 @@ impl BundleTree {
         if self.nodes.is_empty() || rays.is_empty() {
             return;
         }
+        assert_eq!(blocked.len(), directions.len(), "one flag per direction");
         // A zero component would make 0·∞ in the slab test: a tiny one gives the same slabs.
         let mut inverse = vec![Vec3A::ZERO; directions.len()];
         for &i in rays {
@@ -250,7 +251,9 @@ struct Boxes {
 }
 
 /// The per-ray tests of the walk. An implementation may be compiled for CPU features beyond
-/// the target's baseline (`Pairs`: AVX2), hence `unsafe`: its caller promises the CPU has them.
+/// the target's baseline (`Pairs`: AVX2), and may index without checks, hence `unsafe`: its
+/// caller promises the CPU has those features, and that every listed ray indexes `inverse`,
+/// `directions` and `blocked` (the walk checks each against `directions` before it begins).
 trait Kernel {
     /// Appends each unblocked ray of `rays` to the list of every child box it enters within
     /// `[0, tmax]`: lane `l`'s list is written from `children[slot[l]]` on, over as many entries
@@ -258,7 +261,8 @@ trait Kernel {
     /// lists' lengths.
     ///
     /// # Safety
-    /// The CPU has the features the implementation is compiled for.
+    /// The CPU has the features the implementation is compiled for, and every index in `rays`
+    /// is below `inverse.len()` and `blocked.len()`.
     unsafe fn split(
         boxes: &Boxes,
         inverse: &[Vec3A],
@@ -271,7 +275,7 @@ trait Kernel {
     /// Marks each unblocked ray of `rays` that hits one of the pack's triangles within `(0, tmax)`.
     ///
     /// # Safety
-    /// As for [`Kernel::split`].
+    /// As for [`Kernel::split`], with `directions` for `inverse`.
     unsafe fn occlude_pack(
         pack: &TrianglePack,
         origin: Vec3A,

@@ -52,6 +52,23 @@ fn halves(a: f32, b: f32) -> __m256 {
     _mm256_set_m128(_mm_set1_ps(b), _mm_set1_ps(a))
 }
 
+/// `values[i]`, unchecked: the walk checked every listed ray against `directions` before it
+/// began, and `inverse` and `blocked` are as long (`Kernel`'s contract).
+#[inline(always)]
+fn at<T: Copy>(values: &[T], i: u32) -> T {
+    debug_assert!((i as usize) < values.len());
+    // SAFETY: see above.
+    unsafe { *values.get_unchecked(i as usize) }
+}
+
+/// Sets `blocked[i]` when `hit`, unchecked as in [`at`].
+#[inline(always)]
+fn mark(blocked: &mut [bool], i: u32, hit: bool) {
+    debug_assert!((i as usize) < blocked.len());
+    // SAFETY: as in `at`.
+    unsafe { *blocked.get_unchecked_mut(i as usize) |= hit };
+}
+
 /// The unblocked rays of `rays` two at a time, in order, from `*next` on; a last odd ray
 /// comes alone (`None` second).
 #[inline(always)]
@@ -59,7 +76,7 @@ fn next_pair(rays: &[u32], next: &mut usize, blocked: &[bool]) -> Option<(u32, O
     let mut unblocked = || {
         while let Some(&i) = rays.get(*next) {
             *next += 1;
-            if !blocked[i as usize] {
+            if !at(blocked, i) {
                 return Some(i);
             }
         }
@@ -94,7 +111,7 @@ fn split(
     let mut next = 0;
     while let Some((i, second)) = next_pair(rays, &mut next, blocked) {
         let j = second.unwrap_or(i);
-        let (a, b) = (inverse[i as usize], inverse[j as usize]);
+        let (a, b) = (at(inverse, i), at(inverse, j));
         let (ix, iy, iz) = (halves(a.x, b.x), halves(a.y, b.y), halves(a.z, b.z));
         let (px, qx) = (_mm256_mul_ps(lo[0], ix), _mm256_mul_ps(hi[0], ix));
         let (py, qy) = (_mm256_mul_ps(lo[1], iy), _mm256_mul_ps(hi[1], iy));
@@ -147,7 +164,7 @@ fn occlude_pack(
     let mut next = 0;
     while let Some((i, second)) = next_pair(rays, &mut next, blocked) {
         let j = second.unwrap_or(i);
-        let (a, b) = (directions[i as usize], directions[j as usize]);
+        let (a, b) = (at(directions, i), at(directions, j));
         let (x, y, z) = (halves(a.x, b.x), halves(a.y, b.y), halves(a.z, b.z));
         let e0 =
             _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(x, ab[0]), _mm256_mul_ps(y, ab[1])), _mm256_mul_ps(z, ab[2]));
@@ -163,9 +180,9 @@ fn occlude_pack(
         let sum = _mm256_add_ps(_mm256_add_ps(e0, e1), e2);
         let near = _mm256_cmp_ps::<_CMP_LT_OQ>(depth, _mm256_mul_ps(far_limit, sum));
         let mask = _mm256_movemask_ps(_mm256_and_ps(inside, near)) as u32;
-        blocked[i as usize] |= mask & edges.live != 0;
+        mark(blocked, i, mask & edges.live != 0);
         if second.is_some() {
-            blocked[j as usize] |= (mask >> 4) & edges.live != 0;
+            mark(blocked, j, (mask >> 4) & edges.live != 0);
         }
     }
 }

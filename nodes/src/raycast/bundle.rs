@@ -216,11 +216,18 @@ impl BundleTree {
                     }
                 }
             }
+            // Without a branch per lane (whether a child is entered is data, and mispredicts):
+            // every inner child is written, and the stack grows past those that rays enter.
+            stack.reserve(4);
+            let top = stack.len();
+            let spare = stack.spare_capacity_mut();
+            let mut pushed = 0;
             for lane in order {
-                if node.packs[lane] == 0 && length[lane] > 0 {
-                    stack.push((node.child[lane], slot[lane] as u32, (slot[lane] + length[lane]) as u32));
-                }
+                spare[pushed].write((node.child[lane], slot[lane] as u32, (slot[lane] + length[lane]) as u32));
+                pushed += (node.packs[lane] == 0 && length[lane] > 0) as usize;
             }
+            // SAFETY: the first `pushed` spare entries were just written.
+            unsafe { stack.set_len(top + pushed) };
         }
     }
 }

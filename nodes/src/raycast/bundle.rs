@@ -205,15 +205,16 @@ impl BundleTree {
                 unsafe { K::split(&boxes, &inverse, &parent[start..], children, slot.map(|s| s - end), blocked) };
             // Leaves at once (cheap, and what they block leaves the other lists early), then
             // the inner children.
-            for lane in 0..4 {
-                let packs = node.packs[lane] as usize;
-                if packs > 0 && length[lane] > 0 {
-                    let first = node.child[lane] as usize;
-                    let listed = &lists[slot[lane]..slot[lane] + length[lane]];
-                    for pack in &self.packs[first..first + packs] {
-                        // SAFETY: the caller's promise.
-                        unsafe { K::occlude_pack(pack, origin, directions, listed, tmax, blocked) };
-                    }
+            // The leaves rays enter, as a mask (one branch per leaf, not two per lane).
+            let mut leaves = (0..4).fold(0u32, |m, l| m | u32::from(node.packs[l] > 0 && length[l] > 0) << l);
+            while leaves != 0 {
+                let lane = leaves.trailing_zeros() as usize;
+                leaves &= leaves - 1;
+                let first = node.child[lane] as usize;
+                let listed = &lists[slot[lane]..slot[lane] + length[lane]];
+                for pack in &self.packs[first..first + node.packs[lane] as usize] {
+                    // SAFETY: the caller's promise.
+                    unsafe { K::occlude_pack(pack, origin, directions, listed, tmax, blocked) };
                 }
             }
             // Without a branch per lane (whether a child is entered is data, and mispredicts):

@@ -161,9 +161,10 @@ fn occlude_pack(
     let depth = both(edges.depth);
     let far_limit = _mm256_set1_ps(tmax);
     let zero = _mm256_setzero_ps();
-    let mut next = 0;
-    while let Some((i, second)) = next_pair(rays, &mut next, blocked) {
-        let j = second.unwrap_or(i);
+    // Every listed ray is tested, blocked or not (marking one again changes nothing): whether a
+    // ray is blocked is data, and a branch on it mispredicts.
+    for pair in rays.chunks(2) {
+        let (i, j) = (pair[0], pair[pair.len() - 1]);
         let (a, b) = (at(directions, i), at(directions, j));
         let (x, y, z) = (halves(a.x, b.x), halves(a.y, b.y), halves(a.z, b.z));
         let e0 =
@@ -181,8 +182,6 @@ fn occlude_pack(
         let near = _mm256_cmp_ps::<_CMP_LT_OQ>(depth, _mm256_mul_ps(far_limit, sum));
         let mask = _mm256_movemask_ps(_mm256_and_ps(inside, near)) as u32;
         mark(blocked, i, mask & edges.live != 0);
-        if second.is_some() {
-            mark(blocked, j, (mask >> 4) & edges.live != 0);
-        }
+        mark(blocked, j, (mask >> 4) & edges.live != 0);
     }
 }

@@ -202,7 +202,7 @@ impl BundleTree {
             let (parent, children) = lists.split_at_mut(end);
             // SAFETY: the caller's promise.
             let length =
-                unsafe { K::split(&boxes, &inverse, &parent[start..], children, slot.map(|s| s - end), blocked) };
+                unsafe { K::split(&boxes, &inverse, &mut parent[start..], children, slot.map(|s| s - end), blocked) };
             // Leaves at once (cheap, and what they block leaves the other lists early), then
             // the inner children.
             // The leaves rays enter, as a mask (one branch per leaf, not two per lane).
@@ -265,8 +265,8 @@ struct Boxes {
 trait Kernel {
     /// Appends each unblocked ray of `rays` to the list of every child box it enters within
     /// `[0, tmax]`: lane `l`'s list is written from `children[slot[l]]` on, over as many entries
-    /// as `rays` has (scratch: what lies past a list's length is overwritten). Returns the
-    /// lists' lengths.
+    /// as `rays` has (scratch: what lies past a list's length is overwritten). `rays` itself is
+    /// not read again and may be overwritten. Returns the lists' lengths.
     ///
     /// # Safety
     /// The CPU has the features the implementation is compiled for, and every index in `rays`
@@ -274,7 +274,7 @@ trait Kernel {
     unsafe fn split(
         boxes: &Boxes,
         inverse: &[Vec3A],
-        rays: &[u32],
+        rays: &mut [u32],
         children: &mut [u32],
         slot: [usize; 4],
         blocked: &mut [bool],
@@ -302,14 +302,14 @@ impl Kernel for OneRay {
     unsafe fn split(
         boxes: &Boxes,
         inverse: &[Vec3A],
-        rays: &[u32],
+        rays: &mut [u32],
         children: &mut [u32],
         slot: [usize; 4],
         blocked: &mut [bool],
     ) -> [usize; 4] {
         let (lo, hi, far_limit) = (&boxes.lo, &boxes.hi, Vec4::splat(boxes.tmax));
         let mut length = [0usize; 4];
-        for &i in rays {
+        for &i in rays.iter() {
             if blocked[i as usize] {
                 continue;
             }

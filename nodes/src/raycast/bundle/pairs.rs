@@ -14,7 +14,7 @@ impl Kernel for Pairs {
     unsafe fn split(
         boxes: &Boxes,
         inverse: &[Vec3A],
-        rays: &[u32],
+        rays: &mut [u32],
         children: &mut [u32],
         slot: [usize; 4],
         blocked: &mut [bool],
@@ -69,29 +69,12 @@ fn mark(blocked: &mut [bool], i: u32, hit: bool) {
     unsafe { *blocked.get_unchecked_mut(i as usize) |= hit };
 }
 
-/// The unblocked rays of `rays` two at a time, in order, from `*next` on; a last odd ray
-/// comes alone (`None` second).
-#[inline(always)]
-fn next_pair(rays: &[u32], next: &mut usize, blocked: &[bool]) -> Option<(u32, Option<u32>)> {
-    let mut unblocked = || {
-        while let Some(&i) = rays.get(*next) {
-            *next += 1;
-            if !at(blocked, i) {
-                return Some(i);
-            }
-        }
-        None
-    };
-    let first = unblocked()?;
-    Some((first, unblocked()))
-}
-
 #[target_feature(enable = "avx2")]
 #[inline]
 fn split(
     boxes: &Boxes,
     inverse: &[Vec3A],
-    rays: &[u32],
+    rays: &mut [u32],
     children: &mut [u32],
     slot: [usize; 4],
     blocked: &[bool],
@@ -108,9 +91,17 @@ fn split(
     // SAFETY: each `slot[l] + rays.len()` is within `children` (asserted above).
     let start = slot.map(|s| unsafe { base.add(s) });
     let mut end = start;
-    let mut next = 0;
-    while let Some((i, second)) = next_pair(rays, &mut next, blocked) {
-        let j = second.unwrap_or(i);
+    // The unblocked rays first, moved to the front without a branch on each flag (whether a ray
+    // is blocked is data, and mispredicts); then two at a time.
+    let mut unblocked = 0;
+    for k in 0..rays.len() {
+        let i = rays[k];
+        rays[unblocked] = i;
+        unblocked += usize::from(!at(blocked, i));
+    }
+    for pair in rays[..unblocked].chunks(2) {
+        let (i, j) = (pair[0], pair[pair.len() - 1]);
+        let second = pair.len() == 2;
         let (a, b) = (at(inverse, i), at(inverse, j));
         let (ix, iy, iz) = (halves(a.x, b.x), halves(a.y, b.y), halves(a.z, b.z));
         let (px, qx) = (_mm256_mul_ps(lo[0], ix), _mm256_mul_ps(hi[0], ix));
@@ -133,7 +124,7 @@ fn split(
                 *end[lane] = i;
                 end[lane] = end[lane].add((hits >> lane & 1) as usize);
             }
-            if second.is_some() {
+            if second {
                 for lane in 0..4 {
                     *end[lane] = j;
                     end[lane] = end[lane].add((hits >> (lane + 4) & 1) as usize);

@@ -277,7 +277,7 @@ trait Kernel {
         rays: &mut [u32],
         children: &mut [u32],
         slot: [usize; 4],
-        blocked: &mut [bool],
+        blocked: &[bool],
     ) -> [usize; 4];
 
     /// Marks each unblocked ray of `rays` that hits one of the pack's triangles within `(0, tmax)`.
@@ -305,7 +305,7 @@ impl Kernel for OneRay {
         rays: &mut [u32],
         children: &mut [u32],
         slot: [usize; 4],
-        blocked: &mut [bool],
+        blocked: &[bool],
     ) -> [usize; 4] {
         let (lo, hi, far_limit) = (&boxes.lo, &boxes.hi, Vec4::splat(boxes.tmax));
         let mut length = [0usize; 4];

@@ -230,8 +230,7 @@ pub fn run(args: &AccuracyArgs) -> Result<()> {
     let mut measure = |graph: &Graph, mode: &str, coefficients: usize| -> Result<Vec<Row>> {
         suns.iter().map(|&sun| measure_one(graph, mode, coefficients, sun)).collect()
     };
-    let scene = scene_id.clone().ok_or_else(|| anyhow!("no scene"))?;
-    let environment = environment_id.clone();
+    let scene = scene_id.as_deref().ok_or_else(|| anyhow!("no scene"))?;
     let mut rows = Vec::new();
     let mut irradiance = base.clone();
     irradiance.set_param(&output, "mode", ParamValue::Choice("sh_irradiance".into()))?;
@@ -239,8 +238,8 @@ pub fn run(args: &AccuracyArgs) -> Result<()> {
     for &bands in &args.bands {
         let mut g = base.clone();
         g.set_param(&output, "mode", ParamValue::Choice("sh_prt".into()))?;
-        g.set_param(&scene, "transport_bands", ParamValue::Int(bands as i64))?;
-        if let Some(env) = &environment {
+        g.set_param(scene, "transport_bands", ParamValue::Int(bands as i64))?;
+        if let Some(env) = &environment_id {
             g.set_param(env, "sh_bands", ParamValue::Int(bands as i64))?;
         }
         rows.extend(measure(&g, "sh_prt", bands * bands)?);
@@ -253,11 +252,11 @@ pub fn run(args: &AccuracyArgs) -> Result<()> {
             rows.extend(measure(&g, mode, terms)?);
         }
     }
-    if let Some(decomposer) = decomposer_id.clone() {
+    if let Some(decomposer) = &decomposer_id {
         for &k in &args.square_lights {
             let mut g = base.clone();
             g.set_param(&output, "mode", ParamValue::Choice("rsl".into()))?;
-            g.set_param(&decomposer, "light_count", ParamValue::Int(k as i64))?;
+            g.set_param(decomposer, "light_count", ParamValue::Int(k as i64))?;
             rows.extend(measure(&g, "rsl", k)?);
         }
     }

@@ -5,6 +5,8 @@
 // transfer, both written by wavelet_relight.wgsl when the lighting changes; S is the specular
 // lobe table on a (theta_o, phi_o) grid, interpolated bilinearly at the view direction
 // expressed in the frame [t, n x t, n].
+// Kept detail terms (nodes/src/triple_product/details.rs) add sum_k d_k T_{4n+k}(w_o) per kept
+// node n to the glossy sum, T the fine lobe table on the two levels below the cells.
 // Per vertex everywhere; in `wavelet_pixel`, meshes with a visibility texture are shaded per
 // pixel from their texels instead: E and P of the four nearest texels, weighted bilinearly.
 
@@ -15,8 +17,10 @@ struct WaveletParams {
     // Per material: diffuse albedo; specular colour (w = 1 when it has a specular lobe).
     albedo: array<vec4<f32>, 8>,
     specular: array<vec4<f32>, 8>,
-    // x: 1 when per-texel data is bound, y: texels per side
+    // x: 1 when per-texel data is bound, y: texels per side, z: detail nodes kept per receiver
     texels: vec4<u32>,
+    // Per material: where its fine lobe table starts in fine_specular.
+    fine_offsets: array<vec4<u32>, 2>,
 };
 
 @group(2) @binding(0) var<uniform> wp: WaveletParams;
@@ -34,6 +38,12 @@ struct WaveletParams {
 // Per material and (theta_o, phi_o) patch: [first, count] of the cells its glossy sum reads.
 @group(2) @binding(7) var<storage, read> specular_ranges: array<vec2<u32>>;
 @group(2) @binding(8) var<storage, read> specular_cells: array<u32>;
+// Per vertex (binding 9) and per texel (10): kept detail nodes, five words each
+// (wavelet_relight.wgsl).
+@group(2) @binding(9) var<storage, read> vertex_details: array<u32>;
+@group(2) @binding(10) var<storage, read> texel_details: array<u32>;
+// Per glossy material and (theta_o, phi_o) row: the lobe on 20 * cells fine entries.
+@group(2) @binding(11) var<storage, read> fine_specular: array<f32>;
 
 fn rgb9e5(v: u32) -> vec3<f32> {
     let scale = exp2(f32(i32(v >> 27u) - 24));
@@ -50,6 +60,8 @@ struct TableRows {
     fj: f32,
     // The cells that carry the lobe here: [first, count] into specular_cells.
     cells: vec2<u32>,
+    // The four rows' offsets into fine_specular.
+    fine: vec4<u32>,
 };
 
 fn table_rows(wo: vec3<f32>, m: u32) -> TableRows {
@@ -76,6 +88,10 @@ fn table_rows(wo: vec3<f32>, m: u32) -> TableRows {
     rows.fi = ft - f32(i);
     rows.fj = fp - f32(j);
     rows.cells = specular_ranges[(m * (theta_steps - 1u) + i) * phi_steps + j];
+    let stride = 20u * cells;
+    let fine = wp.fine_offsets[m / 4u][m % 4u];
+    rows.fine = fine + stride * vec4<u32>(i * phi_steps + j, i * phi_steps + j1, (i + 1u) * phi_steps + j,
+        (i + 1u) * phi_steps + j1);
     return rows;
 }
 
@@ -83,6 +99,23 @@ fn specular_at(rows: TableRows, c: u32) -> f32 {
     let top = mix(specular_table[rows.r00 + c], specular_table[rows.r01 + c], rows.fj);
     let bottom = mix(specular_table[rows.r10 + c], specular_table[rows.r11 + c], rows.fj);
     return mix(top, bottom, rows.fi);
+}
+
+fn fine_at(rows: TableRows, e: u32) -> f32 {
+    let top = mix(fine_specular[rows.fine.x + e], fine_specular[rows.fine.y + e], rows.fj);
+    let bottom = mix(fine_specular[rows.fine.z + e], fine_specular[rows.fine.w + e], rows.fj);
+    return mix(top, bottom, rows.fi);
+}
+
+// One kept node's glossy term (nodes/src/triple_product/details.rs `detail_glossy`).
+fn detail_glossy(w0: u32, w1: u32, w2: u32, w3: u32, w4: u32, rows: TableRows) -> vec3<f32> {
+    let e = 4u * (w0 & 0xffffu);
+    let b = unpack2x16float(w3);
+    let d0 = vec3<f32>(unpack2x16float(w0).y, unpack2x16float(w1));
+    let d1 = vec3<f32>(unpack2x16float(w2), b.x);
+    let d2 = vec3<f32>(b.y, unpack2x16float(w4));
+    let last = fine_at(rows, e + 3u);
+    return d0 * (fine_at(rows, e) - last) + d1 * (fine_at(rows, e + 1u) - last) + d2 * (fine_at(rows, e + 2u) - last);
 }
 
 // The view direction in the frame [t, n x t, n].
@@ -131,6 +164,16 @@ fn vs_main(v: MeshVertex, @builtin(vertex_index) index: u32) -> VertexOut {
             let c = specular_cells[k];
             glossy = glossy + rgb9e5(products[base + c]) * specular_at(rows, c);
         }
+        let kept = wp.texels.z;
+        for (var j = 0u; j < kept; j = j + 1u) {
+            let at = (index * kept + j) * 5u;
+            let w0 = vertex_details[at];
+            if ((w0 & 0xffffu) == 0xffffu) {
+                break;
+            }
+            glossy = glossy + detail_glossy(w0, vertex_details[at + 1u], vertex_details[at + 2u],
+                vertex_details[at + 3u], vertex_details[at + 4u], rows);
+        }
         out.specular = wp.specular[m].rgb * glossy;
     }
     return out;
@@ -174,6 +217,22 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
             let top = mix(rgb9e5(texel_products[t00 + c]), rgb9e5(texel_products[t01 + c]), w.x);
             let bottom = mix(rgb9e5(texel_products[t10 + c]), rgb9e5(texel_products[t11 + c]), w.x);
             specular = specular + mix(top, bottom, w.y) * specular_at(rows, c);
+        }
+        let kept = wp.texels.z;
+        var slots = array<u32, 4>(s00, s01, s10, s11);
+        var weights = array<f32, 4>((1.0 - w.x) * (1.0 - w.y), w.x * (1.0 - w.y), (1.0 - w.x) * w.y, w.x * w.y);
+        for (var t = 0u; t < 4u; t = t + 1u) {
+            var sum = vec3<f32>(0.0);
+            for (var j = 0u; j < kept; j = j + 1u) {
+                let at = (slots[t] * kept + j) * 5u;
+                let w0 = texel_details[at];
+                if ((w0 & 0xffffu) == 0xffffu) {
+                    break;
+                }
+                sum = sum + detail_glossy(w0, texel_details[at + 1u], texel_details[at + 2u], texel_details[at + 3u],
+                    texel_details[at + 4u], rows);
+            }
+            specular = specular + weights[t] * sum;
         }
         specular = wp.specular[m].rgb * specular;
     }

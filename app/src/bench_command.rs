@@ -312,6 +312,7 @@ fn rsl_mode_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
             view: View::Approximation,
             reference_samples: 1,
             separate_sun: false,
+            wavelet_details: 0,
         },
         ignored_inputs: Vec::new(),
         lobe_limits: Vec::new(),
@@ -548,6 +549,7 @@ fn synthetic_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
         view: View::Approximation,
         reference_samples: 1,
         separate_sun: false,
+        wavelet_details: 0,
     };
     let material =
         lightloom_nodes::kinds::brdf::Material { model: "phong".into(), exponent: 20.0, f0: 0.3, ..Default::default() };
@@ -654,6 +656,7 @@ fn synthetic_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
                 None,
                 &geometry,
                 &materials,
+                0,
             )
             .map_err(|e| anyhow!(e))
         };

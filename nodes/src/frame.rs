@@ -307,10 +307,19 @@ pub struct WaveletSurfaces {
     pub specular: Vec<Option<[f64; 3]>>,
     /// Per vertex: its mesh's texel layer, or -1.
     pub vertex_layers: Arc<Vec<i32>>,
+    /// Detail terms each receiver keeps (0 without any glossy material) and their per-node
+    /// weights ([`crate::triple_product::details`]).
+    pub details: Arc<crate::triple_product::details::DetailWeights>,
+    /// The glossy materials' fine lobe tables
+    /// ([`crate::triple_product::BrdfTable::fine_specular`] at `cells`), one after another.
+    pub fine_specular_tables: Arc<Vec<f32>>,
+    /// Per material: where its fine table starts in `fine_specular_tables` (0 without a lobe).
+    pub fine_specular_offsets: Vec<u32>,
 }
 
 impl WaveletSurfaces {
-    /// `tables` are the materials' [`crate::triple_product::BrdfTable`]s, one per material.
+    /// `tables` are the materials' [`crate::triple_product::BrdfTable`]s, one per material;
+    /// each receiver keeps up to `details` detail terms.
     pub fn new(
         lighting: WaveletLighting,
         tables: &[Keyed],
@@ -318,6 +327,7 @@ impl WaveletSurfaces {
         fog: Option<&FoggedEnvironment>,
         geometry: &Geometry,
         materials: &[FrameMaterial],
+        details: usize,
     ) -> Result<Self, String> {
         use crate::triple_product::{BrdfTable, CellGrid, LocalVisibility, TexelVisibility};
         let visibility = lighting.visibility.value.expect::<LocalVisibility>().map_err(|e| e.to_string())?;
@@ -382,6 +392,21 @@ impl WaveletSurfaces {
         };
         let attenuation = fog.map_or([1.0; 3], |f| f.fog.attenuation);
         let scale = |c: [f64; 3]| std::array::from_fn(|i| c[i] * attenuation[i]);
+        let specular: Vec<Option<[f64; 3]>> =
+            coarse.iter().map(|t| (!t.specular.is_empty()).then(|| scale(t.specular_color.map(f64::from)))).collect();
+        let weighted: Vec<(&BrdfTable, f64)> =
+            coarse.iter().zip(&specular).map(|(t, s)| (t, s.map_or(0.0, |s| s[0].max(s[1]).max(s[2])))).collect();
+        let details = crate::triple_product::details::DetailWeights::new(grid, &weighted, details);
+        let (mut fine_specular_tables, mut fine_specular_offsets) = (Vec::new(), Vec::new());
+        for t in &coarse {
+            fine_specular_offsets.push(fine_specular_tables.len() as u32);
+            if details.kept > 0 {
+                fine_specular_tables.extend_from_slice(&t.fine_specular);
+            }
+        }
+        if details.kept > 0 {
+            key = key.rotate_left(19) ^ details.kept as Key;
+        }
         Ok(Self {
             key,
             cells,
@@ -398,11 +423,11 @@ impl WaveletSurfaces {
             specular_ranges: Arc::new(specular_ranges),
             specular_cells: Arc::new(specular_cells),
             albedo: materials.iter().map(|m| scale(m.material.albedo)).collect(),
-            specular: coarse
-                .iter()
-                .map(|t| (!t.specular.is_empty()).then(|| scale(t.specular_color.map(f64::from))))
-                .collect(),
+            specular,
             vertex_layers: Arc::new(vertex_layers),
+            details: Arc::new(details),
+            fine_specular_tables: Arc::new(fine_specular_tables),
+            fine_specular_offsets,
         })
     }
 
@@ -414,39 +439,56 @@ impl WaveletSurfaces {
 
     /// What the relit products depend on besides the lighting: the receiver sets.
     pub fn receivers_key(&self) -> Key {
-        self.vertices.key ^ self.texels.as_ref().map_or(0, |t| t.key.rotate_left(13)) ^ self.cells as Key
+        self.vertices.key
+            ^ self.texels.as_ref().map_or(0, |t| t.key.rotate_left(13))
+            ^ self.cells as Key
+            ^ (self.details.kept as Key).rotate_left(29)
+    }
+
+    /// What the kept detail terms depend on besides the lighting and receivers: the
+    /// materials' weights (a BRDF edit moves them, and so relights).
+    pub fn details_key(&self) -> Key {
+        self.details.squared.iter().fold(self.details.kept as Key, |k, w| k.rotate_left(7) ^ Key::from(w.to_bits()))
     }
 
     /// `P` per vertex on the CPU (the GPU kernel's twin; the bake's vertex light). Big meshes
     /// read the lighting from a pre-rotated [`crate::triple_product::FrameTable`].
     pub fn cpu_products(&self) -> Result<crate::triple_product::LocalProducts, String> {
         let table = self.frame_table_for(&self.vertices)?;
-        self.cpu_products_of(&self.vertices, table.as_ref())
+        Ok(self.cpu_products_of(&self.vertices, table.as_ref())?.0)
     }
 
     /// The pre-rotated lighting table when `set` has more receivers than
     /// [`crate::triple_product::FRAME_TABLE_THRESHOLD`] (built once per environment).
     pub fn frame_table_for(&self, set: &WaveletReceivers) -> Result<Option<crate::triple_product::FrameTable>, String> {
         use crate::triple_product::{CellGrid, FRAME_TABLE_THRESHOLD, FrameTable};
-        if set.frames.len() / 2 <= FRAME_TABLE_THRESHOLD {
+        // Detail terms sample the lighting directly.
+        if set.frames.len() / 2 <= FRAME_TABLE_THRESHOLD || self.details.kept > 0 {
             return Ok(None);
         }
         let environment = self.environment.value.expect::<crate::cubemap::CubeMap>().map_err(|e| e.to_string())?;
         Ok(Some(FrameTable::build(CellGrid::for_coefficients(self.cells)?, environment)))
     }
 
-    /// `P` of one receiver set on the CPU, with the lighting from `table` when given.
+    /// `P` and the kept detail terms of one receiver set on the CPU, with the lighting from
+    /// `table` when given (and no details are kept).
     pub fn cpu_products_of(
         &self,
         set: &WaveletReceivers,
         table: Option<&crate::triple_product::FrameTable>,
-    ) -> Result<crate::triple_product::LocalProducts, String> {
-        use crate::triple_product::{CellGrid, Lighting, local_products};
+    ) -> Result<(crate::triple_product::LocalProducts, crate::triple_product::details::LocalDetails), String> {
+        use crate::triple_product::{CellGrid, Lighting, local_products_with_details};
         let grid = CellGrid::for_coefficients(self.cells)?;
         let environment = self.environment.value.expect::<crate::cubemap::CubeMap>().map_err(|e| e.to_string())?;
         let lighting = Lighting { environment, rotation: self.rotation, table };
-        local_products(grid, &lighting, set.receivers()?, set.cells()?, &crate::engine::CancelToken::default())
+        let cancel = crate::engine::CancelToken::default();
+        local_products_with_details(grid, &lighting, set.receivers()?, set.cells()?, &self.details, &cancel)
             .map_err(|e| e.to_string())
+    }
+
+    /// Floats of one material's fine lobe table.
+    pub fn fine_specular_stride(cells: usize) -> usize {
+        20 * Self::specular_stride(cells)
     }
 
     /// Floats of one material's specular table.

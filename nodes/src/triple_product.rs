@@ -25,13 +25,14 @@ use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
 
 mod cell_light;
+pub mod details;
 
 // Stage value types this module owns (see `engine::value`).
 crate::stage_type!(
     BrdfTable,
     "local-frame BRDF table",
-    |v| (v.diffuse.len() + v.specular.len()) * 4,
-    numbers = |v| v.diffuse.iter().chain(&v.specular).map(|x| f64::from(*x))
+    |v| (v.diffuse.len() + v.specular.len() + v.fine_specular.len()) * 4,
+    numbers = |v| v.diffuse.iter().chain(&v.specular).chain(&v.fine_specular).map(|x| f64::from(*x))
 );
 crate::stage_type!(
     LocalProducts,
@@ -219,6 +220,21 @@ pub fn local_products(
     visibility: &LocalVisibility,
     cancel: &CancelToken,
 ) -> Result<LocalProducts, StageError> {
+    let none = details::DetailWeights::default();
+    Ok(local_products_with_details(grid, lighting, receivers, visibility, &none, cancel)?.0)
+}
+
+/// [`local_products`] and each receiver's kept detail terms ([`details`]; none when
+/// `weights.kept` is 0). With details the lighting is sampled directly, never read from a
+/// [`FrameTable`], as the relight kernel does.
+pub fn local_products_with_details(
+    grid: &CellGrid,
+    lighting: &Lighting,
+    receivers: &Receivers,
+    visibility: &LocalVisibility,
+    weights: &details::DetailWeights,
+    cancel: &CancelToken,
+) -> Result<(LocalProducts, details::LocalDetails), StageError> {
     if visibility.cells != grid.len() || visibility.receivers() != receivers.len() {
         return Err(StageError::Failed(format!(
             "local-frame visibility has {} receivers of {} cells, the scene {} receivers of {} cells",
@@ -228,42 +244,65 @@ pub fn local_products(
             grid.len()
         )));
     }
+    let kept = weights.kept;
+    if kept > 0 && weights.squared.len() != details::node_count(grid.len()) {
+        return Err(StageError::Failed(format!(
+            "detail weights for {} nodes on a grid of {} cells",
+            weights.squared.len(),
+            grid.len()
+        )));
+    }
     // The rotated environment seen in frame M is the unrotated one in frame R⁻¹M.
     let inverse_rotation = lighting.rotation.transpose();
     let source = match lighting.table {
-        Some(table) => LightSource::Table(table),
-        None => LightSource::Sampled(cell_light::CellSampler::new(grid, &prefiltered(lighting.environment, grid))),
+        Some(table) if kept == 0 => LightSource::Table(table),
+        _ => LightSource::Sampled(cell_light::CellSampler::new(grid, &prefiltered(lighting.environment, grid))),
     };
-    // ΔΩ_c × the cell's average radiance in the (rotated) frame.
-    let cell_light = |frame: &FrameLight, c: usize| -> DVec3 {
-        match frame {
-            FrameLight::Direct(sampler, frame) => DVec3::from(sampler.cell(frame, c).map(f64::from)),
-            FrameLight::Table(table, corners) => table.cell(corners, c),
-        }
-    };
-    let chunks: Vec<Result<Vec<f32>, StageError>> = (0..receivers.len().div_ceil(256))
+    type Samples = [[f32; 4]; cell_light::SAMPLES];
+    /// A chunk's products, kept nodes and their details.
+    type Chunk = (Vec<f32>, Vec<u32>, Vec<[f32; 9]>);
+    let chunks: Vec<Result<Chunk, StageError>> = (0..receivers.len().div_ceil(256))
         .into_par_iter()
         .map(|chunk| {
             cancel.check()?;
             let mut out = Vec::with_capacity(256 * grid.len() * 3);
+            let (mut nodes, mut values) = (Vec::with_capacity(256 * kept), Vec::with_capacity(256 * kept));
             // Receivers with the same frame (every texel of a flat floor, the faces of a box)
             // share their lighting cells, each computed once, and only where some receiver
-            // sees it (half the cells lie below every horizon).
-            let mut cache: rustc_hash::FxHashMap<[u64; 9], (FrameLight, Vec<DVec3>)> = Default::default();
+            // sees it (half the cells lie below every horizon). With details a cell keeps its
+            // samples too.
+            let mut cache: rustc_hash::FxHashMap<[u64; 9], (FrameLight, Vec<DVec3>, Vec<Samples>)> = Default::default();
             for i in chunk * 256..((chunk + 1) * 256).min(receivers.len()) {
                 let frame = receivers.frame(i);
-                let (light, cells) = cache.entry(frame.to_cols_array().map(f64::to_bits)).or_insert_with(|| {
-                    let frame = inverse_rotation * frame;
-                    let light = match &source {
-                        LightSource::Table(table) => FrameLight::Table(table, table.corners(frame)),
-                        LightSource::Sampled(sampler) => FrameLight::Direct(sampler, frame),
-                    };
-                    (light, vec![DVec3::NAN; grid.len()])
-                });
+                let (light, cells, samples) =
+                    cache.entry(frame.to_cols_array().map(f64::to_bits)).or_insert_with(|| {
+                        let frame = inverse_rotation * frame;
+                        let light = match &source {
+                            LightSource::Table(table) => FrameLight::Table(table, table.corners(frame)),
+                            LightSource::Sampled(sampler) => FrameLight::Direct(sampler, frame),
+                        };
+                        let samples =
+                            if kept > 0 { vec![[[f32::NAN; 4]; cell_light::SAMPLES]; grid.len()] } else { Vec::new() };
+                        (light, vec![DVec3::NAN; grid.len()], samples)
+                    });
+                let mut best = details::Kept::new(kept);
                 for (c, v) in visibility.of(i).iter().enumerate() {
                     let p = if *v > 0.0 {
                         if cells[c].x.is_nan() {
-                            cells[c] = cell_light(light, c);
+                            match light {
+                                FrameLight::Direct(sampler, frame) if kept > 0 => {
+                                    samples[c] = sampler.samples(frame, c);
+                                    cells[c] = DVec3::from(cell_light::CellSampler::sum(&samples[c]).map(f64::from));
+                                }
+                                FrameLight::Direct(sampler, frame) => {
+                                    cells[c] = DVec3::from(sampler.cell(frame, c).map(f64::from));
+                                }
+                                FrameLight::Table(table, corners) => cells[c] = table.cell(corners, c),
+                            }
+                        }
+                        if kept > 0 {
+                            let LightSource::Sampled(sampler) = &source else { unreachable!("details sample") };
+                            details::offer_cell(&mut best, weights, c, &samples[c], sampler.weights(c), *v);
                         }
                         cells[c] * f64::from(*v)
                     } else {
@@ -271,15 +310,31 @@ pub fn local_products(
                     };
                     out.extend([p.x as f32, p.y as f32, p.z as f32]);
                 }
+                if let LightSource::Sampled(sampler) = &source {
+                    for &node in best.nodes() {
+                        nodes.push(node);
+                        values.push(if node == details::NO_NODE {
+                            [0.0; 9]
+                        } else {
+                            let c = details::cell_of(node, grid.len());
+                            let v = visibility.of(i)[c];
+                            details::details_of(node, grid.len(), c, &samples[c], sampler.weights(c), v)
+                        });
+                    }
+                }
             }
-            Ok(out)
+            Ok((out, nodes, values))
         })
         .collect();
-    let mut values = Vec::with_capacity(receivers.len() * grid.len() * 3);
+    let mut products = Vec::with_capacity(receivers.len() * grid.len() * 3);
+    let mut kept_details = details::LocalDetails { kept, nodes: Vec::new(), values: Vec::new() };
     for c in chunks {
-        values.extend(c?);
+        let (p, n, v) = c?;
+        products.extend(p);
+        kept_details.nodes.extend(n);
+        kept_details.values.extend(v);
     }
-    Ok(LocalProducts { cells: grid.len(), values })
+    Ok((LocalProducts { cells: grid.len(), values: products }, kept_details))
 }
 
 /// Where every frame's lighting cells come from.
@@ -556,6 +611,11 @@ pub struct BrdfTable {
     pub diffuse: Vec<f32>,
     /// `S_c(ω_o)`: cell average of `lobe(ω, ω_o)·max(cos θ, 0)`, `(i·PHI_STEPS + j)·cells + c`.
     pub specular: Vec<f32>,
+    /// Per row of `specular`, the lobe on the two levels below the cells that the detail
+    /// terms read ([`details`]): `4·cells` averages over the cells' children, then its value at
+    /// each of the `16·cells` sub-cell samples. Entry `4n + k` is detail node `n`'s child `k`.
+    /// Empty without a lobe.
+    pub fine_specular: Vec<f32>,
     pub albedo: [f32; 3],
     pub specular_color: [f32; 3],
     /// Fraction of the lobe's directional albedo at normal incidence the cell table keeps
@@ -575,6 +635,13 @@ impl BrdfTable {
             return Err(format!("cannot merge a {}-cell table into {cells} cells", self.cells));
         }
         let fine = CellGrid::for_coefficients(self.cells)?;
+        // The coarse grid's two finer levels are this grid's cells and their children.
+        let fine_specular = self
+            .specular
+            .chunks(self.cells)
+            .zip(self.fine_specular.chunks(5 * self.cells))
+            .flat_map(|(cells, fine)| cells.iter().chain(&fine[..4 * self.cells]).copied())
+            .collect();
         let merge = |values: &[f32]| -> Vec<f32> {
             values
                 .chunks(self.cells)
@@ -587,28 +654,50 @@ impl BrdfTable {
                 })
                 .collect()
         };
-        Ok(BrdfTable { cells, diffuse: merge(&self.diffuse), specular: merge(&self.specular), ..self.clone() })
+        Ok(BrdfTable {
+            cells,
+            diffuse: merge(&self.diffuse),
+            specular: merge(&self.specular),
+            fine_specular,
+            ..self.clone()
+        })
     }
 }
 
 pub fn tabulate_brdf(brdf: &Brdf, grid: &CellGrid, cancel: &CancelToken) -> Result<BrdfTable, StageError> {
     let diffuse = grid.average(|d| d.z.max(0.0) / PI).into_iter().map(|v| v as f32).collect();
-    let specular = if brdf.specular == DVec3::ZERO {
-        Vec::new()
+    let (specular, fine_specular) = if brdf.specular == DVec3::ZERO {
+        (Vec::new(), Vec::new())
     } else {
-        let rows: Vec<Result<Vec<f32>, StageError>> = (0..THETA_STEPS * PHI_STEPS)
+        let samples: Vec<(DVec3, f64)> = grid.samples.iter().flatten().copied().collect();
+        // Per row: the cells' averages and the fine entries.
+        type Row = (Vec<f32>, Vec<f32>);
+        let rows: Vec<Result<Row, StageError>> = (0..THETA_STEPS * PHI_STEPS)
             .into_par_iter()
             .map(|k| {
                 cancel.check()?;
                 let wo = outgoing_direction(k / PHI_STEPS, k % PHI_STEPS);
-                Ok(grid.average(|wi| brdf.lobe_value(wi, wo) * wi.z.max(0.0)).into_iter().map(|v| v as f32).collect())
+                let at: Vec<f64> = samples.iter().map(|(wi, _)| brdf.lobe_value(*wi, wo) * wi.z.max(0.0)).collect();
+                // Solid-angle-weighted means over runs of `n` samples: cells (16), children (4).
+                let means = |n: usize| {
+                    at.chunks(n).zip(samples.chunks(n)).map(|(v, s)| {
+                        let area: f64 = s.iter().map(|(_, w)| w).sum();
+                        (v.iter().zip(s).map(|(v, (_, w))| v * w).sum::<f64>() / area) as f32
+                    })
+                };
+                let cells = means(at.len() / grid.len()).collect();
+                let fine = means(at.len() / (4 * grid.len())).chain(at.iter().map(|v| *v as f32)).collect();
+                Ok((cells, fine))
             })
             .collect();
         let mut out = Vec::with_capacity(THETA_STEPS * PHI_STEPS * grid.len());
+        let mut fine = Vec::with_capacity(THETA_STEPS * PHI_STEPS * grid.len() * 20);
         for r in rows {
-            out.extend(r?);
+            let (cells, children) = r?;
+            out.extend(cells);
+            fine.extend(children);
         }
-        out
+        (out, fine)
     };
     let lobe_albedo = if specular.is_empty() {
         1.0
@@ -619,6 +708,7 @@ pub fn tabulate_brdf(brdf: &Brdf, grid: &CellGrid, cancel: &CancelToken) -> Resu
         cells: grid.len(),
         diffuse,
         specular,
+        fine_specular,
         albedo: brdf.diffuse.as_vec3().to_array(),
         specular_color: brdf.specular.as_vec3().to_array(),
         lobe_albedo,
@@ -708,6 +798,30 @@ pub fn shade(products: &LocalProducts, table: &BrdfTable, i: usize, frame: DMat3
             spec += cell(c) * *s;
         }
         out += spec * DVec3::from(table.specular_color.map(f64::from));
+    }
+    out
+}
+
+/// [`shade`] plus receiver `i`'s kept detail terms (CPU twin of the mesh shader).
+pub fn shade_with_details(
+    products: &LocalProducts,
+    kept: &details::LocalDetails,
+    table: &BrdfTable,
+    i: usize,
+    frame: DMat3,
+    to_eye: DVec3,
+) -> DVec3 {
+    let mut out = shade(products, table, i, frame, to_eye);
+    let wo = frame.transpose() * to_eye;
+    if !table.fine_specular.is_empty() && wo.z > 0.0 {
+        let slots = i * kept.kept..(i + 1) * kept.kept;
+        let glossy: DVec3 = kept.nodes[slots.clone()]
+            .iter()
+            .zip(&kept.values[slots])
+            .take_while(|(node, _)| **node != details::NO_NODE)
+            .map(|(node, d)| details::detail_glossy(table, *node, d, wo))
+            .sum();
+        out += glossy * DVec3::from(table.specular_color.map(f64::from));
     }
     out
 }

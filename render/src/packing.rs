@@ -33,6 +33,43 @@ pub fn rgb9e5_decode(v: u32) -> [f32; 3] {
     [(v & 0x1ff) as f32 * scale, ((v >> 9) & 0x1ff) as f32 * scale, ((v >> 18) & 0x1ff) as f32 * scale]
 }
 
+/// Kept detail terms as `wavelet_relight.wgsl` writes them: five words per slot, the node in
+/// the low half of the first and the nine details as half floats after it (clamped to
+/// half's range).
+pub fn detail_words(nodes: &[u32], values: &[[f32; 9]]) -> Vec<u32> {
+    let half = |x: f32| u32::from(half::f16::from_f32(x.clamp(-65504.0, 65504.0)).to_bits());
+    nodes
+        .iter()
+        .zip(values)
+        .flat_map(|(node, d)| {
+            [
+                node | half(d[0]) << 16,
+                half(d[1]) | half(d[2]) << 16,
+                half(d[3]) | half(d[4]) << 16,
+                half(d[5]) | half(d[6]) << 16,
+                half(d[7]) | half(d[8]) << 16,
+            ]
+        })
+        .collect()
+}
+
+/// The inverse of [`detail_words`] for one slot: its node and details.
+pub fn detail_decode(words: &[u32]) -> (u32, [f32; 9]) {
+    let half = |bits: u32| half::f16::from_bits(bits as u16).to_f32();
+    let all = [
+        words[0] >> 16,
+        words[1] & 0xffff,
+        words[1] >> 16,
+        words[2] & 0xffff,
+        words[2] >> 16,
+        words[3] & 0xffff,
+        words[3] >> 16,
+        words[4] & 0xffff,
+        words[4] >> 16,
+    ];
+    (words[0] & 0xffff, all.map(half))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -22,6 +22,9 @@ pub struct OutputSettings {
     /// Whether the environment's sun is lit apart from the transport where the mode can
     /// ([`SUN`], [`separates_sun`]).
     pub separate_sun: bool,
+    /// Detail terms each receiver keeps in the wavelet modes ([`crate::triple_product::details`]).
+    #[serde(default)]
+    pub wavelet_details: usize,
 }
 
 crate::choice_enum! {
@@ -153,6 +156,15 @@ pub fn spec() -> NodeKindSpec {
                 kind: ParamKind::Choice { options: WAVELET_TERMS, default: "320", labels: &[] },
                 doc: "Top-only spherical Haar coefficients per function in the wavelet mode (Ma et al.'s 80 or 320).",
             },
+            ParamSpec {
+                name: "wavelet_details",
+                label: "Wavelet detail terms",
+                unit: "",
+                kind: ParamKind::Int { min: 0, max: crate::triple_product::details::MAX_DETAILS as i64, default: 32 },
+                doc: "Finer wavelet terms each point keeps beyond the coefficients above, chosen per point where its \
+                      lighting × visibility varies most within a cell and a glossy material can show it (a sun's \
+                      glow, a softbox's edge). They sharpen glossy reflections; 0 keeps the coefficients alone.",
+            },
             super::output_sun::param(),
             ParamSpec {
                 name: "exposure",
@@ -208,7 +220,16 @@ pub fn spec() -> NodeKindSpec {
             StageSpec {
                 name: "settings",
                 version: 1,
-                params: &["mode", "exposure", "tonemap", "background", "view", "reference_samples", SUN],
+                params: &[
+                    "mode",
+                    "exposure",
+                    "tonemap",
+                    "background",
+                    "view",
+                    "reference_samples",
+                    SUN,
+                    "wavelet_details",
+                ],
                 stages: &[],
                 inputs: &[],
                 persist: None,
@@ -329,7 +350,7 @@ fn relevant_to_mode(value: &dyn Fn(&str) -> Option<ParamValue>, name: &str) -> b
     };
     match name {
         HIGHLIGHT_EYE => false,
-        "wavelet_terms" => mode.is_wavelet(),
+        "wavelet_terms" | "wavelet_details" => mode.is_wavelet(),
         n if n.starts_with("adaptive_") => mode == Mode::ShAdaptive,
         _ => true,
     }
@@ -344,6 +365,7 @@ fn settings(ctx: &StageContext) -> Result<StageValue, StageError> {
         view: ctx.option("view")?,
         reference_samples: ctx.int("reference_samples")? as usize,
         separate_sun: ctx.choice(SUN)? == "separate",
+        wavelet_details: ctx.int("wavelet_details")? as usize,
     }))
 }
 
@@ -805,7 +827,13 @@ impl FrameInputs {
                 };
                 let texels = if mode == Mode::WaveletPixel { Some(keyed(output, "texel_visibility")?) } else { None };
                 Surfaces::Wavelet(Box::new(WaveletSurfaces::new(
-                    lighting, &tables, texels, fogged, &geometry, &materials,
+                    lighting,
+                    &tables,
+                    texels,
+                    fogged,
+                    &geometry,
+                    &materials,
+                    settings.wavelet_details,
                 )?))
             }
             Mode::Rsl => {

@@ -9,7 +9,7 @@ use crate::cubemap::CubeMap;
 use glam::DMat3;
 
 /// Sub-cell samples per cell.
-const SAMPLES: usize = 1 << (2 * SUBLEVELS);
+pub(crate) const SAMPLES: usize = 1 << (2 * SUBLEVELS);
 
 /// A prefiltered environment and a grid's sample directions, ready to light cells.
 pub(crate) struct CellSampler {
@@ -49,17 +49,50 @@ impl CellSampler {
             // SAFETY: the CPU has AVX2 (checked just above).
             return unsafe { self.cell_avx2(&m, c) };
         }
-        self.cell_portable(&m, c)
+        Self::sum(&self.samples_portable(&m, c))
+    }
+
+    /// Cell `c`'s samples' solid angles.
+    pub(crate) fn weights(&self, c: usize) -> &[f32; SAMPLES] {
+        &self.weights[c]
+    }
+
+    /// Each of cell `c`'s samples `w_s L(M d_s)` in `frame` (RGB and a pad), in the grid's
+    /// order: the finer levels' values the detail terms read.
+    pub(crate) fn samples(&self, frame: &DMat3, c: usize) -> [[f32; 4]; SAMPLES] {
+        let m = [frame.x_axis, frame.y_axis, frame.z_axis].map(|a| a.as_vec3().to_array());
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU has AVX2 (checked just above).
+            return unsafe { self.samples_avx2(&m, c) };
+        }
+        self.samples_portable(&m, c)
+    }
+
+    pub(crate) fn sum(samples: &[[f32; 4]; SAMPLES]) -> [f32; 3] {
+        let mut sum = [0.0f32; 4];
+        for v in samples {
+            for k in 0..4 {
+                sum[k] += v[k];
+            }
+        }
+        [sum[0], sum[1], sum[2]]
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     fn cell_avx2(&self, m: &[[f32; 3]; 3], c: usize) -> [f32; 3] {
-        self.cell_portable(m, c)
+        Self::sum(&self.samples_portable(m, c))
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn samples_avx2(&self, m: &[[f32; 3]; 3], c: usize) -> [[f32; 4]; SAMPLES] {
+        self.samples_portable(m, c)
     }
 
     #[inline(always)]
-    fn cell_portable(&self, m: &[[f32; 3]; 3], c: usize) -> [f32; 3] {
+    fn samples_portable(&self, m: &[[f32; 3]; 3], c: usize) -> [[f32; 4]; SAMPLES] {
         let [dx, dy, dz] = &self.directions[c];
         let size = self.size as f32;
         let last = size - 1.0;
@@ -95,17 +128,17 @@ impl CellSampler {
             fractions[s] = [fx - x0, fy - y0];
         }
         let weights = &self.weights[c];
-        let mut sum = [0.0f32; 4];
+        let mut out = [[0.0f32; 4]; SAMPLES];
         for s in 0..SAMPLES {
             let [tx, ty] = fractions[s];
             let texel = |i: u32| self.texels[i as usize];
             let (a, b, c, d) = (texel(corners[s][0]), texel(corners[s][1]), texel(corners[s][2]), texel(corners[s][3]));
             let (w00, w10, w01, w11) = ((1.0 - tx) * (1.0 - ty), tx * (1.0 - ty), (1.0 - tx) * ty, tx * ty);
             for k in 0..4 {
-                sum[k] += (a[k] * w00 + b[k] * w10 + c[k] * w01 + d[k] * w11) * weights[s];
+                out[s][k] = (a[k] * w00 + b[k] * w10 + c[k] * w01 + d[k] * w11) * weights[s];
             }
         }
-        [sum[0], sum[1], sum[2]]
+        out
     }
 }
 

@@ -419,7 +419,7 @@ mod layout_tests {
             .validate(&depth)
             .unwrap_or_else(|e| panic!("sun_depth.wgsl does not validate: {e:?}"));
         check!(prt, "PrtParams", prt::PrtParams, [counts, albedo, specular, lobe, light]);
-        check!(wavelet, "WaveletParams", wavelet::WaveletParams, [counts, albedo, specular, texels]);
+        check!(wavelet, "WaveletParams", wavelet::WaveletParams, [counts, albedo, specular, texels, fine_offsets]);
         // The relight kernel is a compute shader on its own.
         let source = wavelet::RELIGHT_SHADER.1;
         let relight = naga::front::wgsl::parse_str(source).unwrap_or_else(|e| panic!("{}", e.emit_to_string(source)));

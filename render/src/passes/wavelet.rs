@@ -29,6 +29,8 @@ pub(crate) struct WaveletParams {
     pub(crate) albedo: [[f32; 4]; MAX_MATERIALS],
     pub(crate) specular: [[f32; 4]; MAX_MATERIALS],
     pub(crate) texels: [u32; 4],
+    /// Per material: where its fine lobe table starts.
+    pub(crate) fine_offsets: [[u32; 4]; MAX_MATERIALS / 4],
 }
 
 /// `wavelet_relight.wgsl` `RelightParams`.
@@ -48,16 +50,19 @@ struct LitReceivers {
     visibility: wgpu::Buffer,
     products: wgpu::Buffer,
     irradiance: wgpu::Buffer,
+    /// Five words per receiver and kept detail node (`packing::detail_words`).
+    details: wgpu::Buffer,
     params: wgpu::Buffer,
 }
 
 impl LitReceivers {
-    fn upload(gpu: &GpuContext, label: &str, receivers: &WaveletReceivers) -> Result<Self, RenderError> {
+    fn upload(gpu: &GpuContext, label: &str, receivers: &WaveletReceivers, kept: usize) -> Result<Self, RenderError> {
         let visibility = receivers.cells().map_err(RenderError::Invalid)?;
         let count = visibility.receivers();
         let limit = gpu.device.limits().max_storage_buffer_binding_size.min(gpu.device.limits().max_buffer_size);
         let bytes = (count * visibility.cells * 4) as u64;
-        if bytes > limit {
+        let detail_bytes = (count * kept * 20) as u64;
+        if bytes.max(detail_bytes) > limit {
             return Err(RenderError::Invalid(format!(
                 "the wavelet mode's {label} need {} MiB of products ({count} × {} cells) but this GPU binds at most {} \
                  MiB: use 80 coefficients, fewer vertices or a smaller visibility texture",
@@ -88,6 +93,7 @@ impl LitReceivers {
             visibility: storage_buffer(gpu, "wavelet-visibility", &halves),
             products: output("wavelet-products", bytes),
             irradiance: output("wavelet-irradiance", count as u64 * 16),
+            details: output("wavelet-details", detail_bytes),
             params: uniform_buffer::<RelightParams>(&gpu.device, "wavelet-relight-params"),
         })
     }
@@ -112,7 +118,9 @@ struct Receivers {
     vertices: LitReceivers,
     texels: Option<LitReceivers>,
     cell_samples: wgpu::Buffer,
-    diffuse_table: wgpu::Buffer,
+    /// `D_c` per cell, then the detail nodes' weights.
+    cell_tables: wgpu::Buffer,
+    details_key: Key,
 }
 
 /// The environment the kernel samples and its bind groups, one per receiver set.
@@ -139,8 +147,9 @@ pub(crate) struct WaveletPass {
     receivers: Option<Receivers>,
     lit: Option<Lit>,
     bound: Option<Bound>,
-    /// The receivers' key, the environment's key and the rotation `P` was last built for.
-    relit: Option<(Key, Key, [[f32; 3]; 3])>,
+    /// The receivers' key, the environment's key, the rotation and the detail weights' key `P`
+    /// was last built for.
+    relit: Option<(Key, Key, [[f32; 3]; 3], Key)>,
 }
 
 impl WaveletPass {
@@ -158,6 +167,9 @@ impl WaveletPass {
                 entry::storage(6, S::VERTEX),
                 entry::storage(7, S::VERTEX_FRAGMENT),
                 entry::storage(8, S::VERTEX_FRAGMENT),
+                entry::storage(9, S::VERTEX),
+                entry::storage(10, S::FRAGMENT),
+                entry::storage(11, S::VERTEX_FRAGMENT),
             ],
         });
         let compute = S::COMPUTE;
@@ -172,6 +184,7 @@ impl WaveletPass {
                 entry::storage(5, compute),
                 entry::storage_read_write(6, compute),
                 entry::storage_read_write(7, compute),
+                entry::storage_read_write(8, compute),
             ],
         });
         let module = setup.device.create_shader_module(wgpu::ShaderModuleDescriptor {
@@ -225,16 +238,23 @@ impl WaveletPass {
     }
 
     fn upload_receivers(gpu: &GpuContext, data: &WaveletSurfaces) -> Result<Receivers, RenderError> {
-        let vertices = LitReceivers::upload(gpu, "vertices", &data.vertices)?;
-        let texels = data.texels.as_ref().map(|t| LitReceivers::upload(gpu, "texels", t)).transpose()?;
+        let kept = data.details.kept;
+        let vertices = LitReceivers::upload(gpu, "vertices", &data.vertices, kept)?;
+        let texels = data.texels.as_ref().map(|t| LitReceivers::upload(gpu, "texels", t, kept)).transpose()?;
         Ok(Receivers {
             key: data.receivers_key(),
             texel_size: texels.as_ref().map(|_| data.texel_size as u32),
             vertices,
             texels,
             cell_samples: storage_buffer(gpu, "wavelet-cell-samples", &data.cell_samples),
-            diffuse_table: storage_buffer(gpu, "wavelet-diffuse", &data.diffuse_table),
+            cell_tables: Self::cell_tables(gpu, data),
+            details_key: data.details_key(),
         })
+    }
+
+    fn cell_tables(gpu: &GpuContext, data: &WaveletSurfaces) -> wgpu::Buffer {
+        let tables: Vec<f32> = data.diffuse_table.iter().chain(&data.details.squared).copied().collect();
+        storage_buffer(gpu, "wavelet-cell-tables", &tables)
     }
 
     fn bind(&self, gpu: &GpuContext, receivers: &Receivers, data: &WaveletSurfaces) -> Bound {
@@ -242,6 +262,7 @@ impl WaveletPass {
         let layers = storage_buffer(gpu, "wavelet-vertex-layers", &data.vertex_layers);
         let ranges = storage_buffer(gpu, "wavelet-specular-ranges", &data.specular_ranges);
         let cells = storage_buffer(gpu, "wavelet-specular-cells", &data.specular_cells);
+        let fine = storage_buffer(gpu, "wavelet-fine-specular", &data.fine_specular_tables);
         let no_irradiance = storage_buffer::<[f32; 4]>(gpu, "wavelet-no-texels", &[]);
         let no_products = storage_buffer::<u32>(gpu, "wavelet-no-texels", &[]);
         fn resource(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
@@ -261,6 +282,9 @@ impl WaveletPass {
                 resource(6, &layers),
                 resource(7, &ranges),
                 resource(8, &cells),
+                resource(9, &receivers.vertices.details),
+                resource(10, texels.map_or(&no_products, |t| &t.details)),
+                resource(11, &fine),
             ],
         });
         Bound { key: data.key, bind_group }
@@ -280,9 +304,10 @@ impl WaveletPass {
                 &set.visibility,
                 &buffer,
                 &receivers.cell_samples,
-                &receivers.diffuse_table,
+                &receivers.cell_tables,
                 &set.products,
                 &set.irradiance,
+                &set.details,
             ];
             let entries: Vec<wgpu::BindGroupEntry> = entries
                 .iter()
@@ -328,7 +353,7 @@ impl WaveletPass {
             let params = RelightParams {
                 inverse_rotation: data.inverse_rotation().map(|r| [r[0], r[1], r[2], 0.0]),
                 counts: [*count, data.cells as u32, samples_per_cell, size as u32],
-                dispatch: [columns * WORKGROUP, 0, 0, 0],
+                dispatch: [columns * WORKGROUP, data.details.kept as u32, 0, 0],
             };
             gpu.queue.write_buffer(&set.params, 0, bytemuck::bytes_of(&params));
             dispatches.push((group, columns, groups.div_ceil(columns)));
@@ -358,7 +383,7 @@ impl WaveletPass {
         let sets =
             std::iter::once((&receivers.vertices, &data.vertices)).chain(receivers.texels.iter().zip(&data.texels));
         for ((buffers, set), table) in sets.zip(&lit.tables) {
-            let products = data.cpu_products_of(set, table.as_ref()).map_err(RenderError::Invalid)?;
+            let (products, details) = data.cpu_products_of(set, table.as_ref()).map_err(RenderError::Invalid)?;
             let irradiance: Vec<[f32; 4]> =
                 diffuse_transfer(&products, &data.diffuse_table).into_iter().map(|e| [e[0], e[1], e[2], 0.0]).collect();
             gpu.queue.write_buffer(
@@ -367,6 +392,10 @@ impl WaveletPass {
                 bytemuck::cast_slice(&crate::packing::rgb9e5_all(&products.values)),
             );
             gpu.queue.write_buffer(&buffers.irradiance, 0, bytemuck::cast_slice(&irradiance));
+            if details.kept > 0 {
+                let words = crate::packing::detail_words(&details.nodes, &details.values);
+                gpu.queue.write_buffer(&buffers.details, 0, bytemuck::cast_slice(&words));
+            }
         }
         Ok(())
     }
@@ -386,6 +415,12 @@ impl Pass for WaveletPass {
             self.bound = None;
             self.receivers = Some(Self::upload_receivers(gpu, data)?);
         }
+        // A material edit moves the detail nodes' weights.
+        if let Some(r) = self.receivers.as_mut().filter(|r| r.details_key != data.details_key()) {
+            r.cell_tables = Self::cell_tables(gpu, data);
+            r.details_key = data.details_key();
+            self.lit = None;
+        }
         let receivers = self.receivers.as_ref().expect("uploaded above");
         if self.lit.as_ref().is_none_or(|l| l.environment_key != data.environment.key) {
             self.lit = Some(self.light(gpu, receivers, data)?);
@@ -393,7 +428,7 @@ impl Pass for WaveletPass {
         if self.bound.as_ref().is_none_or(|b| b.key != data.key) {
             self.bound = Some(self.bind(gpu, receivers, data));
         }
-        let state = (receivers.key, data.environment.key, data.inverse_rotation());
+        let state = (receivers.key, data.environment.key, data.inverse_rotation(), receivers.details_key);
         if self.relit != Some(state) {
             self.relit = None;
             let lit = self.lit.as_ref().expect("lit above");
@@ -414,7 +449,11 @@ impl Pass for WaveletPass {
         for (dst, specular) in params.specular.iter_mut().zip(&data.specular) {
             *dst = specular.map_or([0.0; 4], |s| vec4(s, 1.0));
         }
-        params.texels = [receivers.texel_size.is_some() as u32, receivers.texel_size.unwrap_or(0), 0, 0];
+        params.texels =
+            [receivers.texel_size.is_some() as u32, receivers.texel_size.unwrap_or(0), data.details.kept as u32, 0];
+        for (m, offset) in data.fine_specular_offsets.iter().enumerate().take(MAX_MATERIALS) {
+            params.fine_offsets[m / 4][m % 4] = *offset;
+        }
         gpu.queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
         Ok(())
     }

@@ -257,3 +257,33 @@ fn an_edit_of_what_the_rows_set_is_refused() {
         assert!(stderr.contains(&format!("--edit {param}: each row sets")) && stderr.contains(flag), "{stderr}");
     }
 }
+
+#[test]
+fn detail_terms_sharpen_a_glossy_reflection_of_the_suns_aureole() {
+    // A sharp GGX lobe (roughness 0.3) under the sun at 20°: the procedural sky's aureole, a
+    // glow about 5° wide too faint to split off with the disc, stays in the cells, and 11°
+    // cells blur its reflection on the floor. Each receiver's detail terms refine the product
+    // where it varies and the lobe can show it. Against the Monte Carlo reference, noise out.
+    let project = workspace().join("tests/projects/sharp_sun.ron");
+    let glossy = [
+        ["--set", "material.model=ggx"],
+        ["--set", "material.roughness=0.3"],
+        ["--set", "material.f0=1"],
+        ["--set", "material.specular=0.5,0.5,0.5"],
+        ["--set", "sky.sun_elevation=20"],
+    ];
+    let size = ["--samples", "256", "--width", "160", "--height", "90", "--bands", "2", "--wavelets", "320"];
+    let report =
+        accuracy_report(&project, &[&size[..], &["--sun", "separate", "--details", "0,32"], &glossy.concat()].concat());
+    let rows = report["rows"].as_array().unwrap();
+    for mode in ["wavelet_vertex", "wavelet_pixel"] {
+        let error = |details: u64| {
+            let row = rows.iter().find(|r| r["mode"] == mode && r["details"] == details).unwrap();
+            row["relative_rmse_less_noise"].as_f64().unwrap()
+        };
+        let (without, with) = (error(0), error(32));
+        eprintln!("{mode} 320: {without:.4} without detail terms, {with:.4} with 32");
+        // Measured 29.4% and 22.5% in wavelet_pixel, 30.1% and 23.3% per vertex.
+        assert!(with < 0.85 * without, "{mode}: {with} with detail terms against {without} without");
+    }
+}

@@ -24,6 +24,10 @@ pub struct AccuracyArgs {
     /// Top-only coefficient counts for the `wavelet_vertex` rows (none: `--wavelets` alone).
     #[arg(long, value_delimiter = ',', num_args = 0.., default_value = "80,320")]
     pub wavelets: Vec<usize>,
+    /// Detail terms per receiver for the wavelet rows (the Output's `wavelet_details`), a row
+    /// for each (default: the project's own setting).
+    #[arg(long, value_delimiter = ',')]
+    pub details: Vec<usize>,
     /// Square-light counts for the `rsl` rows (when an RSL decomposer feeds the Output).
     #[arg(long, value_delimiter = ',', default_value = "10,30,60,100")]
     pub square_lights: Vec<usize>,
@@ -57,6 +61,8 @@ pub struct AccuracyArgs {
 pub struct Row {
     pub mode: String,
     pub coefficients: usize,
+    /// The wavelet rows' detail terms per receiver.
+    pub details: Option<usize>,
     /// How the environment's sun was lit (the Output's `sun`).
     pub sun: String,
     #[serde(flatten)]
@@ -111,6 +117,7 @@ pub fn run(args: &AccuracyArgs) -> Result<()> {
         match param {
             "mode" if node == output => Some("the rows themselves (one per mode)"),
             "wavelet_terms" if node == output => Some("--wavelets"),
+            "wavelet_details" if node == output && !args.details.is_empty() => Some("--details"),
             "reference_samples" if node == output => Some("--samples"),
             SUN if node == output && !args.sun.is_empty() => Some("--sun"),
             "transport_bands" if is(&scene_id) => Some("--bands"),
@@ -147,6 +154,15 @@ pub fn run(args: &AccuracyArgs) -> Result<()> {
             .sum::<usize>();
         // The viewport's shadow maps of a separately lit sun.
         let memory = memory + if frame.sun.is_some() { lightloom_render::SUN_SHADOW_MAP_BYTES } else { 0 };
+        // The kept detail terms (five words per receiver and term) and the fine lobe tables.
+        let memory = memory
+            + match &frame.surfaces {
+                lightloom_nodes::frame::Surfaces::Wavelet(w) => {
+                    let receivers = (w.vertices.frames.len() + w.texels.as_ref().map_or(0, |t| t.frames.len())) / 2;
+                    receivers * w.details.kept * 20 + w.fine_specular_tables.len() * 4
+                }
+                _ => 0,
+            };
         Ok((frame, memory))
     };
     let evaluated = |graph: &Graph| evaluated_in(&engine, graph);
@@ -213,9 +229,14 @@ pub fn run(args: &AccuracyArgs) -> Result<()> {
         let pixels: Vec<[f32; 3]> = captured.hdr.iter().map(|p| [p[0], p[1], p[2]]).collect();
         let error = reference::compare(&pixels, &reference.pixels, Some(&mask)).map_err(|e| anyhow!(e))?;
         let relative_rmse_less_noise = (error.relative_rmse.powi(2) - noise.relative_rmse.powi(2)).max(0.0).sqrt();
+        let details = match &frame.surfaces {
+            lightloom_nodes::frame::Surfaces::Wavelet(w) => Some(w.details.kept),
+            _ => None,
+        };
         Ok(Row {
             mode: mode.into(),
             coefficients,
+            details,
             sun,
             error,
             relative_rmse_less_noise,
@@ -244,12 +265,19 @@ pub fn run(args: &AccuracyArgs) -> Result<()> {
         }
         rows.extend(measure(&g, "sh_prt", bands * bands)?);
     }
+    let details: Vec<Option<usize>> =
+        if args.details.is_empty() { vec![None] } else { args.details.iter().map(|d| Some(*d)).collect() };
     for mode in ["wavelet_vertex", "wavelet_pixel"] {
         for &terms in &args.wavelets {
-            let mut g = base.clone();
-            g.set_param(&output, "mode", ParamValue::Choice(mode.into()))?;
-            g.set_param(&output, "wavelet_terms", ParamValue::Choice(terms.to_string()))?;
-            rows.extend(measure(&g, mode, terms)?);
+            for &details in &details {
+                let mut g = base.clone();
+                g.set_param(&output, "mode", ParamValue::Choice(mode.into()))?;
+                g.set_param(&output, "wavelet_terms", ParamValue::Choice(terms.to_string()))?;
+                if let Some(details) = details {
+                    g.set_param(&output, "wavelet_details", ParamValue::Int(details as i64))?;
+                }
+                rows.extend(measure(&g, mode, terms)?);
+            }
         }
     }
     if let Some(decomposer) = &decomposer_id {
@@ -288,9 +316,10 @@ pub fn run(args: &AccuracyArgs) -> Result<()> {
             println!("after the edit {}; edit ms: from the edit to its frame drawn", args.edits.join(" "));
         }
         println!(
-            "{:<28} {:>6} {:<15} {:>10} {:>7} {:>9} {:>8} {:>9} {:>9} {:>9} {:>7}",
+            "{:<28} {:>6} {:>7} {:<15} {:>10} {:>7} {:>9} {:>8} {:>9} {:>9} {:>9} {:>7}",
             "mode",
             "coeffs",
+            "details",
             "sun",
             "RMSE",
             "rel. %",
@@ -303,9 +332,10 @@ pub fn run(args: &AccuracyArgs) -> Result<()> {
         );
         for r in &report.rows {
             println!(
-                "{:<28} {:>6} {:<15} {:>10.5} {:>7.2} {:>9.2} {:>8.1} {:>9.1} {:>9} {:>8.1}M {:>7}",
+                "{:<28} {:>6} {:>7} {:<15} {:>10.5} {:>7.2} {:>9.2} {:>8.1} {:>9.1} {:>9} {:>8.1}M {:>7}",
                 r.mode,
                 r.coefficients,
+                r.details.map_or("-".to_string(), |d| d.to_string()),
                 r.sun,
                 r.error.rmse,
                 r.error.relative_rmse * 100.0,

@@ -642,7 +642,7 @@ fn synthetic_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
         let start = Instant::now();
         let prefiltered = lightloom_nodes::triple_product::prefiltered(&environment, grid);
         let prefilter_ms = start.elapsed().as_secs_f64() * 1e3;
-        let surfaces = |rotation: glam::DMat3, environment_key: u128| -> Result<WaveletSurfaces> {
+        let surfaces = |rotation: glam::DMat3, environment_key: u128, details: usize| -> Result<WaveletSurfaces> {
             let lighting = WaveletLighting {
                 visibility: visibility.clone(),
                 receivers: receivers_keyed.clone(),
@@ -656,21 +656,30 @@ fn synthetic_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
                 None,
                 &geometry,
                 &materials,
-                0,
+                details,
             )
             .map_err(|e| anyhow!(e))
         };
         // The first frame after a change rebuilds P and E (on the GPU, or on the CPU and
         // uploaded); the rebuild's cost is that frame's excess over a steady frame.
-        for on in [lightloom_render::RelightOn::Cpu, lightloom_render::RelightOn::Gpu] {
+        // Ma's top-only products (the anchor), then with 32 detail terms per vertex.
+        for (on, details) in [
+            (lightloom_render::RelightOn::Cpu, 0),
+            (lightloom_render::RelightOn::Gpu, 0),
+            (lightloom_render::RelightOn::Cpu, 32),
+            (lightloom_render::RelightOn::Gpu, 32),
+        ] {
             renderer.set_relight_on(on);
             let label = format!(
-                "wavelet_vertex {terms} ({})",
+                "wavelet_vertex {terms}{} ({})",
+                if details > 0 { format!("+{details}") } else { String::new() },
                 if on == lightloom_render::RelightOn::Cpu { "CPU" } else { "GPU" }
             );
-            let key = |k: u128| 1000 * (on as u128 + 1) + 10 * terms as u128 + k;
-            let first =
-                frame_with(Mode::WaveletVertex, Surfaces::Wavelet(Box::new(surfaces(glam::DMat3::IDENTITY, key(1))?)));
+            let key = |k: u128| 100_000 * details as u128 + 1000 * (on as u128 + 1) + 10 * terms as u128 + k;
+            let first = frame_with(
+                Mode::WaveletVertex,
+                Surfaces::Wavelet(Box::new(surfaces(glam::DMat3::IDENTITY, key(1), details)?)),
+            );
             let steady = match frame_times(&mut renderer, &first) {
                 Ok(ms) => ms,
                 Err(e) => {
@@ -679,20 +688,26 @@ fn synthetic_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
                 }
             };
             let mut changed = |rotation: glam::DMat3, environment_key: u128| -> Result<f64> {
-                let frame =
-                    frame_with(Mode::WaveletVertex, Surfaces::Wavelet(Box::new(surfaces(rotation, environment_key)?)));
+                let frame = frame_with(
+                    Mode::WaveletVertex,
+                    Surfaces::Wavelet(Box::new(surfaces(rotation, environment_key, details)?)),
+                );
                 Ok(timed_frame(gpu, &mut renderer, &frame, &view, (1280, 720))? - steady)
             };
             let new_environment = changed(glam::DMat3::IDENTITY, key(2))? + prefilter_ms;
             let rotation = changed(glam::DMat3::from_rotation_y(0.7), key(2))?;
             // Ma recomputes every product every frame: its fps is a rotation's edit-to-frame rate.
             let rate = n as f64 / (rotation + steady) / 1e3;
-            let ma = crate::bench_anchors::ma_interpolated(terms).map_or(String::new(), |a| a.beside(rate));
+            let ma = match details {
+                0 => crate::bench_anchors::ma_interpolated(terms).map_or(String::new(), |a| a.beside(rate)),
+                _ => "(no anchor: Ma keeps top-only coefficients)".to_string(),
+            };
             // The relight reads each vertex's frame (32 B) and f16 visibility cells and writes its
-            // RGB9E5 products and diffuse transfer (16 B), as the GPU kernel stores them. The bound
-            // is host memory's: it says nothing of the kernel on a GPU's own memory.
+            // RGB9E5 products and diffuse transfer (16 B), and its detail terms (20 B each), as the
+            // GPU kernel stores them. The bound is host memory's: it says nothing of the kernel on
+            // a GPU's own memory.
             let bound = if on == lightloom_render::RelightOn::Cpu {
-                let bytes = 32 + 2 * terms + 4 * terms + 16;
+                let bytes = 32 + 2 * terms + 4 * terms + 16 + 20 * details;
                 let ms = crate::bench_anchors::bandwidth_bound_ms(n, bytes, bandwidth);
                 format!("rotation {:.1}× the bandwidth bound ({ms:.1} ms for {bytes} B per vertex); ", rotation / ms)
             } else {

@@ -451,11 +451,13 @@ impl WaveletSurfaces {
         self.details.squared.iter().fold(self.details.kept as Key, |k, w| k.rotate_left(7) ^ Key::from(w.to_bits()))
     }
 
-    /// `P` per vertex on the CPU (the GPU kernel's twin; the bake's vertex light). Big meshes
-    /// read the lighting from a pre-rotated [`crate::triple_product::FrameTable`].
+    /// `P` per vertex on the CPU (the GPU kernel's twin; the bake's vertex light, which reads
+    /// the diffuse transfer alone and so keeps no detail terms). Big meshes read the lighting
+    /// from a pre-rotated [`crate::triple_product::FrameTable`].
     pub fn cpu_products(&self) -> Result<crate::triple_product::LocalProducts, String> {
-        let table = self.frame_table_for(&self.vertices)?;
-        Ok(self.cpu_products_of(&self.vertices, table.as_ref())?.0)
+        let plain = Self { details: Arc::default(), ..self.clone() };
+        let table = plain.frame_table_for(&plain.vertices)?;
+        Ok(plain.cpu_products_of(&plain.vertices, table.as_ref())?.0)
     }
 
     /// The pre-rotated lighting table when `set` has more receivers than

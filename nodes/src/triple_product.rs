@@ -261,9 +261,12 @@ pub fn local_products_with_details(
     type Samples = [[f32; 4]; cell_light::SAMPLES];
     /// A chunk's products, kept nodes and their details.
     type Chunk = (Vec<f32>, Vec<u32>, Vec<[f32; 9]>);
+    // Per thread, the cells (and with details the samples) of each distinct frame in a chunk,
+    // kept between chunks so they are not allocated and cleared again for every receiver.
+    type Slots = Vec<(Vec<DVec3>, Vec<Samples>)>;
     let chunks: Vec<Result<Chunk, StageError>> = (0..receivers.len().div_ceil(256))
         .into_par_iter()
-        .map(|chunk| {
+        .map_init(Slots::new, |slots, chunk| {
             cancel.check()?;
             let mut out = Vec::with_capacity(256 * grid.len() * 3);
             let (mut nodes, mut values) = (Vec::with_capacity(256 * kept), Vec::with_capacity(256 * kept));
@@ -271,20 +274,26 @@ pub fn local_products_with_details(
             // share their lighting cells, each computed once, and only where some receiver
             // sees it (half the cells lie below every horizon). With details a cell keeps its
             // samples too.
-            let mut cache: rustc_hash::FxHashMap<[u64; 9], (FrameLight, Vec<DVec3>, Vec<Samples>)> = Default::default();
+            let mut cache: rustc_hash::FxHashMap<[u64; 9], (FrameLight, usize)> = Default::default();
             for i in chunk * 256..((chunk + 1) * 256).min(receivers.len()) {
                 let frame = receivers.frame(i);
-                let (light, cells, samples) =
-                    cache.entry(frame.to_cols_array().map(f64::to_bits)).or_insert_with(|| {
-                        let frame = inverse_rotation * frame;
-                        let light = match &source {
-                            LightSource::Table(table) => FrameLight::Table(table, table.corners(frame)),
-                            LightSource::Sampled(sampler) => FrameLight::Direct(sampler, frame),
-                        };
+                let next = cache.len();
+                let (light, slot) = cache.entry(frame.to_cols_array().map(f64::to_bits)).or_insert_with(|| {
+                    let frame = inverse_rotation * frame;
+                    let light = match &source {
+                        LightSource::Table(table) => FrameLight::Table(table, table.corners(frame)),
+                        LightSource::Sampled(sampler) => FrameLight::Direct(sampler, frame),
+                    };
+                    if slots.len() <= next {
                         let samples =
-                            if kept > 0 { vec![[[f32::NAN; 4]; cell_light::SAMPLES]; grid.len()] } else { Vec::new() };
-                        (light, vec![DVec3::NAN; grid.len()], samples)
-                    });
+                            if kept > 0 { vec![[[0.0; 4]; cell_light::SAMPLES]; grid.len()] } else { Vec::new() };
+                        slots.push((vec![DVec3::NAN; grid.len()], samples));
+                    }
+                    // NaN cells are not lit yet (their samples are then stale too).
+                    slots[next].0.fill(DVec3::NAN);
+                    (light, next)
+                });
+                let (cells, samples) = &mut slots[*slot];
                 let mut best = details::Kept::new(kept);
                 for (c, v) in visibility.of(i).iter().enumerate() {
                     let p = if *v > 0.0 {

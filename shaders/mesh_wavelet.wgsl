@@ -42,8 +42,9 @@ struct WaveletParams {
 // (wavelet_relight.wgsl).
 @group(2) @binding(9) var<storage, read> vertex_details: array<u32>;
 @group(2) @binding(10) var<storage, read> texel_details: array<u32>;
-// Per glossy material and (theta_o, phi_o) row: the lobe on 20 * cells fine entries.
-@group(2) @binding(11) var<storage, read> fine_specular: array<f32>;
+// Per glossy material and (theta_o, phi_o) row: the lobe on 20 * cells fine entries, two half
+// floats per word.
+@group(2) @binding(11) var<storage, read> fine_specular: array<u32>;
 
 fn rgb9e5(v: u32) -> vec3<f32> {
     let scale = exp2(f32(i32(v >> 27u) - 24));
@@ -101,9 +102,14 @@ fn specular_at(rows: TableRows, c: u32) -> f32 {
     return mix(top, bottom, rows.fi);
 }
 
+fn fine_value(i: u32) -> f32 {
+    let pair = unpack2x16float(fine_specular[i / 2u]);
+    return select(pair.x, pair.y, (i & 1u) == 1u);
+}
+
 fn fine_at(rows: TableRows, e: u32) -> f32 {
-    let top = mix(fine_specular[rows.fine.x + e], fine_specular[rows.fine.y + e], rows.fj);
-    let bottom = mix(fine_specular[rows.fine.z + e], fine_specular[rows.fine.w + e], rows.fj);
+    let top = mix(fine_value(rows.fine.x + e), fine_value(rows.fine.y + e), rows.fj);
+    let bottom = mix(fine_value(rows.fine.z + e), fine_value(rows.fine.w + e), rows.fj);
     return mix(top, bottom, rows.fi);
 }
 

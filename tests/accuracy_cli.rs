@@ -283,7 +283,10 @@ fn detail_terms_sharpen_a_glossy_reflection_of_the_suns_aureole() {
         };
         let (without, with) = (error(0), error(32));
         eprintln!("{mode} 320: {without:.4} without detail terms, {with:.4} with 32");
-        // Measured 29.4% and 22.5% in wavelet_pixel, 30.1% and 23.3% per vertex.
-        assert!(with < 0.85 * without, "{mode}: {with} with detail terms against {without} without");
+        // Measured 21.0% and 7.7% in wavelet_pixel, 22.5% and 10.5% per vertex.
+        assert!(with < 0.6 * without, "{mode}: {with} with detail terms against {without} without");
+        if mode == "wavelet_pixel" {
+            assert!(with < 0.12, "{mode}: {with} with detail terms");
+        }
     }
 }

@@ -618,7 +618,11 @@ fn synthetic_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
         let start = Instant::now();
         let table = lightloom_nodes::triple_product::tabulate_brdf(&brdf, grid, &CancelToken::default())
             .map_err(|e| anyhow!("{e}"))?;
-        println!("(BRDF table, 320 cells × 512 outgoing directions: {:.1} ms)", start.elapsed().as_secs_f64() * 1e3);
+        println!(
+            "(BRDF table, 320 cells and their two finer levels × {} outgoing directions: {:.1} ms)",
+            lightloom_nodes::triple_product::THETA_STEPS * lightloom_nodes::triple_product::PHI_STEPS,
+            start.elapsed().as_secs_f64() * 1e3
+        );
         table
     };
     for terms in [80usize, 320] {

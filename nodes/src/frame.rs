@@ -312,7 +312,7 @@ pub struct WaveletSurfaces {
     pub details: Arc<crate::triple_product::details::DetailWeights>,
     /// The glossy materials' fine lobe tables
     /// ([`crate::triple_product::BrdfTable::fine_specular`] at `cells`), one after another.
-    pub fine_specular_tables: Arc<Vec<f32>>,
+    pub fine_specular_tables: Arc<Vec<half::f16>>,
     /// Per material: where its fine table starts in `fine_specular_tables` (0 without a lobe).
     pub fine_specular_offsets: Vec<u32>,
 }

@@ -31,8 +31,10 @@ pub mod details;
 crate::stage_type!(
     BrdfTable,
     "local-frame BRDF table",
-    |v| (v.diffuse.len() + v.specular.len() + v.fine_specular.len()) * 4,
-    numbers = |v| v.diffuse.iter().chain(&v.specular).chain(&v.fine_specular).map(|x| f64::from(*x))
+    |v| (v.diffuse.len() + v.specular.len()) * 4 + v.fine_specular.len() * 2,
+    numbers = |v| {
+        v.diffuse.iter().chain(&v.specular).map(|x| f64::from(*x)).chain(v.fine_specular.iter().map(|x| f64::from(*x)))
+    }
 );
 crate::stage_type!(
     LocalProducts,
@@ -600,10 +602,15 @@ fn dilate<F: Copy>(visibility: &mut [f32], frames: &mut [F], stride: usize, cove
     }
 }
 
+/// A fine lobe table's entry, clamped to half's range.
+fn to_half(v: f32) -> half::f16 {
+    half::f16::from_f32(v.clamp(-65504.0, 65504.0))
+}
+
 /// Outgoing-direction grid of the BRDF table: `θ_o` in `THETA_STEPS` steps over `[0, π/2]`
 /// (sample points at both ends), `φ_o` in `PHI_STEPS` steps over `[0, 2π)` (periodic).
-pub const THETA_STEPS: usize = 16;
-pub const PHI_STEPS: usize = 32;
+pub const THETA_STEPS: usize = 31;
+pub const PHI_STEPS: usize = 64;
 
 /// Direction of grid node `(i, j)` in the local frame.
 pub fn outgoing_direction(i: usize, j: usize) -> DVec3 {
@@ -623,8 +630,9 @@ pub struct BrdfTable {
     /// Per row of `specular`, the lobe on the two levels below the cells that the detail
     /// terms read ([`details`]): `4·cells` averages over the cells' children, then its value at
     /// each of the `16·cells` sub-cell samples. Entry `4n + k` is detail node `n`'s child `k`.
-    /// Empty without a lobe.
-    pub fine_specular: Vec<f32>,
+    /// Half floats (clamped to their range: a lobe sharp enough to exceed it is far sharper
+    /// than the samples resolve). Empty without a lobe.
+    pub fine_specular: Vec<half::f16>,
     pub albedo: [f32; 3],
     pub specular_color: [f32; 3],
     /// Fraction of the lobe's directional albedo at normal incidence the cell table keeps
@@ -649,7 +657,7 @@ impl BrdfTable {
             .specular
             .chunks(self.cells)
             .zip(self.fine_specular.chunks(5 * self.cells))
-            .flat_map(|(cells, fine)| cells.iter().chain(&fine[..4 * self.cells]).copied())
+            .flat_map(|(cells, fine)| cells.iter().map(|v| to_half(*v)).chain(fine[..4 * self.cells].iter().copied()))
             .collect();
         let merge = |values: &[f32]| -> Vec<f32> {
             values
@@ -680,7 +688,7 @@ pub fn tabulate_brdf(brdf: &Brdf, grid: &CellGrid, cancel: &CancelToken) -> Resu
     } else {
         let samples: Vec<(DVec3, f64)> = grid.samples.iter().flatten().copied().collect();
         // Per row: the cells' averages and the fine entries.
-        type Row = (Vec<f32>, Vec<f32>);
+        type Row = (Vec<f32>, Vec<half::f16>);
         let rows: Vec<Result<Row, StageError>> = (0..THETA_STEPS * PHI_STEPS)
             .into_par_iter()
             .map(|k| {
@@ -695,7 +703,8 @@ pub fn tabulate_brdf(brdf: &Brdf, grid: &CellGrid, cancel: &CancelToken) -> Resu
                     })
                 };
                 let cells = means(at.len() / grid.len()).collect();
-                let fine = means(at.len() / (4 * grid.len())).chain(at.iter().map(|v| *v as f32)).collect();
+                let fine =
+                    means(at.len() / (4 * grid.len())).chain(at.iter().map(|v| *v as f32)).map(to_half).collect();
                 Ok((cells, fine))
             })
             .collect();

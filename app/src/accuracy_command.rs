@@ -159,7 +159,7 @@ pub fn run(args: &AccuracyArgs) -> Result<()> {
             + match &frame.surfaces {
                 lightloom_nodes::frame::Surfaces::Wavelet(w) => {
                     let receivers = (w.vertices.frames.len() + w.texels.as_ref().map_or(0, |t| t.frames.len())) / 2;
-                    receivers * w.details.kept * 20 + w.fine_specular_tables.len() * 2
+                    receivers * w.details.kept * 20 + w.fine_specular_tables.iter().map(|t| t.len() * 2).sum::<usize>()
                 }
                 _ => 0,
             };

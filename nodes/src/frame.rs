@@ -310,10 +310,11 @@ pub struct WaveletSurfaces {
     /// Detail terms each receiver keeps (0 without any glossy material) and their per-node
     /// weights ([`crate::triple_product::details`]).
     pub details: Arc<crate::triple_product::details::DetailWeights>,
-    /// The glossy materials' fine lobe tables
-    /// ([`crate::triple_product::BrdfTable::fine_specular`] at `cells`), one after another.
-    pub fine_specular_tables: Arc<Vec<half::f16>>,
-    /// Per material: where its fine table starts in `fine_specular_tables` (0 without a lobe).
+    /// Per material its fine lobe table
+    /// ([`crate::triple_product::BrdfTable::fine_specular`] at `cells`), empty without a lobe
+    /// or detail terms; a renderer lays them one after another.
+    pub fine_specular_tables: Vec<Arc<Vec<half::f16>>>,
+    /// Per material: where its fine table starts in that concatenation.
     pub fine_specular_offsets: Vec<u32>,
 }
 
@@ -397,12 +398,12 @@ impl WaveletSurfaces {
         let weighted: Vec<(&BrdfTable, f64)> =
             coarse.iter().zip(&specular).map(|(t, s)| (t, s.map_or(0.0, |s| s[0].max(s[1]).max(s[2])))).collect();
         let details = crate::triple_product::details::DetailWeights::new(grid, &weighted, details);
-        let (mut fine_specular_tables, mut fine_specular_offsets) = (Vec::new(), Vec::new());
+        let (mut fine_specular_tables, mut fine_specular_offsets, mut offset) = (Vec::new(), Vec::new(), 0);
         for t in &coarse {
-            fine_specular_offsets.push(fine_specular_tables.len() as u32);
-            if details.kept > 0 {
-                fine_specular_tables.extend_from_slice(&t.fine_specular);
-            }
+            let table = if details.kept > 0 { t.fine_specular.clone() } else { Arc::default() };
+            fine_specular_offsets.push(offset as u32);
+            offset += table.len();
+            fine_specular_tables.push(table);
         }
         if details.kept > 0 {
             key = key.rotate_left(19) ^ details.kept as Key;
@@ -426,7 +427,7 @@ impl WaveletSurfaces {
             specular,
             vertex_layers: Arc::new(vertex_layers),
             details: Arc::new(details),
-            fine_specular_tables: Arc::new(fine_specular_tables),
+            fine_specular_tables,
             fine_specular_offsets,
         })
     }

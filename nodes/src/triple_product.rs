@@ -31,7 +31,7 @@ pub mod details;
 crate::stage_type!(
     BrdfTable,
     "local-frame BRDF table",
-    |v| (v.diffuse.len() + v.specular.len()) * 4 + v.fine_specular.len() * 2,
+    |v| (v.diffuse.len() + v.specular.len() + v.node_energy.len()) * 4 + v.fine_specular.len() * 2,
     numbers = |v| {
         v.diffuse.iter().chain(&v.specular).map(|x| f64::from(*x)).chain(v.fine_specular.iter().map(|x| f64::from(*x)))
     }
@@ -632,7 +632,10 @@ pub struct BrdfTable {
     /// each of the `16·cells` sub-cell samples. Entry `4n + k` is detail node `n`'s child `k`.
     /// Half floats (clamped to their range: a lobe sharp enough to exceed it is far sharper
     /// than the samples resolve). Empty without a lobe.
-    pub fine_specular: Vec<half::f16>,
+    pub fine_specular: std::sync::Arc<Vec<half::f16>>,
+    /// Per detail node, the lobe's largest detail energy over the rows
+    /// ([`details::lobe_detail_energy`]). Empty without a lobe.
+    pub node_energy: Vec<f32>,
     pub albedo: [f32; 3],
     pub specular_color: [f32; 3],
     /// Fraction of the lobe's directional albedo at normal incidence the cell table keeps
@@ -653,7 +656,7 @@ impl BrdfTable {
         }
         let fine = CellGrid::for_coefficients(self.cells)?;
         // The coarse grid's two finer levels are this grid's cells and their children.
-        let fine_specular = self
+        let fine_specular: Vec<half::f16> = self
             .specular
             .chunks(self.cells)
             .zip(self.fine_specular.chunks(5 * self.cells))
@@ -671,12 +674,16 @@ impl BrdfTable {
                 })
                 .collect()
         };
+        let coarse = CellGrid::for_coefficients(cells)?;
         Ok(BrdfTable {
             cells,
             diffuse: merge(&self.diffuse),
             specular: merge(&self.specular),
-            fine_specular,
-            ..self.clone()
+            node_energy: details::lobe_detail_energy(coarse, &fine_specular),
+            fine_specular: std::sync::Arc::new(fine_specular),
+            albedo: self.albedo,
+            specular_color: self.specular_color,
+            lobe_albedo: self.lobe_albedo,
         })
     }
 }
@@ -726,7 +733,8 @@ pub fn tabulate_brdf(brdf: &Brdf, grid: &CellGrid, cancel: &CancelToken) -> Resu
         cells: grid.len(),
         diffuse,
         specular,
-        fine_specular,
+        node_energy: details::lobe_detail_energy(grid, &fine_specular),
+        fine_specular: std::sync::Arc::new(fine_specular),
         albedo: brdf.diffuse.as_vec3().to_array(),
         specular_color: brdf.specular.as_vec3().to_array(),
         lobe_albedo,

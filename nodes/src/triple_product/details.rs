@@ -52,27 +52,47 @@ impl DetailWeights {
     /// `tables` with each material's largest specular colour channel; materials without a lobe
     /// add nothing, and with none at all no node is worth keeping (`kept` 0).
     pub fn new(grid: &CellGrid, tables: &[(&BrdfTable, f64)], kept: usize) -> Self {
-        let areas = entry_areas(grid);
         let mut squared = vec![0.0f32; node_count(grid.len())];
         let mut any = false;
         for (table, scale) in tables {
-            if table.fine_specular.is_empty() || *scale <= 0.0 {
+            if table.node_energy.len() != squared.len() || *scale <= 0.0 {
                 continue;
             }
             any = true;
-            for row in table.fine_specular.chunks_exact(areas.len()) {
-                for (n, w) in squared.iter_mut().enumerate() {
-                    let (t, a) = (&row[4 * n..4 * n + 4], &areas[4 * n..4 * n + 4]);
-                    let area: f64 = a.iter().sum();
-                    let t: [f64; 4] = std::array::from_fn(|k| f64::from(t[k]));
-                    let mean = (0..4).map(|k| t[k] * a[k]).sum::<f64>() / area;
-                    let energy: f64 = (0..4).map(|k| a[k] * (t[k] - mean).powi(2)).sum();
-                    *w = w.max((energy * scale * scale) as f32);
-                }
+            for (w, e) in squared.iter_mut().zip(&table.node_energy) {
+                *w = w.max((f64::from(*e) * scale * scale) as f32);
             }
         }
         Self { kept: if any { kept.min(MAX_DETAILS) } else { 0 }, squared }
     }
+}
+
+/// Per node of `grid`, the lobe's largest detail energy `Σ a_k (ρ_k − ρ̄)²` over the rows of a
+/// fine lobe table ([`BrdfTable::fine_specular`]): what [`DetailWeights`] weighs nodes by,
+/// computed once per table.
+pub fn lobe_detail_energy(grid: &CellGrid, fine: &[half::f16]) -> Vec<f32> {
+    use rayon::prelude::*;
+    let areas = entry_areas(grid);
+    let nodes = node_count(grid.len());
+    if fine.is_empty() {
+        return Vec::new();
+    }
+    fine.par_chunks_exact(areas.len())
+        .fold(
+            || vec![0.0f32; nodes],
+            |mut most, row| {
+                for (n, w) in most.iter_mut().enumerate() {
+                    let (t, a) = (&row[4 * n..4 * n + 4], &areas[4 * n..4 * n + 4]);
+                    let t: [f64; 4] = std::array::from_fn(|k| f64::from(t[k]));
+                    let area: f64 = a.iter().sum();
+                    let mean = (0..4).map(|k| t[k] * a[k]).sum::<f64>() / area;
+                    let energy: f64 = (0..4).map(|k| a[k] * (t[k] - mean).powi(2)).sum();
+                    *w = w.max(energy as f32);
+                }
+                most
+            },
+        )
+        .reduce(|| vec![0.0f32; nodes], |a, b| a.iter().zip(&b).map(|(x, y)| x.max(*y)).collect())
 }
 
 /// Solid angles of the 20·cells entries (children of node `n` at `4n..4n + 4`).

@@ -62,12 +62,20 @@ impl LitReceivers {
         let limit = gpu.device.limits().max_storage_buffer_binding_size.min(gpu.device.limits().max_buffer_size);
         let bytes = (count * visibility.cells * 4) as u64;
         let detail_bytes = (count * kept * 20) as u64;
-        if bytes.max(detail_bytes) > limit {
+        if bytes > limit {
             return Err(RenderError::Invalid(format!(
                 "the wavelet mode's {label} need {} MiB of products ({count} × {} cells) but this GPU binds at most {} \
                  MiB: use 80 coefficients, fewer vertices or a smaller visibility texture",
                 bytes >> 20,
                 visibility.cells,
+                limit >> 20
+            )));
+        }
+        if detail_bytes > limit {
+            return Err(RenderError::Invalid(format!(
+                "the wavelet mode's {label} need {} MiB of detail terms ({count} × {kept}) but this GPU binds at most {} \
+                 MiB: use fewer wavelet detail terms, fewer vertices or a smaller visibility texture",
+                detail_bytes >> 20,
                 limit >> 20
             )));
         }
@@ -262,7 +270,8 @@ impl WaveletPass {
         let layers = storage_buffer(gpu, "wavelet-vertex-layers", &data.vertex_layers);
         let ranges = storage_buffer(gpu, "wavelet-specular-ranges", &data.specular_ranges);
         let cells = storage_buffer(gpu, "wavelet-specular-cells", &data.specular_cells);
-        let fine = storage_buffer(gpu, "wavelet-fine-specular", &data.fine_specular_tables);
+        let fine: Vec<half::f16> = data.fine_specular_tables.iter().flat_map(|t| t.iter().copied()).collect();
+        let fine = storage_buffer(gpu, "wavelet-fine-specular", &fine);
         let no_irradiance = storage_buffer::<[f32; 4]>(gpu, "wavelet-no-texels", &[]);
         let no_products = storage_buffer::<u32>(gpu, "wavelet-no-texels", &[]);
         fn resource(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {

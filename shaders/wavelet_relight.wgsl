@@ -198,7 +198,7 @@ fn relight(@builtin(global_invocation_id) id: vec3<u32>) {
     let rn = vec3<f32>(dot(r[0].xyz, n), dot(r[1].xyz, n), dot(r[2].xyz, n));
     let cells = params.counts.y;
     let per_cell = params.counts.z;
-    // Details need the 16 samples per cell the host checks for.
+    // Details need 16 samples per cell (nodes/src/triple_product.rs SUBLEVELS = 2).
     let kept = select(0u, min(params.dispatch.y, MAX_DETAILS), per_cell == 16u);
     for (var j = 0u; j < kept; j = j + 1u) {
         kept_scores[j] = 0.0;

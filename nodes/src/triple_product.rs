@@ -629,7 +629,8 @@ pub struct BrdfTable {
     pub specular: Vec<f32>,
     /// Per row of `specular`, the lobe on the two levels below the cells that the detail
     /// terms read ([`details`]): `4·cells` averages over the cells' children, then its value at
-    /// each of the `16·cells` sub-cell samples. Entry `4n + k` is detail node `n`'s child `k`.
+    /// each of the `16·cells` sub-cell samples (in a coarsened table, the finer grid's averages
+    /// over four samples). Entry `4n + k` is detail node `n`'s child `k`.
     /// Half floats (clamped to their range: a lobe sharp enough to exceed it is far sharper
     /// than the samples resolve). Empty without a lobe.
     pub fine_specular: std::sync::Arc<Vec<half::f16>>,
@@ -659,7 +660,7 @@ impl BrdfTable {
         let fine_specular: Vec<half::f16> = self
             .specular
             .chunks(self.cells)
-            .zip(self.fine_specular.chunks(5 * self.cells))
+            .zip(self.fine_specular.chunks(20 * self.cells))
             .flat_map(|(cells, fine)| cells.iter().map(|v| to_half(*v)).chain(fine[..4 * self.cells].iter().copied()))
             .collect();
         let merge = |values: &[f32]| -> Vec<f32> {
@@ -952,6 +953,23 @@ mod tests {
         for (a, b) in merged.specular.iter().zip(&coarse.specular).chain(merged.diffuse.iter().zip(&coarse.diffuse)) {
             assert!((a - b).abs() < 0.08 * b.abs().max(0.05), "{a} vs {b}");
         }
+        // The coarse grid's two finer levels are the fine grid's cells and their children, row
+        // by row, and agree with tabulating at 80 cells directly (whose finest level samples
+        // where the fine grid averages four samples).
+        assert_eq!(merged.fine_specular.len(), coarse.fine_specular.len());
+        for (row, (m, f)) in merged.fine_specular.chunks(20 * 80).zip(fine.fine_specular.chunks(20 * 320)).enumerate() {
+            let cells = &fine.specular[row * 320..(row + 1) * 320];
+            for (a, b) in m[..320].iter().zip(cells) {
+                assert!((f32::from(*a) - b).abs() <= 1e-3 * b.abs() + 1e-6, "row {row}: {a} against the cell {b}");
+            }
+            assert_eq!(&m[320..], &f[..1280], "row {row}: the children");
+        }
+        let (mut worst, mut scale) = (0.0f32, 0.0f32);
+        for (a, b) in merged.fine_specular.iter().zip(coarse.fine_specular.iter()) {
+            worst = worst.max((f32::from(*a) - f32::from(*b)).abs());
+            scale = scale.max(f32::from(*b).abs());
+        }
+        assert!(worst < 0.15 * scale, "the fine levels: {worst} off, largest {scale}");
         assert!(fine.coarsened(100).is_err());
     }
 

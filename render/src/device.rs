@@ -92,7 +92,8 @@ pub fn device_descriptor(adapter: &wgpu::Adapter) -> wgpu::DeviceDescriptor<'sta
     let required_limits = wgpu::Limits {
         max_storage_buffer_binding_size: supported.max_storage_buffer_binding_size,
         max_buffer_size: supported.max_buffer_size,
-        // The wavelet relight kernel reads five buffers and writes two (WebGPU's default is 8).
+        // The wavelet relight kernel reads five buffers and writes three, and the wavelet mesh
+        // pass's vertex stage reads eight (WebGPU's default is 8).
         max_storage_buffers_per_shader_stage: supported.max_storage_buffers_per_shader_stage.min(8),
         ..wgpu::Limits::downlevel_defaults().using_resolution(supported)
     };

@@ -960,7 +960,9 @@ fn fog_frame(
 /// Materials whose highlight `mode` cannot show as it is, and why: irradiance shows no
 /// highlights; SH of the Scene's order keeps less than half of a sharp lobe's energy
 /// ([`crate::brdf::phong_sh_energy_kept`]); the wavelet table needs the lobe's half-maximum
-/// cone to cover two of its cells ([`crate::brdf::sharpest_phong_for_cells`]).
+/// cone to cover two of its cells ([`crate::brdf::sharpest_phong_for_cells`]), or with detail
+/// terms two of the finest samples and the view step
+/// ([`crate::triple_product::details::sharpest_phong_with_details`]).
 fn lobe_limits(
     graph: &Graph,
     output: &str,
@@ -983,7 +985,16 @@ fn lobe_limits(
         _ => 320,
     };
     let sh_limit = crate::brdf::sharpest_phong_for_sh(bands, 0.5);
-    let cell_limit = crate::brdf::sharpest_phong_for_cells(cells);
+    let details = int(output, "wavelet_details", 32) > 0;
+    let cell_limit = match details {
+        true => crate::triple_product::details::sharpest_phong_with_details(cells),
+        false => crate::brdf::sharpest_phong_for_cells(cells),
+    };
+    let shown_by = if details {
+        format!("{cells} wavelet cells and their detail terms")
+    } else {
+        format!("{cells} wavelet cells")
+    };
     let table_limit = crate::rsl::brdf_sat::sharpest_phong();
     let mut out = Vec::new();
     for m in materials.iter().filter(|m| !m.node.is_empty()) {
@@ -1005,8 +1016,8 @@ fn lobe_limits(
                  wavelet_pixel (to about Phong {cell_limit:.0})"
             )),
             Mode::WaveletVertex | Mode::WaveletPixel if exponent > cell_limit => Some(format!(
-                "{lobe} is sharper than {cells} wavelet cells show (about Phong {cell_limit:.0}): it is spread over \
-                 a cell, broader and dimmer than the reference"
+                "{lobe} is sharper than {shown_by} show (about Phong {cell_limit:.0}): it is drawn broader and \
+                 dimmer than the reference"
             )),
             Mode::Rsl if exponent > table_limit => Some(format!(
                 "{lobe} is sharper than the square lights' BRDF tables show (about Phong {table_limit:.0}): it is \

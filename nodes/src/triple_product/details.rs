@@ -95,6 +95,14 @@ pub fn lobe_detail_energy(grid: &CellGrid, fine: &[half::f16]) -> Vec<f32> {
         .reduce(|| vec![0.0f32; nodes], |a, b| a.iter().zip(&b).map(|(x, y)| x.max(*y)).collect())
 }
 
+/// The sharpest Phong lobe (by its half-maximum cone) that `cells` cells with detail terms
+/// show: its cone must cover two of the finest samples (16 per cell) and the lobe tables' view
+/// step (`2π / PHI_STEPS`), between whose rows it is interpolated.
+pub fn sharpest_phong_with_details(cells: usize) -> f64 {
+    let view_step = 2.0 * std::f64::consts::PI / PHI_STEPS as f64;
+    crate::brdf::sharpest_phong_for_cells(16 * cells).min(0.5f64.ln() / view_step.cos().ln())
+}
+
 /// Solid angles of the 20·cells entries (children of node `n` at `4n..4n + 4`).
 pub fn entry_areas(grid: &CellGrid) -> Vec<f64> {
     let samples: Vec<f64> = grid.samples.iter().flatten().map(|(_, w)| *w).collect();

@@ -265,12 +265,21 @@ impl WaveletPass {
         storage_buffer(gpu, "wavelet-cell-tables", &tables)
     }
 
-    fn bind(&self, gpu: &GpuContext, receivers: &Receivers, data: &WaveletSurfaces) -> Bound {
+    fn bind(&self, gpu: &GpuContext, receivers: &Receivers, data: &WaveletSurfaces) -> Result<Bound, RenderError> {
         let specular = storage_buffer(gpu, "wavelet-specular", &data.specular_tables);
         let layers = storage_buffer(gpu, "wavelet-vertex-layers", &data.vertex_layers);
         let ranges = storage_buffer(gpu, "wavelet-specular-ranges", &data.specular_ranges);
         let cells = storage_buffer(gpu, "wavelet-specular-cells", &data.specular_cells);
         let fine: Vec<half::f16> = data.fine_specular_tables.iter().flat_map(|t| t.iter().copied()).collect();
+        let limit = gpu.device.limits().max_storage_buffer_binding_size.min(gpu.device.limits().max_buffer_size);
+        if (fine.len() * 2) as u64 > limit {
+            return Err(RenderError::Invalid(format!(
+                "the glossy materials' fine lobe tables need {} MiB but this GPU binds at most {} MiB: use fewer \
+                 glossy materials or set the wavelet detail terms to 0",
+                (fine.len() * 2) >> 20,
+                limit >> 20
+            )));
+        }
         let fine = storage_buffer(gpu, "wavelet-fine-specular", &fine);
         let no_irradiance = storage_buffer::<[f32; 4]>(gpu, "wavelet-no-texels", &[]);
         let no_products = storage_buffer::<u32>(gpu, "wavelet-no-texels", &[]);
@@ -296,7 +305,7 @@ impl WaveletPass {
                 resource(11, &fine),
             ],
         });
-        Bound { key: data.key, bind_group }
+        Ok(Bound { key: data.key, bind_group })
     }
 
     /// Uploads the prefiltered environment and binds it with each receiver set.
@@ -435,7 +444,7 @@ impl Pass for WaveletPass {
             self.lit = Some(self.light(gpu, receivers, data)?);
         }
         if self.bound.as_ref().is_none_or(|b| b.key != data.key) {
-            self.bound = Some(self.bind(gpu, receivers, data));
+            self.bound = Some(self.bind(gpu, receivers, data)?);
         }
         let state = (receivers.key, data.environment.key, data.inverse_rotation(), receivers.details_key);
         if self.relit != Some(state) {

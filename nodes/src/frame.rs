@@ -489,11 +489,6 @@ impl WaveletSurfaces {
             .map_err(|e| e.to_string())
     }
 
-    /// Floats of one material's fine lobe table.
-    pub fn fine_specular_stride(cells: usize) -> usize {
-        20 * Self::specular_stride(cells)
-    }
-
     /// Floats of one material's specular table.
     pub fn specular_stride(cells: usize) -> usize {
         crate::triple_product::THETA_STEPS * crate::triple_product::PHI_STEPS * cells

@@ -260,6 +260,11 @@ pub fn local_products_with_details(
         Some(table) if kept == 0 => LightSource::Table(table),
         _ => LightSource::Sampled(cell_light::CellSampler::new(grid, &prefiltered(lighting.environment, grid))),
     };
+    // With details, every cell is sampled and its samples scored.
+    let detail_sampler = match &source {
+        LightSource::Sampled(sampler) if kept > 0 => Some(sampler),
+        _ => None,
+    };
     type Samples = [[f32; 4]; cell_light::SAMPLES];
     /// A chunk's products, kept nodes and their details.
     type Chunk = (Vec<f32>, Vec<u32>, Vec<[f32; 9]>);
@@ -311,8 +316,7 @@ pub fn local_products_with_details(
                                 FrameLight::Table(table, corners) => cells[c] = table.cell(corners, c),
                             }
                         }
-                        if kept > 0 {
-                            let LightSource::Sampled(sampler) = &source else { unreachable!("details sample") };
+                        if let Some(sampler) = detail_sampler {
                             details::offer_cell(&mut best, weights, c, &samples[c], sampler.weights(c), *v);
                         }
                         cells[c] * f64::from(*v)
@@ -321,7 +325,7 @@ pub fn local_products_with_details(
                     };
                     out.extend([p.x as f32, p.y as f32, p.z as f32]);
                 }
-                if let LightSource::Sampled(sampler) = &source {
+                if let Some(sampler) = detail_sampler {
                     for &node in best.nodes() {
                         nodes.push(node);
                         values.push(if node == details::NO_NODE {

@@ -118,12 +118,6 @@ pub struct LocalDetails {
     pub values: Vec<[f32; 9]>,
 }
 
-impl LocalDetails {
-    pub fn receivers(&self) -> usize {
-        self.nodes.len() / self.kept.max(1)
-    }
-}
-
 /// The `K` best-scoring nodes seen so far: ties keep the node offered first, as the kernel's
 /// insertion does.
 pub(super) struct Kept {
@@ -289,6 +283,19 @@ mod tests {
         }
     }
 
+    /// One receiver in `frame` relit under `environment`, keeping `weights.kept` terms.
+    fn relight_one(
+        grid: &CellGrid,
+        environment: &CubeMap,
+        frame: DMat3,
+        visibility: &LocalVisibility,
+        weights: &DetailWeights,
+    ) -> (super::super::LocalProducts, LocalDetails) {
+        let lighting = Lighting { environment, rotation: DMat3::IDENTITY, table: None };
+        local_products_with_details(grid, &lighting, &receivers(&[frame]), visibility, weights, &CancelToken::default())
+            .unwrap()
+    }
+
     fn glossy(model: &str, roughness: f64) -> Brdf {
         Brdf::from_material(&Material {
             model: model.into(),
@@ -339,16 +346,7 @@ mod tests {
                 .map(|c| if c % 7 == 0 && c < 84 { 0.25 + 0.75 * uniform() as f32 } else { 0.0 })
                 .collect();
             let visibility = LocalVisibility { cells: grid.len(), values: values.clone() };
-            let lighting = Lighting { environment: &environment, rotation: DMat3::IDENTITY, table: None };
-            let (products, kept) = local_products_with_details(
-                grid,
-                &lighting,
-                &receivers(&[frame]),
-                &visibility,
-                &weights,
-                &CancelToken::default(),
-            )
-            .unwrap();
+            let (products, kept) = relight_one(grid, &environment, frame, &visibility, &weights);
             let (i, j) = (1 + (uniform() * (THETA_STEPS - 3) as f64) as usize, (uniform() * PHI_STEPS as f64) as usize);
             let wo = outgoing_direction(i, j);
             let to_eye = frame * wo;
@@ -465,18 +463,9 @@ mod tests {
                 radiance(d) * brdf.lobe_value(local, wo) * local.z.max(0.0)
             });
             let visibility = LocalVisibility { cells: grid.len(), values: vec![1.0; grid.len()] };
-            let lighting = Lighting { environment: &filtered, rotation: DMat3::IDENTITY, table: None };
             for (error, kept) in errors[usize::from(!on_nodes)].iter_mut().zip(kept_counts) {
                 let weights = DetailWeights::new(grid, &[(&table, 1.0)], kept);
-                let (products, details) = local_products_with_details(
-                    grid,
-                    &lighting,
-                    &receivers(&[frame]),
-                    &visibility,
-                    &weights,
-                    &CancelToken::default(),
-                )
-                .unwrap();
+                let (products, details) = relight_one(grid, &filtered, frame, &visibility, &weights);
                 let b = shade_with_details(&products, &details, &table, 0, frame, frame * wo).x;
                 *error += ((b - exact) / exact).powi(2) / cases as f64;
             }

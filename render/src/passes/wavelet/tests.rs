@@ -72,16 +72,11 @@ fn read(gpu: &GpuContext, buffer: &wgpu::Buffer) -> Vec<u8> {
     crate::capture::read_mapped(&gpu.device, &staging, |bytes| bytes.to_vec()).unwrap()
 }
 
-/// The relight kernel (`wavelet_relight.wgsl`) against its CPU twin (`local_products` in f64,
-/// then `diffuse_transfer`) on random frames, visibility and a sunlit environment: every
-/// product but one in a thousand within RGB9E5's precision plus half-float visibility (2⁻⁸ of
-/// the largest channel), all within 2%, and every diffuse transfer within 0.2%.
-#[test]
-fn the_relight_kernel_matches_the_cpu_twin() {
-    let gpu = GpuContext::headless().expect("a wgpu device (lavapipe on machines without a GPU)");
+/// A wavelet pass that relights with the kernel, whatever the adapter.
+fn kernel_pass(gpu: &GpuContext) -> WaveletPass {
     let camera = CameraBinding::new(&gpu.device);
-    let medium = MediumPass::new(&gpu);
-    let sun = crate::passes::sun::SunPass::new(&gpu);
+    let medium = MediumPass::new(gpu);
+    let sun = crate::passes::sun::SunPass::new(gpu);
     let setup = PassSetup {
         device: &gpu.device,
         camera_layout: &camera.layout,
@@ -91,6 +86,17 @@ fn the_relight_kernel_matches_the_cpu_twin() {
     };
     let mut pass = WaveletPass::new(&setup);
     pass.set_relight_on(RelightOn::Gpu);
+    pass
+}
+
+/// The relight kernel (`wavelet_relight.wgsl`) against its CPU twin (`local_products` in f64,
+/// then `diffuse_transfer`) on random frames, visibility and a sunlit environment: every
+/// product but one in a thousand within RGB9E5's precision plus half-float visibility (2⁻⁸ of
+/// the largest channel), all within 2%, and every diffuse transfer within 0.2%.
+#[test]
+fn the_relight_kernel_matches_the_cpu_twin() {
+    let gpu = GpuContext::headless().expect("a wgpu device (lavapipe on machines without a GPU)");
+    let mut pass = kernel_pass(&gpu);
     for (cells, rotation) in
         [(80, glam::DMat3::IDENTITY), (320, glam::DMat3::from_euler(glam::EulerRot::YXZ, 0.7, -0.4, 2.1))]
     {
@@ -139,18 +145,7 @@ fn the_relight_kernel_keeps_the_twins_detail_terms() {
     use lightloom_nodes::triple_product::details::{LocalDetails, detail_glossy};
     use lightloom_nodes::triple_product::{BrdfTable, shade};
     let gpu = GpuContext::headless().expect("a wgpu device (lavapipe on machines without a GPU)");
-    let camera = CameraBinding::new(&gpu.device);
-    let medium = MediumPass::new(&gpu);
-    let sun = crate::passes::sun::SunPass::new(&gpu);
-    let setup = PassSetup {
-        device: &gpu.device,
-        camera_layout: &camera.layout,
-        medium_layout: &medium.layout,
-        sun_layout: &sun.layout,
-        sample_count: 1,
-    };
-    let mut pass = WaveletPass::new(&setup);
-    pass.set_relight_on(RelightOn::Gpu);
+    let mut pass = kernel_pass(&gpu);
     let material = lightloom_nodes::kinds::brdf::Material {
         model: "ggx".into(),
         roughness: 0.3,

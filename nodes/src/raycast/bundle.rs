@@ -2,6 +2,7 @@
 //! together as a ray stream: a 4-wide BVH is walked once per bundle, each node carrying the
 //! list of the bundle's rays that reach it, so deep nodes meet only the few rays that get
 //! there. Each ray meets a node's four boxes, or a leaf's four triangles, in one SIMD test.
+//! Where a list thins to a ray or two, those rays walk the rest of the subtree one by one.
 //!
 //! Triangles are tested as cones from the shared origin: a ray hits a triangle when its
 //! direction lies inside the three planes through the origin and the triangle's edges. The
@@ -160,8 +161,14 @@ impl BundleTree {
             return;
         }
         assert_eq!(blocked.len(), directions.len(), "one flag per direction");
+        // The buffers are the thread's, kept between bundles.
+        let mut scratch = SCRATCH.take();
+        let WalkScratch { inverse, lists, stack, single_stack } = &mut scratch;
         // A zero component would make 0·∞ in the slab test: a tiny one gives the same slabs.
-        let mut inverse = vec![Vec3A::ZERO; directions.len()];
+        // Only the listed rays' entries are written, and read.
+        if inverse.len() < directions.len() {
+            inverse.resize(directions.len(), Vec3A::ZERO);
+        }
         for &i in rays {
             let d = directions[i as usize];
             inverse[i as usize] =
@@ -169,13 +176,30 @@ impl BundleTree {
         }
         // Each stacked node owns a range of `lists`; the one on top owns the highest range, so
         // popping it frees everything above its end.
-        let mut lists: Vec<u32> = Vec::with_capacity(rays.len() * 32);
+        lists.clear();
         lists.extend_from_slice(rays);
-        let mut stack: Vec<(u32, u32, u32)> = Vec::with_capacity(64);
-        stack.push((0, 0, rays.len() as u32));
+        // Each stacked node also holds how many leaf tests had hit when its list was written:
+        // while no test has hit since, no ray in it can have been blocked since. The root's
+        // list may hold rays blocked before the walk.
+        let mut hits = 0u32;
+        stack.clear();
+        stack.push((0, 0, rays.len() as u32, u32::MAX));
         let o = [Vec4::splat(origin.x), Vec4::splat(origin.y), Vec4::splat(origin.z)];
-        while let Some((index, start, end)) = stack.pop() {
+        while let Some((index, start, end, written)) = stack.pop() {
             let (start, end) = (start as usize, end as usize);
+            // A node that few rays reach is walked ray by ray: below a few rays the list's
+            // bookkeeping costs more than sharing the node's loads saves.
+            if end - start <= SINGLE_RAY_LISTS {
+                for &i in &lists[start..end] {
+                    let i = i as usize;
+                    if !blocked[i] {
+                        let hit = self.occluded_one(index, &o, directions[i], inverse[i], tmax, single_stack);
+                        blocked[i] = hit;
+                        hits += u32::from(hit);
+                    }
+                }
+                continue;
+            }
             let node = &self.nodes[index as usize];
             let boxes = Boxes {
                 lo: [node.lo[0] - o[0], node.lo[1] - o[1], node.lo[2] - o[2]],
@@ -201,8 +225,11 @@ impl BundleTree {
             }
             let (parent, children) = lists.split_at_mut(end);
             // SAFETY: the caller's promise.
-            let length =
-                unsafe { K::split(&boxes, &inverse, &mut parent[start..], children, slot.map(|s| s - end), blocked) };
+            let clean = written == hits;
+            let length = unsafe {
+                K::split(&boxes, inverse, &mut parent[start..end], clean, children, slot.map(|s| s - end), blocked)
+            };
+            let written = hits;
             // Leaves at once (cheap, and what they block leaves the other lists early), then
             // the inner children.
             // The leaves rays enter, as a mask (one branch per leaf, not two per lane).
@@ -214,7 +241,7 @@ impl BundleTree {
                 let listed = &lists[slot[lane]..slot[lane] + length[lane]];
                 for pack in &self.packs[first..first + node.packs[lane] as usize] {
                     // SAFETY: the caller's promise.
-                    unsafe { K::occlude_pack(pack, origin, directions, listed, tmax, blocked) };
+                    hits += unsafe { K::occlude_pack(pack, origin, directions, listed, tmax, blocked) };
                 }
             }
             // Without a branch per lane (whether a child is entered is data, and mispredicts):
@@ -224,12 +251,89 @@ impl BundleTree {
             let spare = stack.spare_capacity_mut();
             let mut pushed = 0;
             for lane in order {
-                spare[pushed].write((node.child[lane], slot[lane] as u32, (slot[lane] + length[lane]) as u32));
+                spare[pushed].write((node.child[lane], slot[lane] as u32, (slot[lane] + length[lane]) as u32, written));
                 pushed += (node.packs[lane] == 0 && length[lane] > 0) as usize;
             }
             // SAFETY: the first `pushed` spare entries were just written.
             unsafe { stack.set_len(top + pushed) };
         }
+        SCRATCH.set(scratch);
+    }
+}
+
+/// A walk's buffers: the listed rays' reciprocal directions, the rays' lists, the stack of
+/// nodes with their lists (node, list start, list end, leaf hits when written), and the
+/// stack of a walk ray by ray.
+#[derive(Default)]
+struct WalkScratch {
+    inverse: Vec<Vec3A>,
+    lists: Vec<u32>,
+    stack: Vec<(u32, u32, u32, u32)>,
+    single_stack: Vec<u32>,
+}
+
+thread_local! {
+    static SCRATCH: std::cell::Cell<WalkScratch> = Default::default();
+}
+
+/// Lists of at most this many rays are walked one ray at a time.
+const SINGLE_RAY_LISTS: usize = 2;
+
+impl BundleTree {
+    /// Whether one ray (direction `d`, its reciprocal `inverse`) from the bundle's origin
+    /// (`o`, splat) hits a triangle under node `root` within `(0, tmax)`: the same box and
+    /// triangle tests as [`OneRay`], without lists.
+    #[inline(always)]
+    fn occluded_one(
+        &self,
+        root: u32,
+        o: &[Vec4; 3],
+        d: Vec3A,
+        inverse: Vec3A,
+        tmax: f32,
+        stack: &mut Vec<u32>,
+    ) -> bool {
+        let origin = Vec3A::new(o[0].x, o[1].x, o[2].x);
+        let far_limit = Vec4::splat(tmax);
+        stack.clear();
+        stack.push(root);
+        while let Some(index) = stack.pop() {
+            let node = &self.nodes[index as usize];
+            let (ax, bx) = ((node.lo[0] - o[0]) * inverse.x, (node.hi[0] - o[0]) * inverse.x);
+            let (ay, by) = ((node.lo[1] - o[1]) * inverse.y, (node.hi[1] - o[1]) * inverse.y);
+            let (az, bz) = ((node.lo[2] - o[2]) * inverse.z, (node.hi[2] - o[2]) * inverse.z);
+            let near = ax.min(bx).max(ay.min(by)).max(az.min(bz)).max(Vec4::ZERO);
+            let far = ax.max(bx).min(ay.max(by)).min(az.max(bz)).min(far_limit);
+            let hits = near.cmple(far).bitmask() & node.used;
+            if hits == 0 {
+                continue;
+            }
+            let mut leaves = (0..4).fold(0u32, |m, l| m | u32::from(node.packs[l] > 0) << l) & hits;
+            while leaves != 0 {
+                let lane = leaves.trailing_zeros() as usize;
+                leaves &= leaves - 1;
+                let first = node.child[lane] as usize;
+                for pack in &self.packs[first..first + node.packs[lane] as usize] {
+                    if pack.occludes(origin, d, far_limit) {
+                        return true;
+                    }
+                }
+            }
+            // The inner children, the nearest entered last (on top).
+            let inner = hits & !(0..4).fold(0u32, |m, l| m | u32::from(node.packs[l] > 0) << l);
+            if inner & (inner - 1) == 0 {
+                if inner != 0 {
+                    stack.push(node.child[inner.trailing_zeros() as usize]);
+                }
+                continue;
+            }
+            for lane in farthest_first(near.to_array()) {
+                if inner >> lane & 1 != 0 {
+                    stack.push(node.child[lane]);
+                }
+            }
+        }
+        false
     }
 }
 
@@ -266,7 +370,8 @@ trait Kernel {
     /// Appends each unblocked ray of `rays` to the list of every child box it enters within
     /// `[0, tmax]`: lane `l`'s list is written from `children[slot[l]]` on, over as many entries
     /// as `rays` has (scratch: what lies past a list's length is overwritten). `rays` itself is
-    /// not read again and may be overwritten. Returns the lists' lengths.
+    /// not read again and may be overwritten. When `clean`, no ray of `rays` is blocked, and the
+    /// flags need not be read. Returns the lists' lengths.
     ///
     /// # Safety
     /// The CPU has the features the implementation is compiled for, and every index in `rays`
@@ -275,12 +380,14 @@ trait Kernel {
         boxes: &Boxes,
         inverse: &[Vec3A],
         rays: &mut [u32],
+        clean: bool,
         children: &mut [u32],
         slot: [usize; 4],
         blocked: &[bool],
     ) -> [usize; 4];
 
-    /// Marks each unblocked ray of `rays` that hits one of the pack's triangles within `(0, tmax)`.
+    /// Marks each unblocked ray of `rays` that hits one of the pack's triangles within `(0, tmax)`,
+    /// and returns how many listed rays hit (counting any already blocked).
     ///
     /// # Safety
     /// As for [`Kernel::split`], with `directions` for `inverse`.
@@ -291,7 +398,7 @@ trait Kernel {
         rays: &[u32],
         tmax: f32,
         blocked: &mut [bool],
-    );
+    ) -> u32;
 }
 
 /// One ray against four boxes or four triangles per SIMD test.
@@ -303,6 +410,7 @@ impl Kernel for OneRay {
         boxes: &Boxes,
         inverse: &[Vec3A],
         rays: &mut [u32],
+        clean: bool,
         children: &mut [u32],
         slot: [usize; 4],
         blocked: &[bool],
@@ -310,7 +418,7 @@ impl Kernel for OneRay {
         let (lo, hi, far_limit) = (&boxes.lo, &boxes.hi, Vec4::splat(boxes.tmax));
         let mut length = [0usize; 4];
         for &i in rays.iter() {
-            if blocked[i as usize] {
+            if !clean && blocked[i as usize] {
                 continue;
             }
             let inv = inverse[i as usize];
@@ -336,26 +444,17 @@ impl Kernel for OneRay {
         rays: &[u32],
         tmax: f32,
         blocked: &mut [bool],
-    ) {
-        let Some(edges) = pack.edges(origin) else { return };
+    ) -> u32 {
+        let Some(edges) = pack.edges(origin) else { return 0 };
         let far_limit = Vec4::splat(tmax);
+        let mut hits = 0;
         for &i in rays {
-            if blocked[i as usize] {
-                continue;
-            }
-            let d = directions[i as usize];
-            let (x, y, z) = (Vec4::splat(d.x), Vec4::splat(d.y), Vec4::splat(d.z));
-            let [ab, bc, ca] = &edges.planes;
-            let e0 = x * ab[0] + y * ab[1] + z * ab[2];
-            let e1 = x * bc[0] + y * bc[1] + z * bc[2];
-            let e2 = x * ca[0] + y * ca[1] + z * ca[2];
-            // The hit is at t = depth / (e0 + e1 + e2) (the sum is d·normal, scaled alike).
-            let inside = e0.cmpge(Vec4::ZERO) & e1.cmpge(Vec4::ZERO) & e2.cmpge(Vec4::ZERO);
-            let near = edges.depth.cmplt(far_limit * (e0 + e1 + e2));
-            if (inside & near).bitmask() & edges.live != 0 {
+            if !blocked[i as usize] && edges.hit(directions[i as usize], far_limit) {
                 blocked[i as usize] = true;
+                hits += 1;
             }
         }
+        hits
     }
 }
 
@@ -369,7 +468,30 @@ struct PackEdges {
     live: u32,
 }
 
+impl PackEdges {
+    /// Whether the ray along `d` hits one of the pack's triangles within `(0, far_limit)`.
+    #[inline(always)]
+    fn hit(&self, d: Vec3A, far_limit: Vec4) -> bool {
+        let (x, y, z) = (Vec4::splat(d.x), Vec4::splat(d.y), Vec4::splat(d.z));
+        let [ab, bc, ca] = &self.planes;
+        let e0 = x * ab[0] + y * ab[1] + z * ab[2];
+        let e1 = x * bc[0] + y * bc[1] + z * bc[2];
+        let e2 = x * ca[0] + y * ca[1] + z * ca[2];
+        // The hit is at t = depth / (e0 + e1 + e2) (the sum is d·normal, scaled alike).
+        let inside = e0.cmpge(Vec4::ZERO) & e1.cmpge(Vec4::ZERO) & e2.cmpge(Vec4::ZERO);
+        let near = self.depth.cmplt(far_limit * (e0 + e1 + e2));
+        (inside & near).bitmask() & self.live != 0
+    }
+}
+
 impl TrianglePack {
+    /// Whether one ray from `origin` along `d` hits one of the pack's triangles within
+    /// `(0, far_limit)`.
+    #[inline(always)]
+    fn occludes(&self, origin: Vec3A, d: Vec3A, far_limit: Vec4) -> bool {
+        self.edges(origin).is_some_and(|edges| edges.hit(d, far_limit))
+    }
+
     fn new<'a>(triangles: impl Iterator<Item = &'a Triangle>) -> Self {
         let mut corners = [[Vec4::ZERO; 3]; 3];
         for (lane, t) in triangles.enumerate() {

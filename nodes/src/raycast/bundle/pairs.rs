@@ -49,6 +49,7 @@ impl Kernel for Pairs {
         boxes: &Boxes,
         inverse: &[Vec3A],
         rays: &mut [u32],
+        clean: bool,
         children: &mut [u32],
         slot: [usize; 4],
         blocked: &[bool],
@@ -67,11 +68,14 @@ impl Kernel for Pairs {
         let mut end = start;
         // The unblocked rays first, moved to the front without a branch on each flag (whether a ray
         // is blocked is data, and mispredicts); then two at a time.
-        let mut unblocked = 0;
-        for k in 0..rays.len() {
-            let i = rays[k];
-            rays[unblocked] = i;
-            unblocked += usize::from(!at(blocked, i));
+        let mut unblocked = rays.len();
+        if !clean {
+            unblocked = 0;
+            for k in 0..rays.len() {
+                let i = rays[k];
+                rays[unblocked] = i;
+                unblocked += usize::from(!at(blocked, i));
+            }
         }
         for pair in rays[..unblocked].chunks(2) {
             let (i, j) = (pair[0], pair[pair.len() - 1]);
@@ -119,13 +123,14 @@ impl Kernel for Pairs {
         rays: &[u32],
         tmax: f32,
         blocked: &mut [bool],
-    ) {
-        let Some(edges) = pack.edges(origin) else { return };
+    ) -> u32 {
+        let Some(edges) = pack.edges(origin) else { return 0 };
         let plane = |k: usize| [both(edges.planes[k][0]), both(edges.planes[k][1]), both(edges.planes[k][2])];
         let (ab, bc, ca) = (plane(0), plane(1), plane(2));
         let depth = both(edges.depth);
         let far_limit = _mm256_set1_ps(tmax);
         let zero = _mm256_setzero_ps();
+        let mut hits = 0;
         // Every listed ray is tested, blocked or not (marking one again changes nothing): whether a
         // ray is blocked is data, and a branch on it mispredicts.
         for pair in rays.chunks(2) {
@@ -145,8 +150,11 @@ impl Kernel for Pairs {
             let sum = _mm256_add_ps(_mm256_add_ps(e0, e1), e2);
             let near = _mm256_cmp_ps::<_CMP_LT_OQ>(depth, _mm256_mul_ps(far_limit, sum));
             let mask = _mm256_movemask_ps(_mm256_and_ps(inside, near)) as u32;
-            mark(blocked, i, mask & edges.live != 0);
-            mark(blocked, j, (mask >> 4) & edges.live != 0);
+            let (first, second) = (mask & edges.live != 0, (mask >> 4) & edges.live != 0);
+            mark(blocked, i, first);
+            mark(blocked, j, second);
+            hits += u32::from(first) + u32::from(second);
         }
+        hits
     }
 }

@@ -96,12 +96,14 @@ fn a_separately_lit_sun_brings_every_mode_within_a_few_percent_on_a_sharp_sun() 
     // (a disc shadowed through shadow maps) it leaves the transport a smooth sky. Errors are
     // against the Monte Carlo reference, with its own noise taken out.
     let project = workspace().join("tests/projects/sharp_sun.ron");
-    let report =
-        accuracy_report(&project, &[SHARP_SUN_SIZE, &["--bands", "6", "--sun", "separate,in_environment"]].concat());
+    let report = accuracy_report(
+        &project,
+        &[SHARP_SUN_SIZE, &["--bands", "6", "--adaptive", "7", "--sun", "separate,in_environment"]].concat(),
+    );
     let rows = report["rows"].as_array().unwrap();
     let error = |mode: &str, sun: &str| error_less_noise(&report, mode, sun);
     let noise = report["reference_noise"]["relative_rmse"].as_f64().unwrap();
-    for mode in ["sh_prt", "wavelet_vertex", "wavelet_pixel"] {
+    for mode in ["sh_prt", "sh_adaptive", "wavelet_vertex", "wavelet_pixel"] {
         let (apart, within) = (error(mode, "separate"), error(mode, "in_environment"));
         eprintln!("{mode}: sun apart {apart:.4}, in the environment {within:.4} (reference noise {noise:.4})");
         assert!(apart < 0.5 * within, "{mode}: {apart} apart against {within} in the environment");
@@ -238,6 +240,7 @@ fn an_edit_of_what_the_rows_set_is_refused() {
     let cases = [
         ("output.mode=sh_prt", "one per mode"),
         ("output.wavelet_terms=80", "--wavelets"),
+        ("output.adaptive_level=5", "--adaptive"),
         ("output.reference_samples=16", "--samples"),
         ("scene.transport_bands=4", "--bands"),
         ("sky.sh_bands=4", "--bands"),

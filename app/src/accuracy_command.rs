@@ -21,6 +21,10 @@ pub struct AccuracyArgs {
     /// SH band counts for the `sh_prt` rows (lighting and transport use the same count).
     #[arg(long, value_delimiter = ',', default_value = "2,3,4,6,8")]
     pub bands: Vec<usize>,
+    /// SH levels for the `sh_adaptive` rows, each with the Output's adaptive threshold (lighting
+    /// and transport take one band more; none: `--adaptive` alone).
+    #[arg(long, value_delimiter = ',', num_args = 0.., default_value = "5,10")]
+    pub adaptive: Vec<usize>,
     /// Top-only coefficient counts for the `wavelet_vertex` rows (none: `--wavelets` alone).
     #[arg(long, value_delimiter = ',', num_args = 0.., default_value = "80,320")]
     pub wavelets: Vec<usize>,
@@ -117,11 +121,12 @@ pub fn run(args: &AccuracyArgs) -> Result<()> {
         match param {
             "mode" if node == output => Some("the rows themselves (one per mode)"),
             "wavelet_terms" if node == output => Some("--wavelets"),
+            "adaptive_level" if node == output => Some("--adaptive"),
             "wavelet_details" if node == output && !args.details.is_empty() => Some("--details"),
             "reference_samples" if node == output => Some("--samples"),
             SUN if node == output && !args.sun.is_empty() => Some("--sun"),
-            "transport_bands" if is(&scene_id) => Some("--bands"),
-            "sh_bands" if is(&environment_id) => Some("--bands"),
+            "transport_bands" if is(&scene_id) => Some("--bands and --adaptive"),
+            "sh_bands" if is(&environment_id) => Some("--bands and --adaptive"),
             "light_count" if is(&decomposer_id) => Some("--square-lights"),
             _ => None,
         }
@@ -264,6 +269,17 @@ pub fn run(args: &AccuracyArgs) -> Result<()> {
             g.set_param(env, "sh_bands", ParamValue::Int(bands as i64))?;
         }
         rows.extend(measure(&g, "sh_prt", bands * bands)?);
+    }
+    for &level in &args.adaptive {
+        let bands = level + 1;
+        let mut g = base.clone();
+        g.set_param(&output, "mode", ParamValue::Choice("sh_adaptive".into()))?;
+        g.set_param(&output, "adaptive_level", ParamValue::Int(level as i64))?;
+        g.set_param(scene, "transport_bands", ParamValue::Int(bands as i64))?;
+        if let Some(env) = &environment_id {
+            g.set_param(env, "sh_bands", ParamValue::Int(bands as i64))?;
+        }
+        rows.extend(measure(&g, "sh_adaptive", bands * bands)?);
     }
     let details: Vec<Option<usize>> =
         if args.details.is_empty() { vec![None] } else { args.details.iter().map(|d| Some(*d)).collect() };

@@ -630,7 +630,7 @@ pub fn mode_stages(graph: &Graph, output: &str, mode: Mode) -> Vec<StageRef> {
         Mode::ShPrt => {
             stages.push(StageRef::new(output, if separate_sun { "incident_residual_sh" } else { "incident_sh" }))
         }
-        Mode::ShAdaptive => stages.push(StageRef::new(output, "adaptive_incident")),
+        Mode::ShAdaptive => stages.push(StageRef::new(output, super::output_adaptive::stage_names(separate_sun).0)),
         Mode::WaveletVertex | Mode::WaveletPixel => {
             let environment = if separate_sun { "wavelet_residual_environment" } else { "wavelet_environment" };
             stages.extend(["local_visibility", environment].map(|s| StageRef::new(output, s)));
@@ -678,7 +678,10 @@ pub fn frame_request(graph: &Graph, output: &str, picking: bool) -> Request {
         // The PSNR against the full product comes after the frame.
         Request::new(format!("output `{output}`: unshadowed preview"), first)
             .then(format!("output `{output}`: mode {mode}"), mode_stages(graph, output, mode))
-            .then(format!("output `{output}`: error of mode {mode}"), vec![StageRef::new(output, "adaptive_error")])
+            .then(
+                format!("output `{output}`: error of mode {mode}"),
+                vec![StageRef::new(output, super::output_adaptive::stage_names(separates_sun(graph, output)).1)],
+            )
     } else if mode.is_shadowed() {
         Request::new(format!("output `{output}`: unshadowed preview"), first)
             .then(format!("output `{output}`: mode {mode}"), mode_stages(graph, output, mode))
@@ -803,7 +806,7 @@ impl FrameInputs {
                 keyed(
                     output,
                     match mode {
-                        Mode::ShAdaptive => "adaptive_incident",
+                        Mode::ShAdaptive => super::output_adaptive::stage_names(separate_sun).0,
                         _ if separate_sun => "incident_residual_sh",
                         _ => "incident_sh",
                     },

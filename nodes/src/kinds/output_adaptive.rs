@@ -17,6 +17,19 @@ const PARAMS: &[&str] =
     &["adaptive_level", "adaptive_threshold", "adaptive_refine", "adaptive_smooth", "adaptive_hysteresis", "exposure"];
 const INPUTS: &[(&str, &str)] =
     &[("environment", "sh"), ("scene", "geometry"), ("scene", "adjacency"), ("material", "sh_lobe")];
+/// With the sun lit apart ([`super::output_sun`]), the products take the sky without it.
+const RESIDUAL_INPUTS: &[(&str, &str)] =
+    &[("environment", "residual_sh"), ("scene", "geometry"), ("scene", "adjacency"), ("material", "sh_lobe")];
+
+/// The incident and error stages' names, for the whole environment or (`separate_sun`) the sky
+/// without its sun.
+pub fn stage_names(separate_sun: bool) -> (&'static str, &'static str) {
+    if separate_sun {
+        ("adaptive_residual_incident", "adaptive_residual_error")
+    } else {
+        ("adaptive_incident", "adaptive_error")
+    }
+}
 
 pub fn params() -> Vec<ParamSpec> {
     vec![
@@ -76,7 +89,7 @@ pub fn stages() -> Vec<StageSpec> {
             stages: &["blocked_transport"],
             inputs: INPUTS,
             persist: None,
-            compute: adaptive_stage,
+            compute: |ctx| adaptive_stage(ctx, "sh"),
         },
         StageSpec {
             name: "adaptive_error",
@@ -85,7 +98,25 @@ pub fn stages() -> Vec<StageSpec> {
             stages: &["blocked_transport", "adaptive_incident"],
             inputs: INPUTS,
             persist: None,
-            compute: error_stage,
+            compute: |ctx| error_stage(ctx, "sh", "adaptive_incident"),
+        },
+        StageSpec {
+            name: "adaptive_residual_incident",
+            version: 1,
+            params: PARAMS,
+            stages: &["blocked_transport"],
+            inputs: RESIDUAL_INPUTS,
+            persist: None,
+            compute: |ctx| adaptive_stage(ctx, "residual_sh"),
+        },
+        StageSpec {
+            name: "adaptive_residual_error",
+            version: 1,
+            params: PARAMS,
+            stages: &["blocked_transport", "adaptive_residual_incident"],
+            inputs: RESIDUAL_INPUTS,
+            persist: None,
+            compute: |ctx| error_stage(ctx, "residual_sh", "adaptive_residual_incident"),
         },
     ]
 }
@@ -127,10 +158,10 @@ impl Setup<'_> {
     }
 }
 
-/// `None` without an environment.
-fn setup<'a>(ctx: &'a StageContext) -> Result<Option<Setup<'a>>, StageError> {
+/// `None` without an environment. The lighting is the environment's SH output `light`.
+fn setup<'a>(ctx: &'a StageContext, light: &str) -> Result<Option<Setup<'a>>, StageError> {
     let transport = ctx.stage::<ShTransport>("blocked_transport")?;
-    let Some(light) = ctx.input::<ShRgb>("environment", "sh")? else { return Ok(None) };
+    let Some(light) = ctx.input::<ShRgb>("environment", light)? else { return Ok(None) };
     let meshes = ctx.required_input::<crate::mesh::MeshSet>("scene", "geometry")?;
     let adjacency = ctx.required_input::<Adjacency>("scene", "adjacency")?;
     let materials = ctx.inputs_all::<GlossyLobe>("material", "sh_lobe")?;
@@ -193,8 +224,8 @@ fn setup<'a>(ctx: &'a StageContext) -> Result<Option<Setup<'a>>, StageError> {
 
 /// Per-vertex incident radiance at adaptive levels; the previous result's levels give the
 /// hysteresis.
-fn adaptive_stage(ctx: &StageContext) -> Result<StageValue, StageError> {
-    let Some(setup) = setup(ctx)? else { return Ok(StageValue::new(AdaptiveIncident::default())) };
+fn adaptive_stage(ctx: &StageContext, light: &str) -> Result<StageValue, StageError> {
+    let Some(setup) = setup(ctx, light)? else { return Ok(StageValue::new(AdaptiveIncident::default())) };
     let previous = ctx.previous::<AdaptiveIncident>();
     // With hysteresis the previous result's levels carry over to the next evaluation (under the
     // same settings and vertex count), so the result depends on the edits before it, as
@@ -228,9 +259,9 @@ fn adaptive_stage(ctx: &StageContext) -> Result<StageValue, StageError> {
 }
 
 /// The full product, for the PSNR of the adaptive one (pulled after the frame is drawn).
-fn error_stage(ctx: &StageContext) -> Result<StageValue, StageError> {
-    let Some(setup) = setup(ctx)? else { return Ok(StageValue::new(AdaptiveError::default())) };
-    let adaptive = ctx.stage::<AdaptiveIncident>("adaptive_incident")?;
+fn error_stage(ctx: &StageContext, light: &str, incident: &str) -> Result<StageValue, StageError> {
+    let Some(setup) = setup(ctx, light)? else { return Ok(StageValue::new(AdaptiveError::default())) };
+    let adaptive = ctx.stage::<AdaptiveIncident>(incident)?;
     let start = std::time::Instant::now();
     let full = full_incident(&setup.inputs(None), ctx.cancel_token())?;
     let full_ms = start.elapsed().as_secs_f64() * 1e3;

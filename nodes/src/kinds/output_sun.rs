@@ -11,7 +11,7 @@ use crate::node_kind::{ParamKind, ParamSpec, ParamValue};
 pub const SUN: &str = "sun";
 
 /// Whether the Output lights the environment's sun separately: it asks for it, its mode can
-/// (sh_irradiance, sh_prt and the wavelet modes; their unshadowed preview does too), an
+/// (the SH and wavelet modes; their unshadowed preview does too), an
 /// environment is linked, and neither a medium nor blocker spheres are (their transport of
 /// the sun is not shadow-mapped).
 pub fn separates_sun(graph: &Graph, output: &str) -> bool {
@@ -20,7 +20,10 @@ pub fn separates_sun(graph: &Graph, output: &str) -> bool {
     let (mode, _) = output_mode_and_view(node);
     let linked = |port: &str| graph.upstream(output, port).is_some();
     asked
-        && matches!(mode, Mode::ShIrradiance | Mode::ShPrt | Mode::WaveletVertex | Mode::WaveletPixel)
+        && matches!(
+            mode,
+            Mode::ShIrradiance | Mode::ShPrt | Mode::ShAdaptive | Mode::WaveletVertex | Mode::WaveletPixel
+        )
         && linked("environment")
         && !linked("medium")
         && !linked("blockers")
@@ -46,7 +49,7 @@ pub(super) fn param() -> ParamSpec {
         doc: "separate: the environment's sun (its brightest compact source) lights each pixel as a disc, \
               shadowed through shadow maps over the disc, and the mode's transport carries the sky \
               without it, so small bright suns cast sharp, correct shadows and do not band. Applies to \
-              sh_irradiance, sh_prt and the wavelet modes without a medium or blocker spheres linked. \
+              the SH and wavelet modes without a medium or blocker spheres linked. \
               in_environment: the transport carries the sun too.",
     }
 }

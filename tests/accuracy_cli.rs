@@ -45,8 +45,9 @@ fn error_less_noise(report: &serde_json::Value, mode: &str, sun: &str) -> f64 {
 }
 
 /// The sharp-sun scene's reference and size in these tests: 512 spp at 160×90, 320 wavelet
-/// coefficients.
-const SHARP_SUN_SIZE: &[&str] = &["--samples", "512", "--width", "160", "--height", "90", "--wavelets", "320"];
+/// coefficients, and neither sh_adaptive nor rsl rows unless a test asks for them.
+const SHARP_SUN_SIZE: &[&str] =
+    &["--samples", "512", "--width", "160", "--height", "90", "--wavelets", "320", "--adaptive", "--square-lights"];
 
 #[test]
 fn relighting_error_against_the_reference_falls_with_coefficients() {
@@ -57,7 +58,19 @@ fn relighting_error_against_the_reference_falls_with_coefficients() {
     assert!(shared_assets().join("envmaps/sunset.hdr").is_file());
     let report = accuracy_report(
         &project,
-        &["--samples", "64", "--width", "160", "--height", "90", "--bands", "2,4,6", "--wavelets", "80,320"],
+        &[
+            "--samples",
+            "64",
+            "--width",
+            "160",
+            "--height",
+            "90",
+            "--bands",
+            "2,4,6",
+            "--wavelets",
+            "80,320",
+            "--adaptive",
+        ],
     );
     let rows = report["rows"].as_array().unwrap();
     let rel = |i: usize| rows[i]["relative_rmse"].as_f64().unwrap();
@@ -215,7 +228,7 @@ fn blocker_sphere_shadows_match_the_monte_carlo_reference() {
         .unwrap();
         let report = accuracy_report(
             &project,
-            &["--samples", "64", "--width", "96", "--height", "64", "--bands", "4", "--wavelets"],
+            &["--samples", "64", "--width", "96", "--height", "64", "--bands", "4", "--wavelets", "--adaptive"],
         );
         let row = |mode: &str| {
             let rows = report["rows"].as_array().unwrap();
@@ -275,7 +288,20 @@ fn detail_terms_sharpen_a_glossy_reflection_of_the_suns_aureole() {
         ["--set", "material.specular=0.5,0.5,0.5"],
         ["--set", "sky.sun_elevation=20"],
     ];
-    let size = ["--samples", "256", "--width", "160", "--height", "90", "--bands", "2", "--wavelets", "320"];
+    let size = [
+        "--samples",
+        "256",
+        "--width",
+        "160",
+        "--height",
+        "90",
+        "--bands",
+        "2",
+        "--wavelets",
+        "320",
+        "--adaptive",
+        "--square-lights",
+    ];
     let report =
         accuracy_report(&project, &[&size[..], &["--sun", "separate", "--details", "0,32"], &glossy.concat()].concat());
     let rows = report["rows"].as_array().unwrap();

@@ -28,7 +28,7 @@ fn panel_only_project(dir: &Path) -> PathBuf {
 fn accuracy(project: &Path, sets: &[&str]) -> (f64, f64) {
     let mut command = lightloom();
     command.args(["accuracy", project.to_str().unwrap(), "--json", "--samples", "1024", "--width", "128"]);
-    command.args(["--height", "72", "--bands", "2", "--wavelets", "--no-disk-cache"]);
+    command.args(["--height", "72", "--bands", "2", "--wavelets", "--adaptive", "--no-disk-cache"]);
     command.args(["--set", "out.mode=sh_irradiance", "--set", "scene.tessellation=128"]);
     for set in sets {
         command.args(["--set", set]);

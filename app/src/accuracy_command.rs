@@ -32,8 +32,9 @@ pub struct AccuracyArgs {
     /// for each (default: the project's own setting).
     #[arg(long, value_delimiter = ',')]
     pub details: Vec<usize>,
-    /// Square-light counts for the `rsl` rows (when an RSL decomposer feeds the Output).
-    #[arg(long, value_delimiter = ',', default_value = "10,30,60,100")]
+    /// Square-light counts for the `rsl` rows (when an RSL decomposer feeds the Output; none:
+    /// `--square-lights` alone).
+    #[arg(long, value_delimiter = ',', num_args = 0.., default_value = "10,30,60,100")]
     pub square_lights: Vec<usize>,
     /// Reference samples per pixel.
     #[arg(long, default_value_t = 256)]
@@ -224,7 +225,9 @@ pub fn run(args: &AccuracyArgs) -> Result<()> {
             edit_ms = Some(start.elapsed().as_secs_f64() * 1e3);
         }
         let (frame, memory_bytes) = evaluated(&graph)?;
-        let sun = if frame.settings.separate_sun { "separate" } else { "in_environment" }.to_string();
+        // What the frame does: a mode that cannot light the sun apart (rsl), or an environment
+        // without a sun, leaves it in the environment whatever was asked.
+        let sun = if frame.sun.is_some() { "separate" } else { "in_environment" }.to_string();
         let start = Instant::now();
         let captured = renderer.render_offscreen(&gpu, &frame, &view, size.0, size.1)?;
         let render_ms = start.elapsed().as_secs_f64() * 1e3;
@@ -253,8 +256,16 @@ pub fn run(args: &AccuracyArgs) -> Result<()> {
             pareto: false,
         })
     };
+    // A row per way of lighting the sun that the mode takes (one where asking changes nothing).
     let mut measure = |graph: &Graph, mode: &str, coefficients: usize| -> Result<Vec<Row>> {
-        suns.iter().map(|&sun| measure_one(graph, mode, coefficients, sun)).collect()
+        let mut rows: Vec<Row> = Vec::new();
+        for &sun in &suns {
+            let row = measure_one(graph, mode, coefficients, sun)?;
+            if rows.iter().all(|r| r.sun != row.sun) {
+                rows.push(row);
+            }
+        }
+        Ok(rows)
     };
     let scene = scene_id.as_deref().ok_or_else(|| anyhow!("no scene"))?;
     let mut rows = Vec::new();

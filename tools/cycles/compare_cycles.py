@@ -279,7 +279,7 @@ def compare(out, name):
     edits = [arg for a in assignments for arg in ("--edit", a)]
     report = subprocess.run(
         [LIGHTLOOM, "accuracy", PROJECT, "--json", "--samples", "16", "--width", str(WIDTH), "--height", str(HEIGHT),
-         "--bands", "6", "--wavelets", "320", "--sun", "separate"] + edits,
+         "--bands", "6", "--wavelets", "320", "--adaptive", "--square-lights", "--sun", "separate"] + edits,
         check=True, capture_output=True, text=True).stdout
     timings = {(r["mode"].split(" ")[0], r["coefficients"], r["sun"]): r for r in json.loads(report)["rows"]}
     for (mode, coefficients, sun), row in timings.items():

@@ -26,6 +26,6 @@ for size in "320 180" "1280 720"; do
         echo "== ${1}x${2}, edit: $edit" | tee -a "$out/relight_check.txt"
         # shellcheck disable=SC2086
         .device/lightloom accuracy tests/projects/sharp_sun.ron --samples 16 --width "$1" --height "$2" --bands 6 \
-            --wavelets 320 --sun separate --edit $edit 2>&1 | tee -a "$out/relight_check.txt"
+            --wavelets 320 --adaptive 10 --square-lights 30 --sun separate --edit $edit 2>&1 | tee -a "$out/relight_check.txt"
     done
 done

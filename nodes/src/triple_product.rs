@@ -390,7 +390,7 @@ fn table_products(
 pub fn diffuse_transfer(products: &LocalProducts, diffuse: &[f32]) -> Vec<[f32; 3]> {
     products
         .values
-        .chunks_exact(products.cells * 3)
+        .par_chunks_exact(products.cells * 3)
         .map(|p| {
             let mut e = [0.0f64; 3];
             for (c, d) in diffuse.iter().enumerate() {

@@ -12,8 +12,11 @@ pub fn rgb9e5(rgb: [f32; 3]) -> u32 {
     if max <= 0.0 {
         return 0;
     }
-    let mut exponent = (max.log2().floor() as i32).max(-BIAS - 1) + 1 + BIAS;
-    let mut scale = 2f32.powi(exponent - BIAS - MANTISSA_BITS);
+    // ⌊log2 max⌋ is the float's own exponent (a subnormal's reads -127, which the clamp lifts).
+    let floor_log2 = ((max.to_bits() >> 23) & 0xff) as i32 - 127;
+    let mut exponent = floor_log2.max(-BIAS - 1) + 1 + BIAS;
+    // 2^k for k in -24..=8, built from its bits.
+    let mut scale = f32::from_bits(((exponent - BIAS - MANTISSA_BITS + 127) as u32) << 23);
     if (max / scale + 0.5).floor() as u32 == 512 {
         exponent += 1;
         scale *= 2.0;
@@ -22,9 +25,17 @@ pub fn rgb9e5(rgb: [f32; 3]) -> u32 {
     m[0] | (m[1] << 9) | (m[2] << 18) | ((exponent.clamp(0, 31) as u32) << 27)
 }
 
-/// [`rgb9e5`] of every RGB triple of an interleaved slice.
+/// [`rgb9e5`] of every RGB triple of an interleaved slice (on every core).
 pub fn rgb9e5_all(interleaved: &[f32]) -> Vec<u32> {
-    interleaved.chunks_exact(3).map(|c| rgb9e5([c[0], c[1], c[2]])).collect()
+    use rayon::prelude::*;
+    const CHUNK: usize = 4096;
+    let mut packed = vec![0u32; interleaved.len() / 3];
+    packed.par_chunks_mut(CHUNK).zip(interleaved.par_chunks(3 * CHUNK)).for_each(|(packed, rgb)| {
+        for (packed, c) in packed.iter_mut().zip(rgb.chunks_exact(3)) {
+            *packed = rgb9e5([c[0], c[1], c[2]]);
+        }
+    });
+    packed
 }
 
 /// Inverse of [`rgb9e5`] (the shader's decode, for tests).
@@ -86,5 +97,48 @@ mod tests {
         }
         assert_eq!(rgb9e5([f32::NAN, -1.0, 0.0]), 0);
         assert!(rgb9e5_decode(rgb9e5([1e9, 0.0, 0.0]))[0] > 6.0e4);
+    }
+
+    /// The shared exponent read from the float's bits is the one `⌊log2⌋` in f64 gives, so
+    /// the packing equals the format's definition (mantissas rounded in f32), over 24 decades, at powers of two and
+    /// their neighbours, and in subnormals; `rgb9e5_all` packs each triple alike.
+    #[test]
+    fn rgb9e5_equals_the_formats_definition() {
+        use rand::Rng;
+        // The exponent from f64's log2; the mantissas rounded in f32, as the shader does.
+        let definition = |rgb: [f32; 3]| -> u32 {
+            let max_value = (511.0 / 512.0) * 65536.0;
+            let c = rgb.map(|v| if v.is_finite() { v.clamp(0.0, max_value) } else { 0.0 });
+            let max = c[0].max(c[1]).max(c[2]);
+            if max <= 0.0 {
+                return 0;
+            }
+            let mut exponent = (f64::from(max).log2().floor() as i32).max(-16) + 16;
+            let mut scale = 2f64.powi(exponent - 24) as f32;
+            if (max / scale + 0.5).floor() as u32 == 512 {
+                exponent += 1;
+                scale *= 2.0;
+            }
+            let m = c.map(|v| ((v / scale + 0.5).floor() as u32).min(511));
+            m[0] | (m[1] << 9) | (m[2] << 18) | ((exponent.clamp(0, 31) as u32) << 27)
+        };
+        use rand::SeedableRng;
+        let mut rng = rand::rngs::SmallRng::seed_from_u64(3);
+        let mut values: Vec<[f32; 3]> = (0..100_000)
+            .map(|_| std::array::from_fn(|_| 10f32.powf(rng.random_range(-12.0..7.0)) * rng.random_range(0.0..1.0)))
+            .collect();
+        for k in -30..17 {
+            let p = 2f32.powi(k);
+            for v in [p, f32::from_bits(p.to_bits() - 1), f32::from_bits(p.to_bits() + 1), p * (1.0 - 1.0 / 1024.0)] {
+                values.push([v, v * 0.3, 0.0]);
+            }
+        }
+        values.push([1e-40, 0.0, 5e-39]);
+        for v in &values {
+            assert_eq!(rgb9e5(*v), definition(*v), "{v:?}");
+        }
+        let interleaved: Vec<f32> = values.iter().flatten().copied().collect();
+        let packed = rgb9e5_all(&interleaved);
+        assert!(packed.iter().zip(&values).all(|(p, v)| *p == rgb9e5(*v)));
     }
 }

@@ -6,7 +6,8 @@ use crate::adaptive_sh::AdaptiveIncident;
 use crate::kinds::AdaptiveError;
 use crate::prt::IncidentSh;
 
-/// The default project in `sh_adaptive` at level 7 (8 bands everywhere) with a Phong material,
+/// The default project in `sh_adaptive` at level 7 (8 bands everywhere; the sky's sun lit
+/// apart, so the stages are the residual sky's) with a Phong material,
 /// and a second (Lambert) material linked that no mesh names, so every mesh keeps the first.
 fn adaptive_graph(threshold: f64) -> Graph {
     let mut graph = default_graph_with("gloss", "BrdfEditor", &[("gloss", "material", "output", "material")]);
@@ -32,20 +33,23 @@ fn threshold_zero_equals_the_gaunt_product_of_sh_prt() {
     let engine = Engine::in_memory();
     let graph = adaptive_graph(0.0);
     let eval = evaluate_frame(&engine, &graph);
-    let adaptive = value_of::<AdaptiveIncident>(&eval, "output", "adaptive_incident");
+    let adaptive = value_of::<AdaptiveIncident>(&eval, "output", "adaptive_residual_incident");
     assert_eq!(adaptive.incident.bands, 8);
     assert_eq!(adaptive.stats.glossy, adaptive.levels.len(), "every mesh takes the first (glossy) material");
-    let error = value_of::<AdaptiveError>(&eval, "output", "adaptive_error");
+    let error = value_of::<AdaptiveError>(&eval, "output", "adaptive_residual_error");
     assert!(error.psnr_db > 90.0, "{error:?}");
-    assert!(info(&eval, "adaptive_error").iter().any(|l| l.contains("PSNR")), "{:?}", info(&eval, "adaptive_error"));
+    assert!(
+        info(&eval, "adaptive_residual_error").iter().any(|l| l.contains("PSNR")),
+        "{:?}",
+        info(&eval, "adaptive_residual_error")
+    );
     let frame = crate::kinds::output::FrameInputs::gather(&eval, &graph, "output").unwrap();
     assert!(matches!(frame.surfaces, crate::frame::Surfaces::Prt(_)));
     let prt = adaptive_graph(0.0);
     let mut prt = prt;
     prt.set_param("output", "mode", ParamValue::Choice("sh_prt".into())).unwrap();
-    // sh_adaptive keeps the sun in the environment; so must the product it is compared with.
-    prt.set_param("output", crate::kinds::output::SUN, ParamValue::Choice("in_environment".into())).unwrap();
-    let gaunt = value_of::<IncidentSh>(&evaluate_frame(&engine, &prt), "output", "incident_sh");
+    // Both light the sky's sun apart: their products are of the sky without it.
+    let gaunt = value_of::<IncidentSh>(&evaluate_frame(&engine, &prt), "output", "incident_residual_sh");
     let scale = gaunt.coeffs.iter().fold(0.0f32, |m, x| m.max(x.abs()));
     let worst = adaptive.incident.coeffs.iter().zip(&gaunt.coeffs).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
     assert!(worst < 1e-4 * scale, "largest difference {worst} (scale {scale})");
@@ -61,14 +65,14 @@ fn threshold_edits_rerun_only_the_product_and_a_turn_reports_level_changes() {
     evaluate_frame(&engine, &graph);
     graph.set_param("output", "adaptive_threshold", ParamValue::Float(0.02)).unwrap();
     let eval = evaluate_frame(&engine, &graph);
-    assert_eq!(ran(&eval.report), set(&["output.adaptive_incident", "output.adaptive_error"]));
-    let adaptive = value_of::<AdaptiveIncident>(&eval, "output", "adaptive_incident");
+    assert_eq!(ran(&eval.report), set(&["output.adaptive_residual_incident", "output.adaptive_residual_error"]));
+    let adaptive = value_of::<AdaptiveIncident>(&eval, "output", "adaptive_residual_incident");
     assert!(adaptive.stats.macs < adaptive.stats.full_macs, "{:?}", adaptive.stats);
-    let error = value_of::<AdaptiveError>(&eval, "output", "adaptive_error");
+    let error = value_of::<AdaptiveError>(&eval, "output", "adaptive_residual_error");
     assert!(error.psnr_db.is_finite() && error.psnr_db > 20.0, "{error:?}");
-    assert!(info(&eval, "adaptive_incident").iter().any(|l| l.contains("full product's work")));
+    assert!(info(&eval, "adaptive_residual_incident").iter().any(|l| l.contains("full product's work")));
     graph.set_param("sky", "rotation", ParamValue::Vec3([20.0, 0.0, 0.0])).unwrap();
-    let turned = value_of::<AdaptiveIncident>(&evaluate_frame(&engine, &graph), "output", "adaptive_incident");
+    let turned = value_of::<AdaptiveIncident>(&evaluate_frame(&engine, &graph), "output", "adaptive_residual_incident");
     assert!(turned.stats.flips.is_some(), "the previous levels were read");
 }
 
@@ -81,9 +85,12 @@ fn without_hysteresis_a_turn_equals_a_fresh_evaluation() {
     let engine = Engine::in_memory();
     evaluate_frame(&engine, &graph);
     graph.set_param("sky", "rotation", ParamValue::Vec3([35.0, 0.0, 0.0])).unwrap();
-    let turned = value_of::<AdaptiveIncident>(&evaluate_frame(&engine, &graph), "output", "adaptive_incident");
-    let fresh =
-        value_of::<AdaptiveIncident>(&evaluate_frame(&Engine::in_memory(), &graph), "output", "adaptive_incident");
+    let turned = value_of::<AdaptiveIncident>(&evaluate_frame(&engine, &graph), "output", "adaptive_residual_incident");
+    let fresh = value_of::<AdaptiveIncident>(
+        &evaluate_frame(&Engine::in_memory(), &graph),
+        "output",
+        "adaptive_residual_incident",
+    );
     assert_eq!(turned.stats.flips, None, "no previous levels were read");
     assert_eq!(turned.levels, fresh.levels);
     assert_eq!(turned.incident, fresh.incident);
@@ -108,7 +115,12 @@ fn an_edit_of_one_linked_material_is_one_reason() {
     evaluate_frame(&engine, &graph);
     graph.set_param("gloss", "albedo", ParamValue::Color([0.2, 0.3, 0.4])).unwrap();
     let eval = evaluate_frame(&engine, &graph);
-    let reasons =
-        &eval.report.stages.iter().find(|s| s.node == "output" && s.stage == "adaptive_incident").unwrap().reasons;
+    let reasons = &eval
+        .report
+        .stages
+        .iter()
+        .find(|s| s.node == "output" && s.stage == "adaptive_residual_incident")
+        .unwrap()
+        .reasons;
     assert_eq!(reasons.iter().filter(|r| r.contains("material")).count(), 1, "{reasons:?}");
 }

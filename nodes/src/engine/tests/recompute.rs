@@ -61,6 +61,8 @@ fn with_sun_split<'a>(expected: &[&'a str]) -> Vec<&'a str> {
         ("sky.sh_unrotated", "sky.residual_sh_unrotated"),
         ("sky.sh", "sky.residual_sh"),
         ("output.incident_sh", "output.incident_residual_sh"),
+        ("output.adaptive_incident", "output.adaptive_residual_incident"),
+        ("output.adaptive_error", "output.adaptive_residual_error"),
         ("output.wavelet_environment", "output.wavelet_residual_environment"),
     ] {
         if expected.contains(&stage) {
@@ -94,6 +96,8 @@ const SCENE_ALL: &[&str] = &[
     "output.area_highlights",
     "output.adaptive_incident",
     "output.adaptive_error",
+    "output.adaptive_residual_incident",
+    "output.adaptive_residual_error",
 ];
 const SKY_AFTER_SOURCE: &[&str] = &["sky.radiance", "sky.sh_unrotated", "sky.rotated_radiance", "sky.sh", "sky.haar"];
 
@@ -364,7 +368,7 @@ fn each_parameter_recomputes_exactly_its_stages() {
     graph.set_param("scene", "tessellation", Int(12)).unwrap();
     let first = engine.evaluate(&graph, &CancelToken::default(), None);
     assert!(first.report.failed().is_empty(), "{:?}", first.report.failed());
-    assert_eq!(first.report.computed().len(), 53);
+    assert_eq!(first.report.computed().len(), 55);
     let again = engine.evaluate(&graph, &CancelToken::default(), None);
     assert!(ran(&again.report).is_empty(), "an unchanged graph recomputed {:?}", ran(&again.report));
     for (node, param, value, expected) in table {
@@ -640,15 +644,15 @@ fn each_mode_and_view_evaluates_exactly_the_stages_it_reads() {
         (
             "sh_adaptive",
             "approximation",
-            with(&[
+            with_sun(&[
                 "scene.receivers",
                 "scene.adjacency",
                 "scene.ray_scene",
                 "scene.transport_sh",
                 "material.sh_lobe",
                 "output.blocked_transport",
-                "output.adaptive_incident",
-                "output.adaptive_error",
+                "output.adaptive_residual_incident",
+                "output.adaptive_residual_error",
             ]),
         ),
         ("wavelet_vertex", "approximation", wavelet_vertex.clone()),
@@ -682,6 +686,6 @@ fn each_mode_and_view_evaluates_exactly_the_stages_it_reads() {
         for s in eval.report.stages.iter().filter(|s| s.status == StageStatus::NotNeeded) {
             assert!(s.reasons[0].contains(&format!("mode {mode}")), "{}.{}: {:?}", s.node, s.stage, s.reasons);
         }
-        assert_eq!(eval.report.stages.len(), 53, "every stage is reported");
+        assert_eq!(eval.report.stages.len(), 55, "every stage is reported");
     }
 }

@@ -25,6 +25,7 @@ pub mod limits;
 pub mod mesh;
 pub mod near_field;
 pub mod node_kind;
+pub mod normal_filtering;
 pub mod paint;
 pub mod picture;
 pub mod preview;

@@ -1,0 +1,240 @@
+//! Normal-map filtering in the frequency domain (Sun 2008 thesis ch. 5.1; Han et al. 2007).
+//!
+//! A pixel that covers many texels of a normal map reflects through all their normals: its
+//! effective BRDF is the BRDF convolved with the texels' normal distribution (NDF)
+//! `γ(n) = (1/N) Σ_q δ(n − n_q)` (eqs. 5.4–5.6). For BRDFs radially symmetric about the normal,
+//! `ρ(ω·n)` (Lambert, Blinn-Phong, half-vector microfacet lobes; eq. 5.3), the convolution is a
+//! product per SH band, `ρ^eff_lm = ρ̂_l γ_lm` with `ρ̂_l = √(4π/(2l+1)) f_l` (eq. 5.7). The
+//! NDF's SH coefficients are linear in the texels, so they MIP-map by plain averaging,
+//! which averaging normals does not.
+//!
+//! For sharp lobes the SH of an NDF need many bands; the NDF is then a mixture of von
+//! Mises–Fisher lobes `α κ/(4π sinh κ) e^{κ μ·n}`, fitted by spherical EM (Banerjee et al.
+//! 2005; the thesis's Fig. 5.2 uses six). One lobe from the MIP-mapped mean normal is Toksvig's
+//! filter.
+
+use crate::sh::ShBasis;
+use glam::DVec3;
+use std::f64::consts::PI;
+
+/// A tangent-space normal map: unit normals, row by row from the top.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct NormalMap {
+    pub width: usize,
+    pub height: usize,
+    pub normals: Vec<DVec3>,
+}
+
+impl NormalMap {
+    /// From 8-bit RGB texels encoding `n = 2·rgb − 1` (OpenGL convention, +Y up). Texels whose
+    /// vector is too short to have a direction are taken as flat.
+    pub fn from_rgb8(width: usize, height: usize, rgb: &[[u8; 3]]) -> Result<Self, String> {
+        if width == 0 || height == 0 || rgb.len() != width * height {
+            return Err(format!("a {width}×{height} normal map needs {} texels, not {}", width * height, rgb.len()));
+        }
+        let normals = rgb
+            .iter()
+            .map(|t| {
+                let n = DVec3::new(t[0] as f64, t[1] as f64, t[2] as f64) / 127.5 - 1.0;
+                n.try_normalize().unwrap_or(DVec3::Z)
+            })
+            .collect();
+        Ok(Self { width, height, normals })
+    }
+
+    /// The flat map: every normal along the surface normal.
+    pub fn flat(width: usize, height: usize) -> Self {
+        Self { width, height, normals: vec![DVec3::Z; width * height] }
+    }
+}
+
+/// One MIP level of an NDF pyramid: per texel the NDF's SH coefficients (`bands²`) and the
+/// mean of its unit normals (unnormalised: its length says how spread they are).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct NdfLevel {
+    pub width: usize,
+    pub height: usize,
+    pub bands: usize,
+    /// `γ_lm` per texel, `bands²` each.
+    pub sh: Vec<f64>,
+    pub mean_normal: Vec<DVec3>,
+}
+
+impl NdfLevel {
+    pub fn sh_of(&self, x: usize, y: usize) -> &[f64] {
+        let n = self.bands * self.bands;
+        &self.sh[(y * self.width + x) * n..][..n]
+    }
+
+    /// The next level: each texel the plain average of the (up to) four it covers.
+    fn halved(&self) -> Self {
+        let (width, height) = (self.width.div_ceil(2), self.height.div_ceil(2));
+        let n = self.bands * self.bands;
+        let mut sh = vec![0.0; width * height * n];
+        let mut mean_normal = vec![DVec3::ZERO; width * height];
+        for y in 0..height {
+            for x in 0..width {
+                let children: Vec<(usize, usize)> = [(0, 0), (1, 0), (0, 1), (1, 1)]
+                    .iter()
+                    .map(|(dx, dy)| (2 * x + dx, 2 * y + dy))
+                    .filter(|&(cx, cy)| cx < self.width && cy < self.height)
+                    .collect();
+                let share = 1.0 / children.len() as f64;
+                let out = &mut sh[(y * width + x) * n..][..n];
+                for &(cx, cy) in &children {
+                    for (o, c) in out.iter_mut().zip(self.sh_of(cx, cy)) {
+                        *o += share * c;
+                    }
+                    mean_normal[y * width + x] += share * self.mean_normal[cy * self.width + cx];
+                }
+            }
+        }
+        Self { width, height, bands: self.bands, sh, mean_normal }
+    }
+}
+
+/// The NDF pyramid of a normal map, from its texels (level 0) to one texel.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct NdfPyramid {
+    pub levels: Vec<NdfLevel>,
+}
+
+impl NdfPyramid {
+    /// Level 0 holds each texel's `Y_lm(n_q)` (the SH of a delta), each level above the
+    /// average of the texels below it (so, for power-of-two maps, exactly the SH of the union).
+    pub fn build(map: &NormalMap, bands: usize) -> Self {
+        let basis = ShBasis::new(bands);
+        let n = bands * bands;
+        let mut sh = vec![0.0; map.normals.len() * n];
+        for (out, normal) in sh.chunks_exact_mut(n).zip(&map.normals) {
+            basis.eval(*normal, out);
+        }
+        let mut levels =
+            vec![NdfLevel { width: map.width, height: map.height, bands, sh, mean_normal: map.normals.clone() }];
+        while levels.last().is_some_and(|l| l.width > 1 || l.height > 1) {
+            let next = levels.last().expect("non-empty").halved();
+            levels.push(next);
+        }
+        Self { levels }
+    }
+}
+
+/// The effective BRDF's SH coefficients for a lobe `f(ω·n)` of zonal coefficients `f_l`
+/// (about the normal) under an NDF `γ_lm`: `ρ̂_l γ_lm` (eq. 5.7).
+pub fn effective_lobe(zonal: &[f64], ndf: &[f64]) -> Vec<f64> {
+    let factors = crate::sh::zonal_convolution_factors(zonal);
+    ndf.iter().enumerate().map(|(i, g)| factors.get(crate::sh::band_of(i)).copied().unwrap_or(0.0) * g).collect()
+}
+
+/// A von Mises–Fisher lobe on the sphere: `weight · κ/(4π sinh κ) · e^{κ μ·n}`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Vmf {
+    pub weight: f64,
+    pub kappa: f64,
+    pub mean: DVec3,
+}
+
+/// The largest concentration a lobe is given (about 0.06° wide): beyond it every normal is
+/// the same.
+pub const MAX_KAPPA: f64 = 1e6;
+
+impl Vmf {
+    /// `ln(κ/(4π sinh κ))`, stable for large `κ` and equal to `ln(1/4π)` at 0.
+    pub fn log_normalisation(kappa: f64) -> f64 {
+        if kappa < 1e-6 {
+            return -(4.0 * PI).ln();
+        }
+        // sinh κ = e^κ (1 − e^{−2κ}) / 2.
+        kappa.ln() - (2.0 * PI).ln() - kappa - (-(-2.0 * kappa).exp()).ln_1p()
+    }
+
+    /// The lobe's density at unit `n` (its weight included).
+    pub fn density(&self, n: DVec3) -> f64 {
+        self.weight * (Self::log_normalisation(self.kappa) + self.kappa * self.mean.dot(n)).exp()
+    }
+
+    /// The concentration whose mean resultant length is `r` (the length of the mean of unit
+    /// normals drawn from the lobe), by Banerjee et al.'s closed form `(3r − r³)/(1 − r²)`,
+    /// the one Toksvig's filter and Han et al. take from a MIP-mapped normal's length.
+    pub fn kappa_from_mean_length(r: f64) -> f64 {
+        let r = r.clamp(0.0, 1.0);
+        if r >= 1.0 {
+            return MAX_KAPPA;
+        }
+        ((3.0 * r - r * r * r) / (1.0 - r * r)).min(MAX_KAPPA)
+    }
+
+    /// Toksvig's filter: one lobe about the mean normal, as concentrated as its length says.
+    pub fn toksvig(mean_normal: DVec3) -> Self {
+        let r = mean_normal.length();
+        let mean = mean_normal.try_normalize().unwrap_or(DVec3::Z);
+        Self { weight: 1.0, kappa: Self::kappa_from_mean_length(r), mean }
+    }
+
+    /// The lobe's SH attenuation per band, `e^{−l(l+1)/2κ}` (the heat-kernel form of
+    /// Han et al.'s `e^{−l²/2κ}`, exact in its first two bands as `κ` grows).
+    pub fn band_attenuation(&self, l: usize) -> f64 {
+        (-((l * (l + 1)) as f64) / (2.0 * self.kappa.max(1e-9))).exp()
+    }
+}
+
+/// Fits `lobes` vMF lobes to weighted unit normals by spherical EM (Banerjee et al. 2005):
+/// responsibilities from each lobe's density, then each lobe's weight, mean direction and
+/// concentration (from its weighted mean resultant length) from them. Lobes start on the
+/// normals farthest apart; `iterations` rounds. Fewer distinct normals than lobes give fewer
+/// lobes.
+pub fn fit_vmf_mixture(normals: &[(DVec3, f64)], lobes: usize, iterations: usize) -> Vec<Vmf> {
+    let total: f64 = normals.iter().map(|(_, w)| w.max(0.0)).sum();
+    if normals.is_empty() || lobes == 0 || total <= 0.0 {
+        return Vec::new();
+    }
+    // Seeds: the heaviest normal, then repeatedly the normal farthest from every seed.
+    let mut seeds: Vec<DVec3> = Vec::new();
+    let first = normals.iter().max_by(|a, b| a.1.total_cmp(&b.1)).expect("non-empty").0;
+    seeds.push(first);
+    while seeds.len() < lobes {
+        let (farthest, distance) = normals
+            .iter()
+            .map(|(n, _)| (*n, seeds.iter().map(|s| 1.0 - s.dot(*n)).fold(f64::INFINITY, f64::min)))
+            .max_by(|a, b| a.1.total_cmp(&b.1))
+            .expect("non-empty");
+        if distance <= 1e-9 {
+            break;
+        }
+        seeds.push(farthest);
+    }
+    let mut mixture: Vec<Vmf> =
+        seeds.iter().map(|&mean| Vmf { weight: 1.0 / seeds.len() as f64, kappa: 10.0, mean }).collect();
+    let mut responsibility = vec![0.0; mixture.len()];
+    for _ in 0..iterations {
+        let mut sums = vec![(0.0, DVec3::ZERO); mixture.len()];
+        for (n, w) in normals {
+            // Log densities, normalised against the largest so none underflows.
+            for (r, lobe) in responsibility.iter_mut().zip(&mixture) {
+                *r = lobe.weight.max(1e-300).ln() + Vmf::log_normalisation(lobe.kappa) + lobe.kappa * lobe.mean.dot(*n);
+            }
+            let top = responsibility.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+            let sum: f64 = responsibility.iter().map(|r| (r - top).exp()).sum();
+            for ((r, s), _) in responsibility.iter().zip(&mut sums).zip(&mixture) {
+                let share = (r - top).exp() / sum * w.max(0.0);
+                s.0 += share;
+                s.1 += share * *n;
+            }
+        }
+        for (lobe, (mass, resultant)) in mixture.iter_mut().zip(&sums) {
+            if *mass <= total * 1e-12 {
+                lobe.weight = 0.0;
+                continue;
+            }
+            lobe.weight = mass / total;
+            lobe.mean = resultant.try_normalize().unwrap_or(lobe.mean);
+            lobe.kappa = Vmf::kappa_from_mean_length(resultant.length() / mass);
+        }
+        mixture.retain(|l| l.weight > 0.0);
+        responsibility.truncate(mixture.len());
+    }
+    mixture
+}
+
+#[cfg(test)]
+mod tests;

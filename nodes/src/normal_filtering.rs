@@ -176,6 +176,27 @@ impl Vmf {
     pub fn band_attenuation(&self, l: usize) -> f64 {
         (-((l * (l + 1)) as f64) / (2.0 * self.kappa.max(1e-9))).exp()
     }
+
+    /// The lobe's SH coefficients as an NDF, `weight · λ_l Y_lm(μ)` (a delta's are `Y_lm(μ)`).
+    pub fn sh(&self, bands: usize) -> Vec<f64> {
+        let y = ShBasis::new(bands).eval_vec(self.mean);
+        y.iter().enumerate().map(|(i, y)| self.weight * self.band_attenuation(crate::sh::band_of(i)) * y).collect()
+    }
+}
+
+/// A glossy lobe `e^{s(h·n − 1)}` about the normal (Blinn-Phong of exponent `s` in its vMF
+/// form, Han et al.) averaged over an NDF given as vMF lobes, at half vector `h`: each lobe
+/// convolved with the BRDF's is a lobe of concentration `κs/(κ + s)`, so the sum is
+/// `Σ α_j (2π/s) vMF_{κ_j s/(κ_j + s)}(h·μ_j)`. One lobe from the mean normal is Toksvig's
+/// filter; a delta NDF gives the unfiltered lobe (to `1/(1 − e^{−2s})`).
+pub fn filtered_glossy(ndf: &[Vmf], exponent: f64, h: DVec3) -> f64 {
+    let s = exponent.max(1e-9);
+    ndf.iter()
+        .map(|lobe| {
+            let kappa = lobe.kappa * s / (lobe.kappa + s);
+            2.0 * PI / s * Vmf { kappa, ..*lobe }.density(h)
+        })
+        .sum()
 }
 
 /// Fits `lobes` vMF lobes to weighted unit normals by spherical EM (Banerjee et al. 2005):

@@ -119,6 +119,39 @@ impl NdfPyramid {
     }
 }
 
+/// Per level of a normal map's MIP pyramid (as [`NdfPyramid`]'s), per texel, a mixture of up
+/// to `lobes` vMF lobes fitted by [`fit_vmf_mixture`] to the texels it covers. A texel
+/// covering more than `max_normals` of them fits an even subset (every `k`-th row and column),
+/// which bounds the cost of each level by the map's size.
+pub fn vmf_pyramid(map: &NormalMap, lobes: usize, iterations: usize, max_normals: usize) -> Vec<Vec<Vec<Vmf>>> {
+    use rayon::prelude::*;
+    let mut levels = Vec::new();
+    let mut size = 1usize;
+    loop {
+        let (width, height) = (map.width.div_ceil(size), map.height.div_ceil(size));
+        // Rows and columns taken from each block: a stride that keeps about `max_normals`.
+        let stride = ((size * size) as f64 / max_normals.max(1) as f64).sqrt().ceil().max(1.0) as usize;
+        let texels: Vec<Vec<Vmf>> = (0..width * height)
+            .into_par_iter()
+            .map(|t| {
+                let (x, y) = (t % width, t / width);
+                let mut normals = Vec::new();
+                for by in (y * size..((y + 1) * size).min(map.height)).step_by(stride) {
+                    for bx in (x * size..((x + 1) * size).min(map.width)).step_by(stride) {
+                        normals.push((map.normals[by * map.width + bx], 1.0));
+                    }
+                }
+                fit_vmf_mixture(&normals, lobes, iterations)
+            })
+            .collect();
+        levels.push(texels);
+        if width == 1 && height == 1 {
+            return levels;
+        }
+        size *= 2;
+    }
+}
+
 /// The effective BRDF's SH coefficients for a lobe `f(ω·n)` of zonal coefficients `f_l`
 /// (about the normal) under an NDF `γ_lm`: `ρ̂_l γ_lm` (eq. 5.7).
 pub fn effective_lobe(zonal: &[f64], ndf: &[f64]) -> Vec<f64> {
@@ -202,8 +235,8 @@ pub fn filtered_glossy(ndf: &[Vmf], exponent: f64, h: DVec3) -> f64 {
 /// Fits `lobes` vMF lobes to weighted unit normals by spherical EM (Banerjee et al. 2005):
 /// responsibilities from each lobe's density, then each lobe's weight, mean direction and
 /// concentration (from its weighted mean resultant length) from them. Lobes start on the
-/// normals farthest apart; `iterations` rounds. Fewer distinct normals than lobes give fewer
-/// lobes.
+/// normals farthest apart; at most `iterations` rounds, fewer once no lobe moves. Fewer
+/// distinct normals than lobes give fewer lobes.
 pub fn fit_vmf_mixture(normals: &[(DVec3, f64)], lobes: usize, iterations: usize) -> Vec<Vmf> {
     let total: f64 = normals.iter().map(|(_, w)| w.max(0.0)).sum();
     if normals.is_empty() || lobes == 0 || total <= 0.0 {
@@ -242,6 +275,7 @@ pub fn fit_vmf_mixture(normals: &[(DVec3, f64)], lobes: usize, iterations: usize
                 s.1 += share * *n;
             }
         }
+        let before = mixture.clone();
         for (lobe, (mass, resultant)) in mixture.iter_mut().zip(&sums) {
             if *mass <= total * 1e-12 {
                 lobe.weight = 0.0;
@@ -251,8 +285,18 @@ pub fn fit_vmf_mixture(normals: &[(DVec3, f64)], lobes: usize, iterations: usize
             lobe.mean = resultant.try_normalize().unwrap_or(lobe.mean);
             lobe.kappa = Vmf::kappa_from_mean_length(resultant.length() / mass);
         }
+        // Converged when no lobe moved its weight, direction or (relative) concentration by
+        // more than 1e-5.
+        let settled = mixture.iter().zip(&before).all(|(a, b)| {
+            (a.weight - b.weight).abs() < 1e-5
+                && (1.0 - a.mean.dot(b.mean)) < 1e-10
+                && (a.kappa - b.kappa).abs() < 1e-5 * b.kappa
+        });
         mixture.retain(|l| l.weight > 0.0);
         responsibility.truncate(mixture.len());
+        if settled {
+            break;
+        }
     }
     mixture
 }

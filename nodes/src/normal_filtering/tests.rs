@@ -293,3 +293,33 @@ fn filtered_ndfs_beat_mip_mapped_normals_at_every_distance() {
         assert!(g[2] < g[1], "level {level}: vMF mixture {} against Toksvig {}", g[2], g[1]);
     }
 }
+
+/// The vMF pyramid has a level per MIP level down to one texel; its texels' mixtures are
+/// densities (weights summing to one) fitted to the normals below them: on the flat map one
+/// lobe at the normal, on the bumpy map, at the top, lobes spread as the normals are (the
+/// mixture's mean direction lies near the mean normal).
+#[test]
+fn the_vmf_pyramid_fits_each_texels_normals() {
+    let flat = vmf_pyramid(&NormalMap::flat(4, 4), 6, 10, 64);
+    assert_eq!(flat.len(), 3);
+    for level in &flat {
+        for texel in level {
+            assert_eq!(texel.len(), 1, "{texel:?}");
+            assert!(texel[0].mean.dot(DVec3::Z) > 1.0 - 1e-12 && texel[0].kappa == MAX_KAPPA);
+        }
+    }
+    let map = bumpy_map();
+    let pyramid = vmf_pyramid(&map, 6, 20, 64);
+    assert_eq!(pyramid.len(), 5);
+    assert_eq!(pyramid[1].len(), 64);
+    for level in &pyramid {
+        for texel in level {
+            assert!((texel.iter().map(|l| l.weight).sum::<f64>() - 1.0).abs() < 1e-9);
+        }
+    }
+    let top = &pyramid[4][0];
+    let mean_normal = map.normals.iter().sum::<DVec3>().normalize();
+    let mixture_mean = top.iter().map(|l| l.weight * l.mean).sum::<DVec3>().normalize();
+    assert!(mixture_mean.dot(mean_normal) > 5f64.to_radians().cos(), "{mixture_mean} vs {mean_normal}");
+    assert!(top.len() > 1);
+}

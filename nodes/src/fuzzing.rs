@@ -61,6 +61,23 @@ pub fn light_texture(bytes: &[u8]) {
     }
 }
 
+/// A normal map (the first byte picks PNG or EXR), loaded and, when small enough to be quick,
+/// filtered into its NDF pyramid and vMF mixtures.
+pub fn normal_map(bytes: &[u8]) {
+    use crate::normal_filtering::{NdfPyramid, load_normal_map, vmf_pyramid};
+    let Some((format, file)) = bytes.split_first() else { return };
+    let path = scratch_file(if format % 2 == 0 { "normals.png" } else { "normals.exr" }, file);
+    if let Ok(map) = load_normal_map(&path) {
+        assert!(map.normals.iter().all(|n| (n.length() - 1.0).abs() < 1e-9), "a loaded normal is not unit");
+        if map.normals.len() <= 64 * 64 {
+            let pyramid = NdfPyramid::build(&map, 3);
+            assert!(pyramid.levels.iter().all(|l| l.sh.iter().all(|c| c.is_finite())), "a non-finite NDF");
+            let mixtures = vmf_pyramid(&map, 3, 5, 16);
+            assert!(mixtures.iter().flatten().flatten().all(|l| l.kappa.is_finite() && l.weight.is_finite()));
+        }
+    }
+}
+
 /// A disk-cache entry decoded as each persisted type the first byte picks.
 pub fn disk_entry(bytes: &[u8]) {
     use crate::engine::Codec;

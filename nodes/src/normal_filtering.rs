@@ -48,6 +48,40 @@ impl NormalMap {
     }
 }
 
+/// The most texels a normal map may have (4096², whose 3-band NDF pyramid holds about 1.2 GB).
+pub const MAX_NORMAL_MAP_PIXELS: u64 = 4096 * 4096;
+
+/// Loads a normal map from an image file (PNG at 8 or 16 bits, or EXR), its values taken as
+/// stored (normal maps are linear, not sRGB) and decoded as `n = 2·rgb − 1`. Texels with no
+/// direction (or not finite) are taken as flat.
+pub fn load_normal_map(path: &std::path::Path) -> Result<NormalMap, String> {
+    let named = |e: &dyn std::fmt::Display| format!("normal map {}: {e}", path.display());
+    crate::limits::check_regular_file(path, crate::limits::MAX_FILE_BYTES).map_err(|e| named(&e))?;
+    let reader = image::ImageReader::open(path).and_then(|r| r.with_guessed_format()).map_err(|e| named(&e))?;
+    if reader.format().is_none() {
+        return Err(named(&"not an image this program reads (PNG or EXR)"));
+    }
+    let (width, height) = reader.into_dimensions().map_err(|e| named(&e))?;
+    if width == 0 || height == 0 || u64::from(width) * u64::from(height) > MAX_NORMAL_MAP_PIXELS {
+        return Err(named(&format!("{width} × {height} texels (at most {MAX_NORMAL_MAP_PIXELS}, and at least one)")));
+    }
+    let mut reader = image::ImageReader::open(path).and_then(|r| r.with_guessed_format()).map_err(|e| named(&e))?;
+    let mut limits = image::Limits::default();
+    limits.max_image_width = Some(width);
+    limits.max_image_height = Some(height);
+    limits.max_alloc = Some(MAX_NORMAL_MAP_PIXELS * 16);
+    reader.limits(limits);
+    let decoded = reader.decode().map_err(|e| named(&e))?.to_rgb32f();
+    let normals = decoded
+        .pixels()
+        .map(|p| {
+            let n = DVec3::new(f64::from(p[0]), f64::from(p[1]), f64::from(p[2])) * 2.0 - 1.0;
+            n.try_normalize().unwrap_or(DVec3::Z)
+        })
+        .collect();
+    Ok(NormalMap { width: width as usize, height: height as usize, normals })
+}
+
 /// One MIP level of an NDF pyramid: per texel the NDF's SH coefficients (`bands²`) and the
 /// mean of its unit normals (unnormalised: its length says how spread they are).
 #[derive(Clone, Debug, Default, PartialEq)]

@@ -290,3 +290,24 @@ fn painted_lights_mutated_every_way_never_panic() {
     let n = replay(fuzzing::light_texture, inputs);
     assert!(n > 500, "{n} inputs");
 }
+
+#[test]
+fn normal_maps_mutated_every_way_never_panic() {
+    let mut rng = SmallRng::seed_from_u64(6);
+    let mut inputs = committed("normal_map");
+    let png = std::fs::read(shared_assets().join("gltf/assimp-glTF2/ClearCoat-glTF/RibsNormal.png")).unwrap();
+    for (label, mutant) in byte_mutants("RibsNormal.png", &png, 300, &mut rng) {
+        inputs.push((label, [vec![0u8], mutant].concat()));
+    }
+    // A small PNG of the same texels, mutated (its pyramid is built when it loads).
+    let mut small = Vec::new();
+    image::RgbImage::from_fn(16, 16, |x, y| image::Rgb([(x * 16) as u8, (y * 16) as u8, 200]))
+        .write_to(&mut std::io::Cursor::new(&mut small), image::ImageFormat::Png)
+        .unwrap();
+    for (label, mutant) in byte_mutants("16x16 png", &small, 200, &mut rng) {
+        inputs.push((label, [vec![0u8], mutant].concat()));
+    }
+    inputs.push(("16x16 png".into(), [vec![0u8], small].concat()));
+    let n = replay(fuzzing::normal_map, inputs);
+    assert!(n > 500, "{n} inputs");
+}

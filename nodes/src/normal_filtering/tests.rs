@@ -323,3 +323,28 @@ fn the_vmf_pyramid_fits_each_texels_normals() {
     assert!(mixture_mean.dot(mean_normal) > 5f64.to_radians().cos(), "{mixture_mean} vs {mean_normal}");
     assert!(top.len() > 1);
 }
+
+/// A real normal map (glTF sample RibsNormal.png) loads as unit normals, mostly facing out;
+/// a missing file, a file that is no image, and a map too large say so by name.
+#[test]
+fn normal_maps_load_and_bad_files_are_named() {
+    let assets = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/assets/gltf/assimp-glTF2");
+    let map = load_normal_map(&assets.join("ClearCoat-glTF/RibsNormal.png")).unwrap();
+    assert!(map.width > 0 && map.normals.len() == map.width * map.height);
+    assert!(map.normals.iter().all(|n| (n.length() - 1.0).abs() < 1e-9));
+    let mean = map.normals.iter().sum::<DVec3>() / map.normals.len() as f64;
+    assert!(mean.z > 0.5, "mean normal {mean}");
+    let missing = load_normal_map(std::path::Path::new("/nonexistent/normals.png")).unwrap_err();
+    assert!(missing.contains("/nonexistent/normals.png"), "{missing}");
+    let dir = std::env::temp_dir().join(format!("lightloom-normals-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let text = dir.join("notes.png");
+    std::fs::write(&text, "not an image").unwrap();
+    let error = load_normal_map(&text).unwrap_err();
+    assert!(error.contains("notes.png"), "{error}");
+    let huge =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../fuzz/regressions/normal_map/huge_declared.png");
+    std::fs::write(dir.join("huge.png"), &std::fs::read(huge).unwrap()[1..]).unwrap();
+    let error = load_normal_map(&dir.join("huge.png")).unwrap_err();
+    assert!(error.contains("100000 × 100000"), "{error}");
+}

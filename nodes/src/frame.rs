@@ -489,6 +489,29 @@ impl WaveletSurfaces {
             .map_err(|e| e.to_string())
     }
 
+    /// The CPU relight of one receiver set from its pre-rotated `table`, in one pass: its
+    /// products packed by `pack` and its diffuse transfer (the frame table is only built where
+    /// no detail terms are kept).
+    pub fn cpu_packed_products_of(
+        &self,
+        set: &WaveletReceivers,
+        table: &crate::triple_product::FrameTable,
+        pack: impl Fn([f32; 3]) -> u32 + Sync,
+    ) -> Result<(Vec<u32>, Vec<[f32; 4]>), String> {
+        let cancel = crate::engine::CancelToken::default();
+        let (receivers, visibility) = (set.receivers()?, set.cells()?);
+        crate::triple_product::table_products_packed(
+            table,
+            self.rotation,
+            receivers,
+            visibility,
+            &self.diffuse_table,
+            pack,
+            &cancel,
+        )
+        .map_err(|e| e.to_string())
+    }
+
     /// Floats of one material's specular table.
     pub fn specular_stride(cells: usize) -> usize {
         crate::triple_product::THETA_STEPS * crate::triple_product::PHI_STEPS * cells

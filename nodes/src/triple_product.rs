@@ -384,6 +384,63 @@ fn table_products(
     Ok(LocalProducts { cells: table.cells, values })
 }
 
+/// The renderer's CPU relight from a [`FrameTable`] in one pass: per receiver its products
+/// packed by `pack` (`cells` words) and its diffuse transfer `E = Σ_c P_c D_c` (RGB, then 0),
+/// without the f32 products in between. The products are [`local_products`]' (as
+/// [`table_products`] computes them), `E` is [`diffuse_transfer`]'s summed in f32.
+#[allow(clippy::too_many_arguments)]
+pub fn table_products_packed(
+    table: &FrameTable,
+    rotation: DMat3,
+    receivers: &Receivers,
+    visibility: &LocalVisibility,
+    diffuse: &[f32],
+    pack: impl Fn([f32; 3]) -> u32 + Sync,
+    cancel: &CancelToken,
+) -> Result<(Vec<u32>, Vec<[f32; 4]>), StageError> {
+    const CHUNK: usize = 256;
+    let (cells, inverse_rotation) = (table.cells, rotation.transpose());
+    if visibility.cells != cells || visibility.receivers() != receivers.len() || diffuse.len() != cells {
+        return Err(StageError::Failed(format!(
+            "a lighting table of {cells} cells for visibility of {} cells and {} receivers ({} diffuse cells)",
+            visibility.cells,
+            visibility.receivers(),
+            diffuse.len()
+        )));
+    }
+    let mut packed = vec![0u32; receivers.len() * cells];
+    let mut irradiance = vec![[0.0f32; 4]; receivers.len()];
+    packed.par_chunks_mut(CHUNK * cells).zip(irradiance.par_chunks_mut(CHUNK)).enumerate().try_for_each_init(
+        || (vec![0.0f32; cells * 3], None),
+        |(light, last), (chunk, (packed, irradiance))| {
+            cancel.check()?;
+            for (k, (packed, e)) in packed.chunks_exact_mut(cells).zip(irradiance).enumerate() {
+                let i = chunk * CHUNK + k;
+                let frame = receivers.frame(i);
+                let bits = frame.to_cols_array().map(f64::to_bits);
+                if *last != Some(bits) {
+                    table.lighting_into(&table.corners(inverse_rotation * frame), light);
+                    *last = Some(bits);
+                }
+                let mut sum = [0.0f32; 3];
+                for (((word, light), v), d) in
+                    packed.iter_mut().zip(light.chunks_exact(3)).zip(visibility.of(i)).zip(diffuse)
+                {
+                    let v = v.max(0.0);
+                    let p = [light[0] * v, light[1] * v, light[2] * v];
+                    *word = pack(p);
+                    for c in 0..3 {
+                        sum[c] += p[c] * d;
+                    }
+                }
+                *e = [sum[0], sum[1], sum[2], 0.0];
+            }
+            Ok::<_, StageError>(())
+        },
+    )?;
+    Ok((packed, irradiance))
+}
+
 /// Per receiver the diffuse transfer `E = Σ_c P_c D_c` (RGB) with `D_c` the cell averages of
 /// `cos⁺/π`: a diffuse surface's exit radiance is `albedo · E` (the CPU twin of the viewport's
 /// relight kernel, `shaders/wavelet_relight.wgsl`).
@@ -748,6 +805,42 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// The one-pass packed relight equals packing the table's products and summing their
+    /// diffuse transfer apart.
+    #[test]
+    fn packed_table_products_equal_the_products_packed() {
+        use rand::Rng;
+        let mut rng = crate::sampling::test_rng(11);
+        let environment = CubeMap::from_fn(32, 2, |d| [2.0 + d.x, 0.5 + d.y.max(0.0) * 40.0, 1.0 + d.z * d.z]);
+        let grid = CellGrid::for_coefficients(80).unwrap();
+        let table = FrameTable::build(grid, &environment);
+        let meshes = crate::mesh::MeshSet { meshes: vec![crate::mesh::sphere(1.0, 10), crate::mesh::plane(2.0, 4)] };
+        let receivers = Receivers::from_meshes(&meshes);
+        let values = (0..receivers.len() * grid.len()).map(|_| if rng.random_bool(0.3) { 0.0 } else { rng.random() });
+        let visibility = LocalVisibility { cells: grid.len(), values: values.collect() };
+        let diffuse: Vec<f32> = (0..grid.len()).map(|_| rng.random_range(0.0..0.05)).collect();
+        let rotation = crate::sampling::random_rotation(&mut rng);
+        // Any packing will do: the words are compared, not decoded.
+        let pack = |p: [f32; 3]| (p[0] * 1000.0) as u32 ^ ((p[1] * 1000.0) as u32).rotate_left(11) ^ p[2].to_bits();
+        let cancel = CancelToken::default();
+        let (packed, irradiance) =
+            table_products_packed(&table, rotation, &receivers, &visibility, &diffuse, pack, &cancel).unwrap();
+        let lighting = Lighting { environment: &environment, rotation, table: Some(&table) };
+        let products = local_products(grid, &lighting, &receivers, &visibility, &cancel).unwrap();
+        let expected: Vec<u32> = products.values.chunks_exact(3).map(|p| pack([p[0], p[1], p[2]])).collect();
+        assert_eq!(packed, expected);
+        let transfer = diffuse_transfer(&products, &diffuse);
+        let largest = transfer.iter().flatten().fold(0.0f32, |m, v| m.max(*v));
+        assert!(largest > 0.0);
+        for (a, b) in irradiance.iter().zip(&transfer) {
+            for c in 0..3 {
+                assert!((a[c] - b[c]).abs() <= 1e-5 * largest, "{a:?} vs {b:?}");
+            }
+        }
+        let wrong = LocalVisibility { cells: 320, values: Vec::new() };
+        assert!(table_products_packed(&table, rotation, &receivers, &wrong, &diffuse, pack, &cancel).is_err());
     }
 
     #[test]

@@ -401,6 +401,15 @@ impl WaveletPass {
         let sets =
             std::iter::once((&receivers.vertices, &data.vertices)).chain(receivers.texels.iter().zip(&data.texels));
         for ((buffers, set), table) in sets.zip(&lit.tables) {
+            // Big sets read a frame table (built only without detail terms): one pass from it
+            // to the packed words.
+            if let Some(table) = table {
+                let (packed, irradiance) =
+                    data.cpu_packed_products_of(set, table, crate::packing::rgb9e5).map_err(RenderError::Invalid)?;
+                gpu.queue.write_buffer(&buffers.products, 0, bytemuck::cast_slice(&packed));
+                gpu.queue.write_buffer(&buffers.irradiance, 0, bytemuck::cast_slice(&irradiance));
+                continue;
+            }
             let (products, details) = data.cpu_products_of(set, table.as_ref()).map_err(RenderError::Invalid)?;
             let irradiance: Vec<[f32; 4]> =
                 diffuse_transfer(&products, &data.diffuse_table).into_iter().map(|e| [e[0], e[1], e[2], 0.0]).collect();

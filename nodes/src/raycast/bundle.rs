@@ -321,7 +321,7 @@ impl BundleTree {
             }
             // The inner children, the nearest entered last (on top).
             let inner = hits & !(0..4).fold(0u32, |m, l| m | u32::from(node.packs[l] > 0) << l);
-            if inner & (inner - 1) == 0 {
+            if inner.count_ones() <= 1 {
                 if inner != 0 {
                     stack.push(node.child[inner.trailing_zeros() as usize]);
                 }

@@ -724,6 +724,7 @@ impl FrameInputs {
             // casts nothing (fractional strengths are an artistic fade it does not model).
             blockers: self.blockers.as_ref().filter(|b| b.strength > 0.0).map_or(&[], |b| b.blockers.as_slice()),
             area_lights: self.area_lights.as_ref().map_or(&[], |a| a.emitters.as_slice()),
+            normal_maps: &[],
         };
         crate::reference::render(&rs, camera, size, self.settings.reference_samples, seed, cancel, progress)
             .map_err(|e| e.to_string())

@@ -46,6 +46,26 @@ impl NormalMap {
     pub fn flat(width: usize, height: usize) -> Self {
         Self { width, height, normals: vec![DVec3::Z; width * height] }
     }
+
+    /// The tangent-space normal at `uv` (the map repeating, `v` down its rows), bilinear
+    /// between texel centres and renormalised: what the Monte Carlo reference shades with, at
+    /// its many samples a pixel (the supersampled ground truth filtering is measured against).
+    pub fn sample(&self, uv: [f64; 2]) -> DVec3 {
+        if self.normals.is_empty() {
+            return DVec3::Z;
+        }
+        let (x, y) = (uv[0] * self.width as f64 - 0.5, uv[1] * self.height as f64 - 0.5);
+        let (x0, y0) = (x.floor(), y.floor());
+        let (fx, fy) = (x - x0, y - y0);
+        let at = |dx: i64, dy: i64| {
+            let xi = (x0 as i64 + dx).rem_euclid(self.width as i64) as usize;
+            let yi = (y0 as i64 + dy).rem_euclid(self.height as i64) as usize;
+            self.normals[yi * self.width + xi]
+        };
+        let blended =
+            (at(0, 0) * (1.0 - fx) + at(1, 0) * fx) * (1.0 - fy) + (at(0, 1) * (1.0 - fx) + at(1, 1) * fx) * fy;
+        blended.try_normalize().unwrap_or(DVec3::Z)
+    }
 }
 
 /// The most texels a normal map may have (4096², whose 3-band NDF pyramid holds about 1.2 GB).

@@ -348,3 +348,21 @@ fn normal_maps_load_and_bad_files_are_named() {
     let error = load_normal_map(&dir.join("huge.png")).unwrap_err();
     assert!(error.contains("100000 × 100000"), "{error}");
 }
+
+/// Sampling a map: at a texel's centre its own normal, halfway between two the normalised
+/// mean, and across the edge the map repeats.
+#[test]
+fn sampling_is_bilinear_between_texel_centres_and_repeats() {
+    let map = bumpy_map();
+    let (w, h) = (map.width as f64, map.height as f64);
+    let texel = |x: usize, y: usize| map.normals[y * map.width + x];
+    for (x, y) in [(0, 0), (5, 3), (15, 15)] {
+        let at = map.sample([(x as f64 + 0.5) / w, (y as f64 + 0.5) / h]);
+        assert!((at - texel(x, y)).length() < 1e-12);
+    }
+    let between = map.sample([6.0 / w, 3.5 / h]);
+    assert!((between - (texel(5, 3) + texel(6, 3)).normalize()).length() < 1e-12);
+    let across = map.sample([1.0, 3.5 / h]);
+    assert!((across - (texel(15, 3) + texel(0, 3)).normalize()).length() < 1e-12);
+    assert!((map.sample([-0.5 / w, 0.5 / h]) - texel(15, 0)).length() < 1e-12);
+}

@@ -265,9 +265,8 @@ pub fn local_products_with_details(
     if let Some(table) = lighting.table.filter(|_| kept == 0) {
         return Ok((table_products(table, inverse_rotation, receivers, visibility, cancel)?, no_details()));
     }
-    let sampler = &cell_light::CellSampler::new(grid, &prefiltered(lighting.environment, grid));
     // With details, every cell is sampled and its samples scored.
-    let detail_sampler = (kept > 0).then_some(sampler);
+    let sampler = &cell_light::CellSampler::new(grid, &prefiltered(lighting.environment, grid));
     type Samples = [[f32; 4]; cell_light::SAMPLES];
     /// A chunk's products, kept nodes and their details.
     type Chunk = (Vec<f32>, Vec<u32>, Vec<[f32; 9]>);
@@ -311,7 +310,7 @@ pub fn local_products_with_details(
                                 cells[c] = DVec3::from(sampler.cell(frame, c).map(f64::from));
                             }
                         }
-                        if let Some(sampler) = detail_sampler {
+                        if kept > 0 {
                             details::offer_cell(&mut best, weights, c, &samples[c], sampler.weights(c), *v);
                         }
                         cells[c] * f64::from(*v)
@@ -320,7 +319,7 @@ pub fn local_products_with_details(
                     };
                     out.extend([p.x as f32, p.y as f32, p.z as f32]);
                 }
-                if let Some(sampler) = detail_sampler {
+                if kept > 0 {
                     for &node in best.nodes() {
                         nodes.push(node);
                         values.push(if node == details::NO_NODE {

@@ -272,24 +272,23 @@ pub fn run(args: &AccuracyArgs) -> Result<()> {
     let mut irradiance = base.clone();
     irradiance.set_param(&output, "mode", ParamValue::Choice("sh_irradiance".into()))?;
     rows.extend(measure(&irradiance, "sh_irradiance (unshadowed sky)", 25)?);
-    for &bands in &args.bands {
+    // An SH mode with its lighting and transport at `bands`.
+    let sh_mode = |mode: &str, bands: usize| -> Result<Graph> {
         let mut g = base.clone();
-        g.set_param(&output, "mode", ParamValue::Choice("sh_prt".into()))?;
+        g.set_param(&output, "mode", ParamValue::Choice(mode.into()))?;
         g.set_param(scene, "transport_bands", ParamValue::Int(bands as i64))?;
         if let Some(env) = &environment_id {
             g.set_param(env, "sh_bands", ParamValue::Int(bands as i64))?;
         }
-        rows.extend(measure(&g, "sh_prt", bands * bands)?);
+        Ok(g)
+    };
+    for &bands in &args.bands {
+        rows.extend(measure(&sh_mode("sh_prt", bands)?, "sh_prt", bands * bands)?);
     }
     for &level in &args.adaptive {
         let bands = level + 1;
-        let mut g = base.clone();
-        g.set_param(&output, "mode", ParamValue::Choice("sh_adaptive".into()))?;
+        let mut g = sh_mode("sh_adaptive", bands)?;
         g.set_param(&output, "adaptive_level", ParamValue::Int(level as i64))?;
-        g.set_param(scene, "transport_bands", ParamValue::Int(bands as i64))?;
-        if let Some(env) = &environment_id {
-            g.set_param(env, "sh_bands", ParamValue::Int(bands as i64))?;
-        }
         rows.extend(measure(&g, "sh_adaptive", bands * bands)?);
     }
     let details: Vec<Option<usize>> =

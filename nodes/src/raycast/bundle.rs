@@ -30,6 +30,14 @@ struct Node4 {
     used: u32,
 }
 
+impl Node4 {
+    /// The lanes whose child is a leaf, as a mask.
+    #[inline(always)]
+    fn leaf_lanes(&self) -> u32 {
+        (0..4).fold(0u32, |m, l| m | u32::from(self.packs[l] > 0) << l)
+    }
+}
+
 /// Up to four triangles side by side; unused lanes are degenerate (they occlude nothing).
 #[derive(Clone, Copy, Debug)]
 struct TrianglePack {
@@ -233,7 +241,8 @@ impl BundleTree {
             // Leaves at once (cheap, and what they block leaves the other lists early), then
             // the inner children.
             // The leaves rays enter, as a mask (one branch per leaf, not two per lane).
-            let mut leaves = (0..4).fold(0u32, |m, l| m | u32::from(node.packs[l] > 0 && length[l] > 0) << l);
+            let entered = (0..4).fold(0u32, |m, l| m | u32::from(length[l] > 0) << l);
+            let mut leaves = node.leaf_lanes() & entered;
             while leaves != 0 {
                 let lane = leaves.trailing_zeros() as usize;
                 leaves &= leaves - 1;
@@ -308,7 +317,7 @@ impl BundleTree {
             if hits == 0 {
                 continue;
             }
-            let mut leaves = (0..4).fold(0u32, |m, l| m | u32::from(node.packs[l] > 0) << l) & hits;
+            let mut leaves = node.leaf_lanes() & hits;
             while leaves != 0 {
                 let lane = leaves.trailing_zeros() as usize;
                 leaves &= leaves - 1;
@@ -320,7 +329,7 @@ impl BundleTree {
                 }
             }
             // The inner children, the nearest entered last (on top).
-            let inner = hits & !(0..4).fold(0u32, |m, l| m | u32::from(node.packs[l] > 0) << l);
+            let inner = hits & !node.leaf_lanes();
             if inner.count_ones() <= 1 {
                 if inner != 0 {
                     stack.push(node.child[inner.trailing_zeros() as usize]);

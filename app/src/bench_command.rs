@@ -298,7 +298,7 @@ fn rsl_mode_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
         &geometry,
     )
     .map_err(|e| anyhow!(e))?;
-    let materials = vec![FrameMaterial { node: "bench".into(), material }];
+    let materials = vec![FrameMaterial { node: "bench".into(), material, normal: None }];
     let frame = FrameInputs {
         geometry,
         ray_scene: None,
@@ -553,7 +553,7 @@ fn synthetic_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
     };
     let material =
         lightloom_nodes::kinds::brdf::Material { model: "phong".into(), exponent: 20.0, f0: 0.3, ..Default::default() };
-    let materials = vec![FrameMaterial { node: "bench".into(), material: material.clone() }];
+    let materials = vec![FrameMaterial { node: "bench".into(), material: material.clone(), normal: None }];
     let geometry = Geometry { meshes: keyed(1, StageValue::new(meshes.clone())), mesh_materials: vec![0] };
     let frame_with = |mode: Mode, surfaces: Surfaces| FrameInputs {
         geometry: geometry.clone(),

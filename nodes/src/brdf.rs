@@ -43,6 +43,51 @@ pub enum Lobe {
     },
 }
 
+impl Lobe {
+    /// The lobe seen through a vMF lobe of normals of concentration `kappa` (Han et al. 2007),
+    /// and the factor its values take: a lobe `e^{s(h·n − 1)}` about the normal convolved with
+    /// `e^{κ(n·μ − 1)}` is one of `κs/(κ + s)` about `μ`, so Blinn-Phong's exponent becomes
+    /// that, and GGX's and Ward's slope variances `α²/2` grow by `1/κ` per axis. Phong's lobe
+    /// is about the mirror direction, which turns twice as far as the normal: it sees `κ/4`.
+    /// A convolution keeps the lobe's integral: GGX's and Ward's distributions stay normalised
+    /// as they widen, and the Phong lobes' factor restores `∫ cos^s = 2π/(s + 1)` under their
+    /// normalisation.
+    pub fn widened(self, kappa: f64) -> (Self, f64) {
+        if kappa >= super::normal_filtering::MAX_KAPPA {
+            return (self, 1.0);
+        }
+        let kappa = kappa.max(1e-9);
+        let exponent = |s: f64, k: f64| k * s / (k + s);
+        let alpha = |a: f64| (a * a + 2.0 / kappa).sqrt();
+        // (s + c)/(s + 1) per unit of the lobe's integral, before and after.
+        let kept = |s: f64, widened: f64, c: f64| (s + c) * (widened + 1.0) / ((s + 1.0) * (widened + c));
+        match self {
+            Lobe::None => (Lobe::None, 1.0),
+            Lobe::Phong { exponent: s } => {
+                let w = exponent(s, kappa / 4.0);
+                (Lobe::Phong { exponent: w }, kept(s, w, 2.0))
+            }
+            Lobe::BlinnPhong { exponent: s } => {
+                let w = exponent(s, kappa);
+                (Lobe::BlinnPhong { exponent: w }, kept(s, w, 8.0))
+            }
+            Lobe::Ggx { alpha_x, alpha_y } => (Lobe::Ggx { alpha_x: alpha(alpha_x), alpha_y: alpha(alpha_y) }, 1.0),
+            Lobe::Ward { alpha_x, alpha_y } => (Lobe::Ward { alpha_x: alpha(alpha_x), alpha_y: alpha(alpha_y) }, 1.0),
+        }
+    }
+
+    /// Whether the lobe is radially symmetric about the normal (a function of `h·n`), the
+    /// family normal-map filtering is exact for (Sun 2008 eq. 5.3): Blinn-Phong and isotropic
+    /// GGX (and Lambert, without a lobe).
+    pub fn radially_symmetric(self) -> bool {
+        match self {
+            Lobe::None | Lobe::BlinnPhong { .. } => true,
+            Lobe::Ggx { alpha_x, alpha_y } => alpha_x == alpha_y,
+            Lobe::Phong { .. } | Lobe::Ward { .. } => false,
+        }
+    }
+}
+
 /// A BRDF ready to evaluate.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Brdf {

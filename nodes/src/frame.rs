@@ -115,6 +115,21 @@ pub struct FrameMaterial {
     /// The BRDF editor node (empty for the default material).
     pub node: String,
     pub material: Material,
+    /// Its normal map, once loaded.
+    pub normal: Option<NormalDetail>,
+}
+
+/// A material's normal map as a frame shades it ([`crate::normal_filtering`]).
+#[derive(Clone, Debug)]
+pub struct NormalDetail {
+    pub settings: crate::kinds::brdf_normal_map::NormalSettings,
+    /// [`crate::normal_filtering::NormalMap`].
+    pub map: Keyed,
+    /// [`crate::normal_filtering::MomentPyramid`].
+    pub moments: Keyed,
+    /// [`crate::normal_filtering::VmfPyramid`], with the vMF filter once fitted (until then
+    /// highlights take the SH filter's lobe).
+    pub lobes: Option<Keyed>,
 }
 
 /// How surfaces are lit: one variant per relighting mode.
@@ -714,6 +729,14 @@ impl FrameInputs {
             Some(r) => r.value.expect::<crate::cubemap::CubeMap>().map_err(|e| e.to_string())?,
             None => &black,
         };
+        let normal_maps: Vec<Option<(&crate::normal_filtering::NormalMap, f64)>> = (0..meshes.meshes.len())
+            .map(|i| {
+                let material = &self.materials[self.geometry.mesh_materials.get(i).copied().unwrap_or(0) as usize];
+                let detail = material.normal.as_ref()?;
+                let map = detail.map.value.get::<crate::normal_filtering::NormalMap>()?;
+                (!map.normals.is_empty()).then_some((map, detail.settings.tiling))
+            })
+            .collect();
         let rs = crate::reference::ReferenceScene {
             scene,
             meshes,
@@ -724,7 +747,7 @@ impl FrameInputs {
             // casts nothing (fractional strengths are an artistic fade it does not model).
             blockers: self.blockers.as_ref().filter(|b| b.strength > 0.0).map_or(&[], |b| b.blockers.as_slice()),
             area_lights: self.area_lights.as_ref().map_or(&[], |a| a.emitters.as_slice()),
-            normal_maps: &[],
+            normal_maps: &normal_maps,
         };
         crate::reference::render(&rs, camera, size, self.settings.reference_samples, seed, cancel, progress)
             .map_err(|e| e.to_string())

@@ -317,7 +317,16 @@ impl PortType {
                 "sun",
                 "residual_sh",
             ],
-            PortType::Material => &["material", "sh_lobe", "local_table", "rsl_tables"],
+            PortType::Material => &[
+                "material",
+                "sh_lobe",
+                "local_table",
+                "rsl_tables",
+                "normal_map",
+                "ndf_moments",
+                "vmf_lobes",
+                "normal_settings",
+            ],
             PortType::Scene => &[
                 "geometry",
                 "receivers",

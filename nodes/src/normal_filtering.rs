@@ -13,11 +13,19 @@
 //! 2005; the thesis's Fig. 5.2 uses six). One lobe from the MIP-mapped mean normal is Toksvig's
 //! filter.
 
+mod moments;
+
+pub use moments::{
+    MAX_VMF_PIXELS, MomentLevel, MomentPyramid, NdfMoments, VMF_LOBES, VmfLevel, VmfPyramid, normal_cdf,
+};
+
 use crate::sh::ShBasis;
 use glam::DVec3;
 use std::f64::consts::PI;
 
-/// A tangent-space normal map: unit normals, row by row from the top.
+crate::stage_type!(NormalMap, "normal map", |v| v.normals.len() * 24);
+
+/// A tangent-space normal map: unit normals, row by row from the top (empty: no map).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct NormalMap {
     pub width: usize,
@@ -40,6 +48,17 @@ impl NormalMap {
             })
             .collect();
         Ok(Self { width, height, normals })
+    }
+
+    /// The map with its tilts scaled by `strength` (glTF's `normalTexture.scale`: the
+    /// tangent-plane components scaled, then renormalised; 0 flattens it).
+    pub fn with_strength(mut self, strength: f64) -> Self {
+        if strength != 1.0 {
+            for n in &mut self.normals {
+                *n = DVec3::new(n.x * strength, n.y * strength, n.z).try_normalize().unwrap_or(DVec3::Z);
+            }
+        }
+        self
     }
 
     /// The flat map: every normal along the surface normal.
@@ -71,7 +90,7 @@ impl NormalMap {
 /// The most texels a normal map may have (4096², whose 3-band NDF pyramid holds about 1.2 GB).
 pub const MAX_NORMAL_MAP_PIXELS: u64 = 4096 * 4096;
 
-/// Loads a normal map from an image file (PNG at 8 or 16 bits, or EXR), its values taken as
+/// Loads a normal map from an image file (PNG at 8 or 16 bits, JPEG, or EXR), its values taken as
 /// stored (normal maps are linear, not sRGB) and decoded as `n = 2·rgb − 1`. Texels with no
 /// direction (or not finite) are taken as flat.
 pub fn load_normal_map(path: &std::path::Path) -> Result<NormalMap, String> {
@@ -79,7 +98,7 @@ pub fn load_normal_map(path: &std::path::Path) -> Result<NormalMap, String> {
     crate::limits::check_regular_file(path, crate::limits::MAX_FILE_BYTES).map_err(|e| named(&e))?;
     let reader = image::ImageReader::open(path).and_then(|r| r.with_guessed_format()).map_err(|e| named(&e))?;
     if reader.format().is_none() {
-        return Err(named(&"not an image this program reads (PNG or EXR)"));
+        return Err(named(&"not an image this program reads (PNG, JPEG or EXR)"));
     }
     let (width, height) = reader.into_dimensions().map_err(|e| named(&e))?;
     if width == 0 || height == 0 || u64::from(width) * u64::from(height) > MAX_NORMAL_MAP_PIXELS {
@@ -178,6 +197,18 @@ impl NdfPyramid {
 /// covering more than `max_normals` of them fits an even subset (every `k`-th row and column),
 /// which bounds the cost of each level by the map's size.
 pub fn vmf_pyramid(map: &NormalMap, lobes: usize, iterations: usize, max_normals: usize) -> Vec<Vec<Vec<Vmf>>> {
+    vmf_pyramid_cancellable(map, lobes, iterations, max_normals, &crate::engine::CancelToken::default())
+        .expect("never cancelled")
+}
+
+/// [`vmf_pyramid`], given up (`None`) once `cancel` is.
+pub fn vmf_pyramid_cancellable(
+    map: &NormalMap,
+    lobes: usize,
+    iterations: usize,
+    max_normals: usize,
+    cancel: &crate::engine::CancelToken,
+) -> Option<Vec<Vec<Vec<Vmf>>>> {
     use rayon::prelude::*;
     let mut levels = Vec::new();
     let mut size = 1usize;
@@ -188,6 +219,9 @@ pub fn vmf_pyramid(map: &NormalMap, lobes: usize, iterations: usize, max_normals
         let texels: Vec<Vec<Vmf>> = (0..width * height)
             .into_par_iter()
             .map(|t| {
+                if cancel.is_cancelled() {
+                    return Vec::new();
+                }
                 let (x, y) = (t % width, t / width);
                 let mut normals = Vec::new();
                 for by in (y * size..((y + 1) * size).min(map.height)).step_by(stride) {
@@ -198,9 +232,12 @@ pub fn vmf_pyramid(map: &NormalMap, lobes: usize, iterations: usize, max_normals
                 fit_vmf_mixture(&normals, lobes, iterations)
             })
             .collect();
+        if cancel.is_cancelled() {
+            return None;
+        }
         levels.push(texels);
         if width == 1 && height == 1 {
-            return levels;
+            return Some(levels);
         }
         size *= 2;
     }

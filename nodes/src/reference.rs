@@ -173,9 +173,10 @@ pub struct ReferenceScene<'a> {
     pub blockers: &'a [crate::sh_exponential::Blocker],
     /// Painted area lights (not seen by camera rays, as in the viewport).
     pub area_lights: &'a [AreaEmitter],
-    /// Per mesh, the normal map its shading normal is perturbed by (in the frame of its
-    /// normal, tangent and `n × t`, at the hit's UV); none past the list's end.
-    pub normal_maps: &'a [Option<&'a crate::normal_filtering::NormalMap>],
+    /// Per mesh, the normal map its shading normal is perturbed by and the map's repeats per
+    /// unit of UV (in the frame of its normal, tangent and `n × t`, at the hit's UV); none
+    /// past the list's end.
+    pub normal_maps: &'a [Option<(&'a crate::normal_filtering::NormalMap, f64)>],
 }
 
 /// A linear HDR image, rows top to bottom, with the fraction of each pixel's samples that
@@ -265,14 +266,14 @@ fn shade_point(rs: &ReferenceScene, table: &TriangleTable, origin: DVec3, dir: D
     }
     let t_raw = lerp(&table.tangents[mi]);
     let mut tangent = (t_raw - n * n.dot(t_raw)).try_normalize().unwrap_or_else(|| n.any_orthonormal_vector());
-    if let Some(map) = rs.normal_maps.get(mi).copied().flatten()
+    if let Some((map, tiling)) = rs.normal_maps.get(mi).copied().flatten()
         && mesh.uvs.len() == mesh.positions.len()
     {
         let uv = idx.iter().zip(w).fold([0.0; 2], |a, (i, w)| {
             let uv = mesh.uvs[*i];
             [a[0] + f64::from(uv[0]) * w, a[1] + f64::from(uv[1]) * w]
         });
-        let perturbed = DMat3::from_cols(tangent, n.cross(tangent), n) * map.sample(uv);
+        let perturbed = DMat3::from_cols(tangent, n.cross(tangent), n) * map.sample(uv.map(|c| c * tiling));
         n = perturbed.try_normalize().unwrap_or(n);
         tangent = (tangent - n * n.dot(tangent)).try_normalize().unwrap_or_else(|| n.any_orthonormal_vector());
     }
@@ -538,7 +539,7 @@ mod tests {
         let material =
             Material { model: "ggx".into(), roughness: 0.3, f0: 0.8, specular: [1.0; 3], ..Default::default() };
         let camera = PinholeCamera { position: DVec3::new(0.0, 2.0, 3.0), target: DVec3::ZERO, fov_y_deg: 30.0 };
-        let render_with = |mesh: &mesh::Mesh, maps: &[Option<&crate::normal_filtering::NormalMap>]| {
+        let render_with = |mesh: &mesh::Mesh, maps: &[Option<(&crate::normal_filtering::NormalMap, f64)>]| {
             let meshes = MeshSet { meshes: vec![mesh.clone()] };
             let scene = RayScene::build(&meshes);
             let rs = ReferenceScene {
@@ -547,7 +548,7 @@ mod tests {
             };
             render(&rs, &camera, (16, 16), 16, 3, &CancelToken::default(), &|_| {}).unwrap().pixels
         };
-        let mapped = render_with(&flat, &[Some(&map)]);
+        let mapped = render_with(&flat, &[Some((&map, 1.0))]);
         let written = render_with(&tilted, &[]);
         let unmapped = render_with(&flat, &[]);
         let scale = written.iter().flatten().fold(0.0f32, |m, v| m.max(*v));

@@ -43,7 +43,7 @@ pub fn spec() -> NodeKindSpec {
     NodeKindSpec {
         name: "BrdfEditor",
         label: "BRDF editor",
-        doc: "Analytic BRDFs: Lambert, Phong, Blinn-Phong, GGX (isotropic/anisotropic), Ward.",
+        doc: "Analytic BRDFs: Lambert, Phong, Blinn-Phong, GGX (isotropic/anisotropic), Ward; an optional normal map, filtered by its normal distribution at every distance.",
         inputs: vec![],
         outputs: vec![PortSpec { name: "material", ty: PortType::Material, required: false, many: false }],
         params: vec![
@@ -90,7 +90,10 @@ pub fn spec() -> NodeKindSpec {
                 (0.0, 1.0, 0.04),
                 "Specular reflectance at normal incidence: Schlick's Fresnel for GGX, the lobe's weight for Phong, Blinn-Phong and Ward.",
             ),
-        ],
+        ]
+        .into_iter()
+        .chain(super::brdf_normal_map::params())
+        .collect(),
         stages: vec![
             StageSpec {
                 name: "material",
@@ -137,7 +140,10 @@ pub fn spec() -> NodeKindSpec {
                 persist: None,
                 compute: rsl_tables,
             },
-        ],
+        ]
+        .into_iter()
+        .chain(super::brdf_normal_map::stages())
+        .collect(),
         previews: vec![PreviewSpec {
             stages: &["preview"],
             make: |v| Some(Preview::Lobe(v[0].get::<crate::brdf::LobePreview>()?.clone())),

@@ -4,6 +4,7 @@
 pub mod area_light;
 pub mod blockers;
 pub mod brdf;
+pub mod brdf_normal_map;
 pub mod environment;
 pub mod fog;
 pub mod lights;

@@ -665,6 +665,13 @@ pub fn frame_request(graph: &Graph, output: &str, picking: bool) -> Request {
     let Some(node) = graph.node(output) else { return Request::default() };
     let (mode, view) = output_mode_and_view(node);
     let mut first = mode_stages(graph, output, Mode::ShIrradiance);
+    // Normal maps load with the first frame; their vMF lobes (seconds to fit) come last.
+    let (normal_maps, normal_lobes): (Vec<StageRef>, Vec<StageRef>) = graph
+        .upstream_all(output, "material")
+        .iter()
+        .flat_map(|m| super::brdf_normal_map::frame_stages(graph, &m.id))
+        .partition(|s| s.stage != "vmf_lobes");
+    first.extend(normal_maps);
     if (picking || view != View::Approximation)
         && let Some(scene) = graph.upstream(output, "scene")
     {
@@ -687,6 +694,11 @@ pub fn frame_request(graph: &Graph, output: &str, picking: bool) -> Request {
             .then(format!("output `{output}`: mode {mode}"), mode_stages(graph, output, mode))
     } else {
         Request::new(format!("output `{output}`: mode {mode}"), first)
+    };
+    let request = if normal_lobes.is_empty() {
+        request
+    } else {
+        request.then(format!("output `{output}`: normal-map lobes"), normal_lobes)
     };
     // Area lights trace their own transport: frames show without them until it is ready.
     if graph.upstream_all(output, "area_lights").is_empty() {
@@ -732,13 +744,16 @@ impl FrameInputs {
         let pending =
             (!ready).then(|| format!("unshadowed preview: mode {} is still computing what it needs", settings.mode));
         let mut materials = Vec::new();
+        let mut normal_notes = Vec::new();
         let mut lobes = Vec::new();
         let mut tables = Vec::new();
         let mut rsl_tables = Vec::new();
         for node in &material_nodes {
+            let normal = super::brdf_normal_map::frame_detail(&keyed, graph, &node.id, mode, &mut normal_notes);
             materials.push(FrameMaterial {
                 node: node.id.clone(),
                 material: typed(&keyed(&node.id, "material")?, "material")?,
+                normal,
             });
             if matches!(mode, Mode::ShPrt | Mode::ShAdaptive) {
                 lobes.push(Some(typed(&keyed(&node.id, "sh_lobe")?, "sh_lobe")?));
@@ -754,7 +769,7 @@ impl FrameInputs {
             if mode.is_wavelet() || mode == Mode::Rsl {
                 return Err(format!("the {mode} mode needs a material: link a BRDF editor to the Output"));
             }
-            materials.push(FrameMaterial { node: String::new(), material: Default::default() });
+            materials.push(FrameMaterial { node: String::new(), material: Default::default(), normal: None });
             lobes.push(None);
         }
         let fog = match upstream("medium") {
@@ -898,7 +913,8 @@ impl FrameInputs {
         let light_nodes = graph.upstream_all(output, "area_lights");
         let area_lights =
             super::output_area::frame(evaluation, &light_nodes, output, &keyed, &materials, geometry.vertex_count())?;
-        let lobe_limits = lobe_limits(graph, output, &scene, settings.mode, &materials);
+        let mut lobe_limits = lobe_limits(graph, output, &scene, settings.mode, &materials);
+        lobe_limits.extend(normal_notes);
         let medium = MediumFrame::new(lights, &materials, fog);
         if !light_nodes.is_empty() && upstream("blockers").is_some() {
             ignored_inputs.push(

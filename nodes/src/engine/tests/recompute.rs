@@ -361,6 +361,15 @@ fn each_parameter_recomputes_exactly_its_stages() {
                 "output.area_highlights",
             ],
         ),
+        // Without a map, the normal-map stages hold empty pyramids; their settings rebuild nothing.
+        ("material", "normal_filter", Choice("vmf".into()), vec!["material.normal_settings"]),
+        ("material", "normal_tiling", Float(4.0), vec!["material.normal_settings"]),
+        (
+            "material",
+            "normal_strength",
+            Float(0.5),
+            vec!["material.normal_map", "material.ndf_moments", "material.vmf_lobes"],
+        ),
     ];
     let engine = Engine::in_memory();
     // A coarse scene: every scene edit recomputes each object's visibility tables.
@@ -368,7 +377,7 @@ fn each_parameter_recomputes_exactly_its_stages() {
     graph.set_param("scene", "tessellation", Int(12)).unwrap();
     let first = engine.evaluate(&graph, &CancelToken::default(), None);
     assert!(first.report.failed().is_empty(), "{:?}", first.report.failed());
-    assert_eq!(first.report.computed().len(), 55);
+    assert_eq!(first.report.computed().len(), 59);
     let again = engine.evaluate(&graph, &CancelToken::default(), None);
     assert!(ran(&again.report).is_empty(), "an unchanged graph recomputed {:?}", ran(&again.report));
     for (node, param, value, expected) in table {
@@ -686,6 +695,59 @@ fn each_mode_and_view_evaluates_exactly_the_stages_it_reads() {
         for s in eval.report.stages.iter().filter(|s| s.status == StageStatus::NotNeeded) {
             assert!(s.reasons[0].contains(&format!("mode {mode}")), "{}.{}: {:?}", s.node, s.stage, s.reasons);
         }
-        assert_eq!(eval.report.stages.len(), 55, "every stage is reported");
+        assert_eq!(eval.report.stages.len(), 59, "every stage is reported");
     }
+}
+
+/// With a normal map set, a frame loads it and builds its moments and settings with the first
+/// tier, and fits vMF lobes only with that filter, in a tier of their own. The filter and tiling
+/// recompute only the settings, the strength the map and its pyramids; the frame hands the
+/// renderer every piece. A map that cannot load leaves its material unmapped and says why, and
+/// the frame still draws.
+#[test]
+fn normal_map_stages_follow_their_parameters() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("bumps.png");
+    let texels =
+        image::RgbImage::from_fn(8, 8, |x, y| image::Rgb([128 + 40 * (x % 2) as u8, 128 + 30 * (y % 3) as u8, 230]));
+    texels.save(&path).unwrap();
+    let mut graph = small_default_graph();
+    graph.set_param("material", "normal_map", ParamValue::Path(path.display().to_string())).unwrap();
+    let engine = Engine::in_memory();
+    let frame = |graph: &Graph| {
+        let request = crate::kinds::output::frame_request(graph, "output", false);
+        let eval = engine.evaluate_request(graph, &request, &CancelToken::default(), None, &|_, _| {});
+        assert!(eval.report.failed().is_empty(), "{:?}", eval.report.failed());
+        let inputs = crate::frame::FrameInputs::gather(&eval, graph, "output").unwrap();
+        (ran(&eval.report), inputs)
+    };
+    let (computed, inputs) = frame(&graph);
+    let normal = ["material.normal_map", "material.ndf_moments", "material.normal_settings"];
+    assert!(set(&normal).is_subset(&computed) && !computed.contains("material.vmf_lobes"), "{computed:?}");
+    let detail = inputs.materials[0].normal.as_ref().expect("the material's normal map");
+    assert!(detail.lobes.is_none() && detail.settings.tiling == 1.0);
+    let map = detail.map.value.get::<crate::normal_filtering::NormalMap>().unwrap();
+    assert_eq!((map.width, map.height), (8, 8));
+
+    graph.set_param("material", "normal_filter", ParamValue::Choice("vmf".into())).unwrap();
+    let (computed, inputs) = frame(&graph);
+    assert_eq!(computed, set(&["material.normal_settings", "material.vmf_lobes"]));
+    assert!(inputs.materials[0].normal.as_ref().unwrap().lobes.is_some());
+    graph.set_param("material", "normal_tiling", ParamValue::Float(8.0)).unwrap();
+    let (computed, inputs) = frame(&graph);
+    assert_eq!(computed, set(&["material.normal_settings"]));
+    assert_eq!(inputs.materials[0].normal.as_ref().unwrap().settings.tiling, 8.0);
+    graph.set_param("material", "normal_strength", ParamValue::Float(2.0)).unwrap();
+    assert_eq!(frame(&graph).0, set(&["material.normal_map", "material.ndf_moments", "material.vmf_lobes"]));
+
+    graph
+        .set_param("material", "normal_map", ParamValue::Path(dir.path().join("missing.png").display().to_string()))
+        .unwrap();
+    let request = crate::kinds::output::frame_request(&graph, "output", false);
+    let eval = engine.evaluate_request(&graph, &request, &CancelToken::default(), None, &|_, _| {});
+    let inputs = crate::frame::FrameInputs::gather(&eval, &graph, "output").expect("the frame draws without the map");
+    assert!(inputs.materials[0].normal.is_none());
+    let why =
+        inputs.lobe_limits.iter().find(|(node, _)| node == "material").map(|(_, why)| why.clone()).unwrap_or_default();
+    assert!(why.contains("normal map is not shown") && why.contains("missing.png"), "{why}");
 }

@@ -54,7 +54,7 @@ fn surfaces_of(
         rotation,
     };
     let geometry = Geometry { meshes: keyed(4, StageValue::new(meshes)), mesh_materials: vec![0] };
-    let materials = [FrameMaterial { node: "m".into(), material }];
+    let materials = [FrameMaterial { node: "m".into(), material, normal: None }];
     WaveletSurfaces::new(lighting, &[keyed(5, StageValue::new(table))], None, None, &geometry, &materials, details)
         .unwrap()
 }

@@ -1,0 +1,249 @@
+//! The BRDF editor's normal map: its parameters, the stages that load it and build its NDF
+//! pyramids ([`crate::normal_filtering`], Sun 2008 §5.1), and what the Output asks of them.
+//! Loading and pyramids are keyed by the file and strength alone, so the filter choice and
+//! tiling (read by `normal_settings`) rebuild nothing.
+
+use crate::engine::{Graph, StageContext, StageError, StageRef, StageValue};
+use crate::node_kind::{ParamKind, ParamSpec, ParamValue, StageSpec};
+use crate::normal_filtering::{MomentPyramid, NormalMap, VmfPyramid};
+use serde::{Deserialize, Serialize};
+
+crate::stage_type!(NormalSettings, "normal-map settings");
+
+/// How a minified normal map's texels are combined into what a pixel shades with.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum NormalFilter {
+    /// Each texel's NDF as its SH to band 2 (its first two moments), MIP-mapped by averaging.
+    Sh,
+    /// [`NormalFilter::Sh`] for diffuse light; highlights from each texel's six vMF lobes.
+    Vmf,
+    /// One lobe from the averaged normal's length.
+    Toksvig,
+    /// The averaged normal, renormalised (the unfiltered baseline).
+    None,
+}
+
+impl NormalFilter {
+    pub const OPTIONS: &'static [&'static str] = &["sh", "vmf", "toksvig", "none"];
+
+    pub fn parse(name: &str) -> Option<Self> {
+        Some(match name {
+            "sh" => Self::Sh,
+            "vmf" => Self::Vmf,
+            "toksvig" => Self::Toksvig,
+            "none" => Self::None,
+            _ => return None,
+        })
+    }
+}
+
+/// The filter and tiling a material's normal map is shaded with.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct NormalSettings {
+    pub filter: NormalFilter,
+    /// Repeats of the map per unit of texture coordinate.
+    pub tiling: f64,
+}
+
+pub(super) fn params() -> Vec<ParamSpec> {
+    vec![
+        ParamSpec {
+            name: "normal_map",
+            label: "Normal map",
+            unit: "",
+            kind: ParamKind::Path { extensions: &["png", "exr", "jpg", "jpeg"], selects: None },
+            doc: "Tangent-space normal map (OpenGL convention, +Y up; linear values), relative to the \
+                  project. Empty: none.",
+        },
+        ParamSpec::float(
+            "normal_strength",
+            "Normal strength",
+            "",
+            (0.0, 8.0, 1.0),
+            "Scales the map's tilts (glTF's normalTexture scale); 0 flattens it.",
+        ),
+        ParamSpec::float(
+            "normal_tiling",
+            "Normal tiling",
+            "",
+            (0.001, 10000.0, 1.0),
+            "Repeats of the normal map per unit of texture coordinate.",
+        ),
+        ParamSpec {
+            name: "normal_filter",
+            label: "Normal filtering",
+            unit: "",
+            kind: ParamKind::Choice {
+                options: NormalFilter::OPTIONS,
+                default: "sh",
+                labels: &[
+                    (
+                        "SH NDF",
+                        "Diffuse light sees each pixel's distribution of normals exactly to SH band 2; \
+                         highlights widen by its spread. Fast to build.",
+                    ),
+                    (
+                        "vMF mixture (6 lobes)",
+                        "As SH for diffuse light; highlights from six lobes per texel fitted by EM, so \
+                         highlights that split stay split. Fitting takes seconds per megapixel.",
+                    ),
+                    ("Toksvig", "One lobe whose width follows the averaged normal's length."),
+                    (
+                        "None (averaged normals)",
+                        "The averaged normal, renormalised: distant bumps shine like a flat mirror.",
+                    ),
+                ],
+            },
+            doc: "How the texels a pixel covers are combined. Filtering is exact for Lambert, Blinn-Phong \
+                  and isotropic GGX; Phong and the anisotropic lobes are filtered approximately.",
+        },
+    ]
+}
+
+pub(super) fn stages() -> Vec<StageSpec> {
+    vec![
+        StageSpec {
+            name: "normal_map",
+            version: 1,
+            params: &["normal_map", "normal_strength"],
+            stages: &[],
+            inputs: &[],
+            persist: None,
+            compute: normal_map,
+        },
+        StageSpec {
+            name: "ndf_moments",
+            version: 1,
+            params: &[],
+            stages: &["normal_map"],
+            inputs: &[],
+            persist: None,
+            compute: ndf_moments,
+        },
+        StageSpec {
+            name: "vmf_lobes",
+            version: 1,
+            params: &[],
+            stages: &["normal_map"],
+            inputs: &[],
+            persist: None,
+            compute: vmf_lobes,
+        },
+        StageSpec {
+            name: "normal_settings",
+            version: 1,
+            params: &["normal_filter", "normal_tiling"],
+            stages: &[],
+            inputs: &[],
+            persist: None,
+            compute: normal_settings,
+        },
+    ]
+}
+
+/// The stages of `material`'s normal map a frame shades with: none without a map; the vMF
+/// lobes only where that filter is chosen.
+pub fn frame_stages(graph: &Graph, material: &str) -> Vec<StageRef> {
+    let Some(node) = graph.node(material) else { return Vec::new() };
+    if !matches!(node.params.get("normal_map"), Some(ParamValue::Path(p)) if !p.is_empty()) {
+        return Vec::new();
+    }
+    let mut stages: Vec<StageRef> =
+        ["normal_map", "ndf_moments", "normal_settings"].map(|s| StageRef::new(material, s)).into();
+    if matches!(node.params.get("normal_filter"), Some(ParamValue::Choice(c)) if c == "vmf") {
+        stages.push(StageRef::new(material, "vmf_lobes"));
+    }
+    stages
+}
+
+/// The map, tilts scaled by the strength (empty without a file).
+fn normal_map(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let Some(path) = ctx.path("normal_map")? else { return Ok(StageValue::new(NormalMap::default())) };
+    let map = crate::normal_filtering::load_normal_map(&path).map_err(StageError::Failed)?;
+    Ok(StageValue::new(map.with_strength(ctx.float("normal_strength")?)))
+}
+
+fn ndf_moments(ctx: &StageContext) -> Result<StageValue, StageError> {
+    Ok(StageValue::new(MomentPyramid::build(ctx.stage::<NormalMap>("normal_map")?)))
+}
+
+fn vmf_lobes(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let map = ctx.stage::<NormalMap>("normal_map")?;
+    match VmfPyramid::build(map, ctx.cancel_token()) {
+        Ok(p) => Ok(StageValue::new(p)),
+        Err(_) if ctx.cancel_token().is_cancelled() => Err(StageError::Cancelled),
+        Err(e) => Err(StageError::Failed(e)),
+    }
+}
+
+fn normal_settings(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let filter = ctx.choice("normal_filter")?;
+    Ok(StageValue::new(NormalSettings {
+        filter: NormalFilter::parse(filter)
+            .ok_or_else(|| StageError::Internal(format!("unknown normal filter `{filter}`")))?,
+        tiling: ctx.float("normal_tiling")?,
+    }))
+}
+
+/// `material`'s normal map for a frame, from what `keyed` finds evaluated; what keeps it from
+/// showing, or shows it only in part, goes to `notes` as `(node, why)`. A map that failed to
+/// load leaves the material unmapped, never the frame undrawn.
+pub(super) fn frame_detail(
+    keyed: &dyn Fn(&str, &str) -> Result<crate::frame::Keyed, String>,
+    graph: &Graph,
+    material: &str,
+    mode: super::output::Mode,
+    notes: &mut Vec<(String, String)>,
+) -> Option<crate::frame::NormalDetail> {
+    if frame_stages(graph, material).is_empty() {
+        return None;
+    }
+    let mut note = |why: String| notes.push((material.to_string(), why));
+    let found = (|| {
+        let settings = keyed(material, "normal_settings")?;
+        let settings = *settings.value.expect::<NormalSettings>().map_err(|e| e.to_string())?;
+        Ok::<_, String>((settings, keyed(material, "normal_map")?, keyed(material, "ndf_moments")?))
+    })();
+    let (settings, map, moments) = match found {
+        Ok(found) => found,
+        Err(e) => {
+            note(format!("its normal map is not shown: {e}"));
+            return None;
+        }
+    };
+    let lobes = match settings.filter {
+        NormalFilter::Vmf => match keyed(material, "vmf_lobes") {
+            Ok(lobes) => Some(lobes),
+            Err(e) => {
+                note(format!("its normal map's vMF lobes are not ready ({e}): highlights take the SH filter's lobe"));
+                None
+            }
+        },
+        _ => None,
+    };
+    if let Some(node) = graph.node(material) {
+        let model = match node.params.get("model") {
+            Some(ParamValue::Choice(c)) => c.as_str(),
+            _ => "lambert",
+        };
+        let anisotropic = matches!(node.params.get("anisotropy"), Some(ParamValue::Float(a)) if *a != 0.0);
+        let lobe = match model {
+            "phong" => Some("Phong's lobe is about the mirror direction, not the half vector"),
+            "ward" => Some("Ward's lobe is anisotropic"),
+            "ggx_anisotropic" if anisotropic => Some("anisotropic GGX is not radially symmetric"),
+            _ => None,
+        };
+        if let Some(why) = lobe {
+            note(format!(
+                "its normal map filters the highlight approximately: {why} (exact for Lambert, Blinn-Phong and GGX)"
+            ));
+        }
+        if model != "lambert" && mode != super::output::Mode::ShIrradiance {
+            note(format!(
+                "in {mode} the environment's highlight is shaded per vertex without the normal map; diffuse light, \
+                 the sun and point lights see it"
+            ));
+        }
+    }
+    Some(crate::frame::NormalDetail { settings, map, moments, lobes })
+}

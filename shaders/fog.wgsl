@@ -172,7 +172,7 @@ fn fog_environment_glow_irradiance(n: vec3<f32>) -> vec3<f32> {
 // airlight, and the environment's glow in the view direction scattered in along the path
 // (the glow per unit length is about constant along the ray, so the path's share of the
 // infinite ray's glow is 1 - e^{-beta d}).
-fn fog_shade(lit_in: vec3<f32>, p: vec3<f32>, n: vec3<f32>, tangent: vec3<f32>, kd: vec3<f32>, material: u32) -> vec3<f32> {
+fn fog_shade(lit_in: vec3<f32>, p: vec3<f32>, n: vec3<f32>, tangent: vec3<f32>, kd: vec3<f32>, material: u32, ndf: SurfaceNdf) -> vec3<f32> {
     let fogged = fog.beta.w > 0.5;
     let viewer = globals.camera_pos.xyz;
     let d_vp = length(viewer - p);
@@ -183,7 +183,7 @@ fn fog_shade(lit_in: vec3<f32>, p: vec3<f32>, n: vec3<f32>, tangent: vec3<f32>, 
     let ks = lobe.rgb * (exponent + 2.0) / (2.0 * PI) * max(dot(mirror, n), 0.0);
     let glossy = lobe.w > 0.0 && max(ks.r, max(ks.g, ks.b)) > 0.0;
     // The environment's sun, when lit apart from the mode's transport (sun.wgsl).
-    var lit = lit_in + sun_direct(p, n, tangent, -view, kd, material);
+    var lit = lit_in + sun_direct(p, n, tangent, -view, kd, material, ndf);
     var glow = vec3<f32>(0.0);
     if (fogged) {
         glow = fog_environment_glow(view);
@@ -208,6 +208,23 @@ fn fog_shade(lit_in: vec3<f32>, p: vec3<f32>, n: vec3<f32>, tangent: vec3<f32>, 
             let cos_m = dot(to_light / d_sp, mirror);
             if (glossy) {
                 specular = direct * pow(max(cos_m, 0.0), exponent) * select(0.0, 1.0, cos_s > 0.0);
+            }
+            // Through a normal map: Lambert over the NDF, and the lobe per lobe of normals,
+            // widened (normal_map.wgsl), relative to ks's normalisation and cosine.
+            if (ndf.method != 0 && cos_s > 0.0) {
+                reflected = direct * ndf_direct_diffuse(ndf, to_light / d_sp);
+                if (glossy) {
+                    var sum = 0.0;
+                    for (var j = 0; j < ndf.count; j = j + 1) {
+                        let mu = ndf.lobes[j].xyz;
+                        let widened = ndf_widened_lobe(vec4<f32>(1.0, exponent, 1.0, 0.0), ndf.kappas[j]);
+                        let s = widened[0].y;
+                        let mirror_j = reflect(view, mu);
+                        sum = sum + ndf.lobes[j].w * widened[1].w * (s + 2.0) * max(dot(mirror_j, mu), 0.0)
+                            * pow(max(dot(to_light / d_sp, mirror_j), 0.0), s);
+                    }
+                    specular = direct * sum / ((exponent + 2.0) * max(dot(mirror, n), 1e-4));
+                }
             }
             if (beta > 0.0) {
                 reflected = reflected + beta * beta * fog_g(1.0, t_sp, acos(clamp(cos_s, -1.0, 1.0))) / (2.0 * PI * t_sp);

@@ -20,6 +20,7 @@ struct VertexOut {
     @location(2) @interpolate(flat) material: u32,
     @location(3) world: vec3<f32>,
     @location(4) tangent: vec3<f32>,
+    @location(5) uv: vec2<f32>,
 };
 
 @vertex
@@ -31,18 +32,34 @@ fn vs_main(v: MeshVertex) -> VertexOut {
     out.material = v.material;
     out.world = v.position;
     out.tangent = v.tangent;
+    out.uv = v.uv;
     return out;
 }
 
-// E(n) = sum_k E_k Y_k(n), summed as the shared basis walk (common.wgsl) goes.
-fn sh_irradiance(n: vec3<f32>, bands: i32) -> vec3<f32> {
+// E(n) = sum_k E_k Y_k(n), summed as the shared basis walk (common.wgsl) goes; through a normal
+// map, averaged over the pixel's NDF: bands 0-2 exactly by its moments, the higher bands at its
+// mean direction, attenuated (normal_map.wgsl).
+fn sh_irradiance(ndf: SurfaceNdf, bands: i32) -> vec3<f32> {
     var result = vec3<f32>(0.0);
-    var walk = sh_walk(n, bands);
+    var low = ndf_sh9(ndf);
+    var walk = sh_walk(ndf.normal, bands);
     while (sh_walk_next(&walk)) {
         let base = walk.l * (walk.l + 1);
-        result = result + sh.coeffs[base + walk.m].rgb * walk.cos_y;
+        var cos_y = walk.cos_y;
+        var sin_y = walk.sin_y;
+        if (ndf.method != 0) {
+            if (walk.l <= 2) {
+                cos_y = low[base + walk.m];
+                sin_y = low[base - walk.m];
+            } else {
+                let attenuation = ndf_band_attenuation(ndf, walk.l);
+                cos_y = cos_y * attenuation;
+                sin_y = sin_y * attenuation;
+            }
+        }
+        result = result + sh.coeffs[base + walk.m].rgb * cos_y;
         if (walk.m > 0) {
-            result = result + sh.coeffs[base - walk.m].rgb * walk.sin_y;
+            result = result + sh.coeffs[base - walk.m].rgb * sin_y;
         }
     }
     return result;
@@ -50,15 +67,13 @@ fn sh_irradiance(n: vec3<f32>, bands: i32) -> vec3<f32> {
 
 @fragment
 fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) vec4<f32> {
-    var n = normalize(in.normal);
-    if (!front) {
-        n = -n;
-    }
+    let n = select(-1.0, 1.0, front) * normalize(in.normal);
+    let ndf = surface_ndf(in.material, in.uv, n, in.tangent);
     let bands = i32(sh.bands.x);
     var irradiance = vec3<f32>(0.0);
     if (bands > 0) {
-        irradiance = max(sh_irradiance(n, bands), vec3<f32>(0.0));
+        irradiance = max(sh_irradiance(ndf, bands), vec3<f32>(0.0));
     }
     let kd = sh.albedo[in.material].rgb * in.color / PI;
-    return vec4<f32>(fog_shade(kd * irradiance, in.world, n, in.tangent, kd, in.material), 1.0);
+    return vec4<f32>(fog_shade(kd * irradiance, in.world, n, in.tangent, kd, in.material, ndf), 1.0);
 }

@@ -52,6 +52,8 @@ struct VertexOut {
     @location(3) kd: vec3<f32>,
     @location(4) @interpolate(flat) material: u32,
     @location(5) tangent: vec3<f32>,
+    @location(6) glossy: vec3<f32>,
+    @location(7) uv: vec2<f32>,
 };
 
 @vertex
@@ -66,15 +68,16 @@ fn vs_main(v: MeshVertex, @builtin(vertex_index) index: u32) -> VertexOut {
         diffuse = diffuse + prt.light[k].rgb * transfer[tb + k];
     }
     let m = v.material;
-    var color = prt.albedo[m].rgb * v.color * max(diffuse, vec3<f32>(0.0)) / PI;
+    out.color = prt.albedo[m].rgb * v.color * max(diffuse, vec3<f32>(0.0)) / PI;
+    out.glossy = vec3<f32>(0.0);
     if (prt.counts.w > 0u && prt.specular[m].w > 0.0) {
         let n = normalize(v.normal);
         let view = normalize(globals.camera_pos.xyz - v.position);
         let r = reflect(-view, n);
         let glossy = glossy_sum(r, i32(prt.counts.w), index * prt.counts.z, m);
-        color = color + prt.specular[m].rgb * max(glossy, vec3<f32>(0.0)) * max(dot(n, r), 0.0);
+        out.glossy = prt.specular[m].rgb * max(glossy, vec3<f32>(0.0)) * max(dot(n, r), 0.0);
     }
-    out.color = color;
+    out.uv = v.uv;
     out.world = v.position;
     out.normal = v.normal;
     out.tangent = v.tangent;
@@ -85,5 +88,8 @@ fn vs_main(v: MeshVertex, @builtin(vertex_index) index: u32) -> VertexOut {
 
 @fragment
 fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
-    return vec4<f32>(fog_shade(in.color, in.world, normalize(in.normal), in.tangent, in.kd, in.material), 1.0);
+    let n = normalize(in.normal);
+    let ndf = surface_ndf(in.material, in.uv, n, in.tangent);
+    let lit = in.color * ndf_vertex_diffuse_scale(ndf, n) + in.glossy;
+    return vec4<f32>(fog_shade(lit, in.world, n, in.tangent, in.kd, in.material, ndf), 1.0);
 }

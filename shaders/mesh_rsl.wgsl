@@ -114,6 +114,7 @@ struct VertexOut {
     @location(3) position: vec3<f32>,
     @location(4) normal: vec3<f32>,
     @location(5) tangent: vec3<f32>,
+    @location(6) uv: vec2<f32>,
 };
 
 @vertex
@@ -125,6 +126,7 @@ fn vs_main(v: MeshVertex, @builtin(vertex_index) index: u32) -> VertexOut {
     out.position = v.position;
     out.normal = v.normal;
     out.tangent = v.tangent;
+    out.uv = v.uv;
     out.albedo = rp.albedo[m].rgb * v.color;
     let n = normalize(v.normal);
     let t = frame_tangent(n, v.tangent);
@@ -153,5 +155,7 @@ fn vs_main(v: MeshVertex, @builtin(vertex_index) index: u32) -> VertexOut {
 @fragment
 fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     let n = normalize(in.normal);
-    return vec4<f32>(fog_shade(in.radiance, in.position, n, in.tangent, in.albedo / PI, in.material), 1.0);
+    // The square lights' shading is per vertex: a normal map shades the sun and point lights.
+    let ndf = surface_ndf(in.material, in.uv, n, in.tangent);
+    return vec4<f32>(fog_shade(in.radiance, in.position, n, in.tangent, in.albedo / PI, in.material, ndf), 1.0);
 }

@@ -52,7 +52,11 @@ fn sun_ggx_lambda(w: vec3<f32>, ax: f32, ay: f32) -> f32 {
 // and Blinn-Phong and Ward weighted by f0; GGX with height-correlated Smith masking and
 // Schlick's Fresnel).
 fn sun_lobe(m: u32, n: vec3<f32>, tangent: vec3<f32>, wi: vec3<f32>, wo: vec3<f32>) -> f32 {
-    let lobe = sun.lobes[m];
+    return sun_lobe_of(sun.lobes[m], n, tangent, wi, wo);
+}
+
+// A lobe given as `Sun.lobes` encodes it.
+fn sun_lobe_of(lobe: vec4<f32>, n: vec3<f32>, tangent: vec3<f32>, wi: vec3<f32>, wo: vec3<f32>) -> f32 {
     let cos_i = dot(n, wi);
     let cos_o = dot(n, wo);
     if (cos_i <= 0.0 || cos_o <= 0.0) {
@@ -95,7 +99,9 @@ fn sun_lobe(m: u32, n: vec3<f32>, tangent: vec3<f32>, wi: vec3<f32>, wo: vec3<f3
 // Light reflected towards `wo` (unit, to the viewer) at `p` (normal `n`, tangent `tangent`)
 // from the sun: per direction, the shadow test times the cosine times Lambert `kd` plus
 // material `m`'s lobe (nodes/src/brdf.rs `Brdf::eval`).
-fn sun_direct(p: vec3<f32>, n: vec3<f32>, tangent: vec3<f32>, wo: vec3<f32>, kd: vec3<f32>, m: u32) -> vec3<f32> {
+// Through a normal map (`ndf`, normal_map.wgsl), Lambert over the NDF and the lobe per lobe of
+// normals, widened.
+fn sun_direct(p: vec3<f32>, n: vec3<f32>, tangent: vec3<f32>, wo: vec3<f32>, kd: vec3<f32>, m: u32, ndf: SurfaceNdf) -> vec3<f32> {
     let count = i32(sun.irradiance.w);
     if (count == 0) {
         return vec3<f32>(0.0);
@@ -126,7 +132,8 @@ fn sun_direct(p: vec3<f32>, n: vec3<f32>, tangent: vec3<f32>, wo: vec3<f32>, kd:
     let cos_r = sun.axis.w;
     let above = cos_axis * cos_axis >= 1.0 - cos_r * cos_r && cos_axis > 0.0;
     if (lit && above && !glossy) {
-        return kd * (cos_axis * (1.0 + cos_r) * 0.5 * f32(count)) * sun.irradiance.rgb;
+        let cosine = select(cos_axis, ndf_direct_diffuse(ndf, sun.axis.xyz), ndf.method != 0);
+        return kd * (cosine * (1.0 + cos_r) * 0.5 * f32(count)) * sun.irradiance.rgb;
     }
     var sum = vec3<f32>(0.0);
     for (var k = 0; k < count; k = k + 1) {
@@ -139,11 +146,21 @@ fn sun_direct(p: vec3<f32>, n: vec3<f32>, tangent: vec3<f32>, wo: vec3<f32>, kd:
         if (!lit) {
             visible = sun_visibility(k, shifted);
         }
-        var f = kd;
-        if (glossy) {
-            f = f + colour * sun_lobe(m, n, tangent, d, wo);
+        var reflected = kd * cos_i;
+        if (ndf.method != 0) {
+            reflected = kd * ndf_direct_diffuse(ndf, d);
+            if (glossy) {
+                var lobes = 0.0;
+                for (var j = 0; j < ndf.count; j = j + 1) {
+                    let mu = ndf.lobes[j].xyz;
+                    let widened = ndf_widened_lobe(sun.lobes[m], ndf.kappas[j]);
+                    lobes = lobes + ndf.lobes[j].w * widened[1].w * sun_lobe_of(widened[0], mu, tangent, d, wo) * max(dot(mu, d), 0.0);
+                }
+                reflected = reflected + colour * lobes;
+            }
+        } else if (glossy) {
+            reflected = reflected + colour * sun_lobe(m, n, tangent, d, wo) * cos_i;
         }
-        let reflected = f * cos_i;
         sum = sum + visible * reflected;
     }
     return sum * sun.irradiance.rgb;

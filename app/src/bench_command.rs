@@ -323,6 +323,7 @@ fn rsl_mode_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
         area_lights: None,
         blockers: None,
         sun: None,
+        normal_maps: Default::default(),
     };
     let view = bench_view();
     let mut renderer = ViewportRenderer::new(gpu);
@@ -570,6 +571,7 @@ fn synthetic_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
         area_lights: None,
         blockers: None,
         sun: None,
+        normal_maps: Default::default(),
     };
     let mut renderer = ViewportRenderer::new(gpu);
     let frame_times = |renderer: &mut ViewportRenderer, frame: &FrameInputs| -> Result<f64> {

@@ -58,6 +58,8 @@ pub struct FrameInputs {
     pub blockers: Option<crate::kinds::blockers::BlockerSet>,
     /// The environment's sun, lit per pixel apart from the mode's transport ([`crate::sun`]).
     pub sun: Option<SunFrame>,
+    /// The materials' normal maps as the viewport samples them.
+    pub normal_maps: NormalMapFrame,
 }
 
 /// A sun disc in world space (the environment's rotation applied), lit per pixel.
@@ -130,6 +132,65 @@ pub struct NormalDetail {
     /// [`crate::normal_filtering::VmfPyramid`], with the vMF filter once fitted (until then
     /// highlights take the SH filter's lobe).
     pub lobes: Option<Keyed>,
+}
+
+/// The materials' normal maps for the viewport (`shaders/normal_map.wgsl`): per material its
+/// map's pyramids, all of one size (the texture array's layers), and the irradiance of the light
+/// the mode's transport carries, by which modes that light per vertex scale their diffuse
+/// light per pixel.
+#[derive(Clone, Debug, Default)]
+pub struct NormalMapFrame {
+    /// Per material (as the frame's), its normal map, or `None`.
+    pub materials: Vec<Option<NormalDetail>>,
+    /// `E_lm = Â_l L_lm` to band 2 of the light the mode's diffuse transport carries, when the
+    /// mode shades diffuse light per vertex: each pixel's diffuse light is scaled by this
+    /// irradiance averaged over its NDF over the same at its geometric normal (1 on a flat map).
+    pub vertex_diffuse_scale: Option<ShRgb>,
+}
+
+impl NormalMapFrame {
+    /// The materials' maps for the viewport; a map of another size than the first mapped
+    /// material's is left out, and `notes` says so as `(node, why)`.
+    pub fn new(
+        materials: &[FrameMaterial],
+        transported: Option<&ShRgb>,
+        per_vertex: bool,
+        notes: &mut Vec<(String, String)>,
+    ) -> Self {
+        let size = |d: &NormalDetail| {
+            d.moments
+                .value
+                .get::<crate::normal_filtering::MomentPyramid>()
+                .and_then(|p| p.levels.first())
+                .map(|l| (l.width, l.height))
+        };
+        let mut common = None;
+        let materials = materials
+            .iter()
+            .map(|m| {
+                let detail = m.normal.as_ref()?;
+                let this = size(detail).filter(|s| s.0 > 0)?;
+                let first = common.get_or_insert_with(|| (this, m.node.clone())).clone();
+                if first.0 != this {
+                    notes.push((
+                        m.node.clone(),
+                        format!(
+                            "its {}×{} normal map is not shown: the viewport draws normal maps of one size, and `{}`'s is {}×{}",
+                            this.0, this.1, first.1, first.0 .0, first.0 .1
+                        ),
+                    ));
+                    return None;
+                }
+                Some(detail.clone())
+            })
+            .collect();
+        let vertex_diffuse_scale = transported.filter(|_| per_vertex).map(|light| {
+            let e = light.irradiance();
+            let bands = e.bands.min(3);
+            ShRgb { bands, coeffs: e.coeffs[..bands * bands].to_vec() }
+        });
+        Self { materials, vertex_diffuse_scale }
+    }
 }
 
 /// How surfaces are lit: one variant per relighting mode.

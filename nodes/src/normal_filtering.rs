@@ -193,9 +193,10 @@ impl NdfPyramid {
 }
 
 /// Per level of a normal map's MIP pyramid (as [`NdfPyramid`]'s), per texel, a mixture of up
-/// to `lobes` vMF lobes fitted by [`fit_vmf_mixture`] to the texels it covers. A texel
-/// covering more than `max_normals` of them fits an even subset (every `k`-th row and column),
-/// which bounds the cost of each level by the map's size.
+/// to `lobes` vMF lobes fitted by [`fit_vmf_mixture`] to the normals it covers (the map's
+/// bilinear field at twice the texel density). A texel covering
+/// more than `max_normals` of them fits an even subset (every `k`-th row and column), which
+/// bounds the cost of each level by the map's size.
 pub fn vmf_pyramid(map: &NormalMap, lobes: usize, iterations: usize, max_normals: usize) -> Vec<Vec<Vec<Vmf>>> {
     vmf_pyramid_cancellable(map, lobes, iterations, max_normals, &crate::engine::CancelToken::default())
         .expect("never cancelled")
@@ -214,8 +215,13 @@ pub fn vmf_pyramid_cancellable(
     let mut size = 1usize;
     loop {
         let (width, height) = (map.width.div_ceil(size), map.height.div_ceil(size));
-        // Rows and columns taken from each block: a stride that keeps about `max_normals`.
-        let stride = ((size * size) as f64 / max_normals.max(1) as f64).sqrt().ceil().max(1.0) as usize;
+        // The block's normals as the surface has them: the map's bilinear field
+        // ([`NormalMap::sample`]) at twice the texel density, so a block of a texel or a few has
+        // the spread between them (as delta lobes at the texels would not). Rows and columns of
+        // those samples taken with a stride that keeps about `max_normals`.
+        let density = 2;
+        let side = size * density;
+        let stride = ((side * side) as f64 / max_normals.max(1) as f64).sqrt().ceil().max(1.0) as usize;
         let texels: Vec<Vec<Vmf>> = (0..width * height)
             .into_par_iter()
             .map(|t| {
@@ -224,9 +230,18 @@ pub fn vmf_pyramid_cancellable(
                 }
                 let (x, y) = (t % width, t / width);
                 let mut normals = Vec::new();
-                for by in (y * size..((y + 1) * size).min(map.height)).step_by(stride) {
-                    for bx in (x * size..((x + 1) * size).min(map.width)).step_by(stride) {
-                        normals.push((map.normals[by * map.width + bx], 1.0));
+                for sy in (0..side).step_by(stride) {
+                    let py = (y * side + sy) as f64 + 0.5;
+                    if py >= (map.height * density) as f64 {
+                        break;
+                    }
+                    for sx in (0..side).step_by(stride) {
+                        let px = (x * side + sx) as f64 + 0.5;
+                        if px >= (map.width * density) as f64 {
+                            break;
+                        }
+                        let uv = [px / (map.width * density) as f64, py / (map.height * density) as f64];
+                        normals.push((map.sample(uv), 1.0));
                     }
                 }
                 fit_vmf_mixture(&normals, lobes, iterations)

@@ -95,6 +95,8 @@ pub fn device_descriptor(adapter: &wgpu::Adapter) -> wgpu::DeviceDescriptor<'sta
         // The wavelet relight kernel reads five buffers and writes three, and the wavelet mesh
         // pass's vertex stage reads eight (WebGPU's default is 8).
         max_storage_buffers_per_shader_stage: supported.max_storage_buffers_per_shader_stage.min(8),
+        // Scene passes bind five groups: camera, medium, their own, sun, normal maps.
+        max_bind_groups: supported.max_bind_groups.min(8),
         ..wgpu::Limits::downlevel_defaults().using_resolution(supported)
     };
     wgpu::DeviceDescriptor { label: Some("lightloom"), required_limits, ..Default::default() }

@@ -74,6 +74,7 @@ pub struct ViewportRenderer {
     camera: CameraBinding,
     medium: MediumPass,
     sun: SunPass,
+    normal_maps: crate::passes::normal_map::NormalMapPass,
     background: BackgroundPass,
     irradiance: IrradiancePass,
     prt: PrtPass,
@@ -93,11 +94,13 @@ impl ViewportRenderer {
         let camera = CameraBinding::new(&gpu.device);
         let medium = MediumPass::new(gpu);
         let sun = SunPass::new(gpu);
+        let normal_maps = crate::passes::normal_map::NormalMapPass::new(gpu);
         let setup = PassSetup {
             device: &gpu.device,
             camera_layout: &camera.layout,
             medium_layout: &medium.layout,
             sun_layout: &sun.layout,
+            normal_map_layout: &normal_maps.layout,
             sample_count,
         };
         let mut wavelet = WaveletPass::new(&setup);
@@ -119,6 +122,7 @@ impl ViewportRenderer {
             camera,
             medium,
             sun,
+            normal_maps,
             geometry: None,
             targets: None,
             sample_count,
@@ -143,6 +147,7 @@ impl ViewportRenderer {
         self.check_size(gpu, width, height)?;
         GeometryBuffers::prepare(&mut self.geometry, gpu, &frame.geometry)?;
         self.medium.prepare(gpu, &frame.medium)?;
+        self.normal_maps.prepare(gpu, &frame.normal_maps)?;
         self.sun.prepare(gpu, frame.sun.as_ref(), &frame.materials, self.geometry.as_ref());
         self.background.prepare(gpu, &frame.background)?;
         match &frame.surfaces {
@@ -190,6 +195,7 @@ impl ViewportRenderer {
             pass.set_bind_group(0, &self.camera.bind_group, &[]);
             pass.set_bind_group(1, &self.medium.bind_group, &[]);
             pass.set_bind_group(3, &self.sun.bind_group, &[]);
+            pass.set_bind_group(4, &self.normal_maps.bind_group, &[]);
             self.background.draw(&mut pass, None);
             let surfaces: &dyn Draw = match &frame.surfaces {
                 Surfaces::Irradiance(_) => &self.irradiance,

@@ -913,6 +913,12 @@ impl FrameInputs {
         let light_nodes = graph.upstream_all(output, "area_lights");
         let area_lights =
             super::output_area::frame(evaluation, &light_nodes, output, &keyed, &materials, geometry.vertex_count())?;
+        let normal_maps = crate::frame::NormalMapFrame::new(
+            &materials,
+            light,
+            !matches!(mode, Mode::ShIrradiance),
+            &mut normal_notes,
+        );
         let mut lobe_limits = lobe_limits(graph, output, &scene, settings.mode, &materials);
         lobe_limits.extend(normal_notes);
         let medium = MediumFrame::new(lights, &materials, fog);
@@ -938,6 +944,7 @@ impl FrameInputs {
             area_lights,
             blockers,
             sun,
+            normal_maps,
         })
     }
 }

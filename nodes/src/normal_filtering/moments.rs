@@ -204,7 +204,8 @@ impl MomentPyramid {
 /// Most lobes a texel of a [`VmfPyramid`] holds (the thesis's six).
 pub const VMF_LOBES: usize = 6;
 
-/// The largest normal map whose vMF pyramid is fitted (its lobes take 128 bytes a texel).
+/// The largest normal map whose vMF pyramid is fitted (its lobes take 128 bytes a texel over
+/// all levels).
 pub const MAX_VMF_PIXELS: usize = 2048 * 2048;
 
 /// One level of a [`VmfPyramid`]: per texel [`VMF_LOBES`] lobes `(κμ, weight)` (unused lobes
@@ -216,16 +217,15 @@ pub struct VmfLevel {
     pub lobes: Vec<[f32; 4]>,
 }
 
-/// The vMF mixtures of [`super::vmf_pyramid`] from level 1 up (level 0 is the map's own
-/// normals), packed for the viewport.
+/// The vMF mixtures of [`super::vmf_pyramid`], every level, packed for the viewport.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct VmfPyramid {
     pub levels: Vec<VmfLevel>,
 }
 
 impl VmfPyramid {
-    /// Fits every level above the map's own (EM of at most 30 rounds over at most 1024 normals
-    /// a texel). Maps beyond [`MAX_VMF_PIXELS`] are refused with the reason.
+    /// Fits every level (EM of at most 30 rounds over at most 1024 normals a texel). Maps
+    /// beyond [`MAX_VMF_PIXELS`] are refused with the reason.
     pub fn build(map: &NormalMap, cancel: &crate::engine::CancelToken) -> Result<Self, String> {
         if map.normals.len() > MAX_VMF_PIXELS {
             return Err(format!(
@@ -240,7 +240,6 @@ impl VmfPyramid {
         let levels = fitted
             .into_iter()
             .enumerate()
-            .skip(1)
             .map(|(level, texels)| {
                 let (width, height) = (map.width.div_ceil(1 << level), map.height.div_ceil(1 << level));
                 let mut lobes = vec![[0.0f32; 4]; width * height * VMF_LOBES];
@@ -256,9 +255,9 @@ impl VmfPyramid {
         Ok(Self { levels })
     }
 
-    /// The lobes of texel `(x, y)` of level `level` (1 = the first above the map).
+    /// The lobes of texel `(x, y)` of level `level` (0: the map's own texels).
     pub fn lobes(&self, level: usize, x: usize, y: usize) -> Vec<Vmf> {
-        let l = &self.levels[level - 1];
+        let l = &self.levels[level];
         l.lobes[(y * l.width + x) * VMF_LOBES..][..VMF_LOBES]
             .iter()
             .filter(|p| p[3] > 0.0)

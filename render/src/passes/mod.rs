@@ -4,7 +4,8 @@
 //!
 //! Bind groups of the scene passes: 0 the camera ([`camera::CameraBinding`]), 1 the medium and
 //! point lights ([`medium::MediumPass`], shaded in the same fragment as every surface because
-//! they depend on its normal and material), 2 the pass's own. A new drawing feature adds one
+//! they depend on its normal and material), 2 the pass's own, 3 the sun ([`sun::SunPass`]), 4
+//! the materials' normal maps ([`normal_map::NormalMapPass`]). A new drawing feature adds one
 //! module here with its shader in `shaders/`.
 
 pub mod area_light;
@@ -13,6 +14,7 @@ pub mod camera;
 pub mod geometry;
 pub mod irradiance;
 pub mod medium;
+pub mod normal_map;
 pub mod prt;
 pub mod rsl;
 pub mod sun;
@@ -49,6 +51,7 @@ pub(crate) struct PassSetup<'a> {
     pub camera_layout: &'a wgpu::BindGroupLayout,
     pub medium_layout: &'a wgpu::BindGroupLayout,
     pub sun_layout: &'a wgpu::BindGroupLayout,
+    pub normal_map_layout: &'a wgpu::BindGroupLayout,
     pub sample_count: u32,
 }
 
@@ -106,7 +109,13 @@ impl PassSetup<'_> {
         });
         let layout = self.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some(label),
-            bind_group_layouts: &[Some(self.camera_layout), Some(self.medium_layout), Some(own), Some(self.sun_layout)],
+            bind_group_layouts: &[
+                Some(self.camera_layout),
+                Some(self.medium_layout),
+                Some(own),
+                Some(self.sun_layout),
+                Some(self.normal_map_layout),
+            ],
             immediate_size: 0,
         });
         let (write, compare) = match depth {
@@ -147,8 +156,9 @@ enum Depth {
 /// The shared WGSL every scene pass includes, in order: the camera uniform, the vertex layout
 /// and the SH basis (`common.wgsl`), the separately lit sun (`sun.wgsl`), then the medium and
 /// point lights (`fog.wgsl`).
-pub(crate) const SHADER_PRELUDE: [&str; 3] = [
+pub(crate) const SHADER_PRELUDE: [&str; 4] = [
     include_str!("../../../shaders/common.wgsl"),
+    include_str!("../../../shaders/normal_map.wgsl"),
     include_str!("../../../shaders/sun.wgsl"),
     include_str!("../../../shaders/fog.wgsl"),
 ];
@@ -413,6 +423,7 @@ mod layout_tests {
             [beta, phase, counts, environment, environment_scattered, specular, light_position, light_intensity]
         );
         check!(irr, "Sun", sun::SunParams, [irradiance, offset, axis, directions, view_proj, lobes, lobe_colours]);
+        check!(irr, "NormalMaps", normal_map::NormalParams, [materials, flags, irradiance, vmf_levels]);
         let source = sun::SHADER.1;
         let depth = naga::front::wgsl::parse_str(source).unwrap_or_else(|e| panic!("{}", e.emit_to_string(source)));
         naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::all())

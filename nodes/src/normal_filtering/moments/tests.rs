@@ -219,7 +219,7 @@ fn a_widened_lobe_is_the_lobe_averaged_over_its_normals() {
     }
 }
 
-/// The packed vMF pyramid holds each level's fitted mixtures (level 0 is the map's normals):
+/// The packed vMF pyramid holds each level's fitted mixtures:
 /// unpacked, every texel's lobes are the fit's to f32, and weights sum to one.
 #[test]
 fn the_packed_vmf_pyramid_holds_the_fits() {
@@ -227,12 +227,12 @@ fn the_packed_vmf_pyramid_holds_the_fits() {
     let map = NormalMap { width: 8, height: 8, normals };
     let packed = VmfPyramid::build(&map, &crate::engine::CancelToken::default()).unwrap();
     let fitted = super::super::vmf_pyramid(&map, VMF_LOBES, 30, 1024);
-    assert_eq!(packed.levels.len(), fitted.len() - 1);
+    assert_eq!(packed.levels.len(), fitted.len());
     for (k, level) in packed.levels.iter().enumerate() {
         for y in 0..level.height {
             for x in 0..level.width {
-                let lobes = packed.lobes(k + 1, x, y);
-                let fit = &fitted[k + 1][y * level.width + x];
+                let lobes = packed.lobes(k, x, y);
+                let fit = &fitted[k][y * level.width + x];
                 assert_eq!(lobes.len(), fit.len());
                 for (a, b) in lobes.iter().zip(fit) {
                     assert!((a.weight - b.weight).abs() < 1e-6 && a.mean.dot(b.mean) > 1.0 - 1e-6);

@@ -77,11 +77,13 @@ fn kernel_pass(gpu: &GpuContext) -> WaveletPass {
     let camera = CameraBinding::new(&gpu.device);
     let medium = MediumPass::new(gpu);
     let sun = crate::passes::sun::SunPass::new(gpu);
+    let normal_maps = crate::passes::normal_map::NormalMapPass::new(gpu);
     let setup = PassSetup {
         device: &gpu.device,
         camera_layout: &camera.layout,
         medium_layout: &medium.layout,
         sun_layout: &sun.layout,
+        normal_map_layout: &normal_maps.layout,
         sample_count: 1,
     };
     let mut pass = WaveletPass::new(&setup);

@@ -1,0 +1,239 @@
+//! The materials' normal maps (`normal_map.wgsl`): group 4 of every scene pass, read in the
+//! same fragment as every surface. Uploads each mapped material's NDF moment pyramid as two
+//! mip-mapped half-float texture-array layers, which the GPU then filters trilinearly and
+//! anisotropically (the moments are linear in the texels), and its vMF lobes as one texture;
+//! draws nothing itself.
+
+use super::{entry, stage_value, uniform_buffer, vec4};
+use crate::{GpuContext, RenderError};
+use lightloom_nodes::frame::{MAX_MATERIALS, NormalMapFrame};
+use lightloom_nodes::kinds::brdf_normal_map::NormalFilter;
+use lightloom_nodes::normal_filtering::{MomentPyramid, VMF_LOBES, VmfPyramid};
+
+/// vMF levels per material, from the map's own (`normal_map.wgsl` `NDF_LEVELS`; a 2048² map has 12).
+const LEVELS: usize = 12;
+/// Lobes per row of the lobe texture (`NDF_LOBE_ROW`).
+const LOBE_ROW: usize = 4096;
+
+/// Per material, its moment pyramid's stage key and its vMF lobes' (none without a map).
+type PyramidKeys = Option<(u128, Option<u128>)>;
+
+/// `normal_map.wgsl` `NormalMaps`.
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+pub(crate) struct NormalParams {
+    pub(crate) materials: [[f32; 4]; MAX_MATERIALS],
+    pub(crate) flags: [f32; 4],
+    pub(crate) irradiance: [[f32; 4]; 9],
+    pub(crate) vmf_levels: [[u32; 4]; MAX_MATERIALS * LEVELS],
+}
+
+pub(crate) struct NormalMapPass {
+    pub layout: wgpu::BindGroupLayout,
+    params: wgpu::Buffer,
+    sampler: wgpu::Sampler,
+    pub bind_group: wgpu::BindGroup,
+    /// The pyramids' stage keys the bound textures hold.
+    uploaded: Option<Vec<PyramidKeys>>,
+    /// Per material: its layer and fitted vMF levels, as uploaded.
+    slots: Vec<Option<(u32, Vec<[u32; 4]>)>>,
+}
+
+impl NormalMapPass {
+    pub fn new(gpu: &GpuContext) -> Self {
+        let layout = gpu.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("normal maps"),
+            entries: &[
+                entry::uniform(0, wgpu::ShaderStages::FRAGMENT),
+                entry::texture(1, wgpu::TextureViewDimension::D2Array, true),
+                entry::texture(2, wgpu::TextureViewDimension::D2Array, true),
+                entry::sampler(3),
+                entry::texture(4, wgpu::TextureViewDimension::D2, false),
+            ],
+        });
+        let params = uniform_buffer::<NormalParams>(&gpu.device, "normal maps");
+        let sampler = gpu.device.create_sampler(&wgpu::SamplerDescriptor {
+            label: Some("normal maps"),
+            address_mode_u: wgpu::AddressMode::Repeat,
+            address_mode_v: wgpu::AddressMode::Repeat,
+            mag_filter: wgpu::FilterMode::Linear,
+            min_filter: wgpu::FilterMode::Linear,
+            mipmap_filter: wgpu::MipmapFilterMode::Linear,
+            anisotropy_clamp: 16,
+            ..Default::default()
+        });
+        let bind_group = Self::bind(gpu, &layout, &params, &sampler, &[], (1, 1), &[[0.0; 4]]);
+        Self { layout, params, sampler, bind_group, uploaded: None, slots: Vec::new() }
+    }
+
+    fn bind(
+        gpu: &GpuContext,
+        layout: &wgpu::BindGroupLayout,
+        params: &wgpu::Buffer,
+        sampler: &wgpu::Sampler,
+        pyramids: &[&MomentPyramid],
+        (width, height): (usize, usize),
+        lobes: &[[f32; 4]],
+    ) -> wgpu::BindGroup {
+        let levels = pyramids.first().map_or(1, |p| p.levels.len()) as u32;
+        let layers = pyramids.len().max(1) as u32;
+        let moments = |label: &str, half: usize| {
+            let texture = gpu.device.create_texture(&wgpu::TextureDescriptor {
+                label: Some(label),
+                size: wgpu::Extent3d { width: width as u32, height: height as u32, depth_or_array_layers: layers },
+                mip_level_count: levels,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format: wgpu::TextureFormat::Rgba16Float,
+                usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+                view_formats: &[],
+            });
+            for (layer, pyramid) in pyramids.iter().enumerate() {
+                for (mip, level) in pyramid.levels.iter().enumerate() {
+                    let texels: Vec<half::f16> = level
+                        .texels
+                        .iter()
+                        .flat_map(|t| t[4 * half..4 * half + 4].iter().map(|v| half::f16::from_f32(*v)))
+                        .collect();
+                    gpu.queue.write_texture(
+                        wgpu::TexelCopyTextureInfo {
+                            texture: &texture,
+                            mip_level: mip as u32,
+                            origin: wgpu::Origin3d { x: 0, y: 0, z: layer as u32 },
+                            aspect: wgpu::TextureAspect::All,
+                        },
+                        bytemuck::cast_slice(&texels),
+                        wgpu::TexelCopyBufferLayout {
+                            offset: 0,
+                            bytes_per_row: Some(level.width as u32 * 8),
+                            rows_per_image: Some(level.height as u32),
+                        },
+                        wgpu::Extent3d {
+                            width: level.width as u32,
+                            height: level.height as u32,
+                            depth_or_array_layers: 1,
+                        },
+                    );
+                }
+            }
+            texture.create_view(&wgpu::TextureViewDescriptor {
+                dimension: Some(wgpu::TextureViewDimension::D2Array),
+                ..Default::default()
+            })
+        };
+        let (a, b) = (moments("normal moments (mean, xx)", 0), moments("normal moments (yy, xy, xz, yz)", 1));
+        let rows = lobes.len().div_ceil(LOBE_ROW).max(1);
+        let columns = lobes.len().clamp(1, LOBE_ROW);
+        let mut padded = lobes.to_vec();
+        padded.resize(rows * columns, [0.0; 4]);
+        let lobe_texture = gpu.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("normal-map vMF lobes"),
+            size: wgpu::Extent3d { width: columns as u32, height: rows as u32, depth_or_array_layers: 1 },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: wgpu::TextureFormat::Rgba32Float,
+            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+            view_formats: &[],
+        });
+        gpu.queue.write_texture(
+            wgpu::TexelCopyTextureInfo {
+                texture: &lobe_texture,
+                mip_level: 0,
+                origin: wgpu::Origin3d::ZERO,
+                aspect: wgpu::TextureAspect::All,
+            },
+            bytemuck::cast_slice(&padded),
+            wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(columns as u32 * 16),
+                rows_per_image: Some(rows as u32),
+            },
+            wgpu::Extent3d { width: columns as u32, height: rows as u32, depth_or_array_layers: 1 },
+        );
+        let lobe_view = lobe_texture.create_view(&Default::default());
+        gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("normal maps"),
+            layout,
+            entries: &[
+                wgpu::BindGroupEntry { binding: 0, resource: params.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::TextureView(&a) },
+                wgpu::BindGroupEntry { binding: 2, resource: wgpu::BindingResource::TextureView(&b) },
+                wgpu::BindGroupEntry { binding: 3, resource: wgpu::BindingResource::Sampler(sampler) },
+                wgpu::BindGroupEntry { binding: 4, resource: wgpu::BindingResource::TextureView(&lobe_view) },
+            ],
+        })
+    }
+
+    /// Uniforms every frame; textures when a pyramid's stage changes.
+    pub fn prepare(&mut self, gpu: &GpuContext, frame: &NormalMapFrame) -> Result<(), RenderError> {
+        let keys: Vec<PyramidKeys> = frame
+            .materials
+            .iter()
+            .take(MAX_MATERIALS)
+            .map(|m| m.as_ref().map(|d| (d.moments.key, d.lobes.as_ref().map(|l| l.key))))
+            .collect();
+        if self.uploaded.as_ref() != Some(&keys) {
+            let mut pyramids = Vec::new();
+            let mut lobes: Vec<[f32; 4]> = Vec::new();
+            self.slots.clear();
+            let mut size = (1, 1);
+            for detail in frame.materials.iter().take(MAX_MATERIALS) {
+                let Some(detail) = detail else {
+                    self.slots.push(None);
+                    continue;
+                };
+                let pyramid = stage_value::<MomentPyramid>(&detail.moments)?;
+                let Some(finest) = pyramid.levels.first() else {
+                    self.slots.push(None);
+                    continue;
+                };
+                size = (finest.width, finest.height);
+                let mut levels = Vec::new();
+                if let Some(keyed) = &detail.lobes {
+                    let fitted = stage_value::<VmfPyramid>(keyed)?;
+                    for level in fitted.levels.iter().take(LEVELS) {
+                        let block = finest.width.div_ceil(level.width).max(1);
+                        levels.push([lobes.len() as u32, level.width as u32, level.height as u32, block as u32]);
+                        lobes.extend_from_slice(&level.lobes);
+                    }
+                }
+                self.slots.push(Some((pyramids.len() as u32, levels)));
+                pyramids.push(pyramid);
+            }
+            let max = gpu.device.limits().max_texture_dimension_2d as usize;
+            if size.0 > max || size.1 > max || lobes.len().div_ceil(LOBE_ROW) > max {
+                return Err(RenderError::Invalid(format!(
+                    "a {}×{} normal map is larger than this GPU's textures ({max} a side)",
+                    size.0, size.1
+                )));
+            }
+            debug_assert!(lobes.len().is_multiple_of(VMF_LOBES));
+            self.bind_group = Self::bind(gpu, &self.layout, &self.params, &self.sampler, &pyramids, size, &lobes);
+            self.uploaded = Some(keys);
+        }
+        let mut params: NormalParams = bytemuck::Zeroable::zeroed();
+        for (m, (slot, detail)) in self.slots.iter().zip(&frame.materials).enumerate() {
+            let (Some((layer, levels)), Some(detail)) = (slot, detail) else { continue };
+            let filter = match detail.settings.filter {
+                NormalFilter::Sh => 1.0,
+                NormalFilter::Vmf => 2.0,
+                NormalFilter::Toksvig => 3.0,
+                NormalFilter::None => 4.0,
+            };
+            let fitted = if detail.lobes.is_some() { levels.len() } else { 0 };
+            params.materials[m] = [filter, detail.settings.tiling as f32, fitted as f32, *layer as f32];
+            for (k, level) in levels.iter().enumerate() {
+                params.vmf_levels[m * LEVELS + k] = *level;
+            }
+        }
+        if let Some(e) = &frame.vertex_diffuse_scale {
+            params.flags[0] = 1.0;
+            for (dst, src) in params.irradiance.iter_mut().zip(&e.coeffs) {
+                *dst = vec4(*src, 0.0);
+            }
+        }
+        gpu.queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
+        Ok(())
+    }
+}

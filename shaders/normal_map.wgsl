@@ -1,0 +1,263 @@
+// Normal maps filtered by their texels' normal distribution (group 4, render/src/passes/
+// normal_map.rs; Sun 2008 §5.1, Han et al. 2007). The GPU twins of nodes/src/normal_filtering
+// (moments.rs) and nodes/src/brdf.rs `Lobe::widened`: each pixel samples its footprint's NDF
+// moments E[n], E[n n^T] trilinearly and anisotropically (averages of NDFs are NDFs), turns them
+// into the world by the surface frame, and shades diffuse light with them and highlights
+// through one or more vMF lobes of normals.
+
+const NDF_MAX_LOBES: i32 = 48;
+const NDF_MATERIALS: i32 = 8;
+const NDF_LEVELS: i32 = 12;
+const NDF_MAX_KAPPA: f32 = 1.0e6;
+
+struct NormalMaps {
+    // Per material: x: filter (0 no map, 1 SH NDF, 2 vMF mixture, 3 Toksvig, 4 averaged
+    // normals); y: repeats per unit of UV; z: fitted vMF levels; w: texture layer.
+    materials: array<vec4<f32>, 8>,
+    // x: 1 when the mode's per-vertex diffuse light is scaled per pixel by `irradiance`
+    // filtered over unfiltered; yzw unused.
+    flags: vec4<f32>,
+    // E_lm to band 2 (rgb) of the light the mode's diffuse transport carries.
+    irradiance: array<vec4<f32>, 9>,
+    // Per material and vMF level (material * 12 + level): first lobe, texels across and down,
+    // map texels per texel side.
+    vmf_levels: array<vec4<u32>, 96>,
+};
+
+@group(4) @binding(0) var<uniform> normal_maps: NormalMaps;
+@group(4) @binding(1) var normal_moments_a: texture_2d_array<f32>;
+@group(4) @binding(2) var normal_moments_b: texture_2d_array<f32>;
+@group(4) @binding(3) var normal_sampler: sampler;
+// The vMF lobes, `NDF_LOBE_ROW` to a row (a texture, not a storage buffer: the wavelet pass's
+// fragment stage has none to spare).
+@group(4) @binding(4) var normal_lobes: texture_2d<f32>;
+
+const NDF_LOBE_ROW: u32 = 4096u;
+
+fn ndf_lobe_at(i: u32) -> vec4<f32> {
+    return textureLoad(normal_lobes, vec2<u32>(i % NDF_LOBE_ROW, i / NDF_LOBE_ROW), 0);
+}
+
+// What a pixel shades with: its NDF in the world frame.
+struct SurfaceNdf {
+    // The filter (as NormalMaps.materials.x; 0: no map, the geometric normal alone).
+    method: i32,
+    // Unit shading normal: the NDF's mean direction.
+    normal: vec3<f32>,
+    // E[n] and E[n n^T].
+    mean: vec3<f32>,
+    second: mat3x3<f32>,
+    // Toksvig's concentration from |E[n]|.
+    kappa: f32,
+    // The highlight's lobes of normals: xyz unit mean, w weight; and their concentrations.
+    count: i32,
+    lobes: array<vec4<f32>, 48>,
+    kappas: array<f32, 48>,
+};
+
+// Banerjee et al.'s κ for a mean resultant length r (nodes Vmf::kappa_from_mean_length).
+fn ndf_kappa(r: f32) -> f32 {
+    let c = clamp(r, 0.0, 1.0);
+    if (c >= 0.999999) {
+        return NDF_MAX_KAPPA;
+    }
+    return min((3.0 * c - c * c * c) / (1.0 - c * c), NDF_MAX_KAPPA);
+}
+
+// The NDF of a flat surface: a delta at `n`.
+fn ndf_flat(n: vec3<f32>) -> SurfaceNdf {
+    var ndf: SurfaceNdf;
+    ndf.method = 0;
+    ndf.normal = n;
+    ndf.mean = n;
+    ndf.second = mat3x3<f32>(n * n.x, n * n.y, n * n.z);
+    ndf.kappa = NDF_MAX_KAPPA;
+    ndf.count = 1;
+    ndf.lobes[0] = vec4<f32>(n, 1.0);
+    ndf.kappas[0] = NDF_MAX_KAPPA;
+    return ndf;
+}
+
+// The vMF lobes of material m's fitted level `level` about `uv`, bilinear between the four
+// nearest texels' sets (the map repeating), turned by `frame`, weighted by `share`, appended to
+// `ndf` (lobes under 0.1% of the pixel's NDF are dropped).
+fn ndf_add_level(ndf: ptr<function, SurfaceNdf>, m: u32, level: i32, uv: vec2<f32>, map_size: vec2<f32>, frame: mat3x3<f32>, share: f32) {
+    let info = normal_maps.vmf_levels[i32(m) * NDF_LEVELS + level];
+    let size = vec2<i32>(i32(info.y), i32(info.z));
+    let at = fract(uv) * map_size / f32(info.w) - 0.5;
+    let corner = vec2<i32>(floor(at));
+    let f = at - floor(at);
+    for (var k = 0; k < 4; k = k + 1) {
+        let offset = vec2<i32>(k & 1, k >> 1u);
+        let texel = ((corner + offset) % size + size) % size;
+        let bilinear = select(1.0 - f.x, f.x, offset.x == 1) * select(1.0 - f.y, f.y, offset.y == 1);
+        let first = info.x + u32(texel.y * size.x + texel.x) * 6u;
+        for (var j = 0u; j < 6u; j = j + 1u) {
+            let lobe = ndf_lobe_at(first + j);
+            let weight = lobe.w * bilinear * share;
+            let kappa = length(lobe.xyz);
+            if (weight <= 1e-3 || kappa <= 0.0 || (*ndf).count >= NDF_MAX_LOBES) {
+                continue;
+            }
+            (*ndf).lobes[(*ndf).count] = vec4<f32>(normalize(frame * (lobe.xyz / kappa)), weight);
+            (*ndf).kappas[(*ndf).count] = kappa;
+            (*ndf).count = (*ndf).count + 1;
+        }
+    }
+}
+
+// The NDF of material m's normal map over this pixel's footprint at `uv`, on the surface of
+// unit normal `n` and tangent `tangent` (the frame [t, n x t, n] of common.wgsl). Call it
+// where control flow is uniform: it takes the UV's screen derivatives.
+fn surface_ndf(m: u32, uv_in: vec2<f32>, n: vec3<f32>, tangent: vec3<f32>) -> SurfaceNdf {
+    let settings = normal_maps.materials[m];
+    let uv = uv_in * settings.y;
+    let du = dpdx(uv);
+    let dv = dpdy(uv);
+    let layer = i32(settings.w);
+    let a = textureSampleGrad(normal_moments_a, normal_sampler, uv, layer, du, dv);
+    let b = textureSampleGrad(normal_moments_b, normal_sampler, uv, layer, du, dv);
+    let method = i32(settings.x + 0.5);
+    if (method == 0) {
+        return ndf_flat(n);
+    }
+    let t = frame_tangent(n, tangent);
+    let frame = mat3x3<f32>(t, cross(n, t), n);
+    let mean = frame * a.xyz;
+    let zz = 1.0 - a.w - b.x;
+    let second_t = mat3x3<f32>(vec3<f32>(a.w, b.y, b.z), vec3<f32>(b.y, b.x, b.w), vec3<f32>(b.z, b.w, zz));
+    var ndf = ndf_flat(normalize(select(n, mean, dot(mean, mean) > 1e-12)));
+    ndf.method = method;
+    if (method == 4) {
+        return ndf;
+    }
+    ndf.mean = mean;
+    ndf.second = frame * second_t * transpose(frame);
+    ndf.kappa = ndf_kappa(length(a.xyz));
+    ndf.kappas[0] = ndf.kappa;
+    let levels = i32(settings.z);
+    if (method != 2 || levels == 0) {
+        return ndf;
+    }
+    // vMF lobes: the two fitted levels about the footprint's (the side of its area), each
+    // bilinear between texels, blended.
+    let map_size = vec2<f32>(textureDimensions(normal_moments_a).xy);
+    let footprint = sqrt(length(du * map_size) * length(dv * map_size));
+    let lod = clamp(log2(max(footprint, 1e-6)), 0.0, f32(levels - 1));
+    let low = i32(floor(lod));
+    let share = lod - f32(low);
+    ndf.count = 0;
+    ndf_add_level(&ndf, m, low, uv, map_size, frame, 1.0 - share);
+    if (low + 1 < levels && share > 0.0) {
+        ndf_add_level(&ndf, m, low + 1, uv, map_size, frame, share);
+    }
+    return ndf;
+}
+
+// E[Y_lm(n)] for l <= 2 (nodes NdfMoments::sh; Toksvig: Y_lm at the mean direction attenuated
+// by e^{-l(l+1)/2κ}), in the order of common.wgsl's basis.
+fn ndf_sh9(ndf: SurfaceNdf) -> array<f32, 9> {
+    var y: array<f32, 9>;
+    if (ndf.method == 3) {
+        let d = ndf.normal;
+        let a1 = exp(-1.0 / ndf.kappa);
+        let a2 = exp(-3.0 / ndf.kappa);
+        y[0] = 0.2820948;
+        y[1] = 0.4886025 * d.y * a1;
+        y[2] = 0.4886025 * d.z * a1;
+        y[3] = 0.4886025 * d.x * a1;
+        y[4] = 1.0925484 * d.x * d.y * a2;
+        y[5] = 1.0925484 * d.y * d.z * a2;
+        y[6] = 0.3153916 * (3.0 * d.z * d.z - 1.0) * a2;
+        y[7] = 1.0925484 * d.x * d.z * a2;
+        y[8] = 0.5462742 * (d.x * d.x - d.y * d.y) * a2;
+        return y;
+    }
+    let m = ndf.mean;
+    let s = ndf.second;
+    y[0] = 0.2820948;
+    y[1] = 0.4886025 * m.y;
+    y[2] = 0.4886025 * m.z;
+    y[3] = 0.4886025 * m.x;
+    y[4] = 1.0925484 * s[1].x;
+    y[5] = 1.0925484 * s[2].y;
+    y[6] = 0.3153916 * (2.0 * s[2].z - s[0].x - s[1].y);
+    y[7] = 1.0925484 * s[2].x;
+    y[8] = 0.5462742 * (s[0].x - s[1].y);
+    return y;
+}
+
+// The attenuation of SH band l > 2 under the NDF (Toksvig's lobe; 1 without a map).
+fn ndf_band_attenuation(ndf: SurfaceNdf, l: i32) -> f32 {
+    if (ndf.method == 0 || ndf.kappa >= NDF_MAX_KAPPA) {
+        return 1.0;
+    }
+    return exp(-f32(l * (l + 1)) / (2.0 * ndf.kappa));
+}
+
+// E[max(0, n.l)] over the NDF (nodes NdfMoments::direct_diffuse): n.l taken as Gaussian of the
+// moments' mean and variance; the averaged normal alone for Toksvig and averaged normals.
+fn ndf_direct_diffuse(ndf: SurfaceNdf, l: vec3<f32>) -> f32 {
+    if (ndf.method == 0 || ndf.method == 4) {
+        return max(dot(ndf.normal, l), 0.0);
+    }
+    let mu = dot(ndf.mean, l);
+    if (ndf.method == 3) {
+        return max(mu, 0.0);
+    }
+    let sigma = sqrt(max(dot(l, ndf.second * l) - mu * mu, 0.0));
+    if (sigma < 1e-6) {
+        return max(mu, 0.0);
+    }
+    let t = mu / sigma;
+    // Φ(t) by Abramowitz-Stegun 7.1.26, as the CPU twin.
+    let x = abs(t) * 0.70710678;
+    let k = 1.0 / (1.0 + 0.3275911 * x);
+    let erfc = k * (0.254829592 + k * (-0.284496736 + k * (1.421413741 + k * (-1.453152027 + k * 1.061405429)))) * exp(-x * x);
+    let cdf = select(0.5 * erfc, 1.0 - 0.5 * erfc, t >= 0.0);
+    return mu * cdf + sigma * exp(-0.5 * t * t) * 0.39894228;
+}
+
+// A specular lobe (sun.wgsl's encoding: x model, y exponent or alpha_x, z f0, w alpha_y) seen
+// through a vMF lobe of normals of concentration kappa, and (w of the second) the factor its
+// values take (nodes Lobe::widened).
+fn ndf_widened_lobe(lobe: vec4<f32>, kappa: f32) -> array<vec4<f32>, 2> {
+    var out = array<vec4<f32>, 2>(lobe, vec4<f32>(1.0));
+    if (kappa >= NDF_MAX_KAPPA) {
+        return out;
+    }
+    let k = max(kappa, 1e-9);
+    let model = i32(lobe.x + 0.5);
+    if (model == 1 || model == 2) {
+        let seen = select(k, k / 4.0, model == 1);
+        let c = select(8.0, 2.0, model == 1);
+        let s = lobe.y;
+        let w = seen * s / (seen + s);
+        out[0].y = w;
+        out[1].w = (s + c) * (w + 1.0) / ((s + 1.0) * (w + c));
+    } else if (model == 3 || model == 4) {
+        out[0].y = sqrt(lobe.y * lobe.y + 2.0 / k);
+        out[0].w = sqrt(lobe.w * lobe.w + 2.0 / k);
+    }
+    return out;
+}
+
+// The per-pixel factor on a mode's per-vertex diffuse light: the transported light's irradiance
+// averaged over the NDF over the same at the geometric normal `n` (1 without a map).
+fn ndf_vertex_diffuse_scale(ndf: SurfaceNdf, n: vec3<f32>) -> vec3<f32> {
+    if (ndf.method == 0 || normal_maps.flags.x < 0.5) {
+        return vec3<f32>(1.0);
+    }
+    let filtered_basis = ndf_sh9(ndf);
+    var flat_ndf = ndf_flat(n);
+    flat_ndf.method = 1;
+    let flat_basis = ndf_sh9(flat_ndf);
+    var filtered = vec3<f32>(0.0);
+    var unfiltered = vec3<f32>(0.0);
+    for (var k = 0; k < 9; k = k + 1) {
+        filtered = filtered + normal_maps.irradiance[k].rgb * filtered_basis[k];
+        unfiltered = unfiltered + normal_maps.irradiance[k].rgb * flat_basis[k];
+    }
+    let floor_value = 1e-4 * max(normal_maps.irradiance[0].r, max(normal_maps.irradiance[0].g, normal_maps.irradiance[0].b));
+    return select(vec3<f32>(1.0), max(filtered, vec3<f32>(0.0)) / max(unfiltered, vec3<f32>(floor_value)), unfiltered > vec3<f32>(floor_value));
+}

@@ -172,7 +172,7 @@ fn fog_environment_glow_irradiance(n: vec3<f32>) -> vec3<f32> {
 // airlight, and the environment's glow in the view direction scattered in along the path
 // (the glow per unit length is about constant along the ray, so the path's share of the
 // infinite ray's glow is 1 - e^{-beta d}).
-fn fog_shade(lit_in: vec3<f32>, p: vec3<f32>, n: vec3<f32>, tangent: vec3<f32>, kd: vec3<f32>, material: u32, ndf: SurfaceNdf) -> vec3<f32> {
+fn fog_shade(lit_in: vec3<f32>, p: vec3<f32>, n: vec3<f32>, tangent: vec3<f32>, kd: vec3<f32>, material: u32, ndf: ptr<function, SurfaceNdf>) -> vec3<f32> {
     let fogged = fog.beta.w > 0.5;
     let viewer = globals.camera_pos.xyz;
     let d_vp = length(viewer - p);
@@ -211,16 +211,16 @@ fn fog_shade(lit_in: vec3<f32>, p: vec3<f32>, n: vec3<f32>, tangent: vec3<f32>, 
             }
             // Through a normal map: Lambert over the NDF, and the lobe per lobe of normals,
             // widened (normal_map.wgsl), relative to ks's normalisation and cosine.
-            if (ndf.method != 0 && cos_s > 0.0) {
+            if ((*ndf).method != 0 && cos_s > 0.0) {
                 reflected = direct * ndf_direct_diffuse(ndf, to_light / d_sp);
                 if (glossy) {
                     var sum = 0.0;
-                    for (var j = 0; j < ndf.count; j = j + 1) {
-                        let mu = ndf.lobes[j].xyz;
-                        let widened = ndf_widened_lobe(vec4<f32>(1.0, exponent, 1.0, 0.0), ndf.kappas[j]);
+                    for (var j = 0; j < (*ndf).count; j = j + 1) {
+                        let mu = (*ndf).lobes[j].xyz;
+                        let widened = ndf_widened_lobe(vec4<f32>(1.0, exponent, 1.0, 0.0), (*ndf).kappas[j]);
                         let s = widened[0].y;
                         let mirror_j = reflect(view, mu);
-                        sum = sum + ndf.lobes[j].w * widened[1].w * (s + 2.0) * max(dot(mirror_j, mu), 0.0)
+                        sum = sum + (*ndf).lobes[j].w * widened[1].w * (s + 2.0) * max(dot(mirror_j, mu), 0.0)
                             * pow(max(dot(to_light / d_sp, mirror_j), 0.0), s);
                     }
                     specular = direct * sum / ((exponent + 2.0) * max(dot(mirror, n), 1e-4));

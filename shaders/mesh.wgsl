@@ -39,15 +39,15 @@ fn vs_main(v: MeshVertex) -> VertexOut {
 // E(n) = sum_k E_k Y_k(n), summed as the shared basis walk (common.wgsl) goes; through a normal
 // map, averaged over the pixel's NDF: bands 0-2 exactly by its moments, the higher bands at its
 // mean direction, attenuated (normal_map.wgsl).
-fn sh_irradiance(ndf: SurfaceNdf, bands: i32) -> vec3<f32> {
+fn sh_irradiance(ndf: ptr<function, SurfaceNdf>, bands: i32) -> vec3<f32> {
     var result = vec3<f32>(0.0);
     var low = ndf_sh9(ndf);
-    var walk = sh_walk(ndf.normal, bands);
+    var walk = sh_walk((*ndf).normal, bands);
     while (sh_walk_next(&walk)) {
         let base = walk.l * (walk.l + 1);
         var cos_y = walk.cos_y;
         var sin_y = walk.sin_y;
-        if (ndf.method != 0) {
+        if ((*ndf).method != 0) {
             if (walk.l <= 2) {
                 cos_y = low[base + walk.m];
                 sin_y = low[base - walk.m];
@@ -68,12 +68,12 @@ fn sh_irradiance(ndf: SurfaceNdf, bands: i32) -> vec3<f32> {
 @fragment
 fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) vec4<f32> {
     let n = select(-1.0, 1.0, front) * normalize(in.normal);
-    let ndf = surface_ndf(in.material, in.uv, n, in.tangent);
+    var ndf = surface_ndf(in.material, in.uv, n, in.tangent);
     let bands = i32(sh.bands.x);
     var irradiance = vec3<f32>(0.0);
     if (bands > 0) {
-        irradiance = max(sh_irradiance(ndf, bands), vec3<f32>(0.0));
+        irradiance = max(sh_irradiance(&ndf, bands), vec3<f32>(0.0));
     }
     let kd = sh.albedo[in.material].rgb * in.color / PI;
-    return vec4<f32>(fog_shade(kd * irradiance, in.world, n, in.tangent, kd, in.material, ndf), 1.0);
+    return vec4<f32>(fog_shade(kd * irradiance, in.world, n, in.tangent, kd, in.material, &ndf), 1.0);
 }

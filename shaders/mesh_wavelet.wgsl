@@ -188,11 +188,11 @@ fn vs_main(v: MeshVertex, @builtin(vertex_index) index: u32) -> VertexOut {
 @fragment
 fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     let n = normalize(in.normal);
-    let ndf = surface_ndf(in.material, in.uv, n, in.tangent);
-    let diffuse_scale = ndf_vertex_diffuse_scale(ndf, n);
+    var ndf = surface_ndf(in.material, in.uv, n, in.tangent);
+    let diffuse_scale = ndf_vertex_diffuse_scale(&ndf, n);
     if (wp.texels.x == 0u || in.layer < 0) {
         let lit = in.diffuse * diffuse_scale + in.specular;
-        return vec4<f32>(fog_shade(lit, in.position, n, in.tangent, in.albedo / PI, in.material, ndf), 1.0);
+        return vec4<f32>(fog_shade(lit, in.position, n, in.tangent, in.albedo / PI, in.material, &ndf), 1.0);
     }
     let m = in.material;
     // The four texels around the pixel (texel centres at (x + 0.5) / size), clamped at the
@@ -246,5 +246,5 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
         specular = wp.specular[m].rgb * specular;
     }
     let lit = diffuse * diffuse_scale + specular;
-    return vec4<f32>(fog_shade(lit, in.position, n, in.tangent, in.albedo / PI, in.material, ndf), 1.0);
+    return vec4<f32>(fog_shade(lit, in.position, n, in.tangent, in.albedo / PI, in.material, &ndf), 1.0);
 }

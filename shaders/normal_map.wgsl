@@ -156,12 +156,12 @@ fn surface_ndf(m: u32, uv_in: vec2<f32>, n: vec3<f32>, tangent: vec3<f32>) -> Su
 
 // E[Y_lm(n)] for l <= 2 (nodes NdfMoments::sh; Toksvig: Y_lm at the mean direction attenuated
 // by e^{-l(l+1)/2κ}), in the order of common.wgsl's basis.
-fn ndf_sh9(ndf: SurfaceNdf) -> array<f32, 9> {
+fn ndf_sh9(ndf: ptr<function, SurfaceNdf>) -> array<f32, 9> {
     var y: array<f32, 9>;
-    if (ndf.method == 3) {
-        let d = ndf.normal;
-        let a1 = exp(-1.0 / ndf.kappa);
-        let a2 = exp(-3.0 / ndf.kappa);
+    if ((*ndf).method == 3) {
+        let d = (*ndf).normal;
+        let a1 = exp(-1.0 / (*ndf).kappa);
+        let a2 = exp(-3.0 / (*ndf).kappa);
         y[0] = 0.2820948;
         y[1] = 0.4886025 * d.y * a1;
         y[2] = 0.4886025 * d.z * a1;
@@ -173,8 +173,8 @@ fn ndf_sh9(ndf: SurfaceNdf) -> array<f32, 9> {
         y[8] = 0.5462742 * (d.x * d.x - d.y * d.y) * a2;
         return y;
     }
-    let m = ndf.mean;
-    let s = ndf.second;
+    let m = (*ndf).mean;
+    let s = (*ndf).second;
     y[0] = 0.2820948;
     y[1] = 0.4886025 * m.y;
     y[2] = 0.4886025 * m.z;
@@ -188,24 +188,24 @@ fn ndf_sh9(ndf: SurfaceNdf) -> array<f32, 9> {
 }
 
 // The attenuation of SH band l > 2 under the NDF (Toksvig's lobe; 1 without a map).
-fn ndf_band_attenuation(ndf: SurfaceNdf, l: i32) -> f32 {
-    if (ndf.method == 0 || ndf.kappa >= NDF_MAX_KAPPA) {
+fn ndf_band_attenuation(ndf: ptr<function, SurfaceNdf>, l: i32) -> f32 {
+    if ((*ndf).method == 0 || (*ndf).kappa >= NDF_MAX_KAPPA) {
         return 1.0;
     }
-    return exp(-f32(l * (l + 1)) / (2.0 * ndf.kappa));
+    return exp(-f32(l * (l + 1)) / (2.0 * (*ndf).kappa));
 }
 
 // E[max(0, n.l)] over the NDF (nodes NdfMoments::direct_diffuse): n.l taken as Gaussian of the
 // moments' mean and variance; the averaged normal alone for Toksvig and averaged normals.
-fn ndf_direct_diffuse(ndf: SurfaceNdf, l: vec3<f32>) -> f32 {
-    if (ndf.method == 0 || ndf.method == 4) {
-        return max(dot(ndf.normal, l), 0.0);
+fn ndf_direct_diffuse(ndf: ptr<function, SurfaceNdf>, l: vec3<f32>) -> f32 {
+    if ((*ndf).method == 0 || (*ndf).method == 4) {
+        return max(dot((*ndf).normal, l), 0.0);
     }
-    let mu = dot(ndf.mean, l);
-    if (ndf.method == 3) {
+    let mu = dot((*ndf).mean, l);
+    if ((*ndf).method == 3) {
         return max(mu, 0.0);
     }
-    let sigma = sqrt(max(dot(l, ndf.second * l) - mu * mu, 0.0));
+    let sigma = sqrt(max(dot(l, (*ndf).second * l) - mu * mu, 0.0));
     if (sigma < 1e-6) {
         return max(mu, 0.0);
     }
@@ -244,14 +244,14 @@ fn ndf_widened_lobe(lobe: vec4<f32>, kappa: f32) -> array<vec4<f32>, 2> {
 
 // The per-pixel factor on a mode's per-vertex diffuse light: the transported light's irradiance
 // averaged over the NDF over the same at the geometric normal `n` (1 without a map).
-fn ndf_vertex_diffuse_scale(ndf: SurfaceNdf, n: vec3<f32>) -> vec3<f32> {
-    if (ndf.method == 0 || normal_maps.flags.x < 0.5) {
+fn ndf_vertex_diffuse_scale(ndf: ptr<function, SurfaceNdf>, n: vec3<f32>) -> vec3<f32> {
+    if ((*ndf).method == 0 || normal_maps.flags.x < 0.5) {
         return vec3<f32>(1.0);
     }
     let filtered_basis = ndf_sh9(ndf);
     var flat_ndf = ndf_flat(n);
     flat_ndf.method = 1;
-    let flat_basis = ndf_sh9(flat_ndf);
+    let flat_basis = ndf_sh9(&flat_ndf);
     var filtered = vec3<f32>(0.0);
     var unfiltered = vec3<f32>(0.0);
     for (var k = 0; k < 9; k = k + 1) {

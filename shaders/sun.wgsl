@@ -101,7 +101,7 @@ fn sun_lobe_of(lobe: vec4<f32>, n: vec3<f32>, tangent: vec3<f32>, wi: vec3<f32>,
 // material `m`'s lobe (nodes/src/brdf.rs `Brdf::eval`).
 // Through a normal map (`ndf`, normal_map.wgsl), Lambert over the NDF and the lobe per lobe of
 // normals, widened.
-fn sun_direct(p: vec3<f32>, n: vec3<f32>, tangent: vec3<f32>, wo: vec3<f32>, kd: vec3<f32>, m: u32, ndf: SurfaceNdf) -> vec3<f32> {
+fn sun_direct(p: vec3<f32>, n: vec3<f32>, tangent: vec3<f32>, wo: vec3<f32>, kd: vec3<f32>, m: u32, ndf: ptr<function, SurfaceNdf>) -> vec3<f32> {
     let count = i32(sun.irradiance.w);
     if (count == 0) {
         return vec3<f32>(0.0);
@@ -132,8 +132,36 @@ fn sun_direct(p: vec3<f32>, n: vec3<f32>, tangent: vec3<f32>, wo: vec3<f32>, kd:
     let cos_r = sun.axis.w;
     let above = cos_axis * cos_axis >= 1.0 - cos_r * cos_r && cos_axis > 0.0;
     if (lit && above && !glossy) {
-        let cosine = select(cos_axis, ndf_direct_diffuse(ndf, sun.axis.xyz), ndf.method != 0);
+        let cosine = select(cos_axis, ndf_direct_diffuse(ndf, sun.axis.xyz), (*ndf).method != 0);
         return kd * (cosine * (1.0 + cos_r) * 0.5 * f32(count)) * sun.irradiance.rgb;
+    }
+    // Through a normal map, wholly lit: the diffuse light by the cap's closed form, and each lobe
+    // of normals that spreads the highlight well past the disc (its normals' variance 1/κ over
+    // four times the disc's half-vector variance r²/16) evaluated once, at the axis, widened by
+    // the disc as well; sharper lobes take every direction.
+    if (lit && above && (*ndf).method != 0) {
+        let r2 = max(1.0 - cos_r * cos_r, 0.0);
+        var lobes = 0.0;
+        for (var j = 0; j < (*ndf).count; j = j + 1) {
+            let mu = (*ndf).lobes[j].xyz;
+            let kappa = (*ndf).kappas[j];
+            if (1.0 / kappa > r2 * 0.25) {
+                let widened = ndf_widened_lobe(sun.lobes[m], 1.0 / (1.0 / kappa + r2 / 16.0));
+                lobes = lobes + f32(count) * (*ndf).lobes[j].w * widened[1].w
+                    * sun_lobe_of(widened[0], mu, tangent, sun.axis.xyz, wo) * max(dot(mu, sun.axis.xyz), 0.0);
+            } else {
+                let widened = ndf_widened_lobe(sun.lobes[m], kappa);
+                for (var k = 0; k < count; k = k + 1) {
+                    let d = sun.directions[k].xyz;
+                    if (dot(n, d) > 0.0) {
+                        lobes = lobes + (*ndf).lobes[j].w * widened[1].w * sun_lobe_of(widened[0], mu, tangent, d, wo)
+                            * max(dot(mu, d), 0.0);
+                    }
+                }
+            }
+        }
+        let diffuse = kd * (ndf_direct_diffuse(ndf, sun.axis.xyz) * (1.0 + cos_r) * 0.5 * f32(count));
+        return (diffuse + colour * lobes) * sun.irradiance.rgb;
     }
     var sum = vec3<f32>(0.0);
     for (var k = 0; k < count; k = k + 1) {
@@ -147,14 +175,14 @@ fn sun_direct(p: vec3<f32>, n: vec3<f32>, tangent: vec3<f32>, wo: vec3<f32>, kd:
             visible = sun_visibility(k, shifted);
         }
         var reflected = kd * cos_i;
-        if (ndf.method != 0) {
+        if ((*ndf).method != 0) {
             reflected = kd * ndf_direct_diffuse(ndf, d);
             if (glossy) {
                 var lobes = 0.0;
-                for (var j = 0; j < ndf.count; j = j + 1) {
-                    let mu = ndf.lobes[j].xyz;
-                    let widened = ndf_widened_lobe(sun.lobes[m], ndf.kappas[j]);
-                    lobes = lobes + ndf.lobes[j].w * widened[1].w * sun_lobe_of(widened[0], mu, tangent, d, wo) * max(dot(mu, d), 0.0);
+                for (var j = 0; j < (*ndf).count; j = j + 1) {
+                    let mu = (*ndf).lobes[j].xyz;
+                    let widened = ndf_widened_lobe(sun.lobes[m], (*ndf).kappas[j]);
+                    lobes = lobes + (*ndf).lobes[j].w * widened[1].w * sun_lobe_of(widened[0], mu, tangent, d, wo) * max(dot(mu, d), 0.0);
                 }
                 reflected = reflected + colour * lobes;
             }

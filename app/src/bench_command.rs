@@ -44,8 +44,8 @@ pub struct BenchArgs {
     /// Frames timed per figure (the median is printed).
     #[arg(long, default_value_t = 5)]
     pub frames: usize,
-    /// Only these sections (rays, default, fog, rsl, blockers, adaptive, area, synthetic; all
-    /// when empty).
+    /// Only these sections (rays, default, fog, rsl, blockers, adaptive, area, normal_maps,
+    /// synthetic; all when empty).
     #[arg(long, value_delimiter = ',')]
     pub only: Vec<String>,
     /// Also write the rays section's mesh and rays into this folder, for
@@ -128,6 +128,9 @@ pub fn run(args: &BenchArgs) -> Result<()> {
     if wanted("area") {
         crate::bench_area::area_light_figures();
         crate::bench_area::area_sample_figures(args, &gpu)?;
+    }
+    if wanted("normal_maps") {
+        crate::bench_normal_maps::normal_map_figures(args, &gpu)?;
     }
     if wanted("synthetic") {
         synthetic_figures(args, &gpu)?;

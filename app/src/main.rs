@@ -7,6 +7,7 @@ mod bench_anchors;
 mod bench_area;
 mod bench_blockers;
 mod bench_command;
+mod bench_normal_maps;
 mod bench_rays;
 mod editor;
 mod project_commands;

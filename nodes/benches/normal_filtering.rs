@@ -1,9 +1,12 @@
 //! Normal-map filtering: pyramid build time per megapixel of normal map, for the NDF's SH
-//! (3 bands for diffuse, 8 for gloss) and for 6-lobe vMF mixtures fitted by EM.
+//! (3 bands for diffuse, 8 for gloss), for 6-lobe vMF mixtures fitted by EM, and for what the
+//! BRDF editor's stages build for the viewport: the moment pyramid (`ndf_moments`) and the
+//! packed vMF pyramid (`vmf_lobes`, 30 EM rounds over at most 1024 normals of the map's
+//! bilinear field a texel).
 //! Run with `cargo bench -p lightloom-nodes --bench normal_filtering`.
 
 use glam::DVec3;
-use lightloom_nodes::normal_filtering::{NdfPyramid, NormalMap, vmf_pyramid};
+use lightloom_nodes::normal_filtering::{MomentPyramid, NdfPyramid, NormalMap, VmfPyramid, vmf_pyramid};
 use std::time::Instant;
 
 fn main() {
@@ -25,6 +28,22 @@ fn main() {
         let ms = start.elapsed().as_secs_f64() * 1e3;
         println!("  NDF SH, {bands} bands: {:.0} ms per megapixel ({} levels)", ms / megapixels, pyramid.levels.len());
     }
+    let start = Instant::now();
+    let moments = MomentPyramid::build(&map);
+    let ms = start.elapsed().as_secs_f64() * 1e3;
+    println!(
+        "  ndf_moments (the viewport's moment pyramid): {:.0} ms per megapixel ({} levels)",
+        ms / megapixels,
+        moments.levels.len()
+    );
+    let start = Instant::now();
+    let packed = VmfPyramid::build(&map, &Default::default()).expect("within the size limit");
+    let ms = start.elapsed().as_secs_f64() * 1e3;
+    println!(
+        "  vmf_lobes (the viewport's vMF pyramid): {:.0} ms per megapixel ({} levels)",
+        ms / megapixels,
+        packed.levels.len()
+    );
     let start = Instant::now();
     let mixtures = vmf_pyramid(&map, 6, 20, 256);
     let ms = start.elapsed().as_secs_f64() * 1e3;

@@ -338,11 +338,15 @@ pub fn filtered_glossy(ndf: &[Vmf], exponent: f64, h: DVec3) -> f64 {
         .sum()
 }
 
+/// `1 − cos` of the least angle (about 0.8°) between two seeds of a mixture: normals closer
+/// than that to every seed are one lobe's spread, not a lobe of their own.
+const MIN_SEED_SEPARATION: f64 = 1e-4;
+
 /// Fits `lobes` vMF lobes to weighted unit normals by spherical EM (Banerjee et al. 2005):
 /// responsibilities from each lobe's density, then each lobe's weight, mean direction and
 /// concentration (from its weighted mean resultant length) from them. Lobes start on the
 /// normals farthest apart; at most `iterations` rounds, fewer once no lobe moves. Fewer
-/// distinct normals than lobes give fewer lobes.
+/// distinct normals (more than [`MIN_SEED_SEPARATION`] apart) than lobes give fewer lobes.
 pub fn fit_vmf_mixture(normals: &[(DVec3, f64)], lobes: usize, iterations: usize) -> Vec<Vmf> {
     let total: f64 = normals.iter().map(|(_, w)| w.max(0.0)).sum();
     if normals.is_empty() || lobes == 0 || total <= 0.0 {
@@ -358,7 +362,7 @@ pub fn fit_vmf_mixture(normals: &[(DVec3, f64)], lobes: usize, iterations: usize
             .map(|(n, _)| (*n, seeds.iter().map(|s| 1.0 - s.dot(*n)).fold(f64::INFINITY, f64::min)))
             .max_by(|a, b| a.1.total_cmp(&b.1))
             .expect("non-empty");
-        if distance <= 1e-9 {
+        if distance <= MIN_SEED_SEPARATION {
             break;
         }
         seeds.push(farthest);

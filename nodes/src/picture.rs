@@ -3,6 +3,9 @@
 
 use serde::{Deserialize, Serialize};
 
+// Stage value types this module owns (see `engine::value`).
+crate::stage_type!(PreviewImage, "preview image", |v| v.rgba.len() * 4);
+
 /// An 8-bit sRGB image with alpha (row 0 at the top).
 #[derive(Clone, Debug, PartialEq)]
 pub struct PreviewImage {

@@ -289,7 +289,9 @@ fn glossy_sphere_filtered_beats_averaged_normals_from_near_to_far() {
 }
 
 /// Energy: with the map's strength at 0 (every normal flat) each filter draws the unmapped
-/// picture (to the half-float target's step); in a white furnace a Lambert surface with the
+/// picture, to the half-float target's step and 0.5% of the mean (a wholly lit pixel under a
+/// map takes the sun disc's closed-form diffuse term, the unmapped glossy path the sum over its
+/// 32 directions); in a white furnace a Lambert surface with the
 /// full map stays within 1% of the unmapped one under every filter. Both in the mode that
 /// filters per pixel (sh_irradiance) and in modes that scale their per-vertex diffuse light.
 #[test]
@@ -301,7 +303,7 @@ fn a_flat_map_draws_the_unmapped_picture_and_the_furnace_stays_white() {
     let glossy = r#""model": Choice("blinn_phong"), "exponent": Float(200.0), "f0": Float(0.5), "albedo": Color((0.3, 0.3, 0.3))"#;
     let (_, view) = camera([0.0; 3], 6.0);
     let cases = ["sh_irradiance", "sh_prt", "wavelet_vertex"].into_iter().flat_map(|mode| {
-        [(mode, Light::Sun, glossy, 0.0, 1e-3), (mode, Light::Furnace, r#""model": Choice("lambert")"#, 1.0, 0.01)]
+        [(mode, Light::Sun, glossy, 0.0, 5e-3), (mode, Light::Furnace, r#""model": Choice("lambert")"#, 1.0, 0.01)]
     });
     for (mode, light, material, strength, tolerance) in cases {
         let mut graph = project("Plane(size: 200.0)", material, light, strength, dir.path());

@@ -41,6 +41,12 @@ impl Previews {
         });
     }
 
+    /// Whether preview `index` of `node` is an image on screen now.
+    #[cfg(test)]
+    pub fn shows_image(&self, node: &str, index: usize) -> bool {
+        matches!(self.shown.get(&(node.to_string(), index)), Some((_, Some(Shown::Texture(_)))))
+    }
+
     fn show_one(&mut self, ui: &mut egui::Ui, node: &str, index: usize, spec: &PreviewSpec, evaluation: &Evaluation) {
         let mut key: Key = 0;
         let mut values = Vec::new();

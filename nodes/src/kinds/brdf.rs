@@ -149,7 +149,7 @@ pub fn spec() -> NodeKindSpec {
             make: |v| Some(Preview::Lobe(v[0].get::<crate::brdf::LobePreview>()?.clone())),
             size: [200.0, 104.0],
             caption: "f·cos θi in the plane of incidence (each curve scaled to its peak)",
-        }],
+        }, super::brdf_normal_map::preview()],
         availability: Availability::Ready,
         relevant: crate::node_kind::always_relevant,
         groups: &[],

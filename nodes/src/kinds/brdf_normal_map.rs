@@ -97,7 +97,31 @@ pub(super) fn params() -> Vec<ParamSpec> {
             doc: "How the texels a pixel covers are combined. Filtering is exact for Lambert, Blinn-Phong \
                   and isotropic GGX; Phong and the anisotropic lobes are filtered approximately.",
         },
+        ParamSpec {
+            name: "normal_preview_level",
+            label: "Preview MIP level",
+            unit: "",
+            kind: ParamKind::Int { min: 0, max: 12, default: 4 },
+            doc: "The node's preview shows the normal distribution and the effective lobe of the map's centre \
+                  texel at this MIP level (a block of 2^level texels a side; past the top, the whole map).",
+        },
     ]
+}
+
+/// The normal-map preview: the map, the NDF of its centre texel at the preview level, and the
+/// effective lobe there ([`crate::preview::normal_map_panels`]).
+pub(super) fn preview() -> crate::node_kind::PreviewSpec {
+    crate::node_kind::PreviewSpec {
+        stages: &["normal_preview"],
+        make: |v| {
+            let image = v[0].get::<crate::picture::PreviewImage>()?;
+            (image.width > 0).then(|| crate::picture::Preview::Image(image.clone()))
+        },
+        size: [216.0, 72.0],
+        caption: "Normal map; the normal distribution of its centre texel at the preview MIP level (seen from \
+                  above); the effective lobe there, f·cos θi for a viewer 30° off the normal (both scaled to \
+                  their peak)",
+    }
 }
 
 pub(super) fn stages() -> Vec<StageSpec> {
@@ -128,6 +152,15 @@ pub(super) fn stages() -> Vec<StageSpec> {
             inputs: &[],
             persist: None,
             compute: vmf_lobes,
+        },
+        StageSpec {
+            name: "normal_preview",
+            version: 1,
+            params: &["normal_preview_level"],
+            stages: &["material", "normal_map"],
+            inputs: &[],
+            persist: None,
+            compute: normal_preview,
         },
         StageSpec {
             name: "normal_settings",
@@ -174,6 +207,13 @@ fn vmf_lobes(ctx: &StageContext) -> Result<StageValue, StageError> {
         Err(_) if ctx.cancel_token().is_cancelled() => Err(StageError::Cancelled),
         Err(e) => Err(StageError::Failed(e)),
     }
+}
+
+fn normal_preview(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let map = ctx.stage::<NormalMap>("normal_map")?;
+    let brdf = crate::brdf::Brdf::from_material(ctx.stage::<super::brdf::Material>("material")?);
+    let level = ctx.int("normal_preview_level")?.clamp(0, 24) as usize;
+    Ok(StageValue::new(crate::preview::normal_map_panels(map, &brdf, level, 72)))
 }
 
 fn normal_settings(ctx: &StageContext) -> Result<StageValue, StageError> {

@@ -919,7 +919,7 @@ impl FrameInputs {
             !matches!(mode, Mode::ShIrradiance),
             &mut normal_notes,
         );
-        let mut lobe_limits = lobe_limits(graph, output, &scene, settings.mode, &materials);
+        let mut lobe_limits = lobe_limits(graph, output, &scene, settings.mode, &materials, sun.is_some());
         lobe_limits.extend(normal_notes);
         let medium = MediumFrame::new(lights, &materials, fog);
         if !light_nodes.is_empty() && upstream("blockers").is_some() {
@@ -995,6 +995,7 @@ fn lobe_limits(
     scene: &str,
     mode: Mode,
     materials: &[FrameMaterial],
+    sun_apart: bool,
 ) -> Vec<(String, String)> {
     let int = |node: &str, name: &str, default: i64| match graph.node(node).and_then(|n| n.params.get(name)) {
         Some(ParamValue::Int(v)) => *v,
@@ -1032,6 +1033,11 @@ fn lobe_limits(
         let width = crate::brdf::phong_half_width(exponent).to_degrees();
         let lobe = format!("its {} highlight (about Phong {exponent:.0}, {width:.1}° half-width)", m.material.model);
         let message = match mode {
+            Mode::ShIrradiance if sun_apart => Some(format!(
+                "{mode} draws the sky's diffuse light and the sun's highlight: {lobe} shows the sun but not the \
+                 sky; sh_prt shows lobes up to about Phong {sh_limit:.0}, the wavelet modes up to about Phong \
+                 {cell_limit:.0}"
+            )),
             Mode::ShIrradiance => Some(format!(
                 "{mode} draws diffuse light only: {lobe} is not shown; sh_prt shows lobes up to about Phong \
                  {sh_limit:.0}, the wavelet modes up to about Phong {cell_limit:.0}"

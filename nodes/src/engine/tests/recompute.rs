@@ -221,6 +221,7 @@ fn each_parameter_recomputes_exactly_its_stages() {
             Choice("ggx".into()),
             vec![
                 "material.material",
+                "material.normal_preview",
                 "material.preview",
                 "material.sh_lobe",
                 "output.adaptive_incident",
@@ -236,6 +237,7 @@ fn each_parameter_recomputes_exactly_its_stages() {
             Color([0.5, 0.5, 0.5]),
             vec![
                 "material.material",
+                "material.normal_preview",
                 "material.preview",
                 "material.sh_lobe",
                 "output.adaptive_incident",
@@ -251,6 +253,7 @@ fn each_parameter_recomputes_exactly_its_stages() {
             Color([0.2, 0.2, 0.2]),
             vec![
                 "material.material",
+                "material.normal_preview",
                 "material.preview",
                 "material.sh_lobe",
                 "output.adaptive_incident",
@@ -266,6 +269,7 @@ fn each_parameter_recomputes_exactly_its_stages() {
             Float(0.2),
             vec![
                 "material.material",
+                "material.normal_preview",
                 "material.preview",
                 "material.sh_lobe",
                 "output.adaptive_incident",
@@ -281,6 +285,7 @@ fn each_parameter_recomputes_exactly_its_stages() {
             Float(10.0),
             vec![
                 "material.material",
+                "material.normal_preview",
                 "material.preview",
                 "material.sh_lobe",
                 "output.adaptive_incident",
@@ -296,6 +301,7 @@ fn each_parameter_recomputes_exactly_its_stages() {
             Float(0.5),
             vec![
                 "material.material",
+                "material.normal_preview",
                 "material.preview",
                 "material.sh_lobe",
                 "output.adaptive_incident",
@@ -311,6 +317,7 @@ fn each_parameter_recomputes_exactly_its_stages() {
             Float(0.5),
             vec![
                 "material.material",
+                "material.normal_preview",
                 "material.preview",
                 "material.sh_lobe",
                 "output.adaptive_incident",
@@ -352,6 +359,7 @@ fn each_parameter_recomputes_exactly_its_stages() {
             Float(0.7),
             vec![
                 "material.material",
+                "material.normal_preview",
                 "material.preview",
                 "material.sh_lobe",
                 "output.adaptive_incident",
@@ -368,8 +376,9 @@ fn each_parameter_recomputes_exactly_its_stages() {
             "material",
             "normal_strength",
             Float(0.5),
-            vec!["material.normal_map", "material.ndf_moments", "material.vmf_lobes"],
+            vec!["material.normal_map", "material.ndf_moments", "material.vmf_lobes", "material.normal_preview"],
         ),
+        ("material", "normal_preview_level", Int(2), vec!["material.normal_preview"]),
     ];
     let engine = Engine::in_memory();
     // A coarse scene: every scene edit recomputes each object's visibility tables.
@@ -377,7 +386,7 @@ fn each_parameter_recomputes_exactly_its_stages() {
     graph.set_param("scene", "tessellation", Int(12)).unwrap();
     let first = engine.evaluate(&graph, &CancelToken::default(), None);
     assert!(first.report.failed().is_empty(), "{:?}", first.report.failed());
-    assert_eq!(first.report.computed().len(), 59);
+    assert_eq!(first.report.computed().len(), 60);
     let again = engine.evaluate(&graph, &CancelToken::default(), None);
     assert!(ran(&again.report).is_empty(), "an unchanged graph recomputed {:?}", ran(&again.report));
     for (node, param, value, expected) in table {
@@ -695,7 +704,7 @@ fn each_mode_and_view_evaluates_exactly_the_stages_it_reads() {
         for s in eval.report.stages.iter().filter(|s| s.status == StageStatus::NotNeeded) {
             assert!(s.reasons[0].contains(&format!("mode {mode}")), "{}.{}: {:?}", s.node, s.stage, s.reasons);
         }
-        assert_eq!(eval.report.stages.len(), 59, "every stage is reported");
+        assert_eq!(eval.report.stages.len(), 60, "every stage is reported");
     }
 }
 

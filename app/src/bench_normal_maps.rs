@@ -1,0 +1,53 @@
+//! `lightloom bench --only normal_maps`: what a normal map costs a frame. The hammered-metal
+//! sample (`projects/samples/hammered_metal.ron`: a 256² map on a floor and a sphere, a low sun
+//! glinting on them) drawn without its map and with each filter, and the stages that build
+//! its pyramids.
+
+use crate::bench_command::{BenchArgs, evaluate_frame, median, timed_frame};
+use anyhow::{Result, anyhow};
+use lightloom_nodes::engine::Engine;
+use lightloom_nodes::node_kind::ParamValue;
+use lightloom_render::{CameraView, GpuContext, ViewportRenderer};
+use std::sync::Arc;
+
+pub fn normal_map_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../projects/samples/hammered_metal.ron");
+    let (project, graph) = lightloom_nodes::project::Project::load(&path).map_err(|e| anyhow!("{e}"))?;
+    let view = CameraView::from_project(&project.camera(Some("main")).map_err(|e| anyhow!(e))?);
+    let size = (1280, 720);
+    println!(
+        "\nnormal maps, the hammered-metal sample (sh_irradiance, a 256² map tiled 8 times), {}x{}: frame time without \
+         the map and with each filter, and the stages the map's first evaluation computed",
+        size.0, size.1
+    );
+    let engine = Arc::new(Engine::in_memory());
+    let mut renderer = ViewportRenderer::new(gpu);
+    let mut baseline = None;
+    for (label, map, filter) in [
+        ("no normal map", false, "sh"),
+        ("averaged normals", true, "none"),
+        ("Toksvig", true, "toksvig"),
+        ("SH NDF", true, "sh"),
+        ("vMF mixture", true, "vmf"),
+    ] {
+        let mut graph = graph.clone();
+        if !map {
+            graph.set_param("hammered", "normal_map", ParamValue::Path(String::new()))?;
+        }
+        graph.set_param("hammered", "normal_filter", ParamValue::Choice(filter.into()))?;
+        let (frame, stages_ms, computed) = evaluate_frame(&engine, &graph, "output")?;
+        timed_frame(gpu, &mut renderer, &frame, &view, size)?;
+        let times: Vec<f64> =
+            (0..args.frames).map(|_| timed_frame(gpu, &mut renderer, &frame, &view, size)).collect::<Result<_>>()?;
+        let ms = median(times);
+        let overhead = match baseline {
+            None => {
+                baseline = Some(ms);
+                String::new()
+            }
+            Some(base) => format!(" ({:+.1} ms, {:+.0}% over no map)", ms - base, 100.0 * (ms / base - 1.0)),
+        };
+        println!("  {label:<17} frame {ms:>8.1} ms{overhead}; stages {stages_ms:.0} ms ({computed} computed)");
+    }
+    Ok(())
+}

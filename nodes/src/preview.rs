@@ -177,6 +177,97 @@ pub fn square_lights_sphere(lights: &crate::rsl::SquareLights, size: usize) -> P
     PreviewImage { width: size, height: size, rgba }
 }
 
+/// The BRDF editor's normal-map preview, three `size²` panels side by side: the map (its
+/// normals as colours, `n/2 + 1/2`, up to one repeat); the NDF of the map's centre texel at
+/// MIP level `level`, as the density of its normals (the map's bilinear field sampled twice per
+/// texel) over the hemisphere seen from above; and the effective lobe there, the BRDF averaged
+/// over those normals (Sun 2008 eq. 5.4) for a viewer 30° from the normal, `f·cos θ_i` over
+/// the incident hemisphere. Both plots are heat maps scaled to their peak; `level` past the top
+/// shows the whole map.
+pub fn normal_map_panels(
+    map: &crate::normal_filtering::NormalMap,
+    brdf: &crate::brdf::Brdf,
+    level: usize,
+    size: usize,
+) -> PreviewImage {
+    let size = size.max(8);
+    let mut rgba = vec![[0u8; 4]; 3 * size * size];
+    let mut put = |panel: usize, x: usize, y: usize, c: [u8; 4]| rgba[y * 3 * size + panel * size + x] = c;
+    if map.normals.is_empty() {
+        return PreviewImage { width: 3 * size, height: size, rgba };
+    }
+    // The map, nearest texel.
+    for y in 0..size {
+        for x in 0..size {
+            let (mx, my) = (x * map.width / size, y * map.height / size);
+            let n = map.normals[my * map.width + mx];
+            let [r, g, b] = n.to_array().map(|c| ((c * 0.5 + 0.5) * 255.0).round().clamp(0.0, 255.0) as u8);
+            put(0, x, y, [r, g, b, 255]);
+        }
+    }
+    // The centre texel's block at the level, sampled twice per texel (at most 64² samples).
+    let block = (1usize << level.min(24)).min(map.width.max(map.height).next_power_of_two());
+    let (x0, y0) = ((map.width / 2) / block * block, (map.height / 2) / block * block);
+    let side = (2 * block).min(64);
+    let normals: Vec<DVec3> = (0..side * side)
+        .map(|i| {
+            let (sx, sy) = ((i % side) as f64 + 0.5, (i / side) as f64 + 0.5);
+            let px = x0 as f64 + sx * block as f64 / side as f64;
+            let py = y0 as f64 + sy * block as f64 / side as f64;
+            map.sample([px / map.width as f64, py / map.height as f64])
+        })
+        .collect();
+    let disc = |x: usize, y: usize| {
+        let u = 2.0 * (x as f64 + 0.5) / size as f64 - 1.0;
+        let v = 1.0 - 2.0 * (y as f64 + 0.5) / size as f64;
+        (u * u + v * v <= 1.0).then(|| DVec3::new(u, v, (1.0 - u * u - v * v).max(0.0).sqrt()))
+    };
+    // The NDF: each normal splatted into the disc (orthographic from above), per solid angle.
+    let mut density = vec![0.0f64; size * size];
+    for n in &normals {
+        let (x, y) = (((n.x + 1.0) * 0.5 * size as f64) as usize, ((1.0 - n.y) * 0.5 * size as f64) as usize);
+        if x < size && y < size && n.z > 0.0 {
+            density[y * size + x] += 1.0 / n.z.max(0.05);
+        }
+    }
+    let wo = DVec3::new(30f64.to_radians().sin(), 0.0, 30f64.to_radians().cos());
+    let lobe: Vec<f64> = (0..size * size)
+        .map(|i| {
+            let Some(wi) = disc(i % size, i / size) else { return 0.0 };
+            let mean = normals
+                .iter()
+                .map(|n| {
+                    let (t, b) = n.any_orthonormal_pair();
+                    let local = |w: DVec3| DVec3::new(w.dot(t), w.dot(b), w.dot(*n));
+                    let f = brdf.eval(local(wi), local(wo));
+                    (0.2126 * f.x + 0.7152 * f.y + 0.0722 * f.z) * wi.dot(*n).max(0.0)
+                })
+                .sum::<f64>();
+            mean / normals.len() as f64
+        })
+        .collect();
+    for (panel, values) in [(1, &density), (2, &lobe)] {
+        let peak = values.iter().copied().fold(0.0, f64::max).max(1e-300);
+        for y in 0..size {
+            for x in 0..size {
+                let colour = match disc(x, y) {
+                    Some(_) => heat(values[y * size + x] / peak),
+                    None => [0, 0, 0, 0],
+                };
+                put(panel, x, y, colour);
+            }
+        }
+    }
+    PreviewImage { width: 3 * size, height: size, rgba }
+}
+
+/// A dark-blue → red → yellow → white ramp of `t` in `[0, 1]`.
+fn heat(t: f64) -> [u8; 4] {
+    let t = t.clamp(0.0, 1.0).sqrt();
+    let channel = |a: f64| (a.clamp(0.0, 1.0) * 255.0).round() as u8;
+    [channel(3.0 * t), channel(3.0 * t - 1.0), channel((0.35 * (1.0 - 3.0 * t)).max(3.0 * t - 2.0)), 255]
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -281,95 +372,37 @@ mod tests {
         let corner = img.rgba[0][0];
         assert!(centre > corner, "the glow peaks at the source");
     }
-}
 
-/// The BRDF editor's normal-map preview, three `size²` panels side by side: the map (its
-/// normals as colours, `n/2 + 1/2`, up to one repeat); the NDF of the map's centre texel at
-/// MIP level `level`, as the density of its normals (the map's bilinear field sampled twice per
-/// texel) over the hemisphere seen from above; and the effective lobe there, the BRDF averaged
-/// over those normals (Sun 2008 eq. 5.4) for a viewer 30° from the normal, `f·cos θ_i` over
-/// the incident hemisphere. Both plots are heat maps scaled to their peak; `level` past the top
-/// shows the whole map.
-pub fn normal_map_panels(
-    map: &crate::normal_filtering::NormalMap,
-    brdf: &crate::brdf::Brdf,
-    level: usize,
-    size: usize,
-) -> PreviewImage {
-    let size = size.max(8);
-    let mut rgba = vec![[0u8; 4]; 3 * size * size];
-    let mut put = |panel: usize, x: usize, y: usize, c: [u8; 4]| rgba[y * 3 * size + panel * size + x] = c;
-    if map.normals.is_empty() {
-        return PreviewImage { width: 3 * size, height: size, rgba };
-    }
-    // The map, nearest texel.
-    for y in 0..size {
-        for x in 0..size {
-            let (mx, my) = (x * map.width / size, y * map.height / size);
-            let n = map.normals[my * map.width + mx];
-            let [r, g, b] = n.to_array().map(|c| ((c * 0.5 + 0.5) * 255.0).round().clamp(0.0, 255.0) as u8);
-            put(0, x, y, [r, g, b, 255]);
-        }
-    }
-    // The centre texel's block at the level, sampled twice per texel (at most 64² samples).
-    let block = (1usize << level.min(24)).min(map.width.max(map.height).next_power_of_two());
-    let (x0, y0) = ((map.width / 2) / block * block, (map.height / 2) / block * block);
-    let side = (2 * block).min(64);
-    let normals: Vec<DVec3> = (0..side * side)
-        .map(|i| {
-            let (sx, sy) = ((i % side) as f64 + 0.5, (i / side) as f64 + 0.5);
-            let px = x0 as f64 + sx * block as f64 / side as f64;
-            let py = y0 as f64 + sy * block as f64 / side as f64;
-            map.sample([px / map.width as f64, py / map.height as f64])
-        })
-        .collect();
-    let disc = |x: usize, y: usize| {
+    /// The normal-map preview: a flat map's NDF is one spot at the disc's centre, and its
+    /// effective lobe is the BRDF's own (`f·cos θ_i` for a viewer 30° off the normal peaks at the
+    /// mirror direction, 30° to the other side); a tilted map moves both.
+    #[test]
+    fn the_normal_map_preview_shows_the_ndf_and_the_effective_lobe() {
+        let brdf = crate::brdf::Brdf {
+            diffuse: DVec3::ZERO,
+            specular: DVec3::ONE,
+            f0: 1.0,
+            lobe: crate::brdf::Lobe::BlinnPhong { exponent: 200.0 },
+        };
+        let size = 33;
+        let peak_of = |image: &PreviewImage, panel: usize| {
+            let value = |x: usize, y: usize| {
+                let c = image.rgba[y * 3 * size + panel * size + x];
+                u32::from(c[0]) + u32::from(c[1]) + u32::from(c[2])
+            };
+            (0..size * size).map(|i| (i % size, i / size)).max_by_key(|&(x, y)| value(x, y)).unwrap()
+        };
+        let flat = crate::normal_filtering::NormalMap::flat(16, 16);
+        let image = normal_map_panels(&flat, &brdf, 2, size);
+        assert_eq!((image.width, image.height), (3 * size, size));
+        assert_eq!(peak_of(&image, 1), (16, 16), "a flat NDF is a spot at the centre");
+        let (x, y) = peak_of(&image, 2);
         let u = 2.0 * (x as f64 + 0.5) / size as f64 - 1.0;
-        let v = 1.0 - 2.0 * (y as f64 + 0.5) / size as f64;
-        (u * u + v * v <= 1.0).then(|| DVec3::new(u, v, (1.0 - u * u - v * v).max(0.0).sqrt()))
-    };
-    // The NDF: each normal splatted into the disc (orthographic from above), per solid angle.
-    let mut density = vec![0.0f64; size * size];
-    for n in &normals {
-        let (x, y) = (((n.x + 1.0) * 0.5 * size as f64) as usize, ((1.0 - n.y) * 0.5 * size as f64) as usize);
-        if x < size && y < size && n.z > 0.0 {
-            density[y * size + x] += 1.0 / n.z.max(0.05);
-        }
+        assert!(y == 16 && (u + 30f64.to_radians().sin()).abs() < 0.08, "the mirror direction: ({x}, {y}), u {u}");
+        let tilt = DVec3::new(0.3, 0.0, 1.0).normalize();
+        let tilted = crate::normal_filtering::NormalMap { width: 16, height: 16, normals: vec![tilt; 256] };
+        let image = normal_map_panels(&tilted, &brdf, 2, size);
+        let (x, _) = peak_of(&image, 1);
+        assert!(x > 16, "the NDF's spot follows the tilt toward +x: {x}");
     }
-    let wo = DVec3::new(30f64.to_radians().sin(), 0.0, 30f64.to_radians().cos());
-    let lobe: Vec<f64> = (0..size * size)
-        .map(|i| {
-            let Some(wi) = disc(i % size, i / size) else { return 0.0 };
-            let mean = normals
-                .iter()
-                .map(|n| {
-                    let (t, b) = n.any_orthonormal_pair();
-                    let local = |w: DVec3| DVec3::new(w.dot(t), w.dot(b), w.dot(*n));
-                    let f = brdf.eval(local(wi), local(wo));
-                    (0.2126 * f.x + 0.7152 * f.y + 0.0722 * f.z) * wi.dot(*n).max(0.0)
-                })
-                .sum::<f64>();
-            mean / normals.len() as f64
-        })
-        .collect();
-    for (panel, values) in [(1, &density), (2, &lobe)] {
-        let peak = values.iter().copied().fold(0.0, f64::max).max(1e-300);
-        for y in 0..size {
-            for x in 0..size {
-                let colour = match disc(x, y) {
-                    Some(_) => heat(values[y * size + x] / peak),
-                    None => [0, 0, 0, 0],
-                };
-                put(panel, x, y, colour);
-            }
-        }
-    }
-    PreviewImage { width: 3 * size, height: size, rgba }
-}
-
-/// A dark-blue → red → yellow → white ramp of `t` in `[0, 1]`.
-fn heat(t: f64) -> [u8; 4] {
-    let t = t.clamp(0.0, 1.0).sqrt();
-    let channel = |a: f64| (a.clamp(0.0, 1.0) * 255.0).round() as u8;
-    [channel(3.0 * t), channel(3.0 * t - 1.0), channel((0.35 * (1.0 - 3.0 * t)).max(3.0 * t - 2.0)), 255]
 }

@@ -194,7 +194,7 @@ impl NdfPyramid {
 
 /// Per level of a normal map's MIP pyramid (as [`NdfPyramid`]'s), per texel, a mixture of up
 /// to `lobes` vMF lobes fitted by [`fit_vmf_mixture`] to the normals it covers (the map's
-/// bilinear field at twice the texel density). A texel covering
+/// bilinear field, at twice the texel density in the two finest levels). A texel covering
 /// more than `max_normals` of them fits an even subset (every `k`-th row and column), which
 /// bounds the cost of each level by the map's size.
 pub fn vmf_pyramid(map: &NormalMap, lobes: usize, iterations: usize, max_normals: usize) -> Vec<Vec<Vec<Vmf>>> {
@@ -216,10 +216,11 @@ pub fn vmf_pyramid_cancellable(
     loop {
         let (width, height) = (map.width.div_ceil(size), map.height.div_ceil(size));
         // The block's normals as the surface has them: the map's bilinear field
-        // ([`NormalMap::sample`]) at twice the texel density, so a block of a texel or a few has
-        // the spread between them (as delta lobes at the texels would not). Rows and columns of
-        // those samples taken with a stride that keeps about `max_normals`.
-        let density = 2;
+        // ([`NormalMap::sample`]), at twice the texel density in blocks of a texel or two (so
+        // they have the spread between their texels, as delta lobes at the texels would not),
+        // at the texels' own density above. Rows and columns of those samples taken with a
+        // stride that keeps about `max_normals`.
+        let density = if size <= 2 { 2 } else { 1 };
         let side = size * density;
         let stride = ((side * side) as f64 / max_normals.max(1) as f64).sqrt().ceil().max(1.0) as usize;
         let texels: Vec<Vec<Vmf>> = (0..width * height)

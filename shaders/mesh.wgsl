@@ -68,7 +68,8 @@ fn sh_irradiance(ndf: ptr<function, SurfaceNdf>, bands: i32) -> vec3<f32> {
 @fragment
 fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) vec4<f32> {
     let n = select(-1.0, 1.0, front) * normalize(in.normal);
-    var ndf = surface_ndf(in.material, in.uv, n, in.tangent);
+    var ndf: SurfaceNdf;
+    surface_ndf(&ndf, in.material, in.uv, n, in.tangent);
     let bands = i32(sh.bands.x);
     var irradiance = vec3<f32>(0.0);
     if (bands > 0) {

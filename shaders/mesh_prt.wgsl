@@ -89,7 +89,8 @@ fn vs_main(v: MeshVertex, @builtin(vertex_index) index: u32) -> VertexOut {
 @fragment
 fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     let n = normalize(in.normal);
-    var ndf = surface_ndf(in.material, in.uv, n, in.tangent);
+    var ndf: SurfaceNdf;
+    surface_ndf(&ndf, in.material, in.uv, n, in.tangent);
     let lit = in.color * ndf_vertex_diffuse_scale(&ndf, n) + in.glossy;
     return vec4<f32>(fog_shade(lit, in.world, n, in.tangent, in.kd, in.material, &ndf), 1.0);
 }

@@ -156,6 +156,7 @@ fn vs_main(v: MeshVertex, @builtin(vertex_index) index: u32) -> VertexOut {
 fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     let n = normalize(in.normal);
     // The square lights' shading is per vertex: a normal map shades the sun and point lights.
-    var ndf = surface_ndf(in.material, in.uv, n, in.tangent);
+    var ndf: SurfaceNdf;
+    surface_ndf(&ndf, in.material, in.uv, n, in.tangent);
     return vec4<f32>(fog_shade(in.radiance, in.position, n, in.tangent, in.albedo / PI, in.material, &ndf), 1.0);
 }

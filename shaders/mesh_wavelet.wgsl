@@ -188,7 +188,8 @@ fn vs_main(v: MeshVertex, @builtin(vertex_index) index: u32) -> VertexOut {
 @fragment
 fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     let n = normalize(in.normal);
-    var ndf = surface_ndf(in.material, in.uv, n, in.tangent);
+    var ndf: SurfaceNdf;
+    surface_ndf(&ndf, in.material, in.uv, n, in.tangent);
     let diffuse_scale = ndf_vertex_diffuse_scale(&ndf, n);
     if (wp.texels.x == 0u || in.layer < 0) {
         let lit = in.diffuse * diffuse_scale + in.specular;

@@ -64,18 +64,17 @@ fn ndf_kappa(r: f32) -> f32 {
     return min((3.0 * c - c * c * c) / (1.0 - c * c), NDF_MAX_KAPPA);
 }
 
-// The NDF of a flat surface: a delta at `n`.
-fn ndf_flat(n: vec3<f32>) -> SurfaceNdf {
-    var ndf: SurfaceNdf;
-    ndf.method = 0;
-    ndf.normal = n;
-    ndf.mean = n;
-    ndf.second = mat3x3<f32>(n * n.x, n * n.y, n * n.z);
-    ndf.kappa = NDF_MAX_KAPPA;
-    ndf.count = 1;
-    ndf.lobes[0] = vec4<f32>(n, 1.0);
-    ndf.kappas[0] = NDF_MAX_KAPPA;
-    return ndf;
+// Sets `ndf` to the NDF of a flat surface: a delta at `n` (its lobe arrays past the first
+// are left as they are: `count` says how many hold lobes).
+fn ndf_set_flat(ndf: ptr<function, SurfaceNdf>, n: vec3<f32>) {
+    (*ndf).method = 0;
+    (*ndf).normal = n;
+    (*ndf).mean = n;
+    (*ndf).second = mat3x3<f32>(n * n.x, n * n.y, n * n.z);
+    (*ndf).kappa = NDF_MAX_KAPPA;
+    (*ndf).count = 1;
+    (*ndf).lobes[0] = vec4<f32>(n, 1.0);
+    (*ndf).kappas[0] = NDF_MAX_KAPPA;
 }
 
 // The vMF lobes of material m's fitted level `level` about `uv`, bilinear between the four
@@ -106,38 +105,40 @@ fn ndf_add_level(ndf: ptr<function, SurfaceNdf>, m: u32, level: i32, uv: vec2<f3
     }
 }
 
-// The NDF of material m's normal map over this pixel's footprint at `uv`, on the surface of
-// unit normal `n` and tangent `tangent` (the frame [t, n x t, n] of common.wgsl). Call it
-// where control flow is uniform: it takes the UV's screen derivatives.
-fn surface_ndf(m: u32, uv_in: vec2<f32>, n: vec3<f32>, tangent: vec3<f32>) -> SurfaceNdf {
+// Sets `ndf` to the NDF of material m's normal map over this pixel's footprint at `uv`, on
+// the surface of unit normal `n` and tangent `tangent` (the frame [t, n x t, n] of
+// common.wgsl); without a map, a delta at `n`. Call it where control flow is uniform: it takes
+// the UV's screen derivatives (the maps are then read only where a material has one).
+fn surface_ndf(ndf: ptr<function, SurfaceNdf>, m: u32, uv_in: vec2<f32>, n: vec3<f32>, tangent: vec3<f32>) {
     let settings = normal_maps.materials[m];
     let uv = uv_in * settings.y;
     let du = dpdx(uv);
     let dv = dpdy(uv);
+    let method = i32(settings.x + 0.5);
+    ndf_set_flat(ndf, n);
+    if (method == 0) {
+        return;
+    }
     let layer = i32(settings.w);
     let a = textureSampleGrad(normal_moments_a, normal_sampler, uv, layer, du, dv);
     let b = textureSampleGrad(normal_moments_b, normal_sampler, uv, layer, du, dv);
-    let method = i32(settings.x + 0.5);
-    if (method == 0) {
-        return ndf_flat(n);
-    }
     let t = frame_tangent(n, tangent);
     let frame = mat3x3<f32>(t, cross(n, t), n);
     let mean = frame * a.xyz;
     let zz = 1.0 - a.w - b.x;
     let second_t = mat3x3<f32>(vec3<f32>(a.w, b.y, b.z), vec3<f32>(b.y, b.x, b.w), vec3<f32>(b.z, b.w, zz));
-    var ndf = ndf_flat(normalize(select(n, mean, dot(mean, mean) > 1e-12)));
-    ndf.method = method;
+    ndf_set_flat(ndf, normalize(select(n, mean, dot(mean, mean) > 1e-12)));
+    (*ndf).method = method;
     if (method == 4) {
-        return ndf;
+        return;
     }
-    ndf.mean = mean;
-    ndf.second = frame * second_t * transpose(frame);
-    ndf.kappa = ndf_kappa(length(a.xyz));
-    ndf.kappas[0] = ndf.kappa;
+    (*ndf).mean = mean;
+    (*ndf).second = frame * second_t * transpose(frame);
+    (*ndf).kappa = ndf_kappa(length(a.xyz));
+    (*ndf).kappas[0] = (*ndf).kappa;
     let levels = i32(settings.z);
     if (method != 2 || levels == 0) {
-        return ndf;
+        return;
     }
     // vMF lobes: the two fitted levels about the footprint's (the side of its area), each
     // bilinear between texels, blended.
@@ -146,12 +147,11 @@ fn surface_ndf(m: u32, uv_in: vec2<f32>, n: vec3<f32>, tangent: vec3<f32>) -> Su
     let lod = clamp(log2(max(footprint, 1e-6)), 0.0, f32(levels - 1));
     let low = i32(floor(lod));
     let share = lod - f32(low);
-    ndf.count = 0;
-    ndf_add_level(&ndf, m, low, uv, map_size, frame, 1.0 - share);
+    (*ndf).count = 0;
+    ndf_add_level(ndf, m, low, uv, map_size, frame, 1.0 - share);
     if (low + 1 < levels && share > 0.0) {
-        ndf_add_level(&ndf, m, low + 1, uv, map_size, frame, share);
+        ndf_add_level(ndf, m, low + 1, uv, map_size, frame, share);
     }
-    return ndf;
 }
 
 // E[Y_lm(n)] for l <= 2 (nodes NdfMoments::sh; Toksvig: Y_lm at the mean direction attenuated
@@ -249,7 +249,8 @@ fn ndf_vertex_diffuse_scale(ndf: ptr<function, SurfaceNdf>, n: vec3<f32>) -> vec
         return vec3<f32>(1.0);
     }
     let filtered_basis = ndf_sh9(ndf);
-    var flat_ndf = ndf_flat(n);
+    var flat_ndf: SurfaceNdf;
+    ndf_set_flat(&flat_ndf, n);
     flat_ndf.method = 1;
     let flat_basis = ndf_sh9(&flat_ndf);
     var filtered = vec3<f32>(0.0);

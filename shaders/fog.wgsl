@@ -211,7 +211,7 @@ fn fog_shade(lit_in: vec3<f32>, p: vec3<f32>, n: vec3<f32>, tangent: vec3<f32>, 
             }
             // Through a normal map: Lambert over the NDF, and the lobe per lobe of normals,
             // widened (normal_map.wgsl), relative to ks's normalisation and cosine.
-            if ((*ndf).method != 0 && cos_s > 0.0) {
+            if (ndf_mapped(ndf) && cos_s > 0.0) {
                 reflected = direct * ndf_direct_diffuse(ndf, to_light / d_sp);
                 if (glossy) {
                     var sum = 0.0;

@@ -41,13 +41,17 @@ fn vs_main(v: MeshVertex) -> VertexOut {
 // mean direction, attenuated (normal_map.wgsl).
 fn sh_irradiance(ndf: ptr<function, SurfaceNdf>, bands: i32) -> vec3<f32> {
     var result = vec3<f32>(0.0);
-    var low = ndf_sh9(ndf);
+    var low: array<f32, 9>;
+    let mapped = ndf_mapped(ndf);
+    if (mapped) {
+        low = ndf_sh9(ndf);
+    }
     var walk = sh_walk((*ndf).normal, bands);
     while (sh_walk_next(&walk)) {
         let base = walk.l * (walk.l + 1);
         var cos_y = walk.cos_y;
         var sin_y = walk.sin_y;
-        if ((*ndf).method != 0) {
+        if (mapped) {
             if (walk.l <= 2) {
                 cos_y = low[base + walk.m];
                 sin_y = low[base - walk.m];

@@ -55,6 +55,13 @@ struct SurfaceNdf {
     kappas: array<f32, 48>,
 };
 
+// Whether the pixel shades through a normal map. `NORMAL_MAPS` is a constant each pipeline is
+// composed with (`passes::compose`): frames without a mapped material draw with it false, and
+// every normal-map path folds away (the pixel's lobes are then never read, nor initialised).
+fn ndf_mapped(ndf: ptr<function, SurfaceNdf>) -> bool {
+    return NORMAL_MAPS && (*ndf).method != 0;
+}
+
 // Banerjee et al.'s κ for a mean resultant length r (nodes Vmf::kappa_from_mean_length).
 fn ndf_kappa(r: f32) -> f32 {
     let c = clamp(r, 0.0, 1.0);
@@ -116,7 +123,7 @@ fn surface_ndf(ndf: ptr<function, SurfaceNdf>, m: u32, uv_in: vec2<f32>, n: vec3
     let dv = dpdy(uv);
     let method = i32(settings.x + 0.5);
     ndf_set_flat(ndf, n);
-    if (method == 0) {
+    if (!NORMAL_MAPS || method == 0) {
         return;
     }
     let layer = i32(settings.w);
@@ -245,7 +252,7 @@ fn ndf_widened_lobe(lobe: vec4<f32>, kappa: f32) -> array<vec4<f32>, 2> {
 // The per-pixel factor on a mode's per-vertex diffuse light: the transported light's irradiance
 // averaged over the NDF over the same at the geometric normal `n` (1 without a map).
 fn ndf_vertex_diffuse_scale(ndf: ptr<function, SurfaceNdf>, n: vec3<f32>) -> vec3<f32> {
-    if ((*ndf).method == 0 || normal_maps.flags.x < 0.5) {
+    if (!ndf_mapped(ndf) || normal_maps.flags.x < 0.5) {
         return vec3<f32>(1.0);
     }
     let filtered_basis = ndf_sh9(ndf);

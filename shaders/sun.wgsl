@@ -132,14 +132,17 @@ fn sun_direct(p: vec3<f32>, n: vec3<f32>, tangent: vec3<f32>, wo: vec3<f32>, kd:
     let cos_r = sun.axis.w;
     let above = cos_axis * cos_axis >= 1.0 - cos_r * cos_r && cos_axis > 0.0;
     if (lit && above && !glossy) {
-        let cosine = select(cos_axis, ndf_direct_diffuse(ndf, sun.axis.xyz), (*ndf).method != 0);
+        var cosine = cos_axis;
+        if (ndf_mapped(ndf)) {
+            cosine = ndf_direct_diffuse(ndf, sun.axis.xyz);
+        }
         return kd * (cosine * (1.0 + cos_r) * 0.5 * f32(count)) * sun.irradiance.rgb;
     }
     // Through a normal map, wholly lit: the diffuse light by the cap's closed form, and each lobe
     // of normals that spreads the highlight well past the disc (its normals' variance 1/κ over
     // four times the disc's half-vector variance r²/16) evaluated once, at the axis, widened by
     // the disc as well; sharper lobes take every direction.
-    if (lit && above && (*ndf).method != 0) {
+    if (lit && above && ndf_mapped(ndf)) {
         let r2 = max(1.0 - cos_r * cos_r, 0.0);
         var lobes = 0.0;
         for (var j = 0; j < (*ndf).count; j = j + 1) {
@@ -175,7 +178,7 @@ fn sun_direct(p: vec3<f32>, n: vec3<f32>, tangent: vec3<f32>, wo: vec3<f32>, kd:
             visible = sun_visibility(k, shifted);
         }
         var reflected = kd * cos_i;
-        if ((*ndf).method != 0) {
+        if (ndf_mapped(ndf)) {
             reflected = kd * ndf_direct_diffuse(ndf, d);
             if (glossy) {
                 var lobes = 0.0;

@@ -196,15 +196,16 @@ impl ViewportRenderer {
             pass.set_bind_group(1, &self.medium.bind_group, &[]);
             pass.set_bind_group(3, &self.sun.bind_group, &[]);
             pass.set_bind_group(4, &self.normal_maps.bind_group, &[]);
-            self.background.draw(&mut pass, None);
+            let mapped = frame.normal_maps.materials.iter().any(Option::is_some);
+            self.background.draw(&mut pass, None, mapped);
             let surfaces: &dyn Draw = match &frame.surfaces {
                 Surfaces::Irradiance(_) => &self.irradiance,
                 Surfaces::Prt(_) => &self.prt,
                 Surfaces::Wavelet(_) => &self.wavelet,
                 Surfaces::Rsl(_) => &self.rsl,
             };
-            surfaces.draw(&mut pass, self.geometry.as_ref());
-            self.area_lights.draw(&mut pass, self.geometry.as_ref());
+            surfaces.draw(&mut pass, self.geometry.as_ref(), mapped);
+            self.area_lights.draw(&mut pass, self.geometry.as_ref(), mapped);
         }
         gpu.queue.submit(Some(encoder.finish()));
         self.tone_map(gpu, frame.settings.exposure, frame.settings.tonemap);

@@ -85,7 +85,7 @@ impl Pass for AreaLightPass {
 }
 
 impl Draw for AreaLightPass {
-    fn draw(&self, pass: &mut wgpu::RenderPass<'_>, geometry: Option<&GeometryBuffers>) {
+    fn draw(&self, pass: &mut wgpu::RenderPass<'_>, geometry: Option<&GeometryBuffers>, _: bool) {
         let (Some(geometry), Some((_, bind_group))) = (geometry, &self.bound) else { return };
         pass.set_pipeline(&self.pipeline);
         pass.set_bind_group(2, bind_group, &[]);

@@ -69,7 +69,7 @@ impl Pass for BackgroundPass {
 }
 
 impl Draw for BackgroundPass {
-    fn draw(&self, pass: &mut wgpu::RenderPass<'_>, _: Option<&GeometryBuffers>) {
+    fn draw(&self, pass: &mut wgpu::RenderPass<'_>, _: Option<&GeometryBuffers>, _: bool) {
         pass.set_pipeline(&self.pipeline);
         pass.set_bind_group(2, &self.bind_group, &[]);
         pass.draw(0..3, 0..1);

@@ -19,7 +19,7 @@ pub(crate) struct IrradianceParams {
 }
 
 pub(crate) struct IrradiancePass {
-    pipeline: wgpu::RenderPipeline,
+    pipeline: super::SurfacePipelines,
     params: wgpu::Buffer,
     bind_group: wgpu::BindGroup,
 }
@@ -61,9 +61,9 @@ impl Pass for IrradiancePass {
 }
 
 impl Draw for IrradiancePass {
-    fn draw(&self, pass: &mut wgpu::RenderPass<'_>, geometry: Option<&GeometryBuffers>) {
+    fn draw(&self, pass: &mut wgpu::RenderPass<'_>, geometry: Option<&GeometryBuffers>, normal_maps: bool) {
         let Some(geometry) = geometry else { return };
-        pass.set_pipeline(&self.pipeline);
+        pass.set_pipeline(self.pipeline.get(normal_maps));
         pass.set_bind_group(2, &self.bind_group, &[]);
         geometry.draw(pass);
     }

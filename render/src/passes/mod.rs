@@ -40,8 +40,22 @@ pub(crate) trait Pass: Draw {
 }
 
 pub(crate) trait Draw {
-    /// Records the pass's draws into the scene pass (groups 0 and 1 bound).
-    fn draw(&self, pass: &mut wgpu::RenderPass<'_>, geometry: Option<&GeometryBuffers>);
+    /// Records the pass's draws into the scene pass (groups 0, 1, 3 and 4 bound), with the
+    /// pipelines that shade normal maps when `normal_maps` (a material of the frame has one).
+    fn draw(&self, pass: &mut wgpu::RenderPass<'_>, geometry: Option<&GeometryBuffers>, normal_maps: bool);
+}
+
+/// A surface pass's two pipelines: one shading normal maps, one composed without them (every
+/// normal-map path folded away, for frames without a mapped material).
+pub(crate) struct SurfacePipelines {
+    mapped: wgpu::RenderPipeline,
+    plain: wgpu::RenderPipeline,
+}
+
+impl SurfacePipelines {
+    pub fn get(&self, normal_maps: bool) -> &wgpu::RenderPipeline {
+        if normal_maps { &self.mapped } else { &self.plain }
+    }
 }
 
 /// What every scene pass's pipeline shares: the device, the shared bind group layouts, the
@@ -58,8 +72,11 @@ pub(crate) struct PassSetup<'a> {
 impl PassSetup<'_> {
     /// A pipeline drawing the scene's meshes with `shader` (composed with the prelude), its own
     /// bind group `own` as group 2, depth-tested.
-    pub fn surface_pipeline(&self, shader: (&str, &str), own: &wgpu::BindGroupLayout) -> wgpu::RenderPipeline {
-        self.mesh_pipeline(shader, own, Depth::Write, None)
+    pub fn surface_pipeline(&self, shader: (&str, &str), own: &wgpu::BindGroupLayout) -> SurfacePipelines {
+        SurfacePipelines {
+            mapped: self.mesh_pipeline(shader, own, Depth::Write, None, true),
+            plain: self.mesh_pipeline(shader, own, Depth::Write, None, false),
+        }
     }
 
     /// A pipeline adding `shader`'s output onto the surfaces already drawn (same meshes, depth
@@ -70,7 +87,7 @@ impl PassSetup<'_> {
             dst_factor: wgpu::BlendFactor::One,
             operation: wgpu::BlendOperation::Add,
         };
-        self.mesh_pipeline(shader, own, Depth::Equal, Some(wgpu::BlendState { color: add, alpha: add }))
+        self.mesh_pipeline(shader, own, Depth::Equal, Some(wgpu::BlendState { color: add, alpha: add }), true)
     }
 
     /// A pipeline over the shared mesh vertex buffer.
@@ -80,6 +97,7 @@ impl PassSetup<'_> {
         own: &wgpu::BindGroupLayout,
         depth: Depth,
         blend: Option<wgpu::BlendState>,
+        normal_maps: bool,
     ) -> wgpu::RenderPipeline {
         let attributes = geometry::VERTEX_ATTRIBUTES;
         let buffers = [Some(wgpu::VertexBufferLayout {
@@ -87,12 +105,12 @@ impl PassSetup<'_> {
             step_mode: wgpu::VertexStepMode::Vertex,
             attributes: &attributes,
         })];
-        self.pipeline(shader, own, &buffers, depth, blend)
+        self.pipeline(shader, own, &buffers, depth, blend, normal_maps)
     }
 
     /// A pipeline drawing one screen-covering triangle behind everything.
     pub fn fullscreen_pipeline(&self, shader: (&str, &str), own: &wgpu::BindGroupLayout) -> wgpu::RenderPipeline {
-        self.pipeline(shader, own, &[], Depth::Behind, None)
+        self.pipeline(shader, own, &[], Depth::Behind, None, true)
     }
 
     fn pipeline(
@@ -102,10 +120,11 @@ impl PassSetup<'_> {
         buffers: &[Option<wgpu::VertexBufferLayout<'_>>],
         depth: Depth,
         blend: Option<wgpu::BlendState>,
+        normal_maps: bool,
     ) -> wgpu::RenderPipeline {
         let module = self.device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some(label),
-            source: wgpu::ShaderSource::Wgsl(compose(source).into()),
+            source: wgpu::ShaderSource::Wgsl(compose_with(source, normal_maps).into()),
         });
         let layout = self.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some(label),
@@ -172,8 +191,16 @@ const SCENE_SHADERS: [(&str, &str); 6] =
 /// this is the one place modules are joined, and `shaders_compose_and_match_the_rust_uniforms`
 /// checks that every composed shader parses and validates and that each uniform struct has
 /// the Rust layout its pass writes.
+#[cfg(test)]
 pub(crate) fn compose(source: &str) -> String {
-    let mut out = SHADER_PRELUDE.join("\n");
+    compose_with(source, true)
+}
+
+/// [`compose`], with the prelude's `NORMAL_MAPS` constant (`normal_map.wgsl`) set to
+/// `normal_maps`.
+pub(crate) fn compose_with(source: &str, normal_maps: bool) -> String {
+    let mut out = format!("const NORMAL_MAPS: bool = {normal_maps};\n");
+    out.push_str(&SHADER_PRELUDE.join("\n"));
     out.push('\n');
     out.push_str(source);
     out
@@ -393,6 +420,15 @@ mod layout_tests {
         use std::mem::{offset_of, size_of};
         let mut modules = Vec::new();
         let tonemap = tonemap::SHADER;
+        // Each scene shader without normal maps too (its pipelines for frames without one).
+        for (label, source) in SCENE_SHADERS {
+            let source = compose_with(source, false);
+            let module = naga::front::wgsl::parse_str(&source)
+                .unwrap_or_else(|e| panic!("{label} without normal maps: {}", e.emit_to_string(&source)));
+            naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::all())
+                .validate(&module)
+                .unwrap_or_else(|e| panic!("{label} without normal maps does not validate: {e:?}"));
+        }
         for (label, source) in
             SCENE_SHADERS.into_iter().map(|(l, s)| (l, compose(s))).chain([(tonemap.0, tonemap.1.into())])
         {

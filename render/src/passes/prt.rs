@@ -25,7 +25,7 @@ pub(crate) struct PrtParams {
 
 pub(crate) struct PrtPass {
     layout: wgpu::BindGroupLayout,
-    pipeline: wgpu::RenderPipeline,
+    pipeline: super::SurfacePipelines,
     params: wgpu::Buffer,
     /// The per-vertex buffers and the transport and incident stages they came from.
     bound: Option<((Key, Key), wgpu::BindGroup)>,
@@ -106,9 +106,9 @@ impl Pass for PrtPass {
 }
 
 impl Draw for PrtPass {
-    fn draw(&self, pass: &mut wgpu::RenderPass<'_>, geometry: Option<&GeometryBuffers>) {
+    fn draw(&self, pass: &mut wgpu::RenderPass<'_>, geometry: Option<&GeometryBuffers>, normal_maps: bool) {
         let (Some(geometry), Some((_, bind_group))) = (geometry, &self.bound) else { return };
-        pass.set_pipeline(&self.pipeline);
+        pass.set_pipeline(self.pipeline.get(normal_maps));
         pass.set_bind_group(2, bind_group, &[]);
         geometry.draw(pass);
     }

@@ -28,7 +28,7 @@ struct Bound {
 
 pub(crate) struct RslPass {
     layout: wgpu::BindGroupLayout,
-    pipeline: wgpu::RenderPipeline,
+    pipeline: super::SurfacePipelines,
     params: wgpu::Buffer,
     bound: Option<Bound>,
 }
@@ -109,9 +109,9 @@ impl Pass for RslPass {
 }
 
 impl Draw for RslPass {
-    fn draw(&self, pass: &mut wgpu::RenderPass<'_>, geometry: Option<&GeometryBuffers>) {
+    fn draw(&self, pass: &mut wgpu::RenderPass<'_>, geometry: Option<&GeometryBuffers>, normal_maps: bool) {
         let (Some(geometry), Some(bound)) = (geometry, &self.bound) else { return };
-        pass.set_pipeline(&self.pipeline);
+        pass.set_pipeline(self.pipeline.get(normal_maps));
         pass.set_bind_group(2, &bound.bind_group, &[]);
         geometry.draw(pass);
     }

@@ -147,7 +147,7 @@ struct Bound {
 
 pub(crate) struct WaveletPass {
     layout: wgpu::BindGroupLayout,
-    pipeline: wgpu::RenderPipeline,
+    pipeline: super::SurfacePipelines,
     relight_layout: wgpu::BindGroupLayout,
     relight: wgpu::ComputePipeline,
     params: wgpu::Buffer,
@@ -487,9 +487,9 @@ impl Pass for WaveletPass {
 }
 
 impl Draw for WaveletPass {
-    fn draw(&self, pass: &mut wgpu::RenderPass<'_>, geometry: Option<&GeometryBuffers>) {
+    fn draw(&self, pass: &mut wgpu::RenderPass<'_>, geometry: Option<&GeometryBuffers>, normal_maps: bool) {
         let (Some(geometry), Some(bound)) = (geometry, &self.bound) else { return };
-        pass.set_pipeline(&self.pipeline);
+        pass.set_pipeline(self.pipeline.get(normal_maps));
         pass.set_bind_group(2, &bound.bind_group, &[]);
         geometry.draw(pass);
     }

@@ -96,6 +96,15 @@ fn sun_lobe_of(lobe: vec4<f32>, n: vec3<f32>, tangent: vec3<f32>, wi: vec3<f32>,
     return 0.0;
 }
 
+// Lobe `j` of the pixel's normals (normal_map.wgsl) lit from `d`: its weight times material
+// m's lobe about its mean, widened by a concentration `kappa` (with the factor that keeps its
+// integral), toward `wo`, times the cosine to that mean.
+fn sun_ndf_lobe(ndf: ptr<function, SurfaceNdf>, j: i32, m: u32, kappa: f32, tangent: vec3<f32>, d: vec3<f32>, wo: vec3<f32>) -> f32 {
+    let mu = (*ndf).lobes[j].xyz;
+    let widened = ndf_widened_lobe(sun.lobes[m], kappa);
+    return (*ndf).lobes[j].w * widened[1].w * sun_lobe_of(widened[0], mu, tangent, d, wo) * max(dot(mu, d), 0.0);
+}
+
 // Light reflected towards `wo` (unit, to the viewer) at `p` (normal `n`, tangent `tangent`)
 // from the sun: per direction, the shadow test times the cosine times Lambert `kd` plus
 // material `m`'s lobe (nodes/src/brdf.rs `Brdf::eval`).
@@ -146,19 +155,15 @@ fn sun_direct(p: vec3<f32>, n: vec3<f32>, tangent: vec3<f32>, wo: vec3<f32>, kd:
         let r2 = max(1.0 - cos_r * cos_r, 0.0);
         var lobes = 0.0;
         for (var j = 0; j < (*ndf).count; j = j + 1) {
-            let mu = (*ndf).lobes[j].xyz;
             let kappa = (*ndf).kappas[j];
             if (1.0 / kappa > r2 * 0.25) {
-                let widened = ndf_widened_lobe(sun.lobes[m], 1.0 / (1.0 / kappa + r2 / 16.0));
-                lobes = lobes + f32(count) * (*ndf).lobes[j].w * widened[1].w
-                    * sun_lobe_of(widened[0], mu, tangent, sun.axis.xyz, wo) * max(dot(mu, sun.axis.xyz), 0.0);
+                let wide = 1.0 / (1.0 / kappa + r2 / 16.0);
+                lobes = lobes + f32(count) * sun_ndf_lobe(ndf, j, m, wide, tangent, sun.axis.xyz, wo);
             } else {
-                let widened = ndf_widened_lobe(sun.lobes[m], kappa);
                 for (var k = 0; k < count; k = k + 1) {
                     let d = sun.directions[k].xyz;
                     if (dot(n, d) > 0.0) {
-                        lobes = lobes + (*ndf).lobes[j].w * widened[1].w * sun_lobe_of(widened[0], mu, tangent, d, wo)
-                            * max(dot(mu, d), 0.0);
+                        lobes = lobes + sun_ndf_lobe(ndf, j, m, kappa, tangent, d, wo);
                     }
                 }
             }
@@ -183,9 +188,7 @@ fn sun_direct(p: vec3<f32>, n: vec3<f32>, tangent: vec3<f32>, wo: vec3<f32>, kd:
             if (glossy) {
                 var lobes = 0.0;
                 for (var j = 0; j < (*ndf).count; j = j + 1) {
-                    let mu = (*ndf).lobes[j].xyz;
-                    let widened = ndf_widened_lobe(sun.lobes[m], (*ndf).kappas[j]);
-                    lobes = lobes + (*ndf).lobes[j].w * widened[1].w * sun_lobe_of(widened[0], mu, tangent, d, wo) * max(dot(mu, d), 0.0);
+                    lobes = lobes + sun_ndf_lobe(ndf, j, m, (*ndf).kappas[j], tangent, d, wo);
                 }
                 reflected = reflected + colour * lobes;
             }

@@ -184,11 +184,7 @@ impl NormalMapFrame {
                 Some(detail.clone())
             })
             .collect();
-        let vertex_diffuse_scale = transported.filter(|_| per_vertex).map(|light| {
-            let e = light.irradiance();
-            let bands = e.bands.min(3);
-            ShRgb { bands, coeffs: e.coeffs[..bands * bands].to_vec() }
-        });
+        let vertex_diffuse_scale = transported.filter(|_| per_vertex).map(|light| light.irradiance().truncated(3));
         Self { materials, vertex_diffuse_scale }
     }
 }
@@ -214,11 +210,7 @@ pub struct IrradianceSurfaces {
 impl IrradianceSurfaces {
     /// `light` is the environment's SH radiance; in fog, surfaces see it through the medium.
     pub fn new(light: Option<&ShRgb>, fog: Option<&FoggedEnvironment>, materials: &[FrameMaterial]) -> Self {
-        let irradiance = light.map(|light| {
-            let light = fog.map_or(light, |f| &f.fogged).irradiance();
-            let bands = light.bands.min(IRRADIANCE_BANDS);
-            ShRgb { bands, coeffs: light.coeffs[..bands * bands].to_vec() }
-        });
+        let irradiance = light.map(|light| fog.map_or(light, |f| &f.fogged).irradiance().truncated(IRRADIANCE_BANDS));
         Self { irradiance, albedo: materials.iter().map(|m| m.material.albedo).collect() }
     }
 }
@@ -767,9 +759,14 @@ pub struct FogFrame {
 }
 
 impl FrameInputs {
+    /// The frame material of mesh `i`.
+    pub fn mesh_frame_material(&self, i: usize) -> &FrameMaterial {
+        &self.materials[self.geometry.mesh_materials.get(i).copied().unwrap_or(0) as usize]
+    }
+
     /// The material of mesh `i`.
     pub fn mesh_material(&self, i: usize) -> &Material {
-        &self.materials[self.geometry.mesh_materials.get(i).copied().unwrap_or(0) as usize].material
+        &self.mesh_frame_material(i).material
     }
 
     /// The Monte Carlo reference of this frame (see [`crate::reference`]).
@@ -792,8 +789,7 @@ impl FrameInputs {
         };
         let normal_maps: Vec<Option<(&crate::normal_filtering::NormalMap, f64)>> = (0..meshes.meshes.len())
             .map(|i| {
-                let material = &self.materials[self.geometry.mesh_materials.get(i).copied().unwrap_or(0) as usize];
-                let detail = material.normal.as_ref()?;
+                let detail = self.mesh_frame_material(i).normal.as_ref()?;
                 let map = detail.map.value.get::<crate::normal_filtering::NormalMap>()?;
                 (!map.normals.is_empty()).then_some((map, detail.settings.tiling))
             })

@@ -225,6 +225,10 @@ fn report(name: &str, distances: &[f64], rows: &[Row]) {
 
 const DISTANCES: [f64; 4] = [2.0, 5.0, 12.0, 30.0];
 
+/// The experiments' glossy material: Blinn-Phong of exponent 200.
+const GLOSSY: &str =
+    r#""model": Choice("blinn_phong"), "exponent": Float(200.0), "f0": Float(0.5), "albedo": Color((0.3, 0.3, 0.3))"#;
+
 /// Glossy Blinn-Phong (exponent 200) on the plane under a sun it mirrors to the camera: at every
 /// distance each filter beats averaged normals and the vMF mixture's picture (8 × 8 block
 /// means) beats Toksvig's; per pixel the vMF mixture beats Toksvig once a pixel covers several
@@ -232,7 +236,7 @@ const DISTANCES: [f64; 4] = [2.0, 5.0, 12.0, 30.0];
 /// own smooth average; every filter keeps the energy within 5%.
 #[test]
 fn glossy_plane_filtered_beats_averaged_normals_from_near_to_far() {
-    let material = r#""model": Choice("blinn_phong"), "exponent": Float(200.0), "f0": Float(0.5), "albedo": Color((0.3, 0.3, 0.3))"#;
+    let material = GLOSSY;
     let rows = errors(&Experiment {
         shape: "Plane(size: 200.0)",
         material,
@@ -266,7 +270,7 @@ fn glossy_plane_filtered_beats_averaged_normals_from_near_to_far() {
 /// keeps the energy within 5%, and the vMF mixture beats Toksvig per pixel and per block.
 #[test]
 fn glossy_sphere_filtered_beats_averaged_normals_from_near_to_far() {
-    let material = r#""model": Choice("blinn_phong"), "exponent": Float(200.0), "f0": Float(0.5), "albedo": Color((0.3, 0.3, 0.3))"#;
+    let material = GLOSSY;
     let distances = [2.5, 5.0, 9.0, 15.0];
     let rows = errors(&Experiment {
         shape: "Sphere(radius: 1.0)",
@@ -300,7 +304,7 @@ fn a_flat_map_draws_the_unmapped_picture_and_the_furnace_stays_white() {
     let mut renderer = ViewportRenderer::new(&gpu);
     let engine = Engine::in_memory();
     let dir = tempfile::tempdir().unwrap();
-    let glossy = r#""model": Choice("blinn_phong"), "exponent": Float(200.0), "f0": Float(0.5), "albedo": Color((0.3, 0.3, 0.3))"#;
+    let glossy = GLOSSY;
     let (_, view) = camera([0.0; 3], 6.0);
     let cases = ["sh_irradiance", "sh_prt", "wavelet_vertex"].into_iter().flat_map(|mode| {
         [(mode, Light::Sun, glossy, 0.0, 5e-3), (mode, Light::Furnace, r#""model": Choice("lambert")"#, 1.0, 0.01)]

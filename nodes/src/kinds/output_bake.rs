@@ -363,8 +363,7 @@ fn bake_environment(ctx: &StageContext) -> Result<StageValue, StageError> {
     let sh = ctx.required_input::<crate::sh::ShRgb>("environment", "sh")?;
     let size: usize =
         ctx.choice("bake_cube_size")?.parse().map_err(|_| StageError::Internal("bake_cube_size".into()))?;
-    let bands = sh.bands.min(3);
-    let sh = crate::sh::ShRgb { bands, coeffs: sh.coeffs[..bands * bands].to_vec() };
+    let sh = sh.truncated(3);
     let specular = crate::bake::environment::prefilter(cube, size, ctx.cancel_token())?;
     ctx.inform(format!("specular cube {}² with {} roughness levels", specular.levels[0].size, specular.levels.len()));
     Ok(StageValue::new(crate::bake::environment::EnvironmentBake { sh, cube: specular }))

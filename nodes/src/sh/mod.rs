@@ -230,6 +230,12 @@ impl ShRgb {
         Self { bands, coeffs: vec![[0.0; 3]; coeff_count(bands)] }
     }
 
+    /// Its first `bands` bands (all of it when it has no more).
+    pub fn truncated(&self, bands: usize) -> Self {
+        let bands = self.bands.min(bands);
+        Self { bands, coeffs: self.coeffs[..coeff_count(bands)].to_vec() }
+    }
+
     /// One colour channel as a scalar SH vector.
     pub fn channel(&self, c: usize) -> Vec<f64> {
         self.coeffs.iter().map(|v| v[c]).collect()

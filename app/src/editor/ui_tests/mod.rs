@@ -964,13 +964,7 @@ fn small_stumbles_are_gone() {
 #[test]
 fn a_sample_opens_from_the_file_menu() {
     let mut harness = default_harness();
-    harness.get_by_label("File").click();
-    harness.run_steps(2);
-    harness.get_by_label_contains("Open sample").hover();
-    harness.run_steps(2);
-    harness.run_steps(2);
-    harness.get_by_label_contains("glossy objects under a courtyard HDRI").click();
-    harness.run_steps(2);
+    open_sample(&mut harness, "glossy objects under a courtyard HDRI");
     assert_eq!(harness.state().doc.path, None, "a copy, not the sample file");
     assert!(harness.state().doc.project.name.contains("courtyard"));
     settle(&mut harness);
@@ -980,18 +974,23 @@ fn a_sample_opens_from_the_file_menu() {
     harness.render().unwrap().save(state_dir().join("sample.png")).unwrap();
 }
 
+/// File → Open sample → the sample whose name contains `name`, as a user picks it.
+fn open_sample(harness: &mut Harness<'_, EditorApp>, name: &str) {
+    harness.get_by_label("File").click();
+    harness.run_steps(2);
+    harness.get_by_label_contains("Open sample").hover();
+    harness.run_steps(4);
+    harness.get_by_label_contains(name).click();
+    harness.run_steps(2);
+}
+
 /// A normal map as a user meets it: the hammered-metal sample opens from the file menu and
 /// draws; its BRDF node shows the map's preview beside the lobe plot; picking another filter in
 /// the inspector redraws the viewport without reloading the map or rebuilding its pyramids.
 #[test]
 fn a_normal_mapped_sample_previews_its_map_and_filters_from_the_inspector() {
     let mut harness = default_harness();
-    harness.get_by_label("File").click();
-    harness.run_steps(2);
-    harness.get_by_label_contains("Open sample").hover();
-    harness.run_steps(4);
-    harness.get_by_label_contains("hammered metal").click();
-    harness.run_steps(2);
+    open_sample(&mut harness, "hammered metal");
     settle(&mut harness);
     let problems: Vec<String> = harness.state().problems().into_iter().filter(|p| p.starts_with("error")).collect();
     assert!(problems.is_empty(), "{problems:?}");

@@ -16,7 +16,7 @@ struct MeshVertex {
     @location(0) position: vec3<f32>,
     @location(1) normal: vec3<f32>,
     @location(2) color: vec3<f32>,
-    @location(3) tangent: vec3<f32>,
+    @location(3) tangent: vec4<f32>,
     @location(4) uv: vec2<f32>,
     @location(5) material: u32,
 };

@@ -19,7 +19,7 @@ struct VertexOut {
     @location(1) color: vec3<f32>,
     @location(2) @interpolate(flat) material: u32,
     @location(3) world: vec3<f32>,
-    @location(4) tangent: vec3<f32>,
+    @location(4) tangent: vec4<f32>,
     @location(5) uv: vec2<f32>,
 };
 
@@ -80,5 +80,5 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) ve
         irradiance = max(sh_irradiance(&ndf, bands), vec3<f32>(0.0));
     }
     let kd = sh.albedo[in.material].rgb * in.color / PI;
-    return vec4<f32>(fog_shade(kd * irradiance, in.world, n, in.tangent, kd, in.material, &ndf), 1.0);
+    return vec4<f32>(fog_shade(kd * irradiance, in.world, n, in.tangent.xyz, kd, in.material, &ndf), 1.0);
 }

@@ -2,7 +2,8 @@
 //   diffuse  B_d = albedo/pi * sum_k T_k L_k          (shadowed cosine transfer T)
 //   glossy   B_s = w * max(n.r, 0) * sum_lm f_l R_lm Y_lm(r)
 // with R = L*V the shadowed incident radiance (Gaunt product, precomputed per vertex), r the
-// mirror direction of the view, f_l the per-band factors of the material's Phong lobe.
+// mirror direction of the view, f_l the per-band factors of the material's Phong lobe. Under a
+// normal map each pixel corrects B_s for its NDF (normal_map.wgsl ndf_vertex_highlight).
 
 
 struct PrtParams {
@@ -51,9 +52,11 @@ struct VertexOut {
     @location(2) normal: vec3<f32>,
     @location(3) kd: vec3<f32>,
     @location(4) @interpolate(flat) material: u32,
-    @location(5) tangent: vec3<f32>,
+    @location(5) tangent: vec4<f32>,
     @location(6) glossy: vec3<f32>,
     @location(7) uv: vec2<f32>,
+    // How open the vertex is to the transported light (normal_map.wgsl ndf_open_fraction).
+    @location(8) open: vec3<f32>,
 };
 
 @vertex
@@ -70,6 +73,7 @@ fn vs_main(v: MeshVertex, @builtin(vertex_index) index: u32) -> VertexOut {
     let m = v.material;
     out.color = prt.albedo[m].rgb * v.color * max(diffuse, vec3<f32>(0.0)) / PI;
     out.glossy = vec3<f32>(0.0);
+    out.open = ndf_open_fraction(diffuse, normalize(v.normal));
     if (prt.counts.w > 0u && prt.specular[m].w > 0.0) {
         let n = normalize(v.normal);
         let view = normalize(globals.camera_pos.xyz - v.position);
@@ -91,6 +95,11 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     let n = normalize(in.normal);
     var ndf: SurfaceNdf;
     surface_ndf(&ndf, in.material, in.uv, n, in.tangent);
-    let lit = in.color * ndf_vertex_diffuse_scale(&ndf, n) + in.glossy;
-    return vec4<f32>(fog_shade(lit, in.world, n, in.tangent, in.kd, in.material, &ndf), 1.0);
+    var glossy = in.glossy;
+    if (prt.counts.w > 0u && prt.specular[in.material].w > 0.0) {
+        let view = normalize(globals.camera_pos.xyz - in.world);
+        glossy = max(glossy + ndf_vertex_highlight(&ndf, n, view, in.material, in.open), vec3<f32>(0.0));
+    }
+    let lit = in.color * ndf_vertex_diffuse_scale(&ndf, n) + glossy;
+    return vec4<f32>(fog_shade(lit, in.world, n, in.tangent.xyz, in.kd, in.material, &ndf), 1.0);
 }

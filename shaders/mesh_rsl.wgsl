@@ -113,7 +113,7 @@ struct VertexOut {
     @location(2) @interpolate(flat) material: u32,
     @location(3) position: vec3<f32>,
     @location(4) normal: vec3<f32>,
-    @location(5) tangent: vec3<f32>,
+    @location(5) tangent: vec4<f32>,
     @location(6) uv: vec2<f32>,
 };
 
@@ -129,7 +129,7 @@ fn vs_main(v: MeshVertex, @builtin(vertex_index) index: u32) -> VertexOut {
     out.uv = v.uv;
     out.albedo = rp.albedo[m].rgb * v.color;
     let n = normalize(v.normal);
-    let t = frame_tangent(n, v.tangent);
+    let t = frame_tangent(n, v.tangent.xyz);
     let b = cross(n, t);
     let view = normalize(globals.camera_pos.xyz - v.position);
     let wo = vec3<f32>(dot(view, t), dot(view, b), dot(view, n));
@@ -158,5 +158,5 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     // The square lights' shading is per vertex: a normal map shades the sun and point lights.
     var ndf: SurfaceNdf;
     surface_ndf(&ndf, in.material, in.uv, n, in.tangent);
-    return vec4<f32>(fog_shade(in.radiance, in.position, n, in.tangent, in.albedo / PI, in.material, &ndf), 1.0);
+    return vec4<f32>(fog_shade(in.radiance, in.position, n, in.tangent.xyz, in.albedo / PI, in.material, &ndf), 1.0);
 }

@@ -7,6 +7,8 @@
 // expressed in the frame [t, n x t, n].
 // Kept detail terms (nodes/src/triple_product/details.rs) add sum_k d_k T_{4n+k}(w_o) per kept
 // node n to the glossy sum, T the fine lobe table on the two levels below the cells.
+// Under a normal map each pixel corrects the glossy sum for its NDF (normal_map.wgsl
+// ndf_vertex_highlight).
 // Per vertex everywhere; in `wavelet_pixel`, meshes with a visibility texture are shaded per
 // pixel from their texels instead: E and P of the four nearest texels, weighted bilinearly.
 
@@ -143,7 +145,9 @@ struct VertexOut {
     @location(5) @interpolate(flat) material: u32,
     @location(6) position: vec3<f32>,
     @location(7) normal: vec3<f32>,
-    @location(8) tangent: vec3<f32>,
+    @location(8) tangent: vec4<f32>,
+    // How open the vertex is to the transported light (normal_map.wgsl ndf_open_fraction).
+    @location(9) open: vec3<f32>,
 };
 
 @vertex
@@ -162,7 +166,8 @@ fn vs_main(v: MeshVertex, @builtin(vertex_index) index: u32) -> VertexOut {
     let cells = wp.counts.x;
     let base = index * cells;
     out.diffuse = out.albedo * irradiance[index].rgb;
-    let wo = local_view(v.position, v.normal, v.tangent);
+    out.open = ndf_open_fraction(PI * irradiance[index].rgb, normalize(v.normal));
+    let wo = local_view(v.position, v.normal, v.tangent.xyz);
     if (wp.specular[m].w > 0.0 && wo.z > 0.0) {
         let rows = table_rows(wo, m);
         var glossy = vec3<f32>(0.0);
@@ -191,9 +196,15 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     var ndf: SurfaceNdf;
     surface_ndf(&ndf, in.material, in.uv, n, in.tangent);
     let diffuse_scale = ndf_vertex_diffuse_scale(&ndf, n);
+    let view = normalize(globals.camera_pos.xyz - in.position);
+    let glossy = wp.specular[in.material].w > 0.0 && dot(view, n) > 0.0;
     if (wp.texels.x == 0u || in.layer < 0) {
-        let lit = in.diffuse * diffuse_scale + in.specular;
-        return vec4<f32>(fog_shade(lit, in.position, n, in.tangent, in.albedo / PI, in.material, &ndf), 1.0);
+        var specular = in.specular;
+        if (glossy) {
+            specular = max(specular + ndf_vertex_highlight(&ndf, n, view, in.material, in.open), vec3<f32>(0.0));
+        }
+        let lit = in.diffuse * diffuse_scale + specular;
+        return vec4<f32>(fog_shade(lit, in.position, n, in.tangent.xyz, in.albedo / PI, in.material, &ndf), 1.0);
     }
     let m = in.material;
     // The four texels around the pixel (texel centres at (x + 0.5) / size), clamped at the
@@ -213,9 +224,10 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     let s11 = layer + y1 * size + x1;
     let e_top = mix(texel_irradiance[s00].rgb, texel_irradiance[s01].rgb, w.x);
     let e_bottom = mix(texel_irradiance[s10].rgb, texel_irradiance[s11].rgb, w.x);
-    let diffuse = in.albedo * mix(e_top, e_bottom, w.y);
+    let e = mix(e_top, e_bottom, w.y);
+    let diffuse = in.albedo * e;
     var specular = vec3<f32>(0.0);
-    let wo = local_view(in.position, in.normal, in.tangent);
+    let wo = local_view(in.position, in.normal, in.tangent.xyz);
     if (wp.specular[m].w > 0.0 && wo.z > 0.0) {
         let rows = table_rows(wo, m);
         let t00 = s00 * cells;
@@ -246,6 +258,9 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
         }
         specular = wp.specular[m].rgb * specular;
     }
+    if (glossy) {
+        specular = max(specular + ndf_vertex_highlight(&ndf, n, view, m, ndf_open_fraction(PI * e, n)), vec3<f32>(0.0));
+    }
     let lit = diffuse * diffuse_scale + specular;
-    return vec4<f32>(fog_shade(lit, in.position, n, in.tangent, in.albedo / PI, in.material, &ndf), 1.0);
+    return vec4<f32>(fog_shade(lit, in.position, n, in.tangent.xyz, in.albedo / PI, in.material, &ndf), 1.0);
 }

@@ -22,7 +22,15 @@ struct NormalMaps {
     // Per material and vMF level (material * 12 + level): first lobe, texels across and down,
     // map texels per texel side.
     vmf_levels: array<vec4<u32>, 96>,
+    // When flags.y is 1: L_lm (rgb) to band 7 of the unshadowed light the mode's per-vertex
+    // environment highlight carries; per material its equivalent Phong lobe's factors f_l
+    // (four per vector, material m: [2m, 2m + 1]) and weight (rgb; w 1 when glossy).
+    highlight_radiance: array<vec4<f32>, 64>,
+    highlight_factors: array<vec4<f32>, 16>,
+    highlight_weights: array<vec4<f32>, 8>,
 };
+
+const NDF_HIGHLIGHT_BANDS: i32 = 8;
 
 @group(4) @binding(0) var<uniform> normal_maps: NormalMaps;
 @group(4) @binding(1) var normal_moments_a: texture_2d_array<f32>;
@@ -113,10 +121,11 @@ fn ndf_add_level(ndf: ptr<function, SurfaceNdf>, m: u32, level: i32, uv: vec2<f3
 }
 
 // Sets `ndf` to the NDF of material m's normal map over this pixel's footprint at `uv`, on
-// the surface of unit normal `n` and tangent `tangent` (the frame [t, n x t, n] of
-// common.wgsl); without a map, a delta at `n`. Call it where control flow is uniform: it takes
+// the surface of unit normal `n` and tangent `tangent.xyz` (the frame [t, w n x t, n]: the
+// tangent of common.wgsl, and the bitangent on the side the sign of `tangent.w`, the vertex's
+// handedness, says); without a map, a delta at `n`. Call it where control flow is uniform: it takes
 // the UV's screen derivatives (the maps are then read only where a material has one).
-fn surface_ndf(ndf: ptr<function, SurfaceNdf>, m: u32, uv_in: vec2<f32>, n: vec3<f32>, tangent: vec3<f32>) {
+fn surface_ndf(ndf: ptr<function, SurfaceNdf>, m: u32, uv_in: vec2<f32>, n: vec3<f32>, tangent: vec4<f32>) {
     let settings = normal_maps.materials[m];
     let uv = uv_in * settings.y;
     let du = dpdx(uv);
@@ -129,8 +138,8 @@ fn surface_ndf(ndf: ptr<function, SurfaceNdf>, m: u32, uv_in: vec2<f32>, n: vec3
     let layer = i32(settings.w);
     let a = textureSampleGrad(normal_moments_a, normal_sampler, uv, layer, du, dv);
     let b = textureSampleGrad(normal_moments_b, normal_sampler, uv, layer, du, dv);
-    let t = frame_tangent(n, tangent);
-    let frame = mat3x3<f32>(t, cross(n, t), n);
+    let t = frame_tangent(n, tangent.xyz);
+    let frame = mat3x3<f32>(t, cross(n, t) * select(1.0, -1.0, tangent.w < 0.0), n);
     let mean = frame * a.xyz;
     let zz = 1.0 - a.w - b.x;
     let second_t = mat3x3<f32>(vec3<f32>(a.w, b.y, b.z), vec3<f32>(b.y, b.x, b.w), vec3<f32>(b.z, b.w, zz));
@@ -164,22 +173,10 @@ fn surface_ndf(ndf: ptr<function, SurfaceNdf>, m: u32, uv_in: vec2<f32>, n: vec3
 // E[Y_lm(n)] for l <= 2 (nodes NdfMoments::sh; Toksvig: Y_lm at the mean direction attenuated
 // by e^{-l(l+1)/2κ}), in the order of common.wgsl's basis.
 fn ndf_sh9(ndf: ptr<function, SurfaceNdf>) -> array<f32, 9> {
-    var y: array<f32, 9>;
     if ((*ndf).method == 3) {
-        let d = (*ndf).normal;
-        let a1 = exp(-1.0 / (*ndf).kappa);
-        let a2 = exp(-3.0 / (*ndf).kappa);
-        y[0] = 0.2820948;
-        y[1] = 0.4886025 * d.y * a1;
-        y[2] = 0.4886025 * d.z * a1;
-        y[3] = 0.4886025 * d.x * a1;
-        y[4] = 1.0925484 * d.x * d.y * a2;
-        y[5] = 1.0925484 * d.y * d.z * a2;
-        y[6] = 0.3153916 * (3.0 * d.z * d.z - 1.0) * a2;
-        y[7] = 1.0925484 * d.x * d.z * a2;
-        y[8] = 0.5462742 * (d.x * d.x - d.y * d.y) * a2;
-        return y;
+        return ndf_sh9_about((*ndf).normal, exp(-1.0 / (*ndf).kappa), exp(-3.0 / (*ndf).kappa));
     }
+    var y: array<f32, 9>;
     let m = (*ndf).mean;
     let s = (*ndf).second;
     y[0] = 0.2820948;
@@ -192,6 +189,20 @@ fn ndf_sh9(ndf: ptr<function, SurfaceNdf>) -> array<f32, 9> {
     y[7] = 1.0925484 * s[2].x;
     y[8] = 0.5462742 * (s[0].x - s[1].y);
     return y;
+}
+
+// Y_lm(d) for l <= 2, band 1 scaled by a1 and band 2 by a2 (1 and 1: a delta at unit d).
+fn ndf_sh9_about(d: vec3<f32>, a1: f32, a2: f32) -> array<f32, 9> {
+    return array<f32, 9>(
+        0.2820948,
+        0.4886025 * d.y * a1,
+        0.4886025 * d.z * a1,
+        0.4886025 * d.x * a1,
+        1.0925484 * d.x * d.y * a2,
+        1.0925484 * d.y * d.z * a2,
+        0.3153916 * (3.0 * d.z * d.z - 1.0) * a2,
+        1.0925484 * d.x * d.z * a2,
+        0.5462742 * (d.x * d.x - d.y * d.y) * a2);
 }
 
 // The attenuation of SH band l > 2 under the NDF (Toksvig's lobe; 1 without a map).
@@ -256,10 +267,7 @@ fn ndf_vertex_diffuse_scale(ndf: ptr<function, SurfaceNdf>, n: vec3<f32>) -> vec
         return vec3<f32>(1.0);
     }
     let filtered_basis = ndf_sh9(ndf);
-    var flat_ndf: SurfaceNdf;
-    ndf_set_flat(&flat_ndf, n);
-    flat_ndf.method = 1;
-    let flat_basis = ndf_sh9(&flat_ndf);
+    let flat_basis = ndf_sh9_about(n, 1.0, 1.0);
     var filtered = vec3<f32>(0.0);
     var unfiltered = vec3<f32>(0.0);
     for (var k = 0; k < 9; k = k + 1) {
@@ -268,4 +276,59 @@ fn ndf_vertex_diffuse_scale(ndf: ptr<function, SurfaceNdf>, n: vec3<f32>) -> vec
     }
     let floor_value = 1e-4 * max(normal_maps.irradiance[0].r, max(normal_maps.irradiance[0].g, normal_maps.irradiance[0].b));
     return select(vec3<f32>(1.0), max(filtered, vec3<f32>(0.0)) / max(unfiltered, vec3<f32>(floor_value)), unfiltered > vec3<f32>(floor_value));
+}
+
+// How open a vertex is to the light its mode transports: its irradiance `e` over the
+// unshadowed irradiance at its unit normal `n`, per channel in [0, 1] (1 where that is dark,
+// and without maps).
+fn ndf_open_fraction(e: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
+    if (!NORMAL_MAPS || normal_maps.flags.y < 0.5) {
+        return vec3<f32>(1.0);
+    }
+    let basis = ndf_sh9_about(n, 1.0, 1.0);
+    var open = vec3<f32>(0.0);
+    for (var k = 0; k < 9; k = k + 1) {
+        open = open + normal_maps.irradiance[k].rgb * basis[k];
+    }
+    let floor_value = 1e-4 * max(normal_maps.irradiance[0].r, max(normal_maps.irradiance[0].g, normal_maps.irradiance[0].b));
+    return select(vec3<f32>(1.0), clamp(e / max(open, vec3<f32>(floor_value)), vec3<f32>(0.0), vec3<f32>(1.0)), open > vec3<f32>(floor_value));
+}
+
+// sum_lm f_l e^{-2 l(l+1)/kappa} L_lm Y_lm(r): material m's lobe about the mirror direction `r`
+// seen through a vMF lobe of normals of concentration kappa (the mirror direction spreads as a
+// vMF of kappa/4, whose band-l factor is e^{-l(l+1)/(2 kappa/4)}), on the highlight's light.
+fn ndf_highlight_sum(r: vec3<f32>, m: u32, kappa: f32) -> vec3<f32> {
+    var sum = vec3<f32>(0.0);
+    var walk = sh_walk(r, NDF_HIGHLIGHT_BANDS);
+    while (sh_walk_next(&walk)) {
+        let l = walk.l;
+        let f = normal_maps.highlight_factors[2u * m + u32(l / 4)][l % 4] * exp(-2.0 * f32(l * (l + 1)) / kappa);
+        let base = l * (l + 1);
+        sum = sum + f * walk.cos_y * normal_maps.highlight_radiance[base + walk.m].rgb;
+        if (walk.m > 0) {
+            sum = sum + f * walk.sin_y * normal_maps.highlight_radiance[base - walk.m].rgb;
+        }
+    }
+    return sum;
+}
+
+// The change the pixel's NDF makes to a per-vertex mode's environment highlight (nodes
+// frame::VertexHighlight): material m's glossy weight times `open` (ndf_open_fraction at the
+// vertices) times the highlight of the unshadowed light through the NDF's lobes of normals, less
+// the same at the geometric normal `n`, for the unit direction `view` towards the eye. Zero
+// without a map, and for a flat one.
+fn ndf_vertex_highlight(ndf: ptr<function, SurfaceNdf>, n: vec3<f32>, view: vec3<f32>, m: u32, open: vec3<f32>) -> vec3<f32> {
+    let weight = normal_maps.highlight_weights[m];
+    if (!ndf_mapped(ndf) || normal_maps.flags.y < 0.5 || weight.w == 0.0) {
+        return vec3<f32>(0.0);
+    }
+    let r = reflect(-view, n);
+    let unmapped = ndf_highlight_sum(r, m, NDF_MAX_KAPPA) * max(dot(n, r), 0.0);
+    var mapped = vec3<f32>(0.0);
+    for (var j = 0; j < (*ndf).count; j = j + 1) {
+        let lobe = (*ndf).lobes[j];
+        let rj = reflect(-view, lobe.xyz);
+        mapped = mapped + lobe.w * ndf_highlight_sum(rj, m, (*ndf).kappas[j]) * max(dot(lobe.xyz, rj), 0.0);
+    }
+    return weight.rgb * open * (mapped - unmapped);
 }

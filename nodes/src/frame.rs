@@ -146,15 +146,38 @@ pub struct NormalMapFrame {
     /// mode shades diffuse light per vertex: each pixel's diffuse light is scaled by this
     /// irradiance averaged over its NDF over the same at its geometric normal (1 on a flat map).
     pub vertex_diffuse_scale: Option<ShRgb>,
+    /// In the modes that shade the environment's highlight per vertex, while a material has a
+    /// map: what each pixel corrects that highlight by.
+    pub vertex_highlight: Option<VertexHighlight>,
+}
+
+/// Bands of the light a per-vertex highlight is corrected with.
+pub const HIGHLIGHT_BANDS: usize = 8;
+
+/// How a pixel corrects its mode's per-vertex environment highlight for its normal map: by the
+/// change its NDF makes to the highlight of `radiance`, the unshadowed light the highlight
+/// carries, through the material's equivalent Phong lobe (Han et al. 2007: per SH band, the
+/// lobe's factor times the normals' spread, `f_l e^{−2l(l+1)/κ}` for a vMF lobe of normals, the
+/// mirror direction spreading twice as far), scaled by how open the vertex is to that light
+/// (its transported irradiance over the unshadowed one). A flat map changes nothing.
+#[derive(Clone, Debug, PartialEq)]
+pub struct VertexHighlight {
+    /// `L_lm` to [`HIGHLIGHT_BANDS`].
+    pub radiance: ShRgb,
+    /// Per material, its glossy lobe to [`HIGHLIGHT_BANDS`] (`None` for Lambert).
+    pub lobes: Vec<Option<crate::prt::GlossyLobe>>,
 }
 
 impl NormalMapFrame {
     /// The materials' maps for the viewport; a map of another size than the first mapped
     /// material's is left out, and `notes` says so as `(node, why)`.
+    /// `per_vertex`: the mode shades diffuse light per vertex; `highlight`: and the environment's
+    /// highlight too.
     pub fn new(
         materials: &[FrameMaterial],
         transported: Option<&ShRgb>,
         per_vertex: bool,
+        highlight: bool,
         notes: &mut Vec<(String, String)>,
     ) -> Self {
         let size = |d: &NormalDetail| {
@@ -165,7 +188,7 @@ impl NormalMapFrame {
                 .map(|l| (l.width, l.height))
         };
         let mut common = None;
-        let materials = materials
+        let materials_mapped = materials
             .iter()
             .map(|m| {
                 let detail = m.normal.as_ref()?;
@@ -184,8 +207,15 @@ impl NormalMapFrame {
                 Some(detail.clone())
             })
             .collect();
+        let frame_materials = materials;
+        let materials: Vec<Option<NormalDetail>> = materials_mapped;
         let vertex_diffuse_scale = transported.filter(|_| per_vertex).map(|light| light.irradiance().truncated(3));
-        Self { materials, vertex_diffuse_scale }
+        let mapped = materials.iter().any(Option::is_some);
+        let vertex_highlight = transported.filter(|_| per_vertex && highlight && mapped).map(|light| VertexHighlight {
+            radiance: light.truncated(HIGHLIGHT_BANDS),
+            lobes: frame_materials.iter().map(|m| crate::prt::glossy_lobe(&m.material, HIGHLIGHT_BANDS)).collect(),
+        });
+        Self { materials, vertex_diffuse_scale, vertex_highlight }
     }
 }
 

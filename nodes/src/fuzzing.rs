@@ -61,13 +61,22 @@ pub fn light_texture(bytes: &[u8]) {
     }
 }
 
-/// A normal map (the first byte picks PNG or EXR), loaded and, when small enough to be quick,
-/// filtered into its NDF pyramid and vMF mixtures.
+/// A normal map (the first byte picks PNG, EXR, or a glTF or GLB whose material's normal
+/// texture is read), loaded and, when small enough to be quick, filtered into its NDF pyramid
+/// and vMF mixtures.
 pub fn normal_map(bytes: &[u8]) {
-    use crate::normal_filtering::{NdfPyramid, load_normal_map, vmf_pyramid};
+    use crate::normal_filtering::{NdfPyramid, load_gltf_normal_map, load_normal_map, vmf_pyramid};
     let Some((format, file)) = bytes.split_first() else { return };
-    let path = scratch_file(if format % 2 == 0 { "normals.png" } else { "normals.exr" }, file);
-    if let Ok(map) = load_normal_map(&path) {
+    let name = ["normals.png", "normals.exr", "normals.gltf", "normals.glb"][*format as usize % 4];
+    let path = scratch_file(name, file);
+    let loaded = match format % 4 {
+        0 | 1 => load_normal_map(&path),
+        _ => load_gltf_normal_map(&path, "normals").map(|(map, scale, _)| {
+            assert!(scale.is_finite(), "a non-finite normal texture scale");
+            map
+        }),
+    };
+    if let Ok(map) = loaded {
         assert!(map.normals.iter().all(|n| (n.length() - 1.0).abs() < 1e-9), "a loaded normal is not unit");
         if map.normals.len() <= 64 * 64 {
             let pyramid = NdfPyramid::build(&map, 3);
@@ -76,6 +85,25 @@ pub fn normal_map(bytes: &[u8]) {
             assert!(mixtures.iter().flatten().flatten().all(|l| l.kappa.is_finite() && l.weight.is_finite()));
         }
     }
+}
+
+/// A GLB file of `json` and `bin`: header, JSON chunk, BIN chunk (each padded to four bytes),
+/// for tests and corpora that embed data in one.
+pub fn glb(json: &str, bin: &[u8]) -> Vec<u8> {
+    let mut json = json.as_bytes().to_vec();
+    json.resize(json.len().next_multiple_of(4), b' ');
+    let mut bin = bin.to_vec();
+    bin.resize(bin.len().next_multiple_of(4), 0);
+    let total = 12 + 8 + json.len() + 8 + bin.len();
+    let mut out = b"glTF".to_vec();
+    for word in [2, total, json.len(), 0x4E4F_534A] {
+        out.extend_from_slice(&(word as u32).to_le_bytes());
+    }
+    out.extend_from_slice(&json);
+    out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
+    out.extend_from_slice(&0x004E_4942u32.to_le_bytes());
+    out.extend_from_slice(&bin);
+    out
 }
 
 /// A disk-cache entry decoded as each persisted type the first byte picks.

@@ -159,6 +159,33 @@ fn check_indices(root: &gltf::json::Root) -> Result<(), String> {
             return Err(format!("bufferView {v}: byteStride {} is outside 4..=252", stride.0));
         }
     }
+    for (m, material) in root.materials.iter().enumerate() {
+        let pbr = &material.pbr_metallic_roughness;
+        let textures = [
+            pbr.base_color_texture.as_ref().map(|t| t.index.value()),
+            pbr.metallic_roughness_texture.as_ref().map(|t| t.index.value()),
+            material.normal_texture.as_ref().map(|t| t.index.value()),
+            material.occlusion_texture.as_ref().map(|t| t.index.value()),
+            material.emissive_texture.as_ref().map(|t| t.index.value()),
+        ];
+        let specular = material.extensions.as_ref().and_then(|e| e.specular.as_ref());
+        let specular = specular.into_iter().flat_map(|s| [&s.specular_texture, &s.specular_color_texture]);
+        let textures = textures.into_iter().chain(specular.map(|t| t.as_ref().map(|t| t.index.value())));
+        for index in textures.flatten() {
+            check(&format!("material {m}: a texture"), index, root.textures.len())?;
+        }
+    }
+    for (t, texture) in root.textures.iter().enumerate() {
+        check(&format!("texture {t}: source"), texture.source.value(), root.images.len())?;
+        if let Some(sampler) = &texture.sampler {
+            check(&format!("texture {t}: sampler"), sampler.value(), root.samplers.len())?;
+        }
+    }
+    for (i, image) in root.images.iter().enumerate() {
+        if let Some(view) = &image.buffer_view {
+            check(&format!("image {i}: bufferView"), view.value(), root.buffer_views.len())?;
+        }
+    }
     for (n, node) in root.nodes.iter().enumerate() {
         if let Some(mesh) = &node.mesh {
             check(&format!("node {n}: mesh"), mesh.value(), root.meshes.len())?;
@@ -191,49 +218,131 @@ fn load_buffers(
     base: &Path,
     mut blob: Option<Vec<u8>>,
 ) -> Result<Vec<gltf::buffer::Data>, String> {
-    let mut out = Vec::new();
-    for buffer in document.buffers() {
-        let declared = buffer.length();
-        if declared as u64 > crate::limits::MAX_FILE_BYTES {
-            return Err(format!("buffer {} declares {} MiB", buffer.index(), declared >> 20));
-        }
-        let mut data = match buffer.source() {
-            gltf::buffer::Source::Bin => {
-                blob.take().ok_or_else(|| format!("buffer {} refers to a GLB chunk the file lacks", buffer.index()))?
-            }
-            gltf::buffer::Source::Uri(uri) if uri.starts_with("data:") => {
-                let (_, payload) = uri
-                    .split_once(";base64,")
-                    .ok_or_else(|| format!("buffer {}: only base64 data URIs are supported", buffer.index()))?;
-                if payload.len() / 4 * 3 > declared + 3 {
-                    return Err(format!("buffer {}: the data URI is longer than its byteLength", buffer.index()));
-                }
-                base64::decode(payload).map_err(|e| format!("buffer {}: bad base64 data: {e}", buffer.index()))?
-            }
-            gltf::buffer::Source::Uri(uri) => {
-                let relative = uri.strip_prefix("file://").unwrap_or(uri);
-                if relative.contains(':') {
-                    return Err(format!("buffer {}: unsupported URI `{uri}`", buffer.index()));
-                }
-                let decoded = urlencoding::decode(relative).map_err(|e| format!("buffer URI `{uri}`: {e}"))?;
-                let path = base.join(decoded.as_ref());
-                if !path.exists() {
-                    return Err(format!("missing file(s) {uri} next to it"));
-                }
-                // A file may carry a little padding past byteLength, never much more.
-                let limit = (declared as u64 + (1 << 20)).min(crate::limits::MAX_FILE_BYTES);
-                crate::limits::read_regular_file(&path, limit)?
-            }
-        };
-        if data.len() < declared {
-            return Err(format!("buffer {} holds {} bytes; the glTF declares {declared}", buffer.index(), data.len()));
-        }
-        while data.len() % 4 != 0 {
-            data.push(0);
-        }
-        out.push(gltf::buffer::Data(data));
+    document.buffers().map(|buffer| load_buffer(&buffer, base, &mut blob)).collect()
+}
+
+/// One buffer, padded to a multiple of four bytes; the GLB chunk is taken from `blob`.
+fn load_buffer(buffer: &gltf::Buffer, base: &Path, blob: &mut Option<Vec<u8>>) -> Result<gltf::buffer::Data, String> {
+    let declared = buffer.length();
+    let what = format!("buffer {}", buffer.index());
+    if declared as u64 > crate::limits::MAX_FILE_BYTES {
+        return Err(format!("{what} declares {} MiB", declared >> 20));
     }
-    Ok(out)
+    let mut data = match buffer.source() {
+        gltf::buffer::Source::Bin => {
+            blob.take().ok_or_else(|| format!("{what} refers to a GLB chunk the file lacks"))?
+        }
+        // A file may carry a little padding past byteLength, never much more.
+        gltf::buffer::Source::Uri(uri) => read_uri(uri, base, declared as u64 + (1 << 20), &what)?,
+    };
+    if data.len() < declared {
+        return Err(format!("{what} holds {} bytes; the glTF declares {declared}", data.len()));
+    }
+    while data.len() % 4 != 0 {
+        data.push(0);
+    }
+    Ok(gltf::buffer::Data(data))
+}
+
+/// The bytes a buffer or image URI names: a base64 `data:` URI, or a regular file relative to
+/// `base`, of at most `limit` bytes (and never more than [`crate::limits::MAX_FILE_BYTES`]).
+fn read_uri(uri: &str, base: &Path, limit: u64, what: &str) -> Result<Vec<u8>, String> {
+    let limit = limit.min(crate::limits::MAX_FILE_BYTES);
+    if uri.starts_with("data:") {
+        let (_, payload) =
+            uri.split_once(";base64,").ok_or_else(|| format!("{what}: only base64 data URIs are supported"))?;
+        if payload.len() as u64 / 4 * 3 > limit + 3 {
+            return Err(format!("{what}: the data URI holds more than {limit} bytes"));
+        }
+        return base64::decode(payload).map_err(|e| format!("{what}: bad base64 data: {e}"));
+    }
+    let relative = uri.strip_prefix("file://").unwrap_or(uri);
+    if relative.contains(':') {
+        return Err(format!("{what}: unsupported URI `{uri}`"));
+    }
+    let decoded = urlencoding::decode(relative).map_err(|e| format!("{what}: URI `{uri}`: {e}"))?;
+    let path = base.join(decoded.as_ref());
+    if !path.exists() {
+        return Err(format!("{what}: missing file {uri} next to it"));
+    }
+    crate::limits::read_regular_file(&path, limit)
+}
+
+/// A material's normal texture as its glTF stores it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct NormalTexture {
+    /// The material it belongs to (its name, or `material N`).
+    pub material: String,
+    /// The encoded image (PNG or JPEG, as the glTF's images are).
+    pub image: Vec<u8>,
+    /// `normalTexture.scale`: how far the map's tilts are scaled.
+    pub scale: f64,
+}
+
+/// The normal texture of the material named `material` in the glTF at `path`, or, when no
+/// material has that name, of the first material that has one. Its image may be a file next
+/// to the glTF, a `data:` URI or a buffer view (as in GLB files), under the same limits as the
+/// glTF's buffers. Only `TEXCOORD_0` is imported, so a texture on another set is refused.
+pub fn normal_texture(path: &Path, material: &str) -> Result<NormalTexture, String> {
+    let name = path.display().to_string();
+    let bytes = crate::limits::read_regular_file(path, crate::limits::MAX_FILE_BYTES)?;
+    let invalid = |e: gltf::Error| format!("{name}: not a valid glTF 2.0 file: {e}");
+    let gltf = gltf::Gltf::from_slice_without_validation(&bytes).map_err(invalid)?;
+    drop(bytes);
+    check_indices(gltf.document.as_json()).map_err(|e| format!("{name}: {e}"))?;
+    let mut blob = gltf.blob;
+    let document = gltf::Document::from_json(gltf.document.into_json()).map_err(invalid)?;
+    let label =
+        |m: &gltf::Material| m.name().map_or_else(|| format!("material {}", m.index().unwrap_or(0)), str::to_string);
+    let named = document.materials().find(|m| m.name() == Some(material));
+    let chosen = match named {
+        Some(m) => m,
+        None => document
+            .materials()
+            .find(|m| m.normal_texture().is_some())
+            .ok_or_else(|| format!("{name}: no material has a normal texture (normalTexture)"))?,
+    };
+    let label = label(&chosen);
+    let normal = chosen
+        .normal_texture()
+        .ok_or_else(|| format!("{name}: material `{label}` has no normal texture (normalTexture)"))?;
+    if normal.tex_coord() != 0 {
+        return Err(format!(
+            "{name}: material `{label}`'s normal texture uses TEXCOORD_{}; only TEXCOORD_0 is imported",
+            normal.tex_coord()
+        ));
+    }
+    let scale = f64::from(normal.scale());
+    if !scale.is_finite() {
+        return Err(format!("{name}: material `{label}`'s normal texture scale is not a finite number"));
+    }
+    let image = normal.texture().source();
+    let what = format!("image {} of material `{label}`'s normal texture", image.index());
+    let base = path.parent().unwrap_or(Path::new("."));
+    // From the JSON: the crate's `Image::source` unwraps a missing mimeType or URI.
+    let json = &document.as_json().images[image.index()];
+    let view = json.buffer_view.as_ref().and_then(|v| document.views().nth(v.value()));
+    let encoded = match (view, &json.uri) {
+        (None, None) => return Err(format!("{name}: {what} has neither a uri nor a bufferView")),
+        (None, Some(uri)) => {
+            read_uri(uri, base, crate::limits::MAX_FILE_BYTES, &what).map_err(|e| format!("{name}: {e}"))?
+        }
+        (Some(view), _) => {
+            let buffer = load_buffer(&view.buffer(), base, &mut blob).map_err(|e| format!("{name}: {what}: {e}"))?;
+            let end = view.offset().checked_add(view.length()).filter(|end| *end <= buffer.len());
+            let end = end.ok_or_else(|| {
+                format!(
+                    "{name}: {what}: bufferView {} ({} bytes at {}) lies outside its buffer of {} bytes",
+                    view.index(),
+                    view.length(),
+                    view.offset(),
+                    buffer.len()
+                )
+            })?;
+            buffer.0[view.offset()..end].to_vec()
+        }
+    };
+    Ok(NormalTexture { material: label, image: encoded, scale })
 }
 
 /// Checks that an accessor has the expected layout and lies inside its buffer.
@@ -361,14 +470,14 @@ fn read_primitive(
         normals = smooth_normals(&positions, &indices);
     }
     // Authored tangents are kept when usable; otherwise `vertex_tangents` derives them from UVs.
-    let mut tangents: Vec<[f32; 3]> = if tangents_ok {
-        reader.read_tangents().map(|t| t.map(|t| [t[0], t[1], t[2]]).collect()).unwrap_or_default()
-    } else {
-        Vec::new()
-    };
+    let authored: Vec<[f32; 4]> =
+        if tangents_ok { reader.read_tangents().map(|t| t.collect()).unwrap_or_default() } else { Vec::new() };
+    let (mut tangents, mut bitangent_signs): (Vec<[f32; 3]>, Vec<f32>) =
+        authored.iter().map(|t| ([t[0], t[1], t[2]], if t[3] < 0.0 { -1.0 } else { 1.0 })).unzip();
     if tangents.iter().any(|t| !t.iter().all(|v| v.is_finite()) || DVec3::from(t.map(f64::from)).length() < 1e-6) {
         warnings.push(format!("{label}: zero or non-finite tangents were ignored and derived from the UVs"));
         tangents.clear();
+        bitangent_signs.clear();
     }
     let base = primitive.material().pbr_metallic_roughness().base_color_factor();
     let base_color = [base[0], base[1], base[2]].map(|c| if c.is_finite() { c.clamp(0.0, 1.0) } else { 0.8 });
@@ -379,6 +488,7 @@ fn read_primitive(
         normals,
         uvs,
         tangents,
+        bitangent_signs,
         indices,
         base_color,
         visibility_texture: false,
@@ -552,6 +662,90 @@ mod tests {
             let e = import(&dir.join("fifo.gltf")).unwrap_err();
             assert!(e.contains("not a regular file"), "{e}");
         }
+    }
+
+    /// A material's normal texture is the image its glTF names: by material name, else the
+    /// first material that has one; a material without one, or a texture on TEXCOORD_1, is a
+    /// named error.
+    #[test]
+    fn normal_textures_are_found_by_material() {
+        let file = assets().join("ClearCoat-glTF/ClearCoatTest.gltf");
+        let image = |name: &str| std::fs::read(assets().join("ClearCoat-glTF").join(name)).unwrap();
+        let ribs = normal_texture(&file, "BaseNorm_Base").unwrap();
+        assert_eq!((ribs.material.as_str(), ribs.scale), ("BaseNorm_Base", 1.0));
+        assert!(ribs.image == image("RibsNormal.png"));
+        let wrap = normal_texture(&file, "CoatNorm_Coating").unwrap();
+        assert!(wrap.image == image("PlasticWrap_normals.jpg"));
+        assert_eq!(normal_texture(&file, "no such material").unwrap().material, "BaseNorm_Base");
+        let e = normal_texture(&file, "Simple_Base").unwrap_err();
+        assert!(e.contains("ClearCoatTest.gltf") && e.contains("`Simple_Base` has no normal texture"), "{e}");
+        let json = std::fs::read_to_string(&file).unwrap().replacen(
+            r#""normalTexture" : {
+                "index" : 3,
+                "texCoord" : 0"#,
+            r#""normalTexture" : {
+                "index" : 3,
+                "texCoord" : 1"#,
+            1,
+        );
+        assert!(json.contains(r#""texCoord" : 1"#), "the asset's layout changed");
+        let dir = std::env::temp_dir().join(format!("lightloom-gltf-texcoord-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        std::fs::write(dir.join("coat.gltf"), json).unwrap();
+        let e = normal_texture(&dir.join("coat.gltf"), "BaseNorm_Base").unwrap_err();
+        assert!(e.contains("TEXCOORD_1"), "{e}");
+    }
+
+    /// A GLB holding its image in a buffer view, a `data:` URI image, and the ways either can
+    /// be broken: each loads the same bytes or says what is wrong.
+    #[test]
+    fn embedded_normal_textures_load_and_broken_ones_are_named() {
+        let png = std::fs::read(assets().join("ClearCoat-glTF/RibsNormal.png")).unwrap();
+        let dir = std::env::temp_dir().join(format!("lightloom-gltf-embedded-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let glb = |json: &str, bin: &[u8]| {
+            let path = dir.join("model.glb");
+            std::fs::write(&path, crate::fuzzing::glb(json, bin)).unwrap();
+            normal_texture(&path, "bumps")
+        };
+        let material =
+            r#""materials":[{"name":"bumps","normalTexture":{"index":0,"scale":0.5}}],"textures":[{"source":0}]"#;
+        let view = |offset: usize, length: usize| {
+            format!(
+                r#"{{"asset":{{"version":"2.0"}},"buffers":[{{"byteLength":{}}}],"bufferViews":[{{"buffer":0,"byteOffset":{offset},"byteLength":{length}}}],"images":[{{"bufferView":0,"mimeType":"image/png"}}],{material}}}"#,
+                png.len() + 4
+            )
+        };
+        let mut bin = vec![0u8; 4];
+        bin.extend_from_slice(&png);
+        let loaded = glb(&view(4, png.len()), &bin).unwrap();
+        assert!(loaded.image == png && loaded.scale == 0.5);
+        let e = glb(&view(4, png.len() + 64), &bin).unwrap_err();
+        assert!(e.contains("model.glb") && e.contains("lies outside its buffer"), "{e}");
+        let e = glb(&view(4, png.len()).replace(r#""index":0"#, r#""index":7"#), &bin).unwrap_err();
+        assert!(e.contains("refers to item 7, but there are only 1"), "{e}");
+        let data_uri = format!(
+            r#"{{"asset":{{"version":"2.0"}},"images":[{{"uri":"data:image/png;base64,{}"}}],{material}}}"#,
+            base64::encode(&png)
+        );
+        assert!(import_json_texture("data-uri", &data_uri).unwrap().image == png);
+        let e = import_json_texture("bad-base64", &data_uri.replace("base64,", "base64,@@")).unwrap_err();
+        assert!(e.contains("bad base64"), "{e}");
+        let missing = data_uri.replace(&format!("data:image/png;base64,{}", base64::encode(&png)), "gone.png");
+        let e = import_json_texture("missing-image", &missing).unwrap_err();
+        assert!(e.contains("missing-image.gltf") && e.contains("missing file gone.png"), "{e}");
+        let special = missing.replace("gone.png", "/dev/zero");
+        let e = import_json_texture("special-image", &special).unwrap_err();
+        assert!(e.contains("not a regular file"), "{e}");
+    }
+
+    /// Writes `json` as a .gltf in a fresh folder and reads material `bumps`'s normal texture.
+    fn import_json_texture(name: &str, json: &str) -> Result<NormalTexture, String> {
+        let dir = std::env::temp_dir().join(format!("lightloom-gltf-{name}-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join(format!("{name}.gltf"));
+        std::fs::write(&path, json).unwrap();
+        normal_texture(&path, "bumps")
     }
 
     /// Prints what happens to each asset (run with `--ignored --nocapture`).

@@ -18,6 +18,10 @@ pub struct Mesh {
     /// Authored unit tangents (glTF `TANGENT`), or empty: [`vertex_tangents`] derives them.
     #[serde(default)]
     pub tangents: Vec<[f32; 3]>,
+    /// Authored handedness of each tangent frame (glTF `TANGENT.w`: the bitangent is
+    /// `w · n × t`), or empty: [`vertex_bitangent_signs`] derives it from the UVs.
+    #[serde(default)]
+    pub bitangent_signs: Vec<f32>,
     pub indices: Vec<u32>,
     /// Linear RGB base colour (multiplies the material albedo).
     pub base_color: [f32; 3],
@@ -47,6 +51,7 @@ impl Default for Mesh {
             normals: Vec::new(),
             uvs: Vec::new(),
             tangents: Vec::new(),
+            bitangent_signs: Vec::new(),
             indices: Vec::new(),
             base_color: [1.0; 3],
             visibility_texture: false,
@@ -74,8 +79,11 @@ impl Mesh {
         for t in &mut self.tangents {
             *t = (linear * DVec3::from(t.map(f64::from))).normalize_or_zero().as_vec3().to_array();
         }
-        // A mirroring transform flips the winding.
+        // A mirroring transform flips the winding, and the handedness of authored frames.
         if transform.determinant() < 0.0 {
+            for s in &mut self.bitangent_signs {
+                *s = -*s;
+            }
             for t in self.indices.chunks_mut(3) {
                 t.swap(1, 2);
             }
@@ -156,6 +164,43 @@ pub fn vertex_tangents(mesh: &Mesh) -> Vec<[f32; 3]> {
             let n = DVec3::from(n.map(f64::from)).normalize_or(DVec3::Y);
             let t = (*t - n * n.dot(*t)).try_normalize().unwrap_or_else(|| n.any_orthonormal_vector());
             t.as_vec3().to_array()
+        })
+        .collect()
+}
+
+/// Per vertex, the handedness of the normal-map frame: the bitangent, where a map's +Y
+/// (up in the image, towards decreasing v) points, is `sign · n × t`. Authored signs where the
+/// mesh has them, else the side `-∂p/∂v` lies on (so mirrored UV islands get −1), else +1.
+pub fn vertex_bitangent_signs(mesh: &Mesh) -> Vec<f32> {
+    if mesh.bitangent_signs.len() == mesh.positions.len() {
+        return mesh.bitangent_signs.iter().map(|s| if *s < 0.0 { -1.0 } else { 1.0 }).collect();
+    }
+    if mesh.uvs.len() != mesh.positions.len() {
+        return vec![1.0; mesh.positions.len()];
+    }
+    let mut dp_dv = vec![DVec3::ZERO; mesh.positions.len()];
+    for t in mesh.indices.chunks_exact(3) {
+        let p = |i: u32| DVec3::from(mesh.positions[i as usize].map(f64::from));
+        let uv = |i: u32| mesh.uvs[i as usize].map(f64::from);
+        let (e1, e2) = (p(t[1]) - p(t[0]), p(t[2]) - p(t[0]));
+        let (a, b, c) = (uv(t[0]), uv(t[1]), uv(t[2]));
+        let (du1, dv1, du2, dv2) = (b[0] - a[0], b[1] - a[1], c[0] - a[0], c[1] - a[1]);
+        let det = du1 * dv2 - du2 * dv1;
+        if det.abs() < 1e-20 {
+            continue;
+        }
+        let bitangent = (e2 * du1 - e1 * du2) / det;
+        for &i in t {
+            dp_dv[i as usize] += bitangent;
+        }
+    }
+    vertex_tangents(mesh)
+        .iter()
+        .zip(&mesh.normals)
+        .zip(&dp_dv)
+        .map(|((t, n), dp_dv)| {
+            let (t, n) = (DVec3::from(t.map(f64::from)), DVec3::from(n.map(f64::from)));
+            if n.cross(t).dot(-*dp_dv) < 0.0 { -1.0 } else { 1.0 }
         })
         .collect()
 }
@@ -419,5 +464,51 @@ mod tests {
         for t in vertex_tangents(&plane(2.0, 2)) {
             assert!((DVec3::from(t.map(f64::from)) - DVec3::X).length() < 1e-6, "{t:?}");
         }
+    }
+
+    /// The bitangent `sign · n × t` points up the image (towards decreasing v) on the built-in
+    /// shapes, on a UV layout mirrored in u, and through a mirroring transform; authored
+    /// signs are kept, and flip with a mirroring transform.
+    #[test]
+    fn bitangent_signs_point_up_the_image() {
+        let up_the_image = |m: &Mesh| {
+            let signs = vertex_bitangent_signs(m);
+            let tangents = vertex_tangents(m);
+            // Per triangle, the frame's bitangent against the UV gradient -∂p/∂v.
+            m.indices.chunks_exact(3).all(|t| {
+                let p = |i: u32| DVec3::from(m.positions[i as usize].map(f64::from));
+                let uv = |i: u32| m.uvs[i as usize].map(f64::from);
+                let (e1, e2) = (p(t[1]) - p(t[0]), p(t[2]) - p(t[0]));
+                let (a, b, c) = (uv(t[0]), uv(t[1]), uv(t[2]));
+                let det = (b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1]);
+                let dp_dv = (e2 * (b[0] - a[0]) - e1 * (c[0] - a[0])) / det;
+                let dp_du = (e1 * (c[1] - a[1]) - e2 * (b[1] - a[1])) / det;
+                det.abs() < 1e-12
+                    || t.iter().all(|&i| {
+                        let n = DVec3::from(m.normals[i as usize].map(f64::from));
+                        let t = DVec3::from(tangents[i as usize].map(f64::from));
+                        // Poles, where the vertex's tangent is not the triangle's, have no side.
+                        dp_du.try_normalize().is_none_or(|along_u| t.dot(along_u) < 0.7)
+                            || (n.cross(t) * f64::from(signs[i as usize])).dot(-dp_dv) > 0.0
+                    })
+            })
+        };
+        for shape in [plane(2.0, 3), sphere(1.0, 8), torus(1.0, 0.3, 8)] {
+            assert!(up_the_image(&shape), "{} vertices", shape.positions.len());
+            assert!(vertex_bitangent_signs(&shape).iter().all(|s| *s == 1.0));
+        }
+        let mut mirrored = plane(2.0, 3);
+        for uv in &mut mirrored.uvs {
+            uv[0] = 1.0 - uv[0];
+        }
+        assert!(up_the_image(&mirrored));
+        assert!(vertex_bitangent_signs(&mirrored).iter().all(|s| *s == -1.0));
+        let flipped = plane(2.0, 3).transformed(DMat4::from_scale(DVec3::new(-1.0, 1.0, 1.0)));
+        assert!(up_the_image(&flipped));
+        let mut authored = plane(2.0, 1);
+        authored.bitangent_signs = vec![-1.0; authored.positions.len()];
+        assert!(vertex_bitangent_signs(&authored).iter().all(|s| *s == -1.0));
+        let authored = authored.transformed(DMat4::from_scale(DVec3::new(1.0, 1.0, -1.0)));
+        assert!(vertex_bitangent_signs(&authored).iter().all(|s| *s == 1.0));
     }
 }

@@ -368,6 +368,10 @@ pub struct PortSpec {
 /// The signature of a stage computation.
 pub type StageFn = fn(&StageContext) -> Result<StageValue, StageError>;
 
+/// Listed in a stage's `params`, the node's id is part of its key ([`StageContext::node_id`]):
+/// for results that follow the node's name (a glTF material taken by name).
+pub const NODE_ID: &str = "node id";
+
 /// A stage: a pure function of some parameters, some earlier stages of the same node and some
 /// upstream stages (through input ports). Its key hashes exactly these.
 #[derive(Clone, Debug)]
@@ -375,6 +379,8 @@ pub struct StageSpec {
     pub name: &'static str,
     /// Bumped when the computation changes, invalidating cached results.
     pub version: u32,
+    /// The parameters it reads; [`NODE_ID`] among them when its result depends on which node
+    /// it belongs to.
     pub params: &'static [&'static str],
     pub stages: &'static [&'static str],
     /// `(input port, upstream stage)` pairs.

@@ -96,21 +96,41 @@ pub const MAX_NORMAL_MAP_PIXELS: u64 = 4096 * 4096;
 pub fn load_normal_map(path: &std::path::Path) -> Result<NormalMap, String> {
     let named = |e: &dyn std::fmt::Display| format!("normal map {}: {e}", path.display());
     crate::limits::check_regular_file(path, crate::limits::MAX_FILE_BYTES).map_err(|e| named(&e))?;
-    let reader = image::ImageReader::open(path).and_then(|r| r.with_guessed_format()).map_err(|e| named(&e))?;
-    if reader.format().is_none() {
-        return Err(named(&"not an image this program reads (PNG, JPEG or EXR)"));
+    let open = || image::ImageReader::open(path).and_then(|r| r.with_guessed_format()).map_err(|e| named(&e));
+    decode_normal_map(open()?, open()?).map_err(|e| named(&e))
+}
+
+/// The normal map of a glTF material (see [`crate::gltf_import::normal_texture`]), its
+/// `scale` and the material it was taken from.
+pub fn load_gltf_normal_map(path: &std::path::Path, material: &str) -> Result<(NormalMap, f64, String), String> {
+    let texture = crate::gltf_import::normal_texture(path, material)?;
+    let open = || image::ImageReader::new(std::io::Cursor::new(&texture.image[..])).with_guessed_format();
+    let named =
+        |e: &dyn std::fmt::Display| format!("normal map of material `{}` in {}: {e}", texture.material, path.display());
+    let map =
+        decode_normal_map(open().map_err(|e| named(&e))?, open().map_err(|e| named(&e))?).map_err(|e| named(&e))?;
+    Ok((map, texture.scale, texture.material))
+}
+
+/// Decodes an image into a normal map: `probe` reads its header, `reader` (the same image)
+/// decodes it under limits set from the header.
+fn decode_normal_map<R: std::io::BufRead + std::io::Seek>(
+    probe: image::ImageReader<R>,
+    mut reader: image::ImageReader<R>,
+) -> Result<NormalMap, String> {
+    if probe.format().is_none() {
+        return Err("not an image this program reads (PNG, JPEG or EXR)".into());
     }
-    let (width, height) = reader.into_dimensions().map_err(|e| named(&e))?;
+    let (width, height) = probe.into_dimensions().map_err(|e| e.to_string())?;
     if width == 0 || height == 0 || u64::from(width) * u64::from(height) > MAX_NORMAL_MAP_PIXELS {
-        return Err(named(&format!("{width} × {height} texels (at most {MAX_NORMAL_MAP_PIXELS}, and at least one)")));
+        return Err(format!("{width} × {height} texels (at most {MAX_NORMAL_MAP_PIXELS}, and at least one)"));
     }
-    let mut reader = image::ImageReader::open(path).and_then(|r| r.with_guessed_format()).map_err(|e| named(&e))?;
     let mut limits = image::Limits::default();
     limits.max_image_width = Some(width);
     limits.max_image_height = Some(height);
     limits.max_alloc = Some(MAX_NORMAL_MAP_PIXELS * 16);
     reader.limits(limits);
-    let decoded = reader.decode().map_err(|e| named(&e))?.to_rgb32f();
+    let decoded = reader.decode().map_err(|e| e.to_string())?.to_rgb32f();
     let normals = decoded
         .pixels()
         .map(|p| {

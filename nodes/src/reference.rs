@@ -174,7 +174,8 @@ pub struct ReferenceScene<'a> {
     /// Painted area lights (not seen by camera rays, as in the viewport).
     pub area_lights: &'a [AreaEmitter],
     /// Per mesh, the normal map its shading normal is perturbed by and the map's repeats per
-    /// unit of UV (in the frame of its normal, tangent and `n × t`, at the hit's UV); none
+    /// unit of UV (in the frame of its normal, tangent and `± n × t` by the vertices'
+    /// handedness, at the hit's UV); none
     /// past the list's end.
     pub normal_maps: &'a [Option<(&'a crate::normal_filtering::NormalMap, f64)>],
 }
@@ -202,6 +203,8 @@ struct TriangleTable {
     /// First global triangle index of each mesh.
     starts: Vec<u32>,
     tangents: Vec<Vec<[f32; 3]>>,
+    /// Per mesh and vertex, the normal-map frame's handedness.
+    bitangent_signs: Vec<Vec<f32>>,
 }
 
 impl TriangleTable {
@@ -212,7 +215,11 @@ impl TriangleTable {
             starts.push(next);
             next += m.triangle_count() as u32;
         }
-        Self { starts, tangents: meshes.meshes.iter().map(crate::mesh::vertex_tangents).collect() }
+        Self {
+            starts,
+            tangents: meshes.meshes.iter().map(crate::mesh::vertex_tangents).collect(),
+            bitangent_signs: meshes.meshes.iter().map(crate::mesh::vertex_bitangent_signs).collect(),
+        }
     }
 
     fn locate(&self, triangle: u32) -> (usize, usize) {
@@ -273,7 +280,9 @@ fn shade_point(rs: &ReferenceScene, table: &TriangleTable, origin: DVec3, dir: D
             let uv = mesh.uvs[*i];
             [a[0] + f64::from(uv[0]) * w, a[1] + f64::from(uv[1]) * w]
         });
-        let perturbed = DMat3::from_cols(tangent, n.cross(tangent), n) * map.sample(uv.map(|c| c * tiling));
+        let handedness = idx.iter().zip(w).map(|(i, w)| f64::from(table.bitangent_signs[mi][*i]) * w).sum::<f64>();
+        let bitangent = n.cross(tangent) * if handedness < 0.0 { -1.0 } else { 1.0 };
+        let perturbed = DMat3::from_cols(tangent, bitangent, n) * map.sample(uv.map(|c| c * tiling));
         n = perturbed.try_normalize().unwrap_or(n);
         tangent = (tangent - n * n.dot(tangent)).try_normalize().unwrap_or_else(|| n.any_orthonormal_vector());
     }
@@ -557,6 +566,58 @@ mod tests {
         };
         assert!(differ(&mapped, &written) < 1e-3 * scale, "{} (scale {scale})", differ(&mapped, &written));
         assert!(differ(&unmapped, &written) > 0.1 * scale, "the tilt changes too little to test");
+    }
+
+    /// A map whose normals lean up the image leans the shading normal the same way in the
+    /// world on a floor whose UVs are mirrored in u (its tangents turn round, its frame's
+    /// handedness with them), and on one mirrored by its transform: the images agree to their
+    /// noise (the turned frames sample other directions), far closer than a map leaning down.
+    #[test]
+    fn a_mirrored_uv_layout_keeps_the_maps_up_direction() {
+        let tilt = 35f64.to_radians();
+        let leaning = |y: f64| crate::normal_filtering::NormalMap {
+            width: 2,
+            height: 2,
+            normals: vec![DVec3::new(0.0, y * tilt.sin(), tilt.cos()); 4],
+        };
+        let (map, down) = (leaning(1.0), leaning(-1.0));
+        let environment = cube_from(|d| [0.2 + 3.0 * d.z.max(0.0).powi(4), 0.3 + d.y.max(0.0), 0.2]);
+        let material =
+            Material { model: "ggx".into(), roughness: 0.3, f0: 0.8, specular: [1.0; 3], ..Default::default() };
+        let camera = PinholeCamera { position: DVec3::new(0.0, 2.0, 3.0), target: DVec3::ZERO, fov_y_deg: 30.0 };
+        let render_with = |mesh: &mesh::Mesh, map: &crate::normal_filtering::NormalMap| {
+            let meshes = MeshSet { meshes: vec![mesh.clone()] };
+            let scene = RayScene::build(&meshes);
+            let maps = [Some((map, 1.0))];
+            let rs = ReferenceScene {
+                normal_maps: &maps,
+                ..lit(&scene, &meshes, &environment, Brdf::from_material(&material))
+            };
+            render(&rs, &camera, (16, 16), 64, 3, &CancelToken::default(), &|_| {}).unwrap().pixels
+        };
+        let floor = mesh::plane(4.0, 4);
+        let mut mirrored = floor.clone();
+        for uv in &mut mirrored.uvs {
+            uv[0] = 1.0 - uv[0];
+        }
+        let flipped = floor.clone().transformed(glam::DMat4::from_scale(DVec3::new(-1.0, 1.0, 1.0)));
+        let reference = render_with(&floor, &map);
+        let rms = |a: &[[f32; 3]]| {
+            let sum: f64 = a
+                .iter()
+                .zip(&reference)
+                .flat_map(|(p, q)| (0..3).map(move |c| (p[c] - q[c]) as f64))
+                .map(|d| d * d)
+                .sum();
+            (sum / (a.len() * 3) as f64).sqrt()
+        };
+        let opposite = rms(&render_with(&floor, &down));
+        for (name, mesh) in [("mirrored UVs", &mirrored), ("mirroring transform", &flipped)] {
+            let same = rms(&render_with(mesh, &map));
+            assert!(same < 0.2 * opposite, "{name}: {same} against {opposite} for the opposite lean");
+            let wrong = rms(&render_with(mesh, &down));
+            assert!(wrong > 0.8 * opposite, "{name}: leaning down gives {wrong}, not about {opposite}");
+        }
     }
 
     #[test]

@@ -307,6 +307,29 @@ fn normal_maps_mutated_every_way_never_panic() {
     for (label, mutant) in byte_mutants("16x16 png", &small, 200, &mut rng) {
         inputs.push((label, [vec![0u8], mutant].concat()));
     }
+    // The same image as a glTF material's normal texture: in a data URI (text-mutated) and in
+    // a GLB's buffer view (byte-mutated).
+    let material =
+        r#""materials":[{"name":"normals","normalTexture":{"index":0,"scale":2}}],"textures":[{"source":0}]"#;
+    let data_uri = format!(
+        r#"{{"asset":{{"version":"2.0"}},"images":[{{"uri":"data:image/png;base64,{}","mimeType":"image/png"}}],{material}}}"#,
+        base64::encode(&small)
+    );
+    for (label, mutant) in text_mutants("data-URI glTF", &data_uri, 200, &mut rng) {
+        inputs.push((label, [vec![2u8], mutant].concat()));
+    }
+    let glb = fuzzing::glb(
+        &format!(
+            r#"{{"asset":{{"version":"2.0"}},"buffers":[{{"byteLength":{0}}}],"bufferViews":[{{"buffer":0,"byteLength":{0}}}],"images":[{{"bufferView":0,"mimeType":"image/png"}}],{material}}}"#,
+            small.len()
+        ),
+        &small,
+    );
+    for (label, mutant) in byte_mutants("GLB", &glb, 200, &mut rng) {
+        inputs.push((label, [vec![3u8], mutant].concat()));
+    }
+    inputs.push(("data-URI glTF".into(), [vec![2u8], data_uri.into_bytes()].concat()));
+    inputs.push(("GLB".into(), [vec![3u8], glb].concat()));
     inputs.push(("16x16 png".into(), [vec![0u8], small].concat()));
     let n = replay(fuzzing::normal_map, inputs);
     assert!(n > 500, "{n} inputs");

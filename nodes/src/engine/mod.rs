@@ -495,6 +495,10 @@ impl Engine {
             for spec in &node.kind.stages {
                 let mut builder = key::KeyBuilder::new(node.kind.name, spec.name, spec.version);
                 for &param in spec.params {
+                    if param == crate::node_kind::NODE_ID {
+                        builder.add(key::Component::Param(param), node.id.as_bytes());
+                        continue;
+                    }
                     let value = &node.params[param];
                     self.param_bytes(graph, value, &mut buffer);
                     builder.add(key::Component::Param(param), &buffer);
@@ -686,7 +690,13 @@ impl Engine {
         let mut ctx = StageContext {
             node_id: &inst.node.id,
             stage: inst.spec.name,
-            params: inst.spec.params.iter().map(|p| (*p, &inst.node.params[*p])).collect(),
+            params: inst
+                .spec
+                .params
+                .iter()
+                .filter(|p| **p != crate::node_kind::NODE_ID)
+                .map(|p| (*p, &inst.node.params[*p]))
+                .collect(),
             stages: HashMap::default(),
             inputs: HashMap::default(),
             project_dir: &graph.project_dir,

@@ -51,9 +51,10 @@ pub(super) fn params() -> Vec<ParamSpec> {
             name: "normal_map",
             label: "Normal map",
             unit: "",
-            kind: ParamKind::Path { extensions: &["png", "exr", "jpg", "jpeg"], selects: None },
+            kind: ParamKind::Path { extensions: &["png", "exr", "jpg", "jpeg", "gltf", "glb"], selects: None },
             doc: "Tangent-space normal map (OpenGL convention, +Y up; linear values), relative to the \
-                  project. Empty: none.",
+                  project; or a glTF model, whose material named like this node (else the first with one) \
+                  gives its normal texture, its scale multiplying the strength. Empty: none.",
         },
         ParamSpec::float(
             "normal_strength",
@@ -128,8 +129,8 @@ pub(super) fn stages() -> Vec<StageSpec> {
     vec![
         StageSpec {
             name: "normal_map",
-            version: 1,
-            params: &["normal_map", "normal_strength"],
+            version: 2,
+            params: &["normal_map", "normal_strength", crate::node_kind::NODE_ID],
             stages: &[],
             inputs: &[],
             persist: None,
@@ -192,8 +193,16 @@ pub fn frame_stages(graph: &Graph, material: &str) -> Vec<StageRef> {
 /// The map, tilts scaled by the strength (empty without a file).
 fn normal_map(ctx: &StageContext) -> Result<StageValue, StageError> {
     let Some(path) = ctx.path("normal_map")? else { return Ok(StageValue::new(NormalMap::default())) };
-    let map = crate::normal_filtering::load_normal_map(&path).map_err(StageError::Failed)?;
-    Ok(StageValue::new(map.with_strength(ctx.float("normal_strength")?)))
+    let gltf = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("gltf") || e.eq_ignore_ascii_case("glb"));
+    let (map, scale) = if gltf {
+        let (map, scale, material) =
+            crate::normal_filtering::load_gltf_normal_map(&path, ctx.node_id).map_err(StageError::Failed)?;
+        ctx.inform(format!("the normal texture of glTF material `{material}` (scale {scale})"));
+        (map, scale)
+    } else {
+        (crate::normal_filtering::load_normal_map(&path).map_err(StageError::Failed)?, 1.0)
+    };
+    Ok(StageValue::new(map.with_strength(ctx.float("normal_strength")? * scale)))
 }
 
 fn ndf_moments(ctx: &StageContext) -> Result<StageValue, StageError> {
@@ -278,11 +287,18 @@ pub(super) fn frame_detail(
                 "its normal map filters the highlight approximately: {why} (exact for Lambert, Blinn-Phong and GGX)"
             ));
         }
-        if model != "lambert" && mode != super::output::Mode::ShIrradiance {
-            note(format!(
-                "in {mode} the environment's highlight is shaded per vertex without the normal map; diffuse light, \
-                 the sun and point lights see it"
-            ));
+        match mode {
+            _ if model == "lambert" => {}
+            super::output::Mode::ShIrradiance => {}
+            super::output::Mode::Rsl => note(format!(
+                "in {mode} the square lights are shaded per vertex without the normal map; the sun and point \
+                 lights see it"
+            )),
+            _ => note(format!(
+                "in {mode} the environment's highlight is shaded per vertex and corrected per pixel for the normal \
+                 map through the light's SH to band {}: sharper detail in it does not see the map",
+                crate::frame::HIGHLIGHT_BANDS - 1
+            )),
         }
     }
     Some(crate::frame::NormalDetail { settings, map, moments, lobes })

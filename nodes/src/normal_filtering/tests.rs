@@ -349,6 +349,31 @@ fn normal_maps_load_and_bad_files_are_named() {
     assert!(error.contains("100000 × 100000"), "{error}");
 }
 
+/// A glTF material's normal texture decodes to the map its image file does, with the
+/// material's scale; an image whose header declares absurd dimensions is refused by name.
+#[test]
+fn gltf_normal_textures_decode_as_their_images() {
+    let assets = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/assets/gltf/assimp-glTF2");
+    let direct = load_normal_map(&assets.join("ClearCoat-glTF/RibsNormal.png")).unwrap();
+    let (map, scale, material) =
+        load_gltf_normal_map(&assets.join("ClearCoat-glTF/ClearCoatTest.gltf"), "SharedNorm_Coating").unwrap();
+    assert_eq!((scale, material.as_str()), (1.0, "SharedNorm_Coating"));
+    assert!(map == direct);
+    let huge = std::fs::read(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../fuzz/regressions/normal_map/huge_declared.png"),
+    )
+    .unwrap();
+    let json = format!(
+        r#"{{"asset":{{"version":"2.0"}},"images":[{{"uri":"data:image/png;base64,{}"}}],"textures":[{{"source":0}}],"materials":[{{"normalTexture":{{"index":0}}}}]}}"#,
+        base64::encode(&huge[1..])
+    );
+    let dir = std::env::temp_dir().join(format!("lightloom-gltf-huge-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("huge.gltf"), json).unwrap();
+    let error = load_gltf_normal_map(&dir.join("huge.gltf"), "").unwrap_err();
+    assert!(error.contains("huge.gltf") && error.contains("100000 × 100000"), "{error}");
+}
+
 /// Sampling a map: at a texel's centre its own normal, halfway between two the normalised
 /// mean, and across the edge the map repeats.
 #[test]

@@ -13,15 +13,16 @@ pub(crate) struct Vertex {
     position: [f32; 3],
     normal: [f32; 3],
     color: [f32; 3],
-    /// The local frame's tangent (as the transport stages use it).
-    tangent: [f32; 3],
+    /// The local frame's tangent (as the transport stages use it) and, in w, the sign of the
+    /// normal map's bitangent `w · n × t` ([`lightloom_nodes::mesh::vertex_bitangent_signs`]).
+    tangent: [f32; 4],
     uv: [f32; 2],
     /// Index into the frame's materials.
     material: u32,
 }
 
 pub(crate) const VERTEX_ATTRIBUTES: [wgpu::VertexAttribute; 6] = wgpu::vertex_attr_array![
-    0 => Float32x3, 1 => Float32x3, 2 => Float32x3, 3 => Float32x3, 4 => Float32x2, 5 => Uint32
+    0 => Float32x3, 1 => Float32x3, 2 => Float32x3, 3 => Float32x4, 4 => Float32x2, 5 => Uint32
 ];
 
 pub(crate) struct GeometryBuffers {
@@ -46,13 +47,14 @@ impl GeometryBuffers {
         for (m, mesh) in set.meshes.iter().enumerate() {
             let base = vertices.len() as u32;
             let tangents = lightloom_nodes::mesh::vertex_tangents(mesh);
+            let signs = lightloom_nodes::mesh::vertex_bitangent_signs(mesh);
             let material = geometry.mesh_materials.get(m).copied().unwrap_or(0);
             for i in 0..mesh.positions.len() {
                 vertices.push(Vertex {
                     position: mesh.positions[i],
                     normal: mesh.normals[i],
                     color: mesh.base_color,
-                    tangent: tangents[i],
+                    tangent: [tangents[i][0], tangents[i][1], tangents[i][2], signs[i]],
                     uv: mesh.uvs.get(i).copied().unwrap_or([0.0; 2]),
                     material,
                 });

@@ -459,7 +459,12 @@ mod layout_tests {
             [beta, phase, counts, environment, environment_scattered, specular, light_position, light_intensity]
         );
         check!(irr, "Sun", sun::SunParams, [irradiance, offset, axis, directions, view_proj, lobes, lobe_colours]);
-        check!(irr, "NormalMaps", normal_map::NormalParams, [materials, flags, irradiance, vmf_levels]);
+        check!(
+            irr,
+            "NormalMaps",
+            normal_map::NormalParams,
+            [materials, flags, irradiance, vmf_levels, highlight_radiance, highlight_factors, highlight_weights]
+        );
         let source = sun::SHADER.1;
         let depth = naga::front::wgsl::parse_str(source).unwrap_or_else(|e| panic!("{}", e.emit_to_string(source)));
         naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::all())

@@ -6,7 +6,7 @@
 
 use super::{entry, stage_value, uniform_buffer, vec4};
 use crate::{GpuContext, RenderError};
-use lightloom_nodes::frame::{MAX_MATERIALS, NormalMapFrame};
+use lightloom_nodes::frame::{HIGHLIGHT_BANDS, MAX_MATERIALS, NormalMapFrame};
 use lightloom_nodes::kinds::brdf_normal_map::NormalFilter;
 use lightloom_nodes::normal_filtering::{MomentPyramid, VMF_LOBES, VmfPyramid};
 
@@ -26,6 +26,9 @@ pub(crate) struct NormalParams {
     pub(crate) flags: [f32; 4],
     pub(crate) irradiance: [[f32; 4]; 9],
     pub(crate) vmf_levels: [[u32; 4]; MAX_MATERIALS * LEVELS],
+    pub(crate) highlight_radiance: [[f32; 4]; HIGHLIGHT_BANDS * HIGHLIGHT_BANDS],
+    pub(crate) highlight_factors: [[f32; 4]; 2 * MAX_MATERIALS],
+    pub(crate) highlight_weights: [[f32; 4]; MAX_MATERIALS],
 }
 
 pub(crate) struct NormalMapPass {
@@ -44,7 +47,7 @@ impl NormalMapPass {
         let layout = gpu.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("normal maps"),
             entries: &[
-                entry::uniform(0, wgpu::ShaderStages::FRAGMENT),
+                entry::uniform(0, wgpu::ShaderStages::VERTEX_FRAGMENT),
                 entry::texture(1, wgpu::TextureViewDimension::D2Array, true),
                 entry::texture(2, wgpu::TextureViewDimension::D2Array, true),
                 entry::sampler(3),
@@ -231,6 +234,19 @@ impl NormalMapPass {
             params.flags[0] = 1.0;
             for (dst, src) in params.irradiance.iter_mut().zip(&e.coeffs) {
                 *dst = vec4(*src, 0.0);
+            }
+        }
+        if let Some(highlight) = &frame.vertex_highlight {
+            params.flags[1] = 1.0;
+            for (dst, src) in params.highlight_radiance.iter_mut().zip(&highlight.radiance.coeffs) {
+                *dst = vec4(*src, 0.0);
+            }
+            for (m, lobe) in highlight.lobes.iter().enumerate().take(MAX_MATERIALS) {
+                let Some(lobe) = lobe else { continue };
+                params.highlight_weights[m] = vec4(lobe.weight, 1.0);
+                for (l, f) in lobe.factors.iter().enumerate().take(HIGHLIGHT_BANDS) {
+                    params.highlight_factors[2 * m + l / 4][l % 4] = *f as f32;
+                }
             }
         }
         gpu.queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));

@@ -36,7 +36,11 @@ impl PrtPass {
         use wgpu::ShaderStages as S;
         let layout = setup.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("prt"),
-            entries: &[entry::uniform(0, S::VERTEX), entry::storage(1, S::VERTEX), entry::storage(2, S::VERTEX)],
+            entries: &[
+                entry::uniform(0, S::VERTEX_FRAGMENT),
+                entry::storage(1, S::VERTEX),
+                entry::storage(2, S::VERTEX),
+            ],
         });
         Self {
             pipeline: setup.surface_pipeline(SHADER, &layout),

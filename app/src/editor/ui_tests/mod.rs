@@ -13,6 +13,7 @@ mod area_light;
 mod bake;
 mod blockers;
 mod fitted_spheres;
+mod normal_maps;
 
 fn state_dir() -> PathBuf {
     document::test_state_dir()
@@ -982,33 +983,6 @@ fn open_sample(harness: &mut Harness<'_, EditorApp>, name: &str) {
     harness.run_steps(4);
     harness.get_by_label_contains(name).click();
     harness.run_steps(2);
-}
-
-/// A normal map as a user meets it: the hammered-metal sample opens from the file menu and
-/// draws; its BRDF node shows the map's preview beside the lobe plot; picking another filter in
-/// the inspector redraws the viewport without reloading the map or rebuilding its pyramids.
-#[test]
-fn a_normal_mapped_sample_previews_its_map_and_filters_from_the_inspector() {
-    let mut harness = default_harness();
-    open_sample(&mut harness, "hammered metal");
-    settle(&mut harness);
-    let problems: Vec<String> = harness.state().problems().into_iter().filter(|p| p.starts_with("error")).collect();
-    assert!(problems.is_empty(), "{problems:?}");
-    assert!(harness.state().previews.shows_image("hammered", 1), "the normal-map preview is drawn");
-    let vmf = viewport_mean(&mut harness);
-    assert!(vmf > 20.0, "the sample is drawn (mean sRGB {vmf:.1})");
-    harness.render().unwrap().save(state_dir().join("normal_map_sample.png")).expect("screenshot for a person");
-
-    harness.state_mut().selection = Selection::Node("hammered".into());
-    harness.run_steps(3);
-    pick(&mut harness, "Normal filtering", "None (averaged normals)");
-    settle(&mut harness);
-    let ran = computed_stages(&harness);
-    assert!(ran.contains(&"hammered.normal_settings".to_string()), "{ran:?}");
-    assert!(!ran.iter().any(|s| s.ends_with(".normal_map") || s.ends_with(".ndf_moments")), "{ran:?}");
-    let averaged = viewport_mean(&mut harness);
-    assert!((averaged - vmf).abs() > 0.05, "the filter changes the picture: {vmf:.2} vs {averaged:.2}");
-    harness.render().unwrap().save(state_dir().join("normal_map_averaged.png")).expect("screenshot for a person");
 }
 
 /// Square lights as a user sets them up: add the decomposer from the Add menu, link the sky

@@ -115,6 +115,9 @@ struct VertexOut {
     @location(4) normal: vec3<f32>,
     @location(5) tangent: vec4<f32>,
     @location(6) uv: vec2<f32>,
+    @location(7) glossy: vec3<f32>,
+    // How open the vertex is to the environment (normal_map.wgsl ndf_open_fraction).
+    @location(8) open: vec3<f32>,
 };
 
 @vertex
@@ -148,15 +151,21 @@ fn vs_main(v: MeshVertex, @builtin(vertex_index) index: u32) -> VertexOut {
         diffuse = diffuse + energy * square_mean(rp.layouts[m].x, to_plane(c), half_edge);
         glossy = glossy + energy * lobe_mean(m, c, half_edge, wo);
     }
-    out.radiance = out.albedo * diffuse + rp.specular[m].rgb * glossy;
+    out.radiance = out.albedo * diffuse;
+    out.glossy = rp.specular[m].rgb * glossy;
+    out.open = ndf_open_fraction(PI * diffuse, n);
     return out;
 }
 
 @fragment
 fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     let n = normalize(in.normal);
-    // The square lights' shading is per vertex: a normal map shades the sun and point lights.
+    // The square lights' shading is per vertex; under a normal map each pixel scales its diffuse
+    // light and corrects its highlight for the NDF (normal_map.wgsl), as the SH and wavelet modes do.
     var ndf: SurfaceNdf;
     surface_ndf(&ndf, in.material, in.uv, n, in.tangent);
-    return vec4<f32>(fog_shade(in.radiance, in.position, n, in.tangent.xyz, in.albedo / PI, in.material, &ndf), 1.0);
+    let view = normalize(globals.camera_pos.xyz - in.position);
+    let glossy = max(in.glossy + ndf_vertex_highlight(&ndf, n, view, in.material, in.open), vec3<f32>(0.0));
+    let lit = in.radiance * ndf_vertex_diffuse_scale(&ndf, n) + glossy;
+    return vec4<f32>(fog_shade(lit, in.position, n, in.tangent.xyz, in.albedo / PI, in.material, &ndf), 1.0);
 }

@@ -5,10 +5,14 @@
 // into the world by the surface frame, and shades diffuse light with them and highlights
 // through one or more vMF lobes of normals.
 
-const NDF_MAX_LOBES: i32 = 48;
+// The lobe budget of a pixel's NDF: the up to 48 lobes of two vMF levels' four texels each are
+// merged by moment matching into at most this many (ndf_insert_lobe).
+const NDF_MAX_LOBES: i32 = 12;
 const NDF_MATERIALS: i32 = 8;
 const NDF_LEVELS: i32 = 12;
 const NDF_MAX_KAPPA: f32 = 1.0e6;
+// Lobes of normals at least this concentrated (within about 0.2°) are a single normal.
+const NDF_SINGLE_NORMAL: f32 = 1.0e5;
 
 struct NormalMaps {
     // Per material: x: filter (0 no map, 1 SH NDF, 2 vMF mixture, 3 Toksvig, 4 averaged
@@ -59,8 +63,8 @@ struct SurfaceNdf {
     kappa: f32,
     // The highlight's lobes of normals: xyz unit mean, w weight; and their concentrations.
     count: i32,
-    lobes: array<vec4<f32>, 48>,
-    kappas: array<f32, 48>,
+    lobes: array<vec4<f32>, 12>,
+    kappas: array<f32, 12>,
 };
 
 // Whether the pixel shades through a normal map. `NORMAL_MAPS` is a constant each pipeline is
@@ -110,14 +114,53 @@ fn ndf_add_level(ndf: ptr<function, SurfaceNdf>, m: u32, level: i32, uv: vec2<f3
             let lobe = ndf_lobe_at(first + j);
             let weight = lobe.w * bilinear * share;
             let kappa = length(lobe.xyz);
-            if (weight <= 1e-3 || kappa <= 0.0 || (*ndf).count >= NDF_MAX_LOBES) {
+            if (weight <= 1e-3 || kappa <= 0.0) {
                 continue;
             }
-            (*ndf).lobes[(*ndf).count] = vec4<f32>(normalize(frame * (lobe.xyz / kappa)), weight);
-            (*ndf).kappas[(*ndf).count] = kappa;
-            (*ndf).count = (*ndf).count + 1;
+            ndf_insert_lobe(ndf, normalize(frame * (lobe.xyz / kappa)), weight, kappa);
         }
     }
+}
+
+// The mean resultant length A(κ) = coth κ - 1/κ of a vMF lobe of concentration κ.
+fn ndf_mean_length(kappa: f32) -> f32 {
+    if (kappa < 1e-3) {
+        return kappa / 3.0;
+    }
+    if (kappa > 20.0) {
+        return 1.0 - 1.0 / kappa;
+    }
+    return 1.0 / tanh(kappa) - 1.0 / kappa;
+}
+
+// Adds a vMF lobe (unit mean `mu`, weight, κ) to the pixel's mixture. Where it lies within the
+// spread of the nearest lobe (squared angle under the sum of their variances 1/κ), or the
+// budget is spent, the two merge by moment matching: the weighted mean of their mean resultant
+// vectors A(κ) μ gives the direction, and its length, through Banerjee's κ, the concentration
+// (two equal lobes merge into themselves).
+fn ndf_insert_lobe(ndf: ptr<function, SurfaceNdf>, mu: vec3<f32>, weight: f32, kappa: f32) {
+    var nearest = -1;
+    var best = -2.0;
+    for (var i = 0; i < (*ndf).count; i = i + 1) {
+        let c = dot((*ndf).lobes[i].xyz, mu);
+        if (c > best) {
+            best = c;
+            nearest = i;
+        }
+    }
+    let close = nearest >= 0 && 2.0 * (1.0 - best) < 1.0 / (*ndf).kappas[nearest] + 1.0 / kappa;
+    if (nearest < 0 || (!close && (*ndf).count < NDF_MAX_LOBES)) {
+        (*ndf).lobes[(*ndf).count] = vec4<f32>(mu, weight);
+        (*ndf).kappas[(*ndf).count] = kappa;
+        (*ndf).count = (*ndf).count + 1;
+        return;
+    }
+    let held = (*ndf).lobes[nearest];
+    let total = held.w + weight;
+    let resultant = (held.w * ndf_mean_length((*ndf).kappas[nearest]) * held.xyz + weight * ndf_mean_length(kappa) * mu) / total;
+    let r = length(resultant);
+    (*ndf).lobes[nearest] = vec4<f32>(select(held.xyz, resultant / r, r > 1e-12), total);
+    (*ndf).kappas[nearest] = ndf_kappa(r);
 }
 
 // Sets `ndf` to the NDF of material m's normal map over this pixel's footprint at `uv`, on

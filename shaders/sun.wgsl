@@ -96,6 +96,24 @@ fn sun_lobe_of(lobe: vec4<f32>, n: vec3<f32>, tangent: vec3<f32>, wi: vec3<f32>,
     return 0.0;
 }
 
+// The angular variance (per axis, about the normal) of the half vectors a lobe reflects through:
+// 1/s for Blinn-Phong's exponent s, a quarter of Phong's mirror-space 1/s, α²/2 for GGX and
+// Ward (along the sharper axis).
+fn sun_lobe_variance(lobe: vec4<f32>) -> f32 {
+    let model = i32(lobe.x + 0.5);
+    if (model == 1) {
+        return 0.25 / max(lobe.y, 1e-6);
+    }
+    if (model == 2) {
+        return 1.0 / max(lobe.y, 1e-6);
+    }
+    if (model == 3 || model == 4) {
+        let a = min(lobe.y, lobe.w);
+        return 0.5 * a * a;
+    }
+    return 0.0;
+}
+
 // Lobe `j` of the pixel's normals (normal_map.wgsl) lit from `d`: its weight times material
 // m's lobe about its mean, widened by a concentration `kappa` (with the factor that keeps its
 // integral), toward `wo`, times the cosine to that mean.
@@ -148,15 +166,17 @@ fn sun_direct(p: vec3<f32>, n: vec3<f32>, tangent: vec3<f32>, wo: vec3<f32>, kd:
         return kd * (cosine * (1.0 + cos_r) * 0.5 * f32(count)) * sun.irradiance.rgb;
     }
     // Through a normal map, wholly lit: the diffuse light by the cap's closed form, and each lobe
-    // of normals that spreads the highlight well past the disc (its normals' variance 1/κ over
-    // four times the disc's half-vector variance r²/16) evaluated once, at the axis, widened by
-    // the disc as well; sharper lobes take every direction.
+    // of normals whose highlight spreads well past the disc (its normals' variance 1/κ and the
+    // material lobe's own over four times the disc's half-vector variance r²/16) evaluated once,
+    // at the axis, widened by the disc as well; sharper lobes, and a single normal (a flat map,
+    // averaged normals: drawn as without a map), take every direction.
     if (lit && above && ndf_mapped(ndf)) {
         let r2 = max(1.0 - cos_r * cos_r, 0.0);
+        let own = sun_lobe_variance(sun.lobes[m]);
         var lobes = 0.0;
         for (var j = 0; j < (*ndf).count; j = j + 1) {
             let kappa = (*ndf).kappas[j];
-            if (1.0 / kappa > r2 * 0.25) {
+            if (kappa < NDF_SINGLE_NORMAL && 1.0 / kappa + own > r2 * 0.25) {
                 let wide = 1.0 / (1.0 / kappa + r2 / 16.0);
                 lobes = lobes + f32(count) * sun_ndf_lobe(ndf, j, m, wide, tangent, sun.axis.xyz, wo);
             } else {

@@ -146,8 +146,8 @@ pub struct NormalMapFrame {
     /// mode shades diffuse light per vertex: each pixel's diffuse light is scaled by this
     /// irradiance averaged over its NDF over the same at its geometric normal (1 on a flat map).
     pub vertex_diffuse_scale: Option<ShRgb>,
-    /// In the modes that shade the environment's highlight per vertex, while a material has a
-    /// map: what each pixel corrects that highlight by.
+    /// In the modes that shade the environment's light per vertex, while a material has a map:
+    /// what each pixel corrects its highlight by.
     pub vertex_highlight: Option<VertexHighlight>,
 }
 
@@ -171,13 +171,11 @@ pub struct VertexHighlight {
 impl NormalMapFrame {
     /// The materials' maps for the viewport; a map of another size than the first mapped
     /// material's is left out, and `notes` says so as `(node, why)`.
-    /// `per_vertex`: the mode shades diffuse light per vertex; `highlight`: and the environment's
-    /// highlight too.
+    /// `per_vertex`: the mode shades the environment's light per vertex.
     pub fn new(
         materials: &[FrameMaterial],
         transported: Option<&ShRgb>,
         per_vertex: bool,
-        highlight: bool,
         notes: &mut Vec<(String, String)>,
     ) -> Self {
         let size = |d: &NormalDetail| {
@@ -211,7 +209,7 @@ impl NormalMapFrame {
         let materials: Vec<Option<NormalDetail>> = materials_mapped;
         let vertex_diffuse_scale = transported.filter(|_| per_vertex).map(|light| light.irradiance().truncated(3));
         let mapped = materials.iter().any(Option::is_some);
-        let vertex_highlight = transported.filter(|_| per_vertex && highlight && mapped).map(|light| VertexHighlight {
+        let vertex_highlight = transported.filter(|_| per_vertex && mapped).map(|light| VertexHighlight {
             radiance: light.truncated(HIGHLIGHT_BANDS),
             lobes: frame_materials.iter().map(|m| crate::prt::glossy_lobe(&m.material, HIGHLIGHT_BANDS)).collect(),
         });

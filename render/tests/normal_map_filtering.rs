@@ -108,11 +108,14 @@ fn project(shape: &str, material: &str, light: Light, strength: f64, dir: &Path)
                 (id: "bumpy", kind: "BrdfEditor", position: (0.0, 0.0),
                  params: {{{material}, "normal_map": Path("{}"), "normal_strength": Float({strength})}}),
                 (id: "output", kind: "Output", position: (0.0, 0.0), params: {{"mode": Choice("sh_irradiance"), "sun": Choice("{sun}")}}),
+                (id: "squares", kind: "RslDecomposer", position: (0.0, 0.0)),
             ],
             links: [
                 (from: ("sky", "environment"), to: ("output", "environment")),
                 (from: ("scene", "scene"), to: ("output", "scene")),
                 (from: ("bumpy", "material"), to: ("output", "material")),
+                (from: ("sky", "environment"), to: ("squares", "environment")),
+                (from: ("squares", "square_lights"), to: ("output", "square_lights")),
             ],
         )"#,
         map.display(),
@@ -335,7 +338,7 @@ fn a_flat_map_draws_the_unmapped_picture_and_the_furnace_stays_white() {
     let dir = tempfile::tempdir().unwrap();
     let glossy = GLOSSY;
     let (_, view) = camera([0.0; 3], 6.0);
-    let cases = ["sh_irradiance", "sh_prt", "wavelet_vertex"].into_iter().flat_map(|mode| {
+    let cases = ["sh_irradiance", "sh_prt", "wavelet_vertex", "rsl"].into_iter().flat_map(|mode| {
         [(mode, Light::Sun, glossy, 0.0, 5e-3), (mode, Light::Furnace, r#""model": Choice("lambert")"#, 1.0, 0.01)]
     });
     for (mode, light, material, strength, tolerance) in cases {
@@ -481,8 +484,8 @@ fn a_gltf_materials_normal_texture_leans_mirrored_halves_alike() {
 
 /// The per-vertex modes' environment highlight under a normal map (at strength 0.4, so that
 /// the reference's camera never sees a normal from behind): a glossy plane (Blinn-Phong of
-/// exponent 40) mirrors a broad window to the camera, from near to far, in `sh_prt` and
-/// `wavelet_vertex`, each pixel correcting its vertices' highlight for its NDF. Against the
+/// exponent 40) mirrors a broad window to the camera, from near to far, in `sh_prt`,
+/// `wavelet_vertex` and `rsl`, each pixel correcting its vertices' highlight for its NDF. Against the
 /// reference with the map, the picture (8 × 8 block means) is well nearer than the unmapped
 /// one at every distance, and its energy within 20% once the mode's own bias on the unmapped
 /// plane is divided out (without the correction: 50% too bright at 3 m).
@@ -494,7 +497,7 @@ fn per_vertex_highlights_see_the_normal_map() {
     let dir = tempfile::tempdir().unwrap();
     let material = r#""model": Choice("blinn_phong"), "exponent": Float(40.0), "f0": Float(0.5), "albedo": Color((0.2, 0.2, 0.2))"#;
     let size = (SIZE.0 as usize, SIZE.1 as usize);
-    for mode in ["sh_prt", "wavelet_vertex"] {
+    for mode in ["sh_prt", "wavelet_vertex", "rsl"] {
         let mut graph = project("Plane(size: 200.0)", material, Light::Window, 0.4, dir.path());
         graph.set_param("output", "mode", ParamValue::Choice(mode.into())).unwrap();
         graph.set_param("output", "reference_samples", ParamValue::Int(64)).unwrap();
@@ -505,6 +508,7 @@ fn per_vertex_highlights_see_the_normal_map() {
         for d in [3.0, 8.0, 20.0] {
             let (pinhole, view) = camera([0.0; 3], d);
             let mapped = frame(&engine, &graph);
+            assert_eq!(mapped.mode.to_string(), mode, "the frame is drawn in the mode asked for");
             let truth = mapped.render_reference(&pinhole, size, 1, &CancelToken::default(), &|_| {}).unwrap();
             let pixels = render(&gpu, &mut renderer, &mapped, &view);
             let flat = render(&gpu, &mut renderer, &frame(&engine, &unmapped), &view);

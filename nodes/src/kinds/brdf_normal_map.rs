@@ -287,18 +287,12 @@ pub(super) fn frame_detail(
                 "its normal map filters the highlight approximately: {why} (exact for Lambert, Blinn-Phong and GGX)"
             ));
         }
-        match mode {
-            _ if model == "lambert" => {}
-            super::output::Mode::ShIrradiance => {}
-            super::output::Mode::Rsl => note(format!(
-                "in {mode} the square lights are shaded per vertex without the normal map; the sun and point \
-                 lights see it"
-            )),
-            _ => note(format!(
+        if model != "lambert" && mode != super::output::Mode::ShIrradiance {
+            note(format!(
                 "in {mode} the environment's highlight is shaded per vertex and corrected per pixel for the normal \
                  map through the light's SH to band {}: sharper detail in it does not see the map",
                 crate::frame::HIGHLIGHT_BANDS - 1
-            )),
+            ));
         }
     }
     Some(crate::frame::NormalDetail { settings, map, moments, lobes })

@@ -917,7 +917,6 @@ impl FrameInputs {
             &materials,
             light,
             !matches!(mode, Mode::ShIrradiance),
-            !matches!(mode, Mode::ShIrradiance | Mode::Rsl),
             &mut normal_notes,
         );
         let mut lobe_limits = lobe_limits(graph, output, &scene, settings.mode, &materials, sun.is_some());

@@ -71,9 +71,9 @@ pub fn normal_map(bytes: &[u8]) {
     let path = scratch_file(name, file);
     let loaded = match format % 4 {
         0 | 1 => load_normal_map(&path),
-        _ => load_gltf_normal_map(&path, "normals").map(|(map, scale, _)| {
-            assert!(scale.is_finite(), "a non-finite normal texture scale");
-            map
+        _ => load_gltf_normal_map(&path, "normals").map(|loaded| {
+            assert!(loaded.scale.is_finite(), "a non-finite normal texture scale");
+            loaded.map
         }),
     };
     if let Ok(map) = loaded {

@@ -277,6 +277,9 @@ pub struct NormalTexture {
     pub image: Vec<u8>,
     /// `normalTexture.scale`: how far the map's tilts are scaled.
     pub scale: f64,
+    /// What the glTF asks of the texture that the map does not do (a texture transform, a
+    /// wrap other than repeat).
+    pub warnings: Vec<String>,
 }
 
 /// The normal texture of the material named `material` in the glTF at `path`, or, when no
@@ -316,11 +319,30 @@ pub fn normal_texture(path: &Path, material: &str) -> Result<NormalTexture, Stri
     if !scale.is_finite() {
         return Err(format!("{name}: material `{label}`'s normal texture scale is not a finite number"));
     }
+    let root = document.as_json();
+    let mut warnings = Vec::new();
+    let transformed = chosen
+        .index()
+        .and_then(|m| root.materials[m].normal_texture.as_ref())
+        .is_some_and(|t| t.extensions.as_ref().is_some_and(|e| e.others.contains_key("KHR_texture_transform")));
+    if transformed {
+        warnings.push(format!(
+            "material `{label}`'s normal texture has a KHR_texture_transform, which is not applied (Normal tiling \
+             repeats the map)"
+        ));
+    }
+    let sampler = root.textures[normal.texture().index()].sampler.and_then(|s| root.samplers.get(s.value()));
+    let repeats = |wrap: &gltf::json::validation::Checked<gltf::json::texture::WrappingMode>| {
+        matches!(wrap, gltf::json::validation::Checked::Valid(gltf::json::texture::WrappingMode::Repeat))
+    };
+    if sampler.is_some_and(|s| !repeats(&s.wrap_s) || !repeats(&s.wrap_t)) {
+        warnings.push(format!("material `{label}`'s normal texture clamps or mirrors at its edges; the map repeats"));
+    }
     let image = normal.texture().source();
     let what = format!("image {} of material `{label}`'s normal texture", image.index());
     let base = path.parent().unwrap_or(Path::new("."));
     // From the JSON: the crate's `Image::source` unwraps a missing mimeType or URI.
-    let json = &document.as_json().images[image.index()];
+    let json = &root.images[image.index()];
     let view = json.buffer_view.as_ref().and_then(|v| document.views().nth(v.value()));
     let encoded = match (view, &json.uri) {
         (None, None) => return Err(format!("{name}: {what} has neither a uri nor a bufferView")),
@@ -342,7 +364,7 @@ pub fn normal_texture(path: &Path, material: &str) -> Result<NormalTexture, Stri
             buffer.0[view.offset()..end].to_vec()
         }
     };
-    Ok(NormalTexture { material: label, image: encoded, scale })
+    Ok(NormalTexture { material: label, image: encoded, scale, warnings })
 }
 
 /// Checks that an accessor has the expected layout and lies inside its buffer.
@@ -737,6 +759,20 @@ mod tests {
         let special = missing.replace("gone.png", "/dev/zero");
         let e = import_json_texture("special-image", &special).unwrap_err();
         assert!(e.contains("not a regular file"), "{e}");
+        assert!(import_json_texture("data-uri", &data_uri).unwrap().warnings.is_empty());
+        // What the map does not do is said: a texture transform, and edges that clamp.
+        let asks_more = data_uri
+            .replace(
+                r#""index":0,"scale":0.5"#,
+                r#""index":0,"scale":0.5,"extensions":{"KHR_texture_transform":{"scale":[4,4]}}"#,
+            )
+            .replace(
+                r#""textures":[{"source":0}]"#,
+                r#""textures":[{"source":0,"sampler":0}],"samplers":[{"wrapS":33071}]"#,
+            );
+        let warnings = import_json_texture("asks-more", &asks_more).unwrap().warnings;
+        assert!(warnings.len() == 2 && warnings[0].contains("KHR_texture_transform"), "{warnings:?}");
+        assert!(warnings[1].contains("clamps or mirrors"), "{warnings:?}");
     }
 
     /// Writes `json` as a .gltf in a fresh folder and reads material `bumps`'s normal texture.

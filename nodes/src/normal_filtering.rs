@@ -100,16 +100,27 @@ pub fn load_normal_map(path: &std::path::Path) -> Result<NormalMap, String> {
     decode_normal_map(open()?, open()?).map_err(|e| named(&e))
 }
 
-/// The normal map of a glTF material (see [`crate::gltf_import::normal_texture`]), its
-/// `scale` and the material it was taken from.
-pub fn load_gltf_normal_map(path: &std::path::Path, material: &str) -> Result<(NormalMap, f64, String), String> {
+/// A glTF material's normal map ([`load_gltf_normal_map`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct GltfNormalMap {
+    pub map: NormalMap,
+    /// `normalTexture.scale`.
+    pub scale: f64,
+    /// The material it was taken from.
+    pub material: String,
+    /// What the glTF asks of the texture that the map does not do.
+    pub warnings: Vec<String>,
+}
+
+/// The normal map of a glTF material (see [`crate::gltf_import::normal_texture`]).
+pub fn load_gltf_normal_map(path: &std::path::Path, material: &str) -> Result<GltfNormalMap, String> {
     let texture = crate::gltf_import::normal_texture(path, material)?;
     let open = || image::ImageReader::new(std::io::Cursor::new(&texture.image[..])).with_guessed_format();
     let named =
         |e: &dyn std::fmt::Display| format!("normal map of material `{}` in {}: {e}", texture.material, path.display());
     let map =
         decode_normal_map(open().map_err(|e| named(&e))?, open().map_err(|e| named(&e))?).map_err(|e| named(&e))?;
-    Ok((map, texture.scale, texture.material))
+    Ok(GltfNormalMap { map, scale: texture.scale, material: texture.material, warnings: texture.warnings })
 }
 
 /// Decodes an image into a normal map: `probe` reads its header, `reader` (the same image)

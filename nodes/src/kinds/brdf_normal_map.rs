@@ -195,10 +195,12 @@ fn normal_map(ctx: &StageContext) -> Result<StageValue, StageError> {
     let Some(path) = ctx.path("normal_map")? else { return Ok(StageValue::new(NormalMap::default())) };
     let gltf = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("gltf") || e.eq_ignore_ascii_case("glb"));
     let (map, scale) = if gltf {
-        let (map, scale, material) =
-            crate::normal_filtering::load_gltf_normal_map(&path, ctx.node_id).map_err(StageError::Failed)?;
-        ctx.inform(format!("the normal texture of glTF material `{material}` (scale {scale})"));
-        (map, scale)
+        let loaded = crate::normal_filtering::load_gltf_normal_map(&path, ctx.node_id).map_err(StageError::Failed)?;
+        ctx.inform(format!("the normal texture of glTF material `{}` (scale {})", loaded.material, loaded.scale));
+        for warning in loaded.warnings {
+            ctx.warn(warning);
+        }
+        (loaded.map, loaded.scale)
     } else {
         (crate::normal_filtering::load_normal_map(&path).map_err(StageError::Failed)?, 1.0)
     };

@@ -3,7 +3,7 @@
 //   glossy   B_s = w * max(n.r, 0) * sum_lm f_l R_lm Y_lm(r)
 // with R = L*V the shadowed incident radiance (Gaunt product, precomputed per vertex), r the
 // mirror direction of the view, f_l the per-band factors of the material's Phong lobe. Under a
-// normal map each pixel corrects B_s for its NDF (normal_map.wgsl ndf_vertex_highlight).
+// normal map each pixel corrects B_s for its NDF (normal_map.wgsl ndf_vertex_glossy).
 
 
 struct PrtParams {
@@ -98,7 +98,7 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     var glossy = in.glossy;
     if (prt.counts.w > 0u && prt.specular[in.material].w > 0.0) {
         let view = normalize(globals.camera_pos.xyz - in.world);
-        glossy = max(glossy + ndf_vertex_highlight(&ndf, n, view, in.material, in.open), vec3<f32>(0.0));
+        glossy = ndf_vertex_glossy(&ndf, n, view, in.material, in.open, glossy);
     }
     let lit = in.color * ndf_vertex_diffuse_scale(&ndf, n) + glossy;
     return vec4<f32>(fog_shade(lit, in.world, n, in.tangent.xyz, in.kd, in.material, &ndf), 1.0);

@@ -165,7 +165,7 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     var ndf: SurfaceNdf;
     surface_ndf(&ndf, in.material, in.uv, n, in.tangent);
     let view = normalize(globals.camera_pos.xyz - in.position);
-    let glossy = max(in.glossy + ndf_vertex_highlight(&ndf, n, view, in.material, in.open), vec3<f32>(0.0));
+    let glossy = ndf_vertex_glossy(&ndf, n, view, in.material, in.open, in.glossy);
     let lit = in.radiance * ndf_vertex_diffuse_scale(&ndf, n) + glossy;
     return vec4<f32>(fog_shade(lit, in.position, n, in.tangent.xyz, in.albedo / PI, in.material, &ndf), 1.0);
 }

@@ -8,7 +8,7 @@
 // Kept detail terms (nodes/src/triple_product/details.rs) add sum_k d_k T_{4n+k}(w_o) per kept
 // node n to the glossy sum, T the fine lobe table on the two levels below the cells.
 // Under a normal map each pixel corrects the glossy sum for its NDF (normal_map.wgsl
-// ndf_vertex_highlight).
+// ndf_vertex_glossy).
 // Per vertex everywhere; in `wavelet_pixel`, meshes with a visibility texture are shaded per
 // pixel from their texels instead: E and P of the four nearest texels, weighted bilinearly.
 
@@ -201,7 +201,7 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     if (wp.texels.x == 0u || in.layer < 0) {
         var specular = in.specular;
         if (glossy) {
-            specular = max(specular + ndf_vertex_highlight(&ndf, n, view, in.material, in.open), vec3<f32>(0.0));
+            specular = ndf_vertex_glossy(&ndf, n, view, in.material, in.open, specular);
         }
         let lit = in.diffuse * diffuse_scale + specular;
         return vec4<f32>(fog_shade(lit, in.position, n, in.tangent.xyz, in.albedo / PI, in.material, &ndf), 1.0);
@@ -259,7 +259,7 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
         specular = wp.specular[m].rgb * specular;
     }
     if (glossy) {
-        specular = max(specular + ndf_vertex_highlight(&ndf, n, view, m, ndf_open_fraction(PI * e, n)), vec3<f32>(0.0));
+        specular = ndf_vertex_glossy(&ndf, n, view, m, ndf_open_fraction(PI * e, n), specular);
     }
     let lit = diffuse * diffuse_scale + specular;
     return vec4<f32>(fog_shade(lit, in.position, n, in.tangent.xyz, in.albedo / PI, in.material, &ndf), 1.0);

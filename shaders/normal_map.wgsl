@@ -355,23 +355,26 @@ fn ndf_highlight_sum(r: vec3<f32>, m: u32, kappa: f32) -> vec3<f32> {
     return sum;
 }
 
-// The change the pixel's NDF makes to a per-vertex mode's environment highlight (nodes
-// frame::VertexHighlight): material m's glossy weight times `open` (ndf_open_fraction at the
-// vertices) times the highlight of the unshadowed light through the NDF's lobes of normals, less
-// the same at the geometric normal `n`, for the unit direction `view` towards the eye. Zero
-// without a map, and for a flat one.
-fn ndf_vertex_highlight(ndf: ptr<function, SurfaceNdf>, n: vec3<f32>, view: vec3<f32>, m: u32, open: vec3<f32>) -> vec3<f32> {
+// A per-vertex mode's environment highlight `glossy` (interpolated from the vertices) corrected
+// for the pixel's NDF (nodes frame::VertexHighlight), through the highlight H of the unshadowed
+// light (SH to band 7, material m's lobe) for the unit direction `view` towards the eye: light
+// the NDF turns away scales `glossy` by H through the NDF over H at the geometric normal `n`;
+// light it turns in is added, material m's glossy weight times `open` (ndf_open_fraction at the
+// vertices) times the difference. Never negative; `glossy` itself without a map or for a flat one.
+fn ndf_vertex_glossy(ndf: ptr<function, SurfaceNdf>, n: vec3<f32>, view: vec3<f32>, m: u32, open: vec3<f32>, glossy: vec3<f32>) -> vec3<f32> {
     let weight = normal_maps.highlight_weights[m];
     if (!ndf_mapped(ndf) || normal_maps.flags.y < 0.5 || weight.w == 0.0) {
-        return vec3<f32>(0.0);
+        return glossy;
     }
     let r = reflect(-view, n);
-    let unmapped = ndf_highlight_sum(r, m, NDF_MAX_KAPPA) * max(dot(n, r), 0.0);
+    let unmapped = max(ndf_highlight_sum(r, m, NDF_MAX_KAPPA) * max(dot(n, r), 0.0), vec3<f32>(0.0));
     var mapped = vec3<f32>(0.0);
     for (var j = 0; j < (*ndf).count; j = j + 1) {
         let lobe = (*ndf).lobes[j];
         let rj = reflect(-view, lobe.xyz);
         mapped = mapped + lobe.w * ndf_highlight_sum(rj, m, (*ndf).kappas[j]) * max(dot(lobe.xyz, rj), 0.0);
     }
-    return weight.rgb * open * (mapped - unmapped);
+    mapped = max(mapped, vec3<f32>(0.0));
+    let kept = select(vec3<f32>(1.0), min(mapped / unmapped, vec3<f32>(1.0)), unmapped > vec3<f32>(1e-12));
+    return max(glossy, vec3<f32>(0.0)) * kept + weight.rgb * open * max(mapped - unmapped, vec3<f32>(0.0));
 }

@@ -154,12 +154,14 @@ pub struct NormalMapFrame {
 /// Bands of the light a per-vertex highlight is corrected with.
 pub const HIGHLIGHT_BANDS: usize = 8;
 
-/// How a pixel corrects its mode's per-vertex environment highlight for its normal map: by the
-/// change its NDF makes to the highlight of `radiance`, the unshadowed light the highlight
-/// carries, through the material's equivalent Phong lobe (Han et al. 2007: per SH band, the
-/// lobe's factor times the normals' spread, `f_l e^{−2l(l+1)/κ}` for a vMF lobe of normals, the
-/// mirror direction spreading twice as far), scaled by how open the vertex is to that light
-/// (its transported irradiance over the unshadowed one). A flat map changes nothing.
+/// How a pixel corrects its mode's per-vertex environment highlight for its normal map: by what
+/// its NDF does to the highlight H of `radiance`, the unshadowed light the highlight carries,
+/// through the material's equivalent Phong lobe (Han et al. 2007: per SH band, the lobe's factor
+/// times the normals' spread, `f_l e^{−2l(l+1)/κ}` for a vMF lobe of normals, the mirror
+/// direction spreading twice as far). Light the NDF turns away scales the vertices' highlight
+/// by H through the NDF over H at the normal; light it turns in is added, scaled by how open the
+/// vertex is to that light (its transported irradiance over the unshadowed one). A flat map
+/// changes nothing.
 #[derive(Clone, Debug, PartialEq)]
 pub struct VertexHighlight {
     /// `L_lm` to [`HIGHLIGHT_BANDS`].

@@ -273,6 +273,9 @@ fn read_uri(uri: &str, base: &Path, limit: u64, what: &str) -> Result<Vec<u8>, S
 pub struct NormalTexture {
     /// The material it belongs to (its name, or `material N`).
     pub material: String,
+    /// Whether that material bears the name asked for (else it is the first with a normal
+    /// texture).
+    pub named: bool,
     /// The encoded image (PNG or JPEG, as the glTF's images are).
     pub image: Vec<u8>,
     /// `normalTexture.scale`: how far the map's tilts are scaled.
@@ -298,6 +301,7 @@ pub fn normal_texture(path: &Path, material: &str) -> Result<NormalTexture, Stri
     let label =
         |m: &gltf::Material| m.name().map_or_else(|| format!("material {}", m.index().unwrap_or(0)), str::to_string);
     let named = document.materials().find(|m| m.name() == Some(material));
+    let named_found = named.is_some();
     let chosen = match named {
         Some(m) => m,
         None => document
@@ -364,7 +368,7 @@ pub fn normal_texture(path: &Path, material: &str) -> Result<NormalTexture, Stri
             buffer.0[view.offset()..end].to_vec()
         }
     };
-    Ok(NormalTexture { material: label, image: encoded, scale, warnings })
+    Ok(NormalTexture { material: label, named: named_found, image: encoded, scale, warnings })
 }
 
 /// Checks that an accessor has the expected layout and lies inside its buffer.

@@ -95,7 +95,8 @@ pub const MAX_NORMAL_MAP_PIXELS: u64 = 4096 * 4096;
 /// direction (or not finite) are taken as flat.
 pub fn load_normal_map(path: &std::path::Path) -> Result<NormalMap, String> {
     let named = |e: &dyn std::fmt::Display| format!("normal map {}: {e}", path.display());
-    crate::limits::check_regular_file(path, crate::limits::MAX_FILE_BYTES).map_err(|e| named(&e))?;
+    // Its messages name the file already.
+    crate::limits::check_regular_file(path, crate::limits::MAX_FILE_BYTES).map_err(|e| format!("normal map: {e}"))?;
     let open = || image::ImageReader::open(path).and_then(|r| r.with_guessed_format()).map_err(|e| named(&e));
     decode_normal_map(open()?, open()?).map_err(|e| named(&e))
 }
@@ -106,8 +107,10 @@ pub struct GltfNormalMap {
     pub map: NormalMap,
     /// `normalTexture.scale`.
     pub scale: f64,
-    /// The material it was taken from.
+    /// The material it was taken from, and whether by the name asked for (else the first
+    /// material with a normal texture).
     pub material: String,
+    pub named: bool,
     /// What the glTF asks of the texture that the map does not do.
     pub warnings: Vec<String>,
 }
@@ -120,7 +123,13 @@ pub fn load_gltf_normal_map(path: &std::path::Path, material: &str) -> Result<Gl
         |e: &dyn std::fmt::Display| format!("normal map of material `{}` in {}: {e}", texture.material, path.display());
     let map =
         decode_normal_map(open().map_err(|e| named(&e))?, open().map_err(|e| named(&e))?).map_err(|e| named(&e))?;
-    Ok(GltfNormalMap { map, scale: texture.scale, material: texture.material, warnings: texture.warnings })
+    Ok(GltfNormalMap {
+        map,
+        scale: texture.scale,
+        material: texture.material,
+        named: texture.named,
+        warnings: texture.warnings,
+    })
 }
 
 /// Decodes an image into a normal map: `probe` reads its header, `reader` (the same image)

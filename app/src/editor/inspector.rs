@@ -326,9 +326,21 @@ impl Inspector<'_> {
                 choice_combo(ui, (id, spec.name), options, labels, v, false)
             }
             (ParamKind::Path { extensions, .. }, ParamValue::Path(v)) => {
+                // What is typed is a draft until editing ends (Enter, or leaving the field): a
+                // half-typed path is never loaded, nor its error shown under the pointer.
+                let draft_id = egui::Id::new(("path draft", id, spec.name));
                 let r = ui
                     .horizontal(|ui| {
-                        let r = ui.add(egui::TextEdit::singleline(v).desired_width(150.0).hint_text("(none)"));
+                        let mut draft = ui.data(|d| d.get_temp::<String>(draft_id)).unwrap_or_else(|| v.clone());
+                        let r = ui.add(egui::TextEdit::singleline(&mut draft).desired_width(150.0).hint_text("(none)"));
+                        if r.has_focus() {
+                            ui.data_mut(|d| d.insert_temp(draft_id, draft));
+                        } else {
+                            ui.data_mut(|d| d.remove::<String>(draft_id));
+                            if r.lost_focus() {
+                                *v = draft;
+                            }
+                        }
                         if ui.button("Browse…").clicked() {
                             self.requests.push(InspectorRequest::Browse {
                                 node: id.into(),

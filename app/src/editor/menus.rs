@@ -286,7 +286,13 @@ impl EditorApp {
             out.push(format!("viewport: {e}"));
         }
         if let Some((evaluation, _)) = &self.evaluator.last {
-            for s in evaluation.report.failed() {
+            // Stages blocked by a failure listed here add nothing to it.
+            let failed = evaluation.report.failed();
+            let any_own = failed.iter().any(|s| s.status != lightloom_nodes::engine::StageStatus::Blocked);
+            for s in failed {
+                if any_own && s.status == lightloom_nodes::engine::StageStatus::Blocked {
+                    continue;
+                }
                 out.push(format!(
                     "{}.{}: {}",
                     s.node,
@@ -308,6 +314,9 @@ impl EditorApp {
                 out.push(format!("note: material `{node}`: {message}"));
             }
         }
+        // A stage read by several requests of one evaluation is reported by each.
+        let mut seen = std::collections::HashSet::new();
+        out.retain(|p| seen.insert(p.clone()));
         out
     }
 

@@ -53,8 +53,9 @@ pub(super) fn params() -> Vec<ParamSpec> {
             unit: "",
             kind: ParamKind::Path { extensions: &["png", "exr", "jpg", "jpeg", "gltf", "glb"], selects: None },
             doc: "Tangent-space normal map (OpenGL convention, +Y up; linear values), relative to the \
-                  project; or a glTF model, whose material named like this node (else the first with one) \
-                  gives its normal texture, its scale multiplying the strength. Empty: none.",
+                  project; or a glTF model: the normal texture of its material named as this node's id (as \
+                  the model's meshes find their BRDF node), else of the first material with one, its scale \
+                  multiplying the strength. Empty: none.",
         },
         ParamSpec::float(
             "normal_strength",
@@ -196,7 +197,15 @@ fn normal_map(ctx: &StageContext) -> Result<StageValue, StageError> {
     let gltf = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("gltf") || e.eq_ignore_ascii_case("glb"));
     let (map, scale) = if gltf {
         let loaded = crate::normal_filtering::load_gltf_normal_map(&path, ctx.node_id).map_err(StageError::Failed)?;
-        ctx.inform(format!("the normal texture of glTF material `{}` (scale {})", loaded.material, loaded.scale));
+        let which = if loaded.named {
+            "named as this node's id".to_string()
+        } else {
+            format!("the first with one: no material is named `{}`, this node's id", ctx.node_id)
+        };
+        ctx.inform(format!(
+            "the normal texture of glTF material `{}` ({which}; scale {})",
+            loaded.material, loaded.scale
+        ));
         for warning in loaded.warnings {
             ctx.warn(warning);
         }

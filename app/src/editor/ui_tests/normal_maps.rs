@@ -31,7 +31,7 @@ fn a_normal_mapped_sample_previews_its_map_and_filters_from_the_inspector() {
 }
 
 /// A glTF model's normal texture as a user picks it: the model's path typed into the BRDF
-/// node's "Normal map" field. The material named like the node being absent, the first with a
+/// node's "Normal map" field, a key a frame, and used once Enter ends the editing. The material named like the node being absent, the first with a
 /// normal texture gives it, and the node says which; its preview shows the map, the viewport
 /// redraws with it, and nothing fails.
 #[test]
@@ -45,7 +45,17 @@ fn a_gltf_models_normal_texture_is_typed_into_the_normal_map_field() {
     harness.run_steps(2);
     harness.get_by_role_and_label(Role::TextInput, "Normal map").click();
     harness.run_steps(1);
-    harness.get_by_role_and_label(Role::TextInput, "Normal map").type_text(&model.display().to_string());
+    // Typed a key a frame, as a person types: a half-typed path is never used.
+    let path = model.display().to_string();
+    for (i, c) in path.chars().enumerate() {
+        harness.get_by_role_and_label(Role::TextInput, "Normal map").type_text(&c.to_string());
+        harness.step();
+        if i % 16 == 0 {
+            let node = harness.state().doc.project.nodes.iter().find(|n| n.id == "material").unwrap().clone();
+            let used = matches!(node.params.get("normal_map"), Some(ParamValue::Path(p)) if !p.is_empty());
+            assert!(!used, "a half-typed path was used: {:?}", node.params);
+        }
+    }
     harness.key_press(egui::Key::Enter);
     harness.run_steps(2);
     settle(&mut harness);
@@ -54,7 +64,10 @@ fn a_gltf_models_normal_texture_is_typed_into_the_normal_map_field() {
     let report = &harness.state().evaluator.last.as_ref().expect("an evaluation").0.report;
     let loaded = report.stages.iter().find(|s| s.node == "material" && s.stage == "normal_map").expect("loaded");
     assert!(
-        loaded.info.iter().any(|i| i.contains("glTF material `BaseNorm_Base`")),
+        loaded
+            .info
+            .iter()
+            .any(|i| i.contains("glTF material `BaseNorm_Base` (the first with one: no material is named `material`")),
         "the node says which material gave the map: {:?}",
         loaded.info
     );
@@ -64,4 +77,14 @@ fn a_gltf_models_normal_texture_is_typed_into_the_normal_map_field() {
     let after = viewport_mean(&mut harness);
     assert!((after - before).abs() > 0.05, "the map changes the picture: {before:.2} vs {after:.2}");
     harness.render().unwrap().save(state_dir().join("gltf_normal_texture.png")).expect("screenshot for a person");
+
+    // A file that is not there: said once as the load's error and once as a missing asset (and
+    // the frame's note), not again for each stage it blocks.
+    inspector::set_param(&mut harness.state_mut().doc, "material", "normal_map", ParamValue::Path("gone.gltf".into()))
+        .unwrap();
+    harness.state_mut().doc.seal();
+    settle(&mut harness);
+    let problems: Vec<String> = harness.state().problems().into_iter().filter(|p| p.contains("gone.gltf")).collect();
+    assert!(problems.iter().any(|p| p.starts_with("material.normal_map:")), "{problems:?}");
+    assert!(problems.len() <= 3, "{problems:?}");
 }

@@ -22,7 +22,8 @@ pub struct ImportedScene {
 /// Deepest node hierarchy accepted (guards against cycles and absurd files).
 const MAX_DEPTH: usize = 256;
 
-pub fn import(path: &Path) -> Result<ImportedScene, String> {
+/// The glTF at `path` (its name for messages), every index checked, and its GLB chunk.
+fn open(path: &Path) -> Result<(String, gltf::Document, Option<Vec<u8>>), String> {
     let name = path.display().to_string();
     let bytes = crate::limits::read_regular_file(path, crate::limits::MAX_FILE_BYTES)?;
     let invalid = |e: gltf::Error| format!("{name}: not a valid glTF 2.0 file: {e}");
@@ -31,8 +32,12 @@ pub fn import(path: &Path) -> Result<ImportedScene, String> {
     // The gltf crate's validation and accessors index without checking: every index is
     // checked here first.
     check_indices(gltf.document.as_json()).map_err(|e| format!("{name}: {e}"))?;
-    let blob = gltf.blob;
     let document = gltf::Document::from_json(gltf.document.into_json()).map_err(invalid)?;
+    Ok((name, document, gltf.blob))
+}
+
+pub fn import(path: &Path) -> Result<ImportedScene, String> {
+    let (name, document, blob) = open(path)?;
     let buffers = load_buffers(&document, path.parent().unwrap_or(Path::new(".")), blob)
         .map_err(|e| format!("{name}: cannot load the glTF's buffers: {e}"))?;
     let document = &document;
@@ -290,14 +295,7 @@ pub struct NormalTexture {
 /// to the glTF, a `data:` URI or a buffer view (as in GLB files), under the same limits as the
 /// glTF's buffers. Only `TEXCOORD_0` is imported, so a texture on another set is refused.
 pub fn normal_texture(path: &Path, material: &str) -> Result<NormalTexture, String> {
-    let name = path.display().to_string();
-    let bytes = crate::limits::read_regular_file(path, crate::limits::MAX_FILE_BYTES)?;
-    let invalid = |e: gltf::Error| format!("{name}: not a valid glTF 2.0 file: {e}");
-    let gltf = gltf::Gltf::from_slice_without_validation(&bytes).map_err(invalid)?;
-    drop(bytes);
-    check_indices(gltf.document.as_json()).map_err(|e| format!("{name}: {e}"))?;
-    let mut blob = gltf.blob;
-    let document = gltf::Document::from_json(gltf.document.into_json()).map_err(invalid)?;
+    let (name, document, mut blob) = open(path)?;
     let label =
         |m: &gltf::Material| m.name().map_or_else(|| format!("material {}", m.index().unwrap_or(0)), str::to_string);
     let named = document.materials().find(|m| m.name() == Some(material));

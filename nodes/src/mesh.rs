@@ -142,21 +142,7 @@ pub fn vertex_tangents(mesh: &Mesh) -> Vec<[f32; 3]> {
             *a = DVec3::from(t.map(f64::from));
         }
     } else if mesh.uvs.len() == mesh.positions.len() {
-        for t in mesh.indices.chunks_exact(3) {
-            let p = |i: u32| DVec3::from(mesh.positions[i as usize].map(f64::from));
-            let uv = |i: u32| mesh.uvs[i as usize].map(f64::from);
-            let (e1, e2) = (p(t[1]) - p(t[0]), p(t[2]) - p(t[0]));
-            let (a, b, c) = (uv(t[0]), uv(t[1]), uv(t[2]));
-            let (du1, dv1, du2, dv2) = (b[0] - a[0], b[1] - a[1], c[0] - a[0], c[1] - a[1]);
-            let det = du1 * dv2 - du2 * dv1;
-            if det.abs() < 1e-20 {
-                continue;
-            }
-            let tangent = (e1 * dv2 - e2 * dv1) / det;
-            for &i in t {
-                acc[i as usize] += tangent;
-            }
-        }
+        acc = uv_gradients(mesh, |dp_du, _| dp_du);
     }
     acc.iter()
         .zip(&mesh.normals)
@@ -166,6 +152,28 @@ pub fn vertex_tangents(mesh: &Mesh) -> Vec<[f32; 3]> {
             t.as_vec3().to_array()
         })
         .collect()
+}
+
+/// Per vertex, the sum over its triangles of `pick(∂p/∂u, ∂p/∂v)`, each triangle's UV gradients
+/// (Lengyel's method; triangles whose UVs are degenerate add nothing). The mesh has UVs.
+fn uv_gradients(mesh: &Mesh, pick: impl Fn(DVec3, DVec3) -> DVec3) -> Vec<DVec3> {
+    let mut acc = vec![DVec3::ZERO; mesh.positions.len()];
+    for t in mesh.indices.chunks_exact(3) {
+        let p = |i: u32| DVec3::from(mesh.positions[i as usize].map(f64::from));
+        let uv = |i: u32| mesh.uvs[i as usize].map(f64::from);
+        let (e1, e2) = (p(t[1]) - p(t[0]), p(t[2]) - p(t[0]));
+        let (a, b, c) = (uv(t[0]), uv(t[1]), uv(t[2]));
+        let (du1, dv1, du2, dv2) = (b[0] - a[0], b[1] - a[1], c[0] - a[0], c[1] - a[1]);
+        let det = du1 * dv2 - du2 * dv1;
+        if det.abs() < 1e-20 {
+            continue;
+        }
+        let gradient = pick((e1 * dv2 - e2 * dv1) / det, (e2 * du1 - e1 * du2) / det);
+        for &i in t {
+            acc[i as usize] += gradient;
+        }
+    }
+    acc
 }
 
 /// Per vertex, the handedness of the normal-map frame: the bitangent, where a map's +Y
@@ -178,22 +186,7 @@ pub fn vertex_bitangent_signs(mesh: &Mesh) -> Vec<f32> {
     if mesh.uvs.len() != mesh.positions.len() {
         return vec![1.0; mesh.positions.len()];
     }
-    let mut dp_dv = vec![DVec3::ZERO; mesh.positions.len()];
-    for t in mesh.indices.chunks_exact(3) {
-        let p = |i: u32| DVec3::from(mesh.positions[i as usize].map(f64::from));
-        let uv = |i: u32| mesh.uvs[i as usize].map(f64::from);
-        let (e1, e2) = (p(t[1]) - p(t[0]), p(t[2]) - p(t[0]));
-        let (a, b, c) = (uv(t[0]), uv(t[1]), uv(t[2]));
-        let (du1, dv1, du2, dv2) = (b[0] - a[0], b[1] - a[1], c[0] - a[0], c[1] - a[1]);
-        let det = du1 * dv2 - du2 * dv1;
-        if det.abs() < 1e-20 {
-            continue;
-        }
-        let bitangent = (e2 * du1 - e1 * du2) / det;
-        for &i in t {
-            dp_dv[i as usize] += bitangent;
-        }
-    }
+    let dp_dv = uv_gradients(mesh, |_, dp_dv| dp_dv);
     vertex_tangents(mesh)
         .iter()
         .zip(&mesh.normals)

@@ -21,8 +21,20 @@ const SIZE: (u32, u32) = (64, 48);
 /// light comes through the separately lit sun, so the frame and the reference differ only by
 /// what the normal map does (no sky highlight the mode does not draw).
 fn sun_only_environment(dir: &Path, sun: glam::DVec3) -> std::path::PathBuf {
-    let (width, height) = (1024u32, 512u32);
-    let cos_radius = 2f64.to_radians().cos();
+    disc_environment(&dir.join("sun.exr"), (1024, 512), sun, 2.0, 800.0, 0.0)
+}
+
+/// An equirectangular map of `size` at `path`: radiance `inside` within `radius_deg` of unit
+/// `axis`, `outside` elsewhere.
+fn disc_environment(
+    path: &Path,
+    (width, height): (u32, u32),
+    axis: glam::DVec3,
+    radius_deg: f64,
+    inside: f32,
+    outside: f32,
+) -> std::path::PathBuf {
+    let cos_radius = radius_deg.to_radians().cos();
     let texels: Vec<f32> = (0..width * height)
         .flat_map(|i| {
             let (x, y) = (i % width, i / width);
@@ -30,12 +42,11 @@ fn sun_only_environment(dir: &Path, sun: glam::DVec3) -> std::path::PathBuf {
                 (f64::from(x) + 0.5) / f64::from(width),
                 (f64::from(y) + 0.5) / f64::from(height),
             );
-            [if d.dot(sun) >= cos_radius { 800.0 } else { 0.0 }; 3]
+            [if d.dot(axis) >= cos_radius { inside } else { outside }; 3]
         })
         .collect();
-    let path = dir.join("sun.exr");
-    image::Rgb32FImage::from_raw(width, height, texels).unwrap().save(&path).unwrap();
-    path
+    image::Rgb32FImage::from_raw(width, height, texels).unwrap().save(path).unwrap();
+    path.to_path_buf()
 }
 
 /// A constant white environment (the furnace): no sun to split off, every normal sees π.
@@ -48,21 +59,7 @@ fn white_environment(dir: &Path) -> std::path::PathBuf {
 /// A broad bright window (radius 25°, radiance 10, toward unit `window`) over a dim sky (0.2):
 /// the environment highlight the per-vertex modes draw themselves.
 fn window_environment(dir: &Path, window: glam::DVec3) -> std::path::PathBuf {
-    let (width, height) = (512u32, 256u32);
-    let cos_radius = 25f64.to_radians().cos();
-    let texels: Vec<f32> = (0..width * height)
-        .flat_map(|i| {
-            let (x, y) = (i % width, i / width);
-            let d = lightloom_nodes::cubemap::equirect_uv_to_dir(
-                (f64::from(x) + 0.5) / f64::from(width),
-                (f64::from(y) + 0.5) / f64::from(height),
-            );
-            [if d.dot(window) >= cos_radius { 10.0 } else { 0.2 }; 3]
-        })
-        .collect();
-    let path = dir.join("window.exr");
-    image::Rgb32FImage::from_raw(width, height, texels).unwrap().save(&path).unwrap();
-    path
+    disc_environment(&dir.join("window.exr"), (512, 256), window, 25.0, 10.0, 0.2)
 }
 
 /// The lighting of an experiment.

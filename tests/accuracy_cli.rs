@@ -14,8 +14,8 @@ fn workspace() -> PathBuf {
 }
 
 fn shared_assets() -> PathBuf {
-    let dir = workspace().join("../shared/assets");
-    assert!(dir.is_dir(), "the shared assets are expected beside the checkout at {}", dir.display());
+    let dir = workspace().join("assets");
+    assert!(dir.is_dir(), "the repository's assets/ folder is expected at {}", dir.display());
     dir
 }
 

@@ -257,7 +257,7 @@ fn baked_environment_sh_matches_lightloom_sh() {
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let baked: serde_json::Value =
         serde_json::from_slice(&std::fs::read(dir.join("environment.json")).unwrap()).unwrap();
-    let hdri = repo().join("../shared/assets/envmaps/courtyard.hdr");
+    let hdri = repo().join("assets/envmaps/courtyard.hdr");
     let sh = lightloom().arg("sh").arg(&hdri).args(["--bands", "3", "--json"]).output().unwrap();
     assert!(sh.status.success(), "{}", String::from_utf8_lossy(&sh.stderr));
     let printed: serde_json::Value = serde_json::from_slice(&sh.stdout).unwrap();

@@ -8,8 +8,8 @@ fn lightloom() -> Command {
 }
 
 fn shared_assets() -> PathBuf {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/assets");
-    assert!(dir.is_dir(), "the shared assets are expected beside the checkout at {}", dir.display());
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets");
+    assert!(dir.is_dir(), "the repository's assets/ folder is expected at {}", dir.display());
     dir
 }
 

@@ -142,13 +142,16 @@ fn scene() -> (MeshSet, ShTransport) {
     (meshes, transport)
 }
 
-/// The shared light probes when present, else the built-in sky.
+/// The samples' light probes (built into the program); the built-in sky if they fail to load.
 fn environments() -> Vec<(String, ShRgb)> {
     let mut out = Vec::new();
-    for name in ["courtyard", "interior"] {
-        let path = std::path::Path::new("../shared/assets/envmaps").join(format!("{name}.exr"));
-        if let Ok(env) = lightloom_nodes::envmap_io::load_equirect(&path) {
-            out.push((name.to_string(), lightloom_nodes::sh::project_equirect(&env.image, TOP_BANDS)));
+    for name in ["courtyard", "studio"] {
+        let loaded = crate::samples::file(&format!("assets/envmaps/{name}.hdr"))
+            .map_err(|e| format!("{e:#}"))
+            .and_then(|path| lightloom_nodes::envmap_io::load_equirect(&path).map_err(|e| e.to_string()));
+        match loaded {
+            Ok(env) => out.push((name.to_string(), lightloom_nodes::sh::project_equirect(&env.image, TOP_BANDS))),
+            Err(e) => println!("{name} skipped: {e}"),
         }
     }
     if out.is_empty() {

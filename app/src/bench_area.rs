@@ -153,7 +153,7 @@ pub fn area_light_figures() {
 /// transport), then a stroke, a move, a resize and an intensity change, each as CPU stage time
 /// and the frame drawn after it.
 pub fn area_sample_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../projects/samples/area_light.ron");
+    let path = crate::samples::project("area_light")?;
     let (project, mut graph) = lightloom_nodes::project::Project::load(&path).map_err(|e| anyhow!("{e}"))?;
     graph.set_param("scene", "tessellation", ParamValue::Int(136))?;
     let view = CameraView::from_project(&project.camera(None).map_err(|e| anyhow!(e))?);

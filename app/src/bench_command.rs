@@ -349,7 +349,7 @@ fn rsl_mode_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
 /// recomputes on the CPU and the frame after it, beside the targets: a BRDF edit within 100 ms
 /// of CPU-side work; moves and environment turns without precomputation.
 fn square_light_sample_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../projects/samples/square_lights.ron");
+    let path = crate::samples::project("square_lights")?;
     let (project, mut graph) = lightloom_nodes::project::Project::load(&path).map_err(|e| anyhow!("{e}"))?;
     let view = CameraView::from_project(&project.camera(None).map_err(|e| anyhow!(e))?);
     let engine = Arc::new(Engine::in_memory());

@@ -11,7 +11,7 @@ use lightloom_render::{CameraView, GpuContext, ViewportRenderer};
 use std::sync::Arc;
 
 pub fn normal_map_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../projects/samples/hammered_metal.ron");
+    let path = crate::samples::project("hammered_metal")?;
     let (project, graph) = lightloom_nodes::project::Project::load(&path).map_err(|e| anyhow!("{e}"))?;
     let view = CameraView::from_project(&project.camera(Some("main")).map_err(|e| anyhow!(e))?);
     let size = (1280, 720);

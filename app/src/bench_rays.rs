@@ -15,7 +15,8 @@ use std::io::Write;
 use std::path::Path;
 use std::time::Instant;
 
-pub const ENGINE_MODEL: &str = "../shared/assets/gltf/assimp-glTF2/2CylinderEngine-glTF-Binary/2CylinderEngine.glb";
+/// The engine model, as the engine sample reads it (built into the program).
+const ENGINE_MODEL: &str = "assets/gltf/assimp-glTF2/2CylinderEngine-glTF-Binary/2CylinderEngine.glb";
 
 /// One bundle per receiver: its origin and its rays (directions above its surface).
 struct Bundles {
@@ -81,14 +82,8 @@ fn best_of<T>(runs: usize, mut f: impl FnMut() -> T) -> (T, f64) {
 }
 
 pub fn ray_figures(dump: Option<&Path>) -> Result<()> {
-    let model = Path::new(ENGINE_MODEL);
-    let scene = match lightloom_nodes::gltf_import::import(model) {
-        Ok(scene) => scene,
-        Err(e) => {
-            println!("rays: {} skipped: {e}", model.display());
-            return Ok(());
-        }
-    };
+    let model = crate::samples::file(ENGINE_MODEL)?;
+    let scene = lightloom_nodes::gltf_import::import(&model).map_err(|e| anyhow::anyhow!(e))?;
     let meshes = MeshSet { meshes: scene.meshes };
     let start = Instant::now();
     let rays = RayScene::build(&meshes);

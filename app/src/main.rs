@@ -11,6 +11,7 @@ mod bench_normal_maps;
 mod bench_rays;
 mod editor;
 mod project_commands;
+mod samples;
 mod sh_command;
 
 use anyhow::Result;
@@ -37,7 +38,8 @@ struct Cli {
 
 #[derive(clap::Args, Debug, Default)]
 struct EditorArgs {
-    /// Project to open (.ron) [default: the built-in default project].
+    /// Project to open (.ron), or `sample:NAME` for a copy of a built-in sample (`lightloom
+    /// samples` lists them) [default: the built-in default project].
     project: Option<std::path::PathBuf>,
     /// Do not open a window: render the project headlessly to PNG.
     #[arg(long)]
@@ -76,6 +78,8 @@ enum Command {
     Bench(bench_command::BenchArgs),
     /// Print the SH coefficients (RGB) of an environment map and its irradiance along ±X, ±Y, ±Z.
     Sh(sh_command::ShArgs),
+    /// List the built-in sample projects (`sample:NAME` opens or renders one from any folder).
+    Samples,
     /// Bake the Output's lighting for game engines: scene.glb (meshes, materials, light per vertex,
     /// point lights, camera) and bake.json into --out DIR.
     Bake(bake_command::BakeArgs),
@@ -83,7 +87,26 @@ enum Command {
 
 /// Exit codes: 0 success, 1 replay regression, 2 bad input or failure.
 fn main() {
-    let cli = Cli::parse();
+    let mut cli = Cli::parse();
+    // `sample:NAME` names a built-in sample wherever a project file is expected; the editor
+    // opens a copy of it, as File → Open sample does.
+    let project_arg = match &mut cli.command {
+        Some(Command::Render(a)) => Some(&mut a.project),
+        Some(Command::Eval(a)) => Some(&mut a.project),
+        Some(Command::Info(a)) => Some(&mut a.project),
+        Some(Command::Accuracy(a)) => Some(&mut a.project),
+        Some(Command::Bake(a)) => Some(&mut a.project),
+        _ => None,
+    };
+    if let Some(arg) = project_arg {
+        match samples::resolve(arg) {
+            Ok(path) => *arg = path,
+            Err(error) => {
+                eprintln!("error: {error:#}");
+                std::process::exit(2);
+            }
+        }
+    }
     // Errors name the project they concern, even those raised far from where it was read.
     let project = match &cli.command {
         Some(Command::Render(a)) => Some(a.project.clone()),
@@ -103,6 +126,7 @@ fn main() {
         Some(Command::Bench(args)) => bench_command::run(&args).map(|_| true),
         Some(Command::Sh(args)) => sh_command::run(&args).map(|_| true),
         Some(Command::Bake(args)) => bake_command::run(&args).map(|_| true),
+        Some(Command::Samples) => list_samples().map(|_| true),
         None => main_job(cli.editor).map(|_| true),
     };
     match result {
@@ -151,7 +175,8 @@ fn main_job(args: EditorArgs) -> Result<()> {
 /// Renders the project (or the built-in default) to `<name>.png` in the current folder.
 fn headless_render(args: &EditorArgs) -> Result<()> {
     let (project, graph, out) = match &args.project {
-        Some(path) => {
+        Some(arg) => {
+            let path = &samples::resolve(arg)?;
             let (project, graph) = project_commands::load(path, &[])?;
             let stem = path.file_stem().map_or("project".into(), |s| s.to_string_lossy().into_owned());
             (project, graph, std::path::PathBuf::from(format!("{stem}.png")))
@@ -184,5 +209,14 @@ fn headless_render(args: &EditorArgs) -> Result<()> {
         frame.height,
         out.display()
     );
+    Ok(())
+}
+
+/// `lightloom samples`: each built-in sample's name and title, and where its files are.
+fn list_samples() -> Result<()> {
+    for sample in samples::list() {
+        println!("{}{:<18} {}", samples::PREFIX, sample.stem, sample.title);
+    }
+    println!("(written out to {})", samples::folder()?.display());
     Ok(())
 }

@@ -1,6 +1,6 @@
 //! Visibility precompute figures: BVH build time, rays per second, total precompute time and
-//! transport memory per receiver, for `2CylinderEngine.glb` (from ../shared/assets, when
-//! present) and a ~100k-triangle procedural mesh, at 256 and 1024 rays per receiver.
+//! transport memory per receiver, for `2CylinderEngine.glb` (from the repository's
+//! assets/) and a ~100k-triangle procedural mesh, at 256 and 1024 rays per receiver.
 //! Run with `cargo bench -p lightloom-nodes --bench transport`. The rays alone, one at a time
 //! and in bundles beside Embree: `lightloom bench --only rays`.
 
@@ -63,11 +63,9 @@ fn run(name: &str, meshes: MeshSet) {
 
 fn main() {
     let engine = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../shared/assets/gltf/assimp-glTF2/2CylinderEngine-glTF-Binary/2CylinderEngine.glb");
-    match lightloom_nodes::gltf_import::import(&engine) {
-        Ok(scene) => run("2CylinderEngine.glb", MeshSet { meshes: scene.meshes }),
-        Err(e) => println!("2CylinderEngine.glb skipped: {e}"),
-    }
+        .join("../assets/gltf/assimp-glTF2/2CylinderEngine-glTF-Binary/2CylinderEngine.glb");
+    let scene = lightloom_nodes::gltf_import::import(&engine).unwrap_or_else(|e| panic!("{e}"));
+    run("2CylinderEngine.glb", MeshSet { meshes: scene.meshes });
     // ~100k triangles: a finely tessellated torus knot of shapes over a floor.
     let mut meshes = vec![mesh::plane(6.0, 40)];
     meshes.push(mesh::torus(1.2, 0.4, 110).transformed(glam::DMat4::from_translation(DVec3::new(0.0, 0.6, 0.0))));

@@ -539,8 +539,8 @@ mod tests {
     use super::*;
 
     fn assets() -> std::path::PathBuf {
-        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/assets/gltf/assimp-glTF2");
-        assert!(dir.is_dir(), "shared glTF assets expected at {}", dir.display());
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/gltf/assimp-glTF2");
+        assert!(dir.is_dir(), "the repository's glTF assets are expected at {}", dir.display());
         dir
     }
 

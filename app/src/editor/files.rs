@@ -3,24 +3,16 @@
 
 use super::*;
 
-/// The sample projects (File → Open sample), with their names.
-pub fn samples() -> Vec<(String, PathBuf)> {
-    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../projects/samples");
-    let mut found: Vec<(String, PathBuf)> = std::fs::read_dir(&dir)
-        .into_iter()
-        .flatten()
-        .flatten()
-        .map(|e| e.path())
-        .filter(|p| p.extension().is_some_and(|e| e == "ron"))
-        .filter_map(|p| {
-            let text = std::fs::read_to_string(&p).ok()?;
-            let project = lightloom_nodes::project::Project::from_ron(&text, &p).ok()?;
-            let name = project.name.strip_prefix("Sample: ").unwrap_or(&project.name).to_string();
-            Some((name, p))
-        })
-        .collect();
-    found.sort();
-    found
+/// A copy of the built-in sample `stem` (File → Open sample, or `sample:NAME` on the command
+/// line): untitled, with its asset paths made to resolve from the current folder, so Save asks
+/// where to put it. Also the path of the sample's project file.
+pub fn sample_copy(stem: &str) -> anyhow::Result<(Document, PathBuf)> {
+    let path = crate::samples::project(stem)?;
+    let sample = Document::open(&path)?;
+    let mut project = sample.project.clone();
+    let cwd = std::env::current_dir().unwrap_or_default();
+    project.rebase_paths(&sample.project_dir(), &cwd);
+    Ok((Document::new(project, None), path))
 }
 
 /// `x0,y0,x1,y1` of `rect` in window pixels (the layout `--screenshot` and `--status-file`
@@ -94,7 +86,7 @@ impl EditorApp {
     pub(super) fn perform(&mut self, what: Pending) {
         match what {
             Pending::Open(path) => self.open(&path),
-            Pending::OpenSample(path) => self.open_sample(&path),
+            Pending::OpenSample(stem) => self.open_sample(&stem),
             Pending::New => {
                 self.doc.discard_recovery();
                 self.replace_document(Document::new(default_project(), None));
@@ -253,17 +245,13 @@ impl EditorApp {
         Ok(())
     }
 
-    /// Opens a copy of a sample project: untitled, with its asset paths made to resolve from
-    /// here, so Save asks where to put it.
-    pub fn open_sample(&mut self, path: &std::path::Path) {
-        match Document::open(path) {
-            Ok(sample) => {
-                let mut project = sample.project.clone();
-                let cwd = std::env::current_dir().unwrap_or_default();
-                project.rebase_paths(&sample.project_dir(), &cwd);
+    /// Opens a copy of the built-in sample `stem` (see [`sample_copy`]).
+    pub fn open_sample(&mut self, stem: &str) {
+        match sample_copy(stem) {
+            Ok((copy, path)) => {
                 self.doc.discard_recovery();
                 self.action_errors.clear();
-                self.replace_document(Document::new(project, None));
+                self.replace_document(copy);
                 self.log_info(format!("opened a copy of the sample {}", path.display()));
             }
             Err(e) => self.log_file_error(format!("{e:#}")),
@@ -514,15 +502,19 @@ impl EditorApp {
                             .ok_or_else(|| "bad screenshot size".to_string())
                             .and_then(|img| img.save(&path).map_err(|e| e.to_string()));
                     let px = |r| window_pixels(ctx, r);
+                    let problems = self.problems();
                     match saved {
                         Ok(()) => println!(
-                            "screenshot: {} ({}x{}); graph {}; viewport {}; frame {}",
+                            "screenshot: {} ({}x{}); graph {}; viewport {}; frame {}; project {:?}; problems {}{}",
                             path.display(),
                             image.size[0],
                             image.size[1],
                             px(self.graph_rect),
                             px(self.viewport_rect),
-                            px(self.render_frame(self.viewport_rect))
+                            px(self.render_frame(self.viewport_rect)),
+                            self.doc.project.name,
+                            problems.len(),
+                            problems.iter().map(|p| format!("\n  problem: {p}")).collect::<String>()
                         ),
                         Err(e) => eprintln!("screenshot failed: {e}"),
                     }

@@ -72,9 +72,9 @@ impl EditorApp {
                         self.request(Pending::New);
                         ui.close();
                     }
-                    for (name, path) in files::samples() {
-                        if ui.button(name).clicked() {
-                            self.request(Pending::OpenSample(path));
+                    for sample in crate::samples::list() {
+                        if ui.button(sample.title).clicked() {
+                            self.request(Pending::OpenSample(sample.stem.to_string()));
                             ui.close();
                         }
                     }

@@ -87,8 +87,9 @@ enum Pending {
     /// Unsaved changes, and the user asked to do this.
     Close,
     Open(PathBuf),
-    /// Open a copy of a sample project (untitled, so saving never changes the sample).
-    OpenSample(PathBuf),
+    /// Open a copy of the built-in sample with this file stem (untitled, so saving never
+    /// changes the sample).
+    OpenSample(String),
     New,
     /// A recovery file from a session that did not close cleanly.
     Recover(PathBuf, SystemTime),
@@ -330,15 +331,21 @@ fn eval_signature(project: &Project) -> u64 {
 }
 
 impl EditorApp {
-    /// An editor on `options.project` (or the default project). The viewport renders on its
-    /// own device on a render thread (see `viewport.rs`).
+    /// An editor on `options.project` (a copy of the sample it names if `sample:NAME`, or the
+    /// default project). The viewport renders on its own device on a render thread (see
+    /// `viewport.rs`).
     pub fn new(ctx: &egui::Context, options: EditorOptions) -> anyhow::Result<Self> {
-        let (doc, open_error) = match &options.project {
-            Some(path) => match Document::open(path) {
-                Ok(doc) => (doc, None),
-                Err(e) => (Document::new(default_project(), None), Some(format!("{e:#}"))),
-            },
-            None => (Document::new(default_project(), None), None),
+        let opened = match &options.project {
+            Some(arg) => match crate::samples::named(arg) {
+                Some(stem) => files::sample_copy(stem).map(|(copy, _)| copy),
+                None => Document::open(arg),
+            }
+            .map(Some),
+            None => Ok(None),
+        };
+        let (doc, open_error) = match opened {
+            Ok(doc) => (doc.unwrap_or_else(|| Document::new(default_project(), None)), None),
+            Err(e) => (Document::new(default_project(), None), Some(format!("{e:#}"))),
         };
         let disk_cache = if options.no_disk_cache {
             None

@@ -328,7 +328,7 @@ fn the_vmf_pyramid_fits_each_texels_normals() {
 /// a missing file, a file that is no image, and a map too large say so by name.
 #[test]
 fn normal_maps_load_and_bad_files_are_named() {
-    let assets = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/assets/gltf/assimp-glTF2");
+    let assets = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/gltf/assimp-glTF2");
     let map = load_normal_map(&assets.join("ClearCoat-glTF/RibsNormal.png")).unwrap();
     assert!(map.width > 0 && map.normals.len() == map.width * map.height);
     assert!(map.normals.iter().all(|n| (n.length() - 1.0).abs() < 1e-9));
@@ -353,7 +353,7 @@ fn normal_maps_load_and_bad_files_are_named() {
 /// material's scale; an image whose header declares absurd dimensions is refused by name.
 #[test]
 fn gltf_normal_textures_decode_as_their_images() {
-    let assets = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/assets/gltf/assimp-glTF2");
+    let assets = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/gltf/assimp-glTF2");
     let direct = load_normal_map(&assets.join("ClearCoat-glTF/RibsNormal.png")).unwrap();
     let loaded = load_gltf_normal_map(&assets.join("ClearCoat-glTF/ClearCoatTest.gltf"), "SharedNorm_Coating").unwrap();
     assert_eq!((loaded.scale, loaded.material.as_str()), (1.0, "SharedNorm_Coating"));

@@ -218,15 +218,17 @@ mod tests {
 
     #[test]
     fn error_falls_with_the_number_of_lights_on_an_hdri() {
-        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/assets/envmaps/courtyard.hdr");
-        let loaded = crate::envmap_io::load_equirect(&path).expect("shared environment maps expected");
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/envmaps/courtyard.hdr");
+        let loaded =
+            crate::envmap_io::load_equirect(&path).expect("the repository's environment maps (assets/envmaps)");
         check("courtyard HDRI", &loaded.image.to_cubemap(32), false);
     }
 
     #[test]
     fn separate_objects_shadow_each_other_through_occluder_fields() {
-        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/assets/envmaps/courtyard.hdr");
-        let loaded = crate::envmap_io::load_equirect(&path).expect("shared environment maps expected");
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/envmaps/courtyard.hdr");
+        let loaded =
+            crate::envmap_io::load_equirect(&path).expect("the repository's environment maps (assets/envmaps)");
         check("courtyard HDRI, torus and floor as two objects", &loaded.image.to_cubemap(32), true);
     }
 

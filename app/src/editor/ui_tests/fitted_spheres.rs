@@ -5,9 +5,9 @@ use super::*;
 
 #[test]
 fn a_set_fitted_to_a_model_draws_its_spheres_and_drags_as_one() {
-    let model = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../shared/assets/gltf/assimp-glTF2/BoxTextured-glTF/BoxTextured.gltf");
-    assert!(model.is_file(), "the shared assets are expected beside the checkout at {}", model.display());
+    let model =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/gltf/assimp-glTF2/BoxTextured-glTF/BoxTextured.gltf");
+    assert!(model.is_file(), "the repository's assets/ folder is expected at {}", model.display());
     let mut harness = default_harness();
     pick(&mut harness, "Mode", "Soft shadows and gloss");
     let added = add_from_menu(&mut harness, "Blocker sphere set");

@@ -470,7 +470,7 @@ fn undo_after_moving_a_node_sticks() {
 /// undo step (it stayed on the procedural sky, so nothing changed on screen).
 #[test]
 fn choosing_an_environment_file_uses_it() {
-    let hdr = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/assets/envmaps/courtyard.hdr");
+    let hdr = Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/envmaps/courtyard.hdr");
     let mut harness = default_harness();
     harness.state_mut().selection = Selection::Node("sky".into());
     harness.run_steps(2);
@@ -745,7 +745,7 @@ fn the_saved_view_is_what_the_cli_renders() {
 #[test]
 fn a_gltf_model_is_an_object_in_the_list_and_framed() {
     let model = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../shared/assets/gltf/assimp-glTF2/BoxTextured-glTF-Binary/BoxTextured.glb");
+        .join("../assets/gltf/assimp-glTF2/BoxTextured-glTF-Binary/BoxTextured.glb");
     let mut harness = default_harness();
     harness.state_mut().selection = Selection::Node("scene".into());
     harness.run_steps(2);
@@ -973,6 +973,21 @@ fn a_sample_opens_from_the_file_menu() {
     assert!(problems.is_empty(), "{problems:?}");
     assert!(viewport_mean(&mut harness) > 20.0, "the sample is drawn");
     harness.render().unwrap().save(state_dir().join("sample.png")).unwrap();
+}
+
+/// File → Open sample lists every built-in sample by its title.
+#[test]
+fn the_file_menu_lists_every_sample() {
+    let mut harness = default_harness();
+    harness.get_by_label("File").click();
+    harness.run_steps(2);
+    harness.get_by_label_contains("Open sample").hover();
+    harness.run_steps(4);
+    let samples = crate::samples::list();
+    assert!(samples.len() >= 6, "{samples:?}");
+    for sample in samples {
+        harness.get_by_label(&sample.title);
+    }
 }
 
 /// File → Open sample → the sample whose name contains `name`, as a user picks it.

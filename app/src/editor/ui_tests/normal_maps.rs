@@ -36,8 +36,8 @@ fn a_normal_mapped_sample_previews_its_map_and_filters_from_the_inspector() {
 /// redraws with it, and nothing fails.
 #[test]
 fn a_gltf_models_normal_texture_is_typed_into_the_normal_map_field() {
-    let model = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../shared/assets/gltf/assimp-glTF2/ClearCoat-glTF/ClearCoatTest.gltf");
+    let model =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/gltf/assimp-glTF2/ClearCoat-glTF/ClearCoatTest.gltf");
     let mut harness = default_harness();
     settle(&mut harness);
     let before = viewport_mean(&mut harness);

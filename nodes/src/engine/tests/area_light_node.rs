@@ -59,11 +59,11 @@ fn edits_rerun_only_their_stages() {
     assert!((extent[0] - 1.0).abs() < 1e-12 && (extent[1] - 2.0).abs() < 1e-12, "{extent:?}");
 }
 
-/// An image imported into the light (a shared environment map) is resampled over the texture;
+/// An image imported into the light (an environment map from assets/) is resampled over the texture;
 /// a missing one fails the texture stage with the file named.
 #[test]
 fn an_imported_image_paints_the_light() {
-    let assets = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/assets/envmaps");
+    let assets = Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/envmaps");
     let engine = Engine::in_memory();
     let mut graph = default_graph_with("area", "AreaLightPainter", &[]);
     let import =

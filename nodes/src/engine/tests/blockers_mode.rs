@@ -59,14 +59,14 @@ fn a_sphere_move_recomputes_only_the_parts_it_reaches() {
     assert_eq!(set_value.blockers.len(), 2);
 }
 
-/// A set fitted to a closed glTF model (the 1 m textured box of the shared assets): one
+/// A set fitted to a closed glTF model (the 1 m textured box in assets/): one
 /// sphere is its inscribed ball, leaving `1 − π/6` of the cube uncovered, and says so; 60
 /// spheres leave less, and shadow the `sh_prt` frame through the set's transform.
 #[test]
 fn a_set_fitted_to_a_gltf_box_reports_its_coverage() {
     let model = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../shared/assets/gltf/assimp-glTF2/BoxTextured-glTF/BoxTextured.gltf");
-    assert!(model.is_file(), "the shared assets are expected beside the checkout at {}", model.display());
+        .join("../assets/gltf/assimp-glTF2/BoxTextured-glTF/BoxTextured.gltf");
+    assert!(model.is_file(), "the repository's assets/ folder is expected at {}", model.display());
     let mut graph = blockers_graph(vec![]);
     graph.set_param("blockers", "fit_model", ParamValue::Path(model.display().to_string())).unwrap();
     graph.set_param("blockers", "fit_count", ParamValue::Int(1)).unwrap();

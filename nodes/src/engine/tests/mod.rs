@@ -582,9 +582,9 @@ fn moving_a_rigid_object_reuses_every_per_object_transport() {
 
 #[test]
 fn a_gltf_file_is_one_object_with_its_own_transport() {
-    let file = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../shared/assets/gltf/assimp-glTF2/BoxTextured-glTF/BoxTextured.gltf");
-    assert!(file.is_file(), "shared glTF assets expected at {}", file.display());
+    let file =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/gltf/assimp-glTF2/BoxTextured-glTF/BoxTextured.gltf");
+    assert!(file.is_file(), "the repository's glTF assets are expected at {}", file.display());
     let engine = Engine::in_memory();
     let mut graph = default_graph();
     let model = SceneObject::new("box", Shape::Gltf { file: file.display().to_string() });
@@ -608,7 +608,7 @@ fn a_gltf_file_is_one_object_with_its_own_transport() {
 
 #[test]
 fn editing_a_gltf_buffer_file_changes_the_geometry_key() {
-    let source = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/assets/gltf/assimp-glTF2/BoxTextured-glTF");
+    let source = Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/gltf/assimp-glTF2/BoxTextured-glTF");
     let dir = temp_dir("gltf-sidecar");
     for name in ["BoxTextured.gltf", "BoxTextured0.bin"] {
         std::fs::copy(source.join(name), dir.join(name)).unwrap();

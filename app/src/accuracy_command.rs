@@ -17,6 +17,7 @@ use std::time::Instant;
 
 #[derive(Args, Debug)]
 pub struct AccuracyArgs {
+    /// Project file (.ron), or `sample:NAME` for a built-in sample (`lightloom samples` lists them).
     pub project: PathBuf,
     /// SH band counts for the `sh_prt` rows (lighting and transport use the same count).
     #[arg(long, value_delimiter = ',', default_value = "2,3,4,6,8")]

@@ -16,7 +16,7 @@ use std::time::Instant;
 
 #[derive(Args, Debug)]
 pub struct BakeArgs {
-    /// Project file (.ron).
+    /// Project file (.ron), or `sample:NAME` for a built-in sample (`lightloom samples` lists them).
     pub project: PathBuf,
     /// Folder the baked files go to (created if missing; files of the same names are replaced).
     #[arg(long)]

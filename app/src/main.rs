@@ -85,20 +85,26 @@ enum Command {
     Bake(bake_command::BakeArgs),
 }
 
+impl Command {
+    /// The project file the command reads, where it reads one.
+    fn project_mut(&mut self) -> Option<&mut std::path::PathBuf> {
+        match self {
+            Command::Render(a) => Some(&mut a.project),
+            Command::Eval(a) => Some(&mut a.project),
+            Command::Info(a) => Some(&mut a.project),
+            Command::Accuracy(a) => Some(&mut a.project),
+            Command::Bake(a) => Some(&mut a.project),
+            _ => None,
+        }
+    }
+}
+
 /// Exit codes: 0 success, 1 replay regression, 2 bad input or failure.
 fn main() {
     let mut cli = Cli::parse();
     // `sample:NAME` names a built-in sample wherever a project file is expected; the editor
     // opens a copy of it, as File → Open sample does.
-    let project_arg = match &mut cli.command {
-        Some(Command::Render(a)) => Some(&mut a.project),
-        Some(Command::Eval(a)) => Some(&mut a.project),
-        Some(Command::Info(a)) => Some(&mut a.project),
-        Some(Command::Accuracy(a)) => Some(&mut a.project),
-        Some(Command::Bake(a)) => Some(&mut a.project),
-        _ => None,
-    };
-    if let Some(arg) = project_arg {
+    if let Some(arg) = cli.command.as_mut().and_then(Command::project_mut) {
         match samples::resolve(arg) {
             Ok(path) => *arg = path,
             Err(error) => {
@@ -108,14 +114,9 @@ fn main() {
         }
     }
     // Errors name the project they concern, even those raised far from where it was read.
-    let project = match &cli.command {
-        Some(Command::Render(a)) => Some(a.project.clone()),
-        Some(Command::Eval(a)) => Some(a.project.clone()),
-        Some(Command::Info(a)) => Some(a.project.clone()),
-        Some(Command::Accuracy(a)) => Some(a.project.clone()),
-        Some(Command::Bake(a)) => Some(a.project.clone()),
+    let project = match cli.command.as_mut() {
+        Some(command) => command.project_mut().cloned(),
         None => cli.editor.project.clone(),
-        _ => None,
     };
     let result: Result<bool> = match cli.command {
         Some(Command::Render(args)) => project_commands::render(&args).map(|_| true),

@@ -46,7 +46,7 @@ impl EvalOptions {
 
 #[derive(Args, Debug)]
 pub struct RenderArgs {
-    /// Project file (.ron).
+    /// Project file (.ron), or `sample:NAME` for a built-in sample (`lightloom samples` lists them).
     pub project: PathBuf,
     /// Output image: .png (tone-mapped) or .exr (linear radiance).
     #[arg(short, long)]
@@ -67,6 +67,7 @@ pub struct RenderArgs {
 
 #[derive(Args, Debug)]
 pub struct EvalArgs {
+    /// Project file (.ron), or `sample:NAME` for a built-in sample (`lightloom samples` lists them).
     pub project: PathBuf,
     /// Report format.
     #[arg(long, default_value = "text", value_parser = ["text", "json"])]
@@ -94,6 +95,7 @@ pub struct ReplayArgs {
 
 #[derive(Args, Debug)]
 pub struct InfoArgs {
+    /// Project file (.ron), or `sample:NAME` for a built-in sample (`lightloom samples` lists them).
     pub project: PathBuf,
 }
 

@@ -2,15 +2,14 @@
 //!
 //! File → Open sample, `lightloom render sample:NAME` (and every other command that takes a
 //! project) and the benchmarks that run on a sample work from any folder, also from a binary
-//! installed with `cargo install --path app` and run outside any checkout. The first use
-//! writes the files once into a folder of their own (`$LIGHTLOOM_DATA_DIR/samples/<hash>`, else
-//! `$XDG_DATA_HOME/lightloom/…`, else `~/.local/share/lightloom/…`), laid out as in the
-//! repository, so each project's relative paths resolve there unchanged; each file is written
-//! whole or not at all, and a file that differs from the built-in one is replaced.
+//! installed with `cargo install --path app` and run outside any checkout. Each use writes the
+//! files that are missing or differ into a folder of their own
+//! (`$LIGHTLOOM_DATA_DIR/samples/<version>-<hash>`, else `$XDG_DATA_HOME/lightloom/…`, else
+//! `~/.local/share/lightloom/…`), laid out as in the repository, so each project's relative
+//! paths resolve there unchanged; each file is written whole or not at all.
 
-use anyhow::{Context, Result, anyhow, bail};
+use anyhow::{Context, Result, bail};
 use std::path::{Path, PathBuf};
-use std::sync::OnceLock;
 
 /// A file of the samples: its path in the repository, and its bytes.
 macro_rules! file {
@@ -98,16 +97,12 @@ pub fn file(path: &str) -> Result<PathBuf> {
     Ok(folder()?.join(path))
 }
 
-/// The folder holding the samples' files, written out on first use in this process.
+/// The folder holding the samples' files, with any file that is missing or differs written
+/// out again (a few milliseconds: the files are compared, not rewritten).
 pub fn folder() -> Result<PathBuf> {
-    static FOLDER: OnceLock<Result<PathBuf, String>> = OnceLock::new();
-    FOLDER
-        .get_or_init(|| {
-            let dir = data_dir().join("samples").join(format!("{}-{:016x}", env!("CARGO_PKG_VERSION"), content_hash()));
-            write_out(&dir).map(|()| dir).map_err(|e| format!("{e:#}"))
-        })
-        .clone()
-        .map_err(|e| anyhow!("cannot write out the built-in samples: {e}"))
+    let dir = data_dir().join("samples").join(format!("{}-{:016x}", env!("CARGO_PKG_VERSION"), content_hash()));
+    write_out(&dir).context("cannot write out the built-in samples")?;
+    Ok(dir)
 }
 
 /// `$LIGHTLOOM_DATA_DIR`, else `$XDG_DATA_HOME/lightloom`, else `~/.local/share/lightloom`

@@ -13,7 +13,7 @@ fn workspace() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
 }
 
-fn shared_assets() -> PathBuf {
+fn assets() -> PathBuf {
     let dir = workspace().join("assets");
     assert!(dir.is_dir(), "the repository's assets/ folder is expected at {}", dir.display());
     dir
@@ -55,7 +55,7 @@ fn relighting_error_against_the_reference_falls_with_coefficients() {
     // ground truth; shadowed PRT beats unshadowed irradiance, more bands beat fewer, and
     // wavelets beat SH.
     let project = workspace().join("tests/projects/glossy.ron");
-    assert!(shared_assets().join("envmaps/sunset.hdr").is_file());
+    assert!(assets().join("envmaps/sunset.hdr").is_file());
     let report = accuracy_report(
         &project,
         &[

@@ -7,7 +7,7 @@ fn lightloom() -> Command {
     Command::new(env!("CARGO_BIN_EXE_lightloom"))
 }
 
-fn shared_assets() -> PathBuf {
+fn assets() -> PathBuf {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets");
     assert!(dir.is_dir(), "the repository's assets/ folder is expected at {}", dir.display());
     dir
@@ -66,7 +66,7 @@ fn bright_upper_hemisphere_lights_plus_y() {
 fn real_environment_maps_agree_across_formats() {
     // The same HDRI as ZIP EXR, DWAB EXR and Radiance HDR gives the same SH within the
     // formats' quantisation.
-    let envmaps = shared_assets().join("envmaps");
+    let envmaps = assets().join("envmaps");
     let exr = sh_json(&[envmaps.join("courtyard.exr").to_str().unwrap(), "--bands", "4"]);
     let hdr = sh_json(&[envmaps.join("courtyard.hdr").to_str().unwrap(), "--bands", "4"]);
     let dwab = sh_json(&[envmaps.join("dwab/courtyard.exr").to_str().unwrap(), "--bands", "4"]);
@@ -239,7 +239,7 @@ fn square_light_images_approach_the_monte_carlo_reference_as_lights_are_added() 
     // reference of the same scene (independent: BRDF sampling and MIS on the BVH), for two
     // light counts: the GPU pass's glossy lookups must converge towards the reference.
     let dir = tempdir("rsl-reference");
-    let hdr = shared_assets().join("envmaps/courtyard.hdr");
+    let hdr = assets().join("envmaps/courtyard.hdr");
     let project = format!(
         r#"(
         version: 4,
@@ -767,9 +767,9 @@ fn a_camera_looking_straight_down_sees_the_scene_and_absurd_cameras_are_refused(
 #[test]
 fn info_loads_every_asset_before_calling_a_project_valid() {
     let dir = tempdir("info-assets");
-    let gltf = shared_assets().join("gltf/assimp-glTF2/IndexOutOfRange/IndexOutOfRange.gltf");
+    let gltf = assets().join("gltf/assimp-glTF2/IndexOutOfRange/IndexOutOfRange.gltf");
     let truncated_hdr = dir.join("truncated.hdr");
-    let hdr = std::fs::read(shared_assets().join("envmaps/courtyard.hdr")).unwrap();
+    let hdr = std::fs::read(assets().join("envmaps/courtyard.hdr")).unwrap();
     std::fs::write(&truncated_hdr, &hdr[..hdr.len() / 3]).unwrap();
     let project = |scene_file: &Path, sky_file: &Path| {
         format!(
@@ -785,8 +785,8 @@ fn info_loads_every_asset_before_calling_a_project_valid() {
             sky_file.display()
         )
     };
-    let good_gltf = shared_assets().join("gltf/assimp-glTF2/BoxTextured-glTF/BoxTextured.gltf");
-    let good_hdr = shared_assets().join("envmaps/courtyard.hdr");
+    let good_gltf = assets().join("gltf/assimp-glTF2/BoxTextured-glTF/BoxTextured.gltf");
+    let good_hdr = assets().join("envmaps/courtyard.hdr");
     for (scene_file, sky_file, needle) in [
         (&gltf, &good_hdr, "IndexOutOfRange.gltf"),
         (&good_gltf, &truncated_hdr, "truncated.hdr"),

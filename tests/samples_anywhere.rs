@@ -28,13 +28,18 @@ impl Installed {
         Self { _root: root, bin, work, home }
     }
 
-    fn command(&self) -> Command {
-        let mut command = Command::new(&self.bin);
+    /// `program` run from `work/`, with the home and none of the folders a user may set.
+    fn command_of(&self, program: &Path) -> Command {
+        let mut command = Command::new(program);
         command.current_dir(&self.work).env("HOME", &self.home);
         for var in ["XDG_DATA_HOME", "XDG_STATE_HOME", "XDG_CACHE_HOME", "LIGHTLOOM_DATA_DIR", "LIGHTLOOM_STATE_DIR"] {
             command.env_remove(var);
         }
         command
+    }
+
+    fn command(&self) -> Command {
+        self.command_of(&self.bin)
     }
 
     fn run(&self, args: &[&str]) -> Output {
@@ -123,19 +128,14 @@ fn the_installed_editor_opens_a_sample() {
     );
     let installed = Installed::new();
     let shot = installed.home.join("editor.png");
-    let out = Command::new("xvfb-run")
+    let out = installed
+        .command_of(Path::new("xvfb-run"))
         .args(["-a", "-s", "-screen 0 1600x900x24"])
         .arg(&installed.bin)
         .arg("sample:glossy_courtyard")
         .arg("--screenshot")
         .arg(&shot)
         .arg("--no-disk-cache")
-        .current_dir(&installed.work)
-        .env("HOME", &installed.home)
-        .env_remove("XDG_DATA_HOME")
-        .env_remove("XDG_STATE_HOME")
-        .env_remove("LIGHTLOOM_DATA_DIR")
-        .env_remove("LIGHTLOOM_STATE_DIR")
         .output()
         .unwrap();
     let stdout = String::from_utf8_lossy(&out.stdout);

@@ -5,8 +5,9 @@
 //! `include_bytes!` from the file's folder, its other paths from the manifest folder of the
 //! crate that compiles it (`CARGO_MANIFEST_DIR`, where `cargo test` also runs), any other file's
 //! from its own folder. A path that ends up outside the checkout fails the test, with the file
-//! and line named. A line (or the line above it) that carries the marker `not-a-checkout-path`
-//! is path arithmetic on made-up folders (hostile inputs, relative-path tests) and is skipped.
+//! and line named, as does an absolute path in a project file. A line (or the line above it)
+//! that carries the marker `not-a-checkout-path` is path arithmetic on made-up folders
+//! (hostile inputs, relative-path tests) and is skipped.
 
 use std::collections::HashMap;
 use std::path::{Component, Path, PathBuf};
@@ -147,6 +148,16 @@ fn no_file_names_a_path_outside_the_checkout() {
                 found.push(format!("{name}:{}: names {beside}", line_of(offset) + 1));
             }
         }
+        // Projects name their files relative to themselves, never by an absolute path.
+        if file.extension().is_some_and(|e| e == "ron") {
+            for needle in [r#"Path("/"#, r#"file: "/"#] {
+                for (offset, _) in text.match_indices(needle) {
+                    if !on_purpose(line_of(offset)) {
+                        found.push(format!("{name}:{}: an absolute path", line_of(offset) + 1));
+                    }
+                }
+            }
+        }
         let rust = file.extension().is_some_and(|e| e == "rs");
         for (offset, path) in climbing_paths(&text) {
             let base = if rust && !in_include(&text, offset) {
@@ -166,6 +177,36 @@ fn no_file_names_a_path_outside_the_checkout() {
         }
     }
     assert!(found.is_empty(), "paths outside the checkout {}:\n{}", root.display(), found.join("\n"));
+}
+
+/// The program reads nothing from where it was built: outside tests, `CARGO_MANIFEST_DIR`
+/// appears only in `include_str!`/`include_bytes!`, which copy the file into the binary (a
+/// path made from it at run time works in a checkout and nowhere else, so a test run from the
+/// checkout could not tell).
+#[test]
+fn the_program_reads_nothing_from_its_build_folder() {
+    let root = checkout();
+    let mut found = Vec::new();
+    for file in files(&root) {
+        let name = file.strip_prefix(&root).unwrap().display().to_string();
+        let product = ["app/src/", "nodes/src/", "render/src/"].iter().any(|p| name.starts_with(p))
+            && file.extension().is_some_and(|e| e == "rs")
+            && !name.contains("/tests/")
+            && !name.contains("ui_tests")
+            && !name.ends_with("tests.rs");
+        if !product {
+            continue;
+        }
+        let text = std::fs::read_to_string(&file).unwrap();
+        let shipped = text.split("#[cfg(test)]").next().unwrap();
+        for (n, line) in shipped.lines().enumerate() {
+            if line.contains("CARGO_MANIFEST_DIR") && !line.contains("include_bytes!") && !line.contains("include_str!")
+            {
+                found.push(format!("{name}:{}: {}", n + 1, line.trim()));
+            }
+        }
+    }
+    assert!(found.is_empty(), "build-time paths read at run time:\n{}", found.join("\n"));
 }
 
 /// The scan itself: a climbing path is found and resolved as the files use it.

@@ -102,8 +102,8 @@ impl Command {
 /// Exit codes: 0 success, 1 replay regression, 2 bad input or failure.
 fn main() {
     let mut cli = Cli::parse();
-    // `sample:NAME` names a built-in sample wherever a project file is expected; the editor
-    // opens a copy of it, as File → Open sample does.
+    // `sample:NAME` names a built-in sample in every command that reads one project; the
+    // editor opens a copy of it, as File → Open sample does.
     if let Some(arg) = cli.command.as_mut().and_then(Command::project_mut) {
         match samples::resolve(arg) {
             Ok(path) => *arg = path,

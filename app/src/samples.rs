@@ -1,7 +1,7 @@
 //! The sample projects and every file they read, built into the program.
 //!
-//! File → Open sample, `lightloom render sample:NAME` (and every other command that takes a
-//! project) and the benchmarks that run on a sample work from any folder, also from a binary
+//! File → Open sample, `lightloom render sample:NAME` (and every other command that reads one
+//! project: the editor, eval, info, accuracy, bake) and the benchmarks that run on a sample work from any folder, also from a binary
 //! installed with `cargo install --path app` and run outside any checkout. Each use writes the
 //! files that are missing or differ into a folder of their own
 //! (`$LIGHTLOOM_DATA_DIR/samples/<version>-<hash>`, else `$XDG_DATA_HOME/lightloom/…`, else
@@ -52,6 +52,11 @@ pub struct Sample {
 
 /// The built-in samples, by title.
 pub fn list() -> Vec<Sample> {
+    static LIST: std::sync::OnceLock<Vec<Sample>> = std::sync::OnceLock::new();
+    LIST.get_or_init(parse_list).clone()
+}
+
+fn parse_list() -> Vec<Sample> {
     let mut samples: Vec<Sample> = FILES
         .iter()
         .filter_map(|(path, bytes)| {

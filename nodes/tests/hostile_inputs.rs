@@ -14,7 +14,7 @@ fn workspace() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
 }
 
-fn shared_assets() -> PathBuf {
+fn assets() -> PathBuf {
     let dir = workspace().join("assets");
     assert!(dir.is_dir(), "the repository's assets/ folder is expected at {}", dir.display());
     dir
@@ -179,7 +179,7 @@ fn projects_mutated_every_way_never_panic() {
 #[test]
 fn gltf_files_mutated_every_way_never_panic() {
     let mut rng = SmallRng::seed_from_u64(2);
-    let base = shared_assets().join("gltf/assimp-glTF2");
+    let base = assets().join("gltf/assimp-glTF2");
     let mut inputs = committed("gltf");
     for rel in [
         "BoxTextured-glTF-Binary/BoxTextured.glb",
@@ -296,7 +296,7 @@ fn painted_lights_mutated_every_way_never_panic() {
 fn normal_maps_mutated_every_way_never_panic() {
     let mut rng = SmallRng::seed_from_u64(6);
     let mut inputs = committed("normal_map");
-    let png = std::fs::read(shared_assets().join("gltf/assimp-glTF2/ClearCoat-glTF/RibsNormal.png")).unwrap();
+    let png = std::fs::read(assets().join("gltf/assimp-glTF2/ClearCoat-glTF/RibsNormal.png")).unwrap();
     for (label, mutant) in byte_mutants("RibsNormal.png", &png, 300, &mut rng) {
         inputs.push((label, [vec![0u8], mutant].concat()));
     }

@@ -260,8 +260,11 @@ pub(crate) fn test_state_dir() -> PathBuf {
     DIR.get_or_init(|| {
         let dir = std::env::temp_dir().join(format!("lightloom-tests-{}", std::process::id()));
         std::fs::create_dir_all(&dir).expect("temp dir");
-        // SAFETY: set once, before any test reads it (every test goes through this function).
-        unsafe { std::env::set_var("LIGHTLOOM_STATE_DIR", dir.join("state")) };
+        // SAFETY: set once, before any test reads them (every test goes through this function).
+        unsafe {
+            std::env::set_var("LIGHTLOOM_STATE_DIR", dir.join("state"));
+            std::env::set_var("LIGHTLOOM_DATA_DIR", dir.join("data"));
+        }
         dir
     })
     .clone()

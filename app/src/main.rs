@@ -13,6 +13,7 @@ mod editor;
 mod project_commands;
 mod samples;
 mod sh_command;
+mod user_dirs;
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};

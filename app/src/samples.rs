@@ -1,11 +1,11 @@
 //! The sample projects and every file they read, built into the program.
 //!
 //! File → Open sample, `lightloom render sample:NAME` (and every other command that reads one
-//! project: the editor, eval, info, accuracy, bake) and the benchmarks that run on a sample work from any folder, also from a binary
-//! installed with `cargo install --path app` and run outside any checkout. Each use writes the
-//! files that are missing or differ into a folder of their own
-//! (`$LIGHTLOOM_DATA_DIR/samples/<version>-<hash>`, else `$XDG_DATA_HOME/lightloom/…`, else
-//! `~/.local/share/lightloom/…`), laid out as in the repository, so each project's relative
+//! project: the editor, eval, info, accuracy, bake) and the benchmarks that run on a sample
+//! work from any folder, also from a binary installed with `cargo install --path app` and run
+//! outside any checkout. Each use writes the files that are missing or differ into a folder of
+//! their own (`$LIGHTLOOM_DATA_DIR/samples/<version>-<hash>`, else `$XDG_DATA_HOME/lightloom/…`,
+//! else `~/.local/share/lightloom/…`), laid out as in the repository, so each project's relative
 //! paths resolve there unchanged; each file is written whole or not at all.
 
 use anyhow::{Context, Result, bail};
@@ -110,19 +110,9 @@ pub fn folder() -> Result<PathBuf> {
     Ok(dir)
 }
 
-/// `$LIGHTLOOM_DATA_DIR`, else `$XDG_DATA_HOME/lightloom`, else `~/.local/share/lightloom`
-/// (the temporary folder without a home).
+/// `$LIGHTLOOM_DATA_DIR`, else `$XDG_DATA_HOME/lightloom`, else `~/.local/share/lightloom`.
 fn data_dir() -> PathBuf {
-    if let Some(dir) = std::env::var_os("LIGHTLOOM_DATA_DIR").filter(|d| !d.is_empty()) {
-        return PathBuf::from(dir);
-    }
-    if let Some(dir) = std::env::var_os("XDG_DATA_HOME").filter(|d| !d.is_empty()) {
-        return PathBuf::from(dir).join("lightloom");
-    }
-    match std::env::var_os("HOME").filter(|d| !d.is_empty()) {
-        Some(home) => PathBuf::from(home).join(".local/share/lightloom"),
-        None => std::env::temp_dir().join("lightloom"),
-    }
+    crate::user_dirs::user_dir("LIGHTLOOM_DATA_DIR", "XDG_DATA_HOME", ".local/share")
 }
 
 /// A hash of every path and byte of [`FILES`]: a new build with other samples writes them

@@ -196,13 +196,7 @@ impl Document {
 /// Where Lightloom keeps recent files and recovery files: `$LIGHTLOOM_STATE_DIR`, else
 /// `$XDG_STATE_HOME/lightloom`, else `~/.local/state/lightloom`.
 pub fn state_dir() -> PathBuf {
-    if let Some(dir) = std::env::var_os("LIGHTLOOM_STATE_DIR") {
-        return PathBuf::from(dir);
-    }
-    if let Some(dir) = std::env::var_os("XDG_STATE_HOME").filter(|d| !d.is_empty()) {
-        return PathBuf::from(dir).join("lightloom");
-    }
-    std::env::var_os("HOME").map_or_else(std::env::temp_dir, PathBuf::from).join(".local/state/lightloom")
+    crate::user_dirs::user_dir("LIGHTLOOM_STATE_DIR", "XDG_STATE_HOME", ".local/state")
 }
 
 /// The recovery file of a project (`None`: the untitled/built-in project): one per project

@@ -173,8 +173,8 @@ fn rsl_mode_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
         "\nrsl mode (paper, Table 1 on a GeForce 7800: robot 60k vertices 10.8 fps, Buddha 45k 27 fps = 36.5 M vertex-RSL/s):"
     );
     for (label, model, anisotropy) in [("isotropic (Phong 20)", "phong", 0.0), ("anisotropic (Ward)", "ward", 0.6)] {
-        let material = lightloom_nodes::kinds::brdf::Material {
-            model: model.into(),
+        let material = lightloom_nodes::brdf::Material {
+            model: model.parse().unwrap(),
             exponent: 20.0,
             roughness: 0.5,
             anisotropy,
@@ -286,8 +286,12 @@ fn rsl_mode_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
         "  CPU per move: per-vertex visibility of 30 lights with one moving occluder, {n} vertices: {:.0} ms",
         median(visibility_ms)
     );
-    let material =
-        lightloom_nodes::kinds::brdf::Material { model: "phong".into(), exponent: 20.0, f0: 0.3, ..Default::default() };
+    let material = lightloom_nodes::brdf::Material {
+        model: lightloom_nodes::brdf::Model::Phong,
+        exponent: 20.0,
+        f0: 0.3,
+        ..Default::default()
+    };
     let sat =
         BrdfSat::build(&lightloom_nodes::brdf::Brdf::from_material(&material), &cancel).map_err(|e| anyhow!("{e}"))?;
     let keyed = |key: u128, value: StageValue| Keyed { key, value: Arc::new(value) };
@@ -555,8 +559,12 @@ fn synthetic_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
         separate_sun: false,
         wavelet_details: 0,
     };
-    let material =
-        lightloom_nodes::kinds::brdf::Material { model: "phong".into(), exponent: 20.0, f0: 0.3, ..Default::default() };
+    let material = lightloom_nodes::brdf::Material {
+        model: lightloom_nodes::brdf::Model::Phong,
+        exponent: 20.0,
+        f0: 0.3,
+        ..Default::default()
+    };
     let materials = vec![FrameMaterial { node: "bench".into(), material: material.clone(), normal: None }];
     let geometry = Geometry { meshes: keyed(1, StageValue::new(meshes.clone())), mesh_materials: vec![0] };
     let frame_with = |mode: Mode, surfaces: Surfaces| FrameInputs {

@@ -10,13 +10,52 @@
 //! specular lobe. The lobe's weight is `specular colour × f0` for Phong, Blinn-Phong and Ward
 //! (no Fresnel), and `specular colour × F_Schlick(f0)` for GGX.
 
-use crate::kinds::brdf::Material;
 pub use crate::picture::LobePreview;
 use glam::DVec3;
+use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
 
 // Stage value types this module owns (see `engine::value`).
 crate::stage_type!(LobePreview, "BRDF lobe preview", |v| v.curves.iter().map(|c| c.len() * 4).sum());
+crate::stage_type!(Material, "material");
+
+crate::choice_enum! {
+    /// The BRDF models (see [`Lobe`]).
+    pub enum Model {
+        Lambert = "lambert",
+        Phong = "phong",
+        BlinnPhong = "blinn_phong",
+        Ggx = "ggx",
+        GgxAnisotropic = "ggx_anisotropic",
+        Ward = "ward",
+    }
+}
+
+/// A material's parameters.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Material {
+    pub model: Model,
+    pub albedo: [f64; 3],
+    pub specular: [f64; 3],
+    pub roughness: f64,
+    pub exponent: f64,
+    pub anisotropy: f64,
+    pub f0: f64,
+}
+
+impl Default for Material {
+    fn default() -> Self {
+        Self {
+            model: Model::Lambert,
+            albedo: [0.8; 3],
+            specular: [1.0; 3],
+            roughness: 0.4,
+            exponent: 64.0,
+            anisotropy: 0.0,
+            f0: 0.04,
+        }
+    }
+}
 
 /// The specular lobe of a model.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -134,13 +173,13 @@ impl Brdf {
     pub fn from_material(m: &Material) -> Self {
         let (alpha_x, alpha_y) = anisotropic_alphas(m.roughness, m.anisotropy);
         let (ax_iso, _) = anisotropic_alphas(m.roughness, 0.0);
-        let lobe = match m.model.as_str() {
-            "phong" => Lobe::Phong { exponent: m.exponent },
-            "blinn_phong" => Lobe::BlinnPhong { exponent: m.exponent },
-            "ggx" => Lobe::Ggx { alpha_x: ax_iso, alpha_y: ax_iso },
-            "ggx_anisotropic" => Lobe::Ggx { alpha_x, alpha_y },
-            "ward" => Lobe::Ward { alpha_x, alpha_y },
-            _ => Lobe::None,
+        let lobe = match m.model {
+            Model::Lambert => Lobe::None,
+            Model::Phong => Lobe::Phong { exponent: m.exponent },
+            Model::BlinnPhong => Lobe::BlinnPhong { exponent: m.exponent },
+            Model::Ggx => Lobe::Ggx { alpha_x: ax_iso, alpha_y: ax_iso },
+            Model::GgxAnisotropic => Lobe::Ggx { alpha_x, alpha_y },
+            Model::Ward => Lobe::Ward { alpha_x, alpha_y },
         };
         let specular = if lobe == Lobe::None { DVec3::ZERO } else { DVec3::from(m.specular) };
         Self { diffuse: DVec3::from(m.albedo), specular, f0: m.f0, lobe }
@@ -391,7 +430,7 @@ mod tests {
 
     fn material(model: &str, roughness: f64, exponent: f64, anisotropy: f64) -> Material {
         Material {
-            model: model.into(),
+            model: model.parse().unwrap(),
             albedo: [0.5, 0.3, 0.2],
             specular: [1.0; 3],
             roughness,
@@ -514,7 +553,7 @@ mod tests {
         assert!((lambert.curves[0][90] as f64 - 0.6 / PI).abs() < 1e-6);
         assert!((lambert.curves[0][150] as f64 - 0.6 / PI * 60f64.to_radians().cos()).abs() < 1e-6);
         let phong = LobePreview::of(&Brdf::from_material(&Material {
-            model: "phong".into(),
+            model: crate::brdf::Model::Phong,
             albedo: grey(0.3),
             specular: grey(1.0),
             exponent: 20.0,

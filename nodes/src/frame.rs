@@ -4,10 +4,10 @@
 //! math (convolution to irradiance, light through fog, table coarsening) happens here, so a
 //! renderer only packs and draws.
 
+use crate::brdf::Material;
 use crate::engine::{Key, StageValue};
-use crate::kinds::brdf::Material;
-use crate::kinds::lights::PointLight;
 use crate::kinds::output::{Mode, OutputSettings};
+use crate::light::PointLight;
 use crate::sh::ShRgb;
 use crate::single_scattering::FoggedEnvironment;
 use std::sync::Arc;

@@ -12,6 +12,7 @@
 pub mod adaptive_sh;
 pub mod bake;
 pub mod brdf;
+pub mod choice;
 pub mod cubemap;
 pub mod engine;
 pub mod envmap_io;
@@ -20,6 +21,7 @@ pub mod frame;
 pub mod fuzzing;
 pub mod gltf_import;
 pub mod kinds;
+pub mod light;
 pub mod light_texture;
 pub mod limits;
 pub mod mesh;

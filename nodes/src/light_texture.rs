@@ -123,7 +123,7 @@ pub fn load_image(path: &std::path::Path) -> Result<Image, String> {
         return Err(named(&format!("{width} × {height} pixels is too large to paint with")));
     }
     let decoded = image::open(path).map_err(|e| named(&e))?.to_rgb32f();
-    let to_linear = |c: f32| crate::preview::srgb_to_linear(f64::from(c));
+    let to_linear = |c: f32| crate::picture::srgb_to_linear(f64::from(c));
     let pixels = decoded.pixels().map(|p| [to_linear(p[0]), to_linear(p[1]), to_linear(p[2])]).collect();
     Ok(Image { width: width as usize, height: height as usize, pixels })
 }

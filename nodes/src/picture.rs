@@ -34,3 +34,8 @@ pub struct LobePreview {
     /// Per curve: `∫ f cos θ_i dω_i` (luminance), by quadrature.
     pub directional_albedo: Vec<f64>,
 }
+
+/// The sRGB transfer function inverted: an encoded value in `[0, 1]` to linear.
+pub fn srgb_to_linear(c: f64) -> f64 {
+    if c <= 0.04045 { c / 12.92 } else { ((c + 0.055) / 1.055).powf(2.4) }
+}

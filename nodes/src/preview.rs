@@ -4,17 +4,13 @@
 //! shows the pixels (or plots a BRDF lobe's curves).
 
 use crate::cubemap::{CubeMap, equirect_uv_to_dir};
+pub use crate::picture::srgb_to_linear;
 pub use crate::picture::{Preview, PreviewImage};
 use crate::sh::{ShBasis, ShRgb};
 use glam::DVec3;
 
 fn luminance(c: [f64; 3]) -> f64 {
     0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]
-}
-
-/// The sRGB transfer function inverted: an encoded value in `[0, 1]` to linear.
-pub fn srgb_to_linear(c: f64) -> f64 {
-    if c <= 0.04045 { c / 12.92 } else { ((c + 0.055) / 1.055).powf(2.4) }
 }
 
 /// Reinhard on `scale × linear`, then the sRGB transfer function.

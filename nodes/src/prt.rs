@@ -151,7 +151,7 @@ pub struct GlossyLobe {
 /// Bands of the BRDF editor's SH lobe stage (renderers use a prefix).
 pub const LOBE_BANDS: usize = 16;
 
-pub fn glossy_lobe(material: &crate::kinds::brdf::Material, bands: usize) -> Option<GlossyLobe> {
+pub fn glossy_lobe(material: &crate::brdf::Material, bands: usize) -> Option<GlossyLobe> {
     let brdf = crate::brdf::Brdf::from_material(material);
     let exponent = brdf.equivalent_phong_exponent()?;
     let factors = lobe_factors(&crate::brdf::Brdf::phong_zonal(exponent, bands));

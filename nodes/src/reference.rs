@@ -16,7 +16,7 @@ use crate::brdf::Brdf;
 use crate::cubemap::{self, CubeMap, FACES};
 use crate::engine::{CancelToken, StageError};
 use crate::mesh::MeshSet;
-use crate::preview::srgb_to_linear;
+use crate::picture::srgb_to_linear;
 use crate::raycast::RayScene;
 use glam::{DMat3, DVec3, Vec3A};
 use rand::{Rng, SeedableRng, rngs::SmallRng};
@@ -505,7 +505,7 @@ pub fn error_ramp(t: f64) -> [f64; 3] {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::kinds::brdf::Material;
+    use crate::brdf::Material;
     use crate::mesh;
 
     fn cube_from(f: impl Fn(DVec3) -> [f64; 3] + Sync) -> CubeMap {
@@ -545,8 +545,13 @@ mod tests {
             normals: vec![DVec3::new(tilt.sin(), 0.0, tilt.cos()); 4],
         };
         let environment = cube_from(|d| [0.2 + 3.0 * d.x.max(0.0).powi(4), 0.3 + d.y.max(0.0), 0.2]);
-        let material =
-            Material { model: "ggx".into(), roughness: 0.3, f0: 0.8, specular: [1.0; 3], ..Default::default() };
+        let material = Material {
+            model: crate::brdf::Model::Ggx,
+            roughness: 0.3,
+            f0: 0.8,
+            specular: [1.0; 3],
+            ..Default::default()
+        };
         let camera = PinholeCamera { position: DVec3::new(0.0, 2.0, 3.0), target: DVec3::ZERO, fov_y_deg: 30.0 };
         let render_with = |mesh: &mesh::Mesh, maps: &[Option<(&crate::normal_filtering::NormalMap, f64)>]| {
             let meshes = MeshSet { meshes: vec![mesh.clone()] };
@@ -582,8 +587,13 @@ mod tests {
         };
         let (map, down) = (leaning(1.0), leaning(-1.0));
         let environment = cube_from(|d| [0.2 + 3.0 * d.z.max(0.0).powi(4), 0.3 + d.y.max(0.0), 0.2]);
-        let material =
-            Material { model: "ggx".into(), roughness: 0.3, f0: 0.8, specular: [1.0; 3], ..Default::default() };
+        let material = Material {
+            model: crate::brdf::Model::Ggx,
+            roughness: 0.3,
+            f0: 0.8,
+            specular: [1.0; 3],
+            ..Default::default()
+        };
         let camera = PinholeCamera { position: DVec3::new(0.0, 2.0, 3.0), target: DVec3::ZERO, fov_y_deg: 30.0 };
         let render_with = |mesh: &mesh::Mesh, map: &crate::normal_filtering::NormalMap| {
             let meshes = MeshSet { meshes: vec![mesh.clone()] };
@@ -672,7 +682,7 @@ mod tests {
         let scene = RayScene::build(&meshes);
         let environment = cube_from(|_| [1.0; 3]);
         let material = Material {
-            model: "ggx".into(),
+            model: crate::brdf::Model::Ggx,
             albedo: [0.2; 3],
             roughness: 0.3,
             f0: 0.5,

@@ -542,7 +542,7 @@ pub fn shade_with_details(
 mod tests {
     use super::*;
     use crate::brdf::Brdf;
-    use crate::kinds::brdf::Material;
+    use crate::brdf::Material;
     use crate::quadrature::SphereQuadrature;
 
     #[test]
@@ -575,7 +575,7 @@ mod tests {
         let l = |d: DVec3| 1.0 + 0.8 * d.x + 0.5 * d.z * d.z;
         let v = |d: DVec3| if d.z > 0.0 { 0.5 + 0.5 * (3.0 * d.y).sin().abs() } else { 0.0 };
         let brdf = Brdf::from_material(&Material {
-            model: "phong".into(),
+            model: crate::brdf::Model::Phong,
             exponent: 4.0,
             f0: 1.0,
             albedo: [0.0; 3],
@@ -601,8 +601,12 @@ mod tests {
     fn a_coarsened_table_equals_tabulating_on_the_coarse_grid() {
         // Merging keeps each row's integral Σ ΔΩ_c S_c exactly, and agrees with tabulating at
         // 80 cells directly up to the sub-cell quadrature (16 samples per cell there, 64 here).
-        let brdf =
-            Brdf::from_material(&Material { model: "phong".into(), exponent: 3.0, f0: 1.0, ..Default::default() });
+        let brdf = Brdf::from_material(&Material {
+            model: crate::brdf::Model::Phong,
+            exponent: 3.0,
+            f0: 1.0,
+            ..Default::default()
+        });
         let cancel = CancelToken::default();
         let fine = tabulate_brdf(&brdf, CellGrid::for_coefficients(320).unwrap(), &cancel).unwrap();
         let coarse = tabulate_brdf(&brdf, CellGrid::for_coefficients(80).unwrap(), &cancel).unwrap();
@@ -667,7 +671,8 @@ mod tests {
         for (model, exponent, roughness, most_cells) in
             [("phong", 200.0, 0.5, 40.0), ("phong", 20.0, 0.5, 80.0), ("ggx", 1.0, 0.4, 200.0)]
         {
-            let material = Material { model: model.into(), exponent, roughness, f0: 0.5, ..Default::default() };
+            let material =
+                Material { model: model.parse().unwrap(), exponent, roughness, f0: 0.5, ..Default::default() };
             let table = tabulate_brdf(&Brdf::from_material(&material), grid, &CancelToken::default()).unwrap();
             let (ranges, list) = significant_cells(&table.specular, grid);
             let mean = ranges.iter().map(|r| r[1] as f64).sum::<f64>() / ranges.len() as f64;

@@ -9,7 +9,7 @@
 //! the scene's `extras.lightloom.vertexLightScale`.
 
 use super::material_fit::MaterialFit;
-use crate::kinds::lights::PointLight;
+use crate::light::PointLight;
 use crate::mesh::MeshSet;
 use glam::{DMat3, DMat4, DQuat, DVec3};
 use gltf::json::{self, validation::Checked::Valid, validation::USize64};
@@ -45,7 +45,7 @@ pub struct ExportScene<'a> {
     /// Per mesh: its index in `materials`.
     pub mesh_materials: &'a [u32],
     /// `(name, material)` in the frame's order.
-    pub materials: &'a [(String, crate::kinds::brdf::Material)],
+    pub materials: &'a [(String, crate::brdf::Material)],
     pub lights: &'a [PointLight],
     /// The square-light mode's lights, written as directional lights.
     pub directional: &'a [DirectionalLight],
@@ -246,7 +246,7 @@ pub fn write_glb(scene: &ExportScene) -> Result<Glb, String> {
                 written.push(WrittenMaterial {
                     name: written_name,
                     source: name.clone(),
-                    model: source.model.clone(),
+                    model: source.model.to_string(),
                     fit,
                 });
                 material_of.insert(key, index);

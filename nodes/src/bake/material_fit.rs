@@ -15,8 +15,8 @@
 //! directions: 0 would be exact; the `(1 − F)` diffuse term glTF adds makes even GGX a little
 //! off.
 
+use crate::brdf::Material;
 use crate::brdf::{Brdf, Lobe};
-use crate::kinds::brdf::Material;
 use glam::DVec3;
 use std::f64::consts::PI;
 
@@ -196,7 +196,7 @@ mod tests {
     use super::*;
 
     fn material(model: &str) -> Material {
-        Material { model: model.into(), ..Material::default() }
+        Material { model: model.parse().unwrap(), ..Material::default() }
     }
 
     #[test]

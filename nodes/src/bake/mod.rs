@@ -319,7 +319,7 @@ pub fn bake(
 
     progress("scene.glb", 0.6);
     let start = std::time::Instant::now();
-    let materials: Vec<(String, crate::kinds::brdf::Material)> =
+    let materials: Vec<(String, crate::brdf::Material)> =
         frame.materials.iter().map(|m| (m.node.clone(), m.material.clone())).collect();
     let directional: Vec<gltf_export::DirectionalLight> = match &frame.surfaces {
         crate::frame::Surfaces::Rsl(s) => s
@@ -361,7 +361,7 @@ pub fn bake(
             .iter()
             .map(|m| ManifestMaterial {
                 name: m.name.clone(),
-                model: m.model.clone(),
+                model: m.model.to_string(),
                 base_color: m.fit.base_color,
                 roughness: m.fit.roughness,
                 specular_factor: m.fit.specular_factor,

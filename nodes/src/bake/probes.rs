@@ -15,7 +15,7 @@
 
 use crate::cubemap::CubeMap;
 use crate::engine::{CancelToken, StageError};
-use crate::kinds::lights::PointLight;
+use crate::light::PointLight;
 use crate::raycast::RayScene;
 use crate::sh::ShBasis;
 use glam::{DVec3, Vec3A};

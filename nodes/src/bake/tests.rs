@@ -571,7 +571,7 @@ fn square_lights_export_as_directional_lights_with_their_size() {
         meshes: &meshes,
         vertex_light: &[[0.5; 3]; 3],
         mesh_materials: &[0],
-        materials: &[(String::new(), crate::kinds::brdf::Material::default())],
+        materials: &[(String::new(), crate::brdf::Material::default())],
         lights: &[],
         directional: std::slice::from_ref(&light),
         camera: None,

@@ -8,7 +8,7 @@
 //! depends on the viewer (fog's attenuation towards the eye and its airlight stay out).
 
 use crate::frame::{FrameInputs, Surfaces};
-use crate::kinds::lights::PointLight;
+use crate::light::PointLight;
 use crate::mesh::MeshSet;
 use crate::raycast::RayScene;
 use crate::sh::{ShBasis, ShRgb};
@@ -299,7 +299,7 @@ fn sh_irradiance(e: &ShRgb, normal: DVec3) -> [f64; 3] {
 fn lambert_sat() -> &'static crate::rsl::brdf_sat::BrdfSat {
     static SAT: std::sync::OnceLock<crate::rsl::brdf_sat::BrdfSat> = std::sync::OnceLock::new();
     SAT.get_or_init(|| {
-        let lambert = crate::brdf::Brdf::from_material(&crate::kinds::brdf::Material::default());
+        let lambert = crate::brdf::Brdf::from_material(&crate::brdf::Material::default());
         crate::rsl::brdf_sat::BrdfSat::build(&lambert, &crate::engine::CancelToken::default())
             .expect("an uncancelled Lambert table")
     })

@@ -2,42 +2,11 @@
 //! lobe the `sh_prt` mode convolves with) and the material tabulated in the local frame for the
 //! triple product modes (Ma et al. §3.2; `triple_product::tabulate_brdf`).
 
+pub use crate::brdf::{Material, Model};
 use crate::engine::{StageContext, StageError, StageValue};
 use crate::node_kind::PreviewSpec;
 use crate::node_kind::{Availability, NodeKindSpec, ParamKind, ParamSpec, PortSpec, PortType, StageSpec};
 use crate::picture::Preview;
-use serde::{Deserialize, Serialize};
-
-// Stage value types this module owns (see `engine::value`).
-crate::stage_type!(Material, "material");
-
-/// A material's parameters.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct Material {
-    pub model: String,
-    pub albedo: [f64; 3],
-    pub specular: [f64; 3],
-    pub roughness: f64,
-    pub exponent: f64,
-    pub anisotropy: f64,
-    pub f0: f64,
-}
-
-impl Default for Material {
-    fn default() -> Self {
-        Self {
-            model: "lambert".into(),
-            albedo: [0.8; 3],
-            specular: [1.0; 3],
-            roughness: 0.4,
-            exponent: 64.0,
-            anisotropy: 0.0,
-            f0: 0.04,
-        }
-    }
-}
-
-pub const MODELS: &[&str] = &["lambert", "phong", "blinn_phong", "ggx", "ggx_anisotropic", "ward"];
 
 pub fn spec() -> NodeKindSpec {
     NodeKindSpec {
@@ -51,7 +20,7 @@ pub fn spec() -> NodeKindSpec {
                 name: "model",
                 label: "Model",
                 unit: "",
-                kind: ParamKind::Choice { options: MODELS, default: "lambert", labels: &[] },
+                kind: ParamKind::Choice { options: Model::NAMES, default: "lambert", labels: &[] },
                 doc: "BRDF model.",
             },
             ParamSpec {
@@ -188,7 +157,7 @@ fn rsl_tables(ctx: &StageContext) -> Result<StageValue, StageError> {
 
 fn material(ctx: &StageContext) -> Result<StageValue, StageError> {
     Ok(StageValue::new(Material {
-        model: ctx.choice("model")?.to_string(),
+        model: ctx.option("model")?,
         albedo: ctx.vec3("albedo")?,
         specular: ctx.vec3("specular")?,
         roughness: ctx.float("roughness")?,

@@ -3,6 +3,7 @@
 //! Loading and pyramids are keyed by the file and strength alone, so the filter choice and
 //! tiling (read by `normal_settings`) rebuild nothing.
 
+use crate::brdf::Model;
 use crate::engine::{Graph, StageContext, StageError, StageRef, StageValue};
 use crate::node_kind::{ParamKind, ParamSpec, ParamValue, StageSpec};
 use crate::normal_filtering::{MomentPyramid, NormalMap, VmfPyramid};
@@ -283,22 +284,22 @@ pub(super) fn frame_detail(
     };
     if let Some(node) = graph.node(material) {
         let model = match node.params.get("model") {
-            Some(ParamValue::Choice(c)) => c.as_str(),
-            _ => "lambert",
+            Some(ParamValue::Choice(c)) => c.parse().unwrap_or(Model::Lambert),
+            _ => Model::Lambert,
         };
         let anisotropic = matches!(node.params.get("anisotropy"), Some(ParamValue::Float(a)) if *a != 0.0);
         let lobe = match model {
-            "phong" => Some("Phong's lobe is about the mirror direction, not the half vector"),
-            "ward" => Some("Ward's lobe is anisotropic"),
-            "ggx_anisotropic" if anisotropic => Some("anisotropic GGX is not radially symmetric"),
-            _ => None,
+            Model::Phong => Some("Phong's lobe is about the mirror direction, not the half vector"),
+            Model::Ward => Some("Ward's lobe is anisotropic"),
+            Model::GgxAnisotropic if anisotropic => Some("anisotropic GGX is not radially symmetric"),
+            Model::Lambert | Model::BlinnPhong | Model::Ggx | Model::GgxAnisotropic => None,
         };
         if let Some(why) = lobe {
             note(format!(
                 "its normal map filters the highlight approximately: {why} (exact for Lambert, Blinn-Phong and GGX)"
             ));
         }
-        if model != "lambert" && mode != super::output::Mode::ShIrradiance {
+        if model != Model::Lambert && mode != super::output::Mode::ShIrradiance {
             note(format!(
                 "in {mode} the environment's highlight is shaded per vertex and corrected per pixel for the normal \
                  map through the light's SH to band {}: sharper detail in it does not see the map",

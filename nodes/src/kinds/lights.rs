@@ -2,17 +2,8 @@
 
 use crate::engine::{StageContext, StageError, StageValue};
 use crate::node_kind::{Availability, NodeKindSpec, ParamKind, ParamSpec, PortSpec, PortType, StageSpec};
-use serde::{Deserialize, Serialize};
 
-// Stage value types this module owns (see `engine::value`).
-crate::stage_type!(Vec<PointLight>, "lights", |v| v.len() * 48);
-
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct PointLight {
-    pub position: [f64; 3],
-    /// Radiant intensity per channel, W/sr.
-    pub intensity: [f64; 3],
-}
+pub use crate::light::PointLight;
 
 pub fn point_light_spec() -> NodeKindSpec {
     NodeKindSpec {

@@ -872,7 +872,7 @@ impl FrameInputs {
             _ => Surfaces::Irradiance(IrradianceSurfaces::new(light, fogged, &materials)),
         };
         let mut lights = match upstream("lights") {
-            Some(node) => typed::<Vec<crate::kinds::lights::PointLight>>(&keyed(&node, "lights")?, "lights")?,
+            Some(node) => typed::<Vec<crate::light::PointLight>>(&keyed(&node, "lights")?, "lights")?,
             None => Vec::new(),
         };
         let mut ignored_inputs = Vec::new();

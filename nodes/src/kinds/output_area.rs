@@ -293,7 +293,7 @@ fn add_light(
 /// the first linked, else the default (as the frame assigns them).
 fn vertex_brdfs(ctx: &StageContext, receivers: &Receivers) -> Result<(Vec<crate::brdf::Brdf>, Vec<u32>), StageError> {
     let meshes = ctx.required_input::<crate::mesh::MeshSet>("scene", "geometry")?;
-    let linked = ctx.inputs_all::<crate::kinds::brdf::Material>("material", "material")?;
+    let linked = ctx.inputs_all::<crate::brdf::Material>("material", "material")?;
     let mut brdfs: Vec<crate::brdf::Brdf> = linked.iter().map(|(_, m)| crate::brdf::Brdf::from_material(m)).collect();
     if brdfs.is_empty() {
         brdfs.push(crate::brdf::Brdf::from_material(&Default::default()));

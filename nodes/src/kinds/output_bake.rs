@@ -310,7 +310,7 @@ fn bake_probes(ctx: &StageContext) -> Result<StageValue, StageError> {
     let meshes = ctx.required_input::<crate::mesh::MeshSet>("scene", "geometry")?;
     let scene = ctx.required_input::<crate::raycast::RayScene>("scene", "ray_scene")?;
     let environment = ctx.input::<crate::cubemap::CubeMap>("environment", "rotated_radiance")?;
-    let lights = ctx.input::<Vec<crate::kinds::lights::PointLight>>("lights", "lights")?;
+    let lights = ctx.input::<Vec<crate::light::PointLight>>("lights", "lights")?;
     let areas = ctx.inputs_all::<crate::kinds::area_light::AreaLight>("area_lights", "light")?;
     let fogged = match (
         ctx.input::<crate::kinds::fog::Medium>("medium", "medium")?,

@@ -568,7 +568,8 @@ fn highlights_match_direct_integration() {
     let eye = DVec3::new(0.3, 1.2, 2.6);
     let origins = scene.positions.clone();
     for (model, roughness, exponent) in [("ggx", 0.6, 0.0), ("phong", 0.0, 12.0), ("blinn_phong", 0.0, 40.0)] {
-        let material = crate::kinds::brdf::Material { model: model.into(), roughness, exponent, ..Default::default() };
+        let material =
+            crate::brdf::Material { model: model.parse().unwrap(), roughness, exponent, ..Default::default() };
         let brdf = crate::brdf::Brdf::from_material(&material);
         let truth: Vec<[f64; 3]> = scene
             .positions

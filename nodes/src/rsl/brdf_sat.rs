@@ -247,13 +247,13 @@ impl BrdfSat {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::kinds::brdf::Material;
+    use crate::brdf::Material;
     use crate::sampling::test_rng;
     use rand::Rng;
 
     fn brdf(model: &str, exponent: f64, roughness: f64, anisotropy: f64) -> Brdf {
         Brdf::from_material(&Material {
-            model: model.into(),
+            model: model.parse().unwrap(),
             albedo: [0.6, 0.5, 0.4],
             specular: [1.0, 0.9, 0.8],
             roughness,

@@ -167,7 +167,7 @@ pub fn run(setup: &Setup, counts: &[usize]) -> Errors {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::kinds::brdf::Material;
+    use crate::brdf::Material;
     use crate::mesh;
 
     fn floor() -> mesh::Mesh {
@@ -181,7 +181,7 @@ mod tests {
 
     fn glossy() -> Brdf {
         Brdf::from_material(&Material {
-            model: "phong".into(),
+            model: crate::brdf::Model::Phong,
             albedo: [0.5, 0.5, 0.5],
             specular: [1.0; 3],
             roughness: 0.5,

@@ -267,9 +267,9 @@ mod tests {
     };
     use super::*;
     use crate::brdf::Brdf;
+    use crate::brdf::Material;
     use crate::cubemap::CubeMap;
     use crate::engine::CancelToken;
-    use crate::kinds::brdf::Material;
     use crate::transport::Receivers;
     use glam::DMat3;
 
@@ -298,7 +298,7 @@ mod tests {
 
     fn glossy(model: &str, roughness: f64) -> Brdf {
         Brdf::from_material(&Material {
-            model: model.into(),
+            model: model.parse().unwrap(),
             roughness,
             exponent: 60.0,
             f0: 1.0,

@@ -298,7 +298,7 @@ fn glossy_highlights_follow_the_view_like_direct_integration() {
     assert_eq!(eye, default_project().cameras[0].position, "the render camera's viewpoint");
     let first = evaluate_frame(&engine, &graph);
     let receivers = value_of::<crate::transport::Receivers>(&first, "scene", "receivers");
-    let material = value_of::<crate::kinds::brdf::Material>(&first, "material", "material");
+    let material = value_of::<crate::brdf::Material>(&first, "material", "material");
     let brdf = crate::brdf::Brdf::from_material(&material);
     let highlights = value_of::<AreaHighlights>(&first, "output", "area_highlights").radiance;
     assert_eq!(highlights.len(), receivers.len());

@@ -601,7 +601,7 @@ fn every_kind_recomputes_exactly_its_stages() {
     assert!(failed.is_empty(), "{failed:?}");
     let lights = value_of::<crate::rsl::SquareLights>(&first, "rsl", "square_lights");
     assert_eq!(lights.lights.len(), 30, "the default K");
-    let lights = value_of::<Vec<crate::kinds::lights::PointLight>>(&first, "light2", "lights");
+    let lights = value_of::<Vec<crate::light::PointLight>>(&first, "light2", "lights");
     assert_eq!(lights.len(), 2, "point lights chain");
     for (node, param, value, expected) in table {
         graph.set_param(node, param, value).unwrap();

@@ -21,13 +21,13 @@ fn keyed(key: u128, value: StageValue) -> Keyed {
 /// A sphere's vertices with random visibility cells (a third of them blocked), under a random
 /// environment with a bright sun, rotated arbitrarily.
 fn surfaces(cells: usize, rotation: glam::DMat3) -> WaveletSurfaces {
-    surfaces_of(cells, rotation, lightloom_nodes::kinds::brdf::Material::default(), 0)
+    surfaces_of(cells, rotation, lightloom_nodes::brdf::Material::default(), 0)
 }
 
 fn surfaces_of(
     cells: usize,
     rotation: glam::DMat3,
-    material: lightloom_nodes::kinds::brdf::Material,
+    material: lightloom_nodes::brdf::Material,
     details: usize,
 ) -> WaveletSurfaces {
     let mut state = 9;
@@ -148,8 +148,8 @@ fn the_relight_kernel_keeps_the_twins_detail_terms() {
     use lightloom_nodes::triple_product::{BrdfTable, shade};
     let gpu = GpuContext::headless().expect("a wgpu device (lavapipe on machines without a GPU)");
     let mut pass = kernel_pass(&gpu);
-    let material = lightloom_nodes::kinds::brdf::Material {
-        model: "ggx".into(),
+    let material = lightloom_nodes::brdf::Material {
+        model: lightloom_nodes::brdf::Model::Ggx,
         roughness: 0.3,
         f0: 1.0,
         specular: [0.5; 3],

@@ -5,7 +5,8 @@ use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use lightloom_nodes::engine::CancelToken;
 use lightloom_nodes::engine::{Engine, EngineConfig, EvalEvent, Evaluation, Graph, Request, StageStatus};
-use lightloom_nodes::kinds::output::{FrameInputs, Tonemap, View, find_output};
+use lightloom_nodes::frame::FrameInputs;
+use lightloom_nodes::kinds::output::{Tonemap, View, find_output};
 use lightloom_nodes::node_kind::Availability;
 use lightloom_nodes::project::Project;
 use lightloom_nodes::reference::{self, ImageError, PinholeCamera};
@@ -118,7 +119,7 @@ pub fn load(path: &Path, overrides: &[String]) -> Result<(Project, Graph)> {
 
 /// What rendering the Output node `output` needs (its mode and view), for the CLI.
 pub(crate) fn output_request(graph: &Graph, output: &str) -> Request {
-    lightloom_nodes::kinds::output::frame_request(graph, output, false)
+    lightloom_nodes::frame::frame_request(graph, output, false)
 }
 
 /// Evaluates what `request` needs on a background thread, driving a progress bar from its

@@ -1,5 +1,5 @@
 //! Lightloom's renderer: a wgpu device (windowed or headless), the viewport renderer that
-//! draws a [`FrameInputs`](lightloom_nodes::kinds::output::FrameInputs), and offscreen capture
+//! draws a [`FrameInputs`](lightloom_nodes::frame::FrameInputs), and offscreen capture
 //! to PNG/EXR. It knows nothing of the editor; WGSL lives in `shaders/`.
 
 pub mod capture;

@@ -7,7 +7,7 @@
 
 use lightloom_nodes::engine::{CancelToken, Engine, Graph};
 use lightloom_nodes::frame::FrameInputs;
-use lightloom_nodes::kinds::output::frame_request;
+use lightloom_nodes::frame::frame_request;
 use lightloom_nodes::node_kind::ParamValue;
 use lightloom_nodes::project::Project;
 use lightloom_nodes::reference::{self, PinholeCamera};

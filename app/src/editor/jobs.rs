@@ -3,7 +3,7 @@
 //! polls them each frame and shows progress; both can be cancelled.
 
 use lightloom_nodes::engine::{CancelToken, Engine, EvalEvent, Evaluation, Graph, Request, Scheduler, StageStatus};
-use lightloom_nodes::kinds::output::FrameInputs;
+use lightloom_nodes::frame::FrameInputs;
 use lightloom_nodes::reference::{HdrImage, PinholeCamera};
 use std::collections::HashMap;
 use std::sync::Arc;

@@ -28,7 +28,8 @@ use eframe::egui::{self, Color32};
 use graph_editor::{GraphAction, GraphEditor, PendingLink};
 use jobs::{Evaluator, NodeStatus, ReferenceJob};
 use lightloom_nodes::engine::{Engine, EngineConfig, Evaluation};
-use lightloom_nodes::kinds::output::{FrameInputs, View, find_output};
+use lightloom_nodes::frame::FrameInputs;
+use lightloom_nodes::kinds::output::{View, find_output};
 use lightloom_nodes::node_kind::ParamValue;
 use lightloom_nodes::project::{Project, default_project};
 use lightloom_nodes::reference::{HdrImage, ImageError};
@@ -623,7 +624,7 @@ impl EditorApp {
     fn evaluation_request(&self, graph: &lightloom_nodes::engine::Graph) -> lightloom_nodes::engine::Request {
         let output = self.doc.project.render.output_node();
         let request = match find_output(graph, output) {
-            Ok(o) => lightloom_nodes::kinds::output::frame_request(graph, &o.id, true),
+            Ok(o) => lightloom_nodes::frame::frame_request(graph, &o.id, true),
             Err(_) => lightloom_nodes::engine::Request::default(),
         };
         let previews: Vec<_> = graph

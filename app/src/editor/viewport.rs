@@ -4,7 +4,8 @@
 //! which shows the last finished frame while the next one renders.
 
 use eframe::egui;
-use lightloom_nodes::kinds::output::{FrameInputs, Tonemap, View};
+use lightloom_nodes::frame::FrameInputs;
+use lightloom_nodes::kinds::output::{Tonemap, View};
 use lightloom_nodes::reference::{self, HdrImage, ImageError};
 use lightloom_render::{CameraView, GpuContext, ViewportRenderer};
 use std::sync::Arc;

@@ -22,7 +22,8 @@ pub mod vertex_light;
 use crate::engine::Evaluation;
 use crate::engine::{Graph, Request, StageRef};
 use crate::frame::FrameInputs;
-use crate::kinds::output::{Mode, mode_stages, output_mode_and_view};
+use crate::frame::mode_stages;
+use crate::kinds::output::{Mode, output_mode_and_view};
 use serde::Serialize;
 use std::path::Path;
 
@@ -192,7 +193,7 @@ pub struct BakedStages<'a> {
     pub texel_sh: Option<&'a crate::transport::ShTransport>,
     pub texel_products: Option<&'a crate::triple_product::LocalProducts>,
     pub texel_square_lights: Option<&'a square_light_texels::SquareLightTexels>,
-    pub texel_area: Option<&'a crate::kinds::output_area::AreaIrradiance>,
+    pub texel_area: Option<&'a crate::kinds::output::area::AreaIrradiance>,
 }
 
 impl<'a> BakedStages<'a> {

@@ -728,7 +728,7 @@ fn lightmap_texels_carry_area_lights() {
         .unwrap()
         .irradiance
         .value
-        .get::<crate::kinds::output_area::AreaIrradiance>()
+        .get::<crate::kinds::output::area::AreaIrradiance>()
         .unwrap()
         .irradiance;
     let meshes = frame.geometry.meshes.value.get::<crate::mesh::MeshSet>().unwrap();

@@ -133,7 +133,7 @@ fn finish(light: Vec<[f64; 3]>) -> Vec<[f32; 3]> {
 /// The area lights' `E / π` per vertex, once their transport is evaluated.
 fn area_light(frame: &FrameInputs) -> Result<Option<Vec<[f64; 3]>>, String> {
     let Some(area) = &frame.area_lights else { return Ok(None) };
-    let e = area.irradiance.value.expect::<crate::kinds::output_area::AreaIrradiance>().map_err(|e| e.to_string())?;
+    let e = area.irradiance.value.expect::<crate::kinds::output::area::AreaIrradiance>().map_err(|e| e.to_string())?;
     Ok(Some(e.irradiance.iter().map(|e| e.map(|c| f64::from(c) / PI)).collect()))
 }
 

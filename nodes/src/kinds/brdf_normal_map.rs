@@ -3,9 +3,8 @@
 //! Loading and pyramids are keyed by the file and strength alone, so the filter choice and
 //! tiling (read by `normal_settings`) rebuild nothing.
 
-use crate::brdf::Model;
-use crate::engine::{Graph, StageContext, StageError, StageRef, StageValue};
-use crate::node_kind::{ParamKind, ParamSpec, ParamValue, StageSpec};
+use crate::engine::{StageContext, StageError, StageValue};
+use crate::node_kind::{ParamKind, ParamSpec, StageSpec};
 use crate::normal_filtering::{MomentPyramid, NormalMap, VmfPyramid};
 use serde::{Deserialize, Serialize};
 
@@ -177,21 +176,6 @@ pub(super) fn stages() -> Vec<StageSpec> {
     ]
 }
 
-/// The stages of `material`'s normal map a frame shades with: none without a map; the vMF
-/// lobes only where that filter is chosen.
-pub fn frame_stages(graph: &Graph, material: &str) -> Vec<StageRef> {
-    let Some(node) = graph.node(material) else { return Vec::new() };
-    if !matches!(node.params.get("normal_map"), Some(ParamValue::Path(p)) if !p.is_empty()) {
-        return Vec::new();
-    }
-    let mut stages: Vec<StageRef> =
-        ["normal_map", "ndf_moments", "normal_settings"].map(|s| StageRef::new(material, s)).into();
-    if matches!(node.params.get("normal_filter"), Some(ParamValue::Choice(c)) if c == "vmf") {
-        stages.push(StageRef::new(material, "vmf_lobes"));
-    }
-    stages
-}
-
 /// The map, tilts scaled by the strength (empty without a file).
 fn normal_map(ctx: &StageContext) -> Result<StageValue, StageError> {
     let Some(path) = ctx.path("normal_map")? else { return Ok(StageValue::new(NormalMap::default())) };
@@ -244,68 +228,4 @@ fn normal_settings(ctx: &StageContext) -> Result<StageValue, StageError> {
             .ok_or_else(|| StageError::Internal(format!("unknown normal filter `{filter}`")))?,
         tiling: ctx.float("normal_tiling")?,
     }))
-}
-
-/// `material`'s normal map for a frame, from what `keyed` finds evaluated; what keeps it from
-/// showing, or shows it only in part, goes to `notes` as `(node, why)`. A map that failed to
-/// load leaves the material unmapped, never the frame undrawn.
-pub(super) fn frame_detail(
-    keyed: &dyn Fn(&str, &str) -> Result<crate::frame::Keyed, String>,
-    graph: &Graph,
-    material: &str,
-    mode: super::output::Mode,
-    notes: &mut Vec<(String, String)>,
-) -> Option<crate::frame::NormalDetail> {
-    if frame_stages(graph, material).is_empty() {
-        return None;
-    }
-    let mut note = |why: String| notes.push((material.to_string(), why));
-    let found = (|| {
-        let settings = keyed(material, "normal_settings")?;
-        let settings = *settings.value.expect::<NormalSettings>().map_err(|e| e.to_string())?;
-        Ok::<_, String>((settings, keyed(material, "normal_map")?, keyed(material, "ndf_moments")?))
-    })();
-    let (settings, map, moments) = match found {
-        Ok(found) => found,
-        Err(e) => {
-            note(format!("its normal map is not shown: {e}"));
-            return None;
-        }
-    };
-    let lobes = match settings.filter {
-        NormalFilter::Vmf => match keyed(material, "vmf_lobes") {
-            Ok(lobes) => Some(lobes),
-            Err(e) => {
-                note(format!("its normal map's vMF lobes are not ready ({e}): highlights take the SH filter's lobe"));
-                None
-            }
-        },
-        _ => None,
-    };
-    if let Some(node) = graph.node(material) {
-        let model = match node.params.get("model") {
-            Some(ParamValue::Choice(c)) => c.parse().unwrap_or(Model::Lambert),
-            _ => Model::Lambert,
-        };
-        let anisotropic = matches!(node.params.get("anisotropy"), Some(ParamValue::Float(a)) if *a != 0.0);
-        let lobe = match model {
-            Model::Phong => Some("Phong's lobe is about the mirror direction, not the half vector"),
-            Model::Ward => Some("Ward's lobe is anisotropic"),
-            Model::GgxAnisotropic if anisotropic => Some("anisotropic GGX is not radially symmetric"),
-            Model::Lambert | Model::BlinnPhong | Model::Ggx | Model::GgxAnisotropic => None,
-        };
-        if let Some(why) = lobe {
-            note(format!(
-                "its normal map filters the highlight approximately: {why} (exact for Lambert, Blinn-Phong and GGX)"
-            ));
-        }
-        if model != Model::Lambert && mode != super::output::Mode::ShIrradiance {
-            note(format!(
-                "in {mode} the environment's highlight is shaded per vertex and corrected per pixel for the normal \
-                 map through the light's SH to band {}: sharper detail in it does not see the map",
-                crate::frame::HIGHLIGHT_BANDS - 1
-            ));
-        }
-    }
-    Some(crate::frame::NormalDetail { settings, map, moments, lobes })
 }

@@ -9,11 +9,7 @@ pub mod environment;
 pub mod fog;
 pub mod lights;
 pub mod output;
-mod output_adaptive;
-pub mod output_area;
-mod output_bake;
-mod output_sun;
-pub use output_adaptive::AdaptiveError;
+pub use output::adaptive::AdaptiveError;
 pub mod rsl;
 pub mod scene;
 

@@ -7,7 +7,7 @@ use super::{Draw, Pass, PassSetup, entry, stage_value, storage_buffer, uniform_b
 use crate::{GpuContext, RenderError};
 use lightloom_nodes::engine::Key;
 use lightloom_nodes::frame::{AreaLightFrame, MAX_MATERIALS};
-use lightloom_nodes::kinds::output_area::{AreaHighlights, AreaIrradiance};
+use lightloom_nodes::kinds::output::area::{AreaHighlights, AreaIrradiance};
 
 pub(crate) const SHADER: (&str, &str) = ("mesh_area.wgsl", include_str!("../../../shaders/mesh_area.wgsl"));
 

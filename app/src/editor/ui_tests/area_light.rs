@@ -198,7 +198,7 @@ fn the_selected_area_light_previews_its_texture_in_the_viewport() {
 /// recomputed for the new view (only the highlights stage reruns) and move on the floor.
 #[test]
 fn area_light_highlights_follow_the_view_once_the_camera_rests() {
-    use lightloom_nodes::kinds::output_area::AreaHighlights;
+    use lightloom_nodes::kinds::output::area::AreaHighlights;
     let mut harness = default_harness();
     let added = add_from_menu(&mut harness, "Area light painter");
     let link = ((added.clone(), "area_light".into()), ("output".to_string(), "area_lights".to_string()));

@@ -43,7 +43,7 @@ fn threshold_zero_equals_the_gaunt_product_of_sh_prt() {
         "{:?}",
         info(&eval, "adaptive_residual_error")
     );
-    let frame = crate::kinds::output::FrameInputs::gather(&eval, &graph, "output").unwrap();
+    let frame = crate::frame::FrameInputs::gather(&eval, &graph, "output").unwrap();
     assert!(matches!(frame.surfaces, crate::frame::Surfaces::Prt(_)));
     let prt = adaptive_graph(0.0);
     let mut prt = prt;
@@ -103,7 +103,7 @@ fn the_sharpness_warning_counts_the_environments_bands() {
     let mut graph = adaptive_graph(0.0);
     graph.set_param("sky", "sh_bands", ParamValue::Int(2)).unwrap();
     let eval = evaluate_frame(&Engine::in_memory(), &graph);
-    let frame = crate::kinds::output::FrameInputs::gather(&eval, &graph, "output").unwrap();
+    let frame = crate::frame::FrameInputs::gather(&eval, &graph, "output").unwrap();
     assert!(frame.lobe_limits.iter().any(|(_, m)| m.contains("than 2 SH bands")), "{:?}", frame.lobe_limits);
 }
 

@@ -155,7 +155,7 @@ fn direct_integral(
 /// incremental result equals a from-scratch evaluation bit for bit.
 #[test]
 fn area_lights_light_the_floor_like_direct_integration() {
-    use crate::kinds::output_area::{AreaIrradiance, AreaTransport};
+    use crate::kinds::output::area::{AreaIrradiance, AreaTransport};
     let engine = Engine::in_memory();
     let mut graph = lit_floor_graph(1);
     let first = evaluate_frame(&engine, &graph);
@@ -287,7 +287,7 @@ fn direct_highlight(x: DVec3, eye: DVec3, brdf: &crate::brdf::Brdf, radiance: f6
 #[test]
 fn glossy_highlights_follow_the_view_like_direct_integration() {
     use crate::kinds::output::HIGHLIGHT_EYE;
-    use crate::kinds::output_area::AreaHighlights;
+    use crate::kinds::output::area::AreaHighlights;
     let engine = Engine::in_memory();
     let mut graph = lit_floor_graph(1);
     graph.set_param("material", "model", ParamValue::Choice("phong".into())).unwrap();

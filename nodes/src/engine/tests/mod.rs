@@ -55,7 +55,7 @@ fn default_graph_with(id: &str, kind: &str, links: &[(&str, &str, &str, &str)]) 
 fn evaluate_frame(engine: &Engine, graph: &Graph) -> Evaluation {
     let eval = engine.evaluate_request(
         graph,
-        &crate::kinds::output::frame_request(graph, "output", false),
+        &crate::frame::frame_request(graph, "output", false),
         &CancelToken::default(),
         None,
         &|_, _| {},
@@ -681,7 +681,7 @@ fn small_default_graph() -> Graph {
 
 #[test]
 fn edits_the_current_view_does_not_read_schedule_nothing() {
-    use crate::kinds::output::frame_request;
+    use crate::frame::frame_request;
     use ParamValue::*;
     let engine = Engine::in_memory();
     let mut graph = small_default_graph();
@@ -725,7 +725,8 @@ fn edits_the_current_view_does_not_read_schedule_nothing() {
 
 #[test]
 fn the_first_evaluation_shows_an_unshadowed_frame_before_the_transport_then_a_shadowed_one() {
-    use crate::kinds::output::{FrameInputs, Mode, frame_request};
+    use crate::frame::{FrameInputs, frame_request};
+    use crate::kinds::output::Mode;
     let engine = Arc::new(Engine::in_memory());
     let graph = default_graph();
     let request = frame_request(&graph, "output", true);

@@ -621,7 +621,7 @@ fn evaluated(report: &Report) -> BTreeSet<String> {
 
 #[test]
 fn each_mode_and_view_evaluates_exactly_the_stages_it_reads() {
-    use crate::kinds::output::frame_request;
+    use crate::frame::frame_request;
     // Written from what each mode draws, not derived from the stage declarations.
     const UNSHADOWED: &[&str] = &[
         "output.settings",
@@ -724,7 +724,7 @@ fn normal_map_stages_follow_their_parameters() {
     graph.set_param("material", "normal_map", ParamValue::Path(path.display().to_string())).unwrap();
     let engine = Engine::in_memory();
     let frame = |graph: &Graph| {
-        let request = crate::kinds::output::frame_request(graph, "output", false);
+        let request = crate::frame::frame_request(graph, "output", false);
         let eval = engine.evaluate_request(graph, &request, &CancelToken::default(), None, &|_, _| {});
         assert!(eval.report.failed().is_empty(), "{:?}", eval.report.failed());
         let inputs = crate::frame::FrameInputs::gather(&eval, graph, "output").unwrap();
@@ -752,7 +752,7 @@ fn normal_map_stages_follow_their_parameters() {
     graph
         .set_param("material", "normal_map", ParamValue::Path(dir.path().join("missing.png").display().to_string()))
         .unwrap();
-    let request = crate::kinds::output::frame_request(&graph, "output", false);
+    let request = crate::frame::frame_request(&graph, "output", false);
     let eval = engine.evaluate_request(&graph, &request, &CancelToken::default(), None, &|_, _| {});
     let inputs = crate::frame::FrameInputs::gather(&eval, &graph, "output").expect("the frame draws without the map");
     assert!(inputs.materials[0].normal.is_none());

@@ -15,7 +15,6 @@
 //!   and a move recomputes them all.
 
 use crate::engine::{Key, StageContext, StageError, StageValue};
-use crate::frame::{AreaLightFrame, FrameMaterial, Keyed};
 use crate::kinds::area_light::AreaLight;
 use crate::near_field::{
     FaceTransport, FaceVisibility, TargetKeep, TopFace, face_visibility, irradiance, response_batch, responses, shade,
@@ -177,7 +176,7 @@ pub(super) fn transport_of(
         .map(|(_, p)| p.height)
         .fold(f64::NEG_INFINITY, f64::max);
     let cells: usize = faces.iter().map(|f| f.order * f.order).sum();
-    super::scene::check_ray_budget(receivers.len(), cells, density)?;
+    crate::kinds::scene::check_ray_budget(receivers.len(), cells, density)?;
     // What every face's transport depends on besides the face: the receivers and the triangles.
     let mut geometry = xxhash_rust::xxh3::Xxh3::new();
     geometry.update(b"area transport v1");
@@ -300,7 +299,7 @@ fn vertex_brdfs(ctx: &StageContext, receivers: &Receivers) -> Result<(Vec<crate:
     }
     let mut of_vertex = vec![0u32; receivers.len()];
     for (m, mesh) in meshes.meshes.iter().enumerate() {
-        let found = super::output::named_material(&mesh.material, linked.iter().map(|(node, _)| *node));
+        let found = super::named_material(&mesh.material, linked.iter().map(|(node, _)| *node));
         let start = receivers.mesh_offsets.get(m).copied().unwrap_or(receivers.len());
         let end = receivers.mesh_offsets.get(m + 1).copied().unwrap_or(receivers.len());
         of_vertex[start.min(end)..end].fill(found.unwrap_or(0) as u32);
@@ -419,34 +418,4 @@ fn shade_by_responses(
     }
     let columns: Vec<&[f64]> = columns.iter().map(|c| c.as_ref().map_or(&[][..], |c| c.0.as_slice())).collect();
     Ok(shade(&light.source, points.len(), |r, j| columns[j][r]))
-}
-
-/// The linked lights as one frame's [`AreaLightFrame`], once `area_irradiance` is evaluated.
-/// A failed light is reported with its stage; the frame draws without area lights.
-pub(super) fn frame(
-    evaluation: &crate::engine::Evaluation,
-    lights: &[&crate::engine::GraphNode],
-    output: &str,
-    keyed: &dyn Fn(&str, &str) -> Result<Keyed, String>,
-    materials: &[FrameMaterial],
-    vertices: usize,
-) -> Result<Option<AreaLightFrame>, String> {
-    match evaluation.get(output, "area_irradiance") {
-        Some(r) if r.value.is_ok() && !lights.is_empty() => {
-            let mut emitters = Vec::new();
-            for node in lights {
-                let light = keyed(&node.id, "light")?;
-                let light = light.value.expect::<AreaLight>().map_err(|e| e.to_string())?;
-                emitters.push(light.emitter.clone());
-            }
-            // Highlights as last evaluated, for the Output's `highlight_eye` (the editor
-            // recomputes them once its camera rests).
-            let highlights = match evaluation.get(output, "area_highlights") {
-                Some(r) if r.value.is_ok() => Some(keyed(output, "area_highlights")?),
-                _ => None,
-            };
-            Ok(Some(AreaLightFrame::new(keyed(output, "area_irradiance")?, highlights, emitters, materials, vertices)?))
-        }
-        _ => Ok(None),
-    }
 }

@@ -1,10 +1,15 @@
 //! Output node: what the viewport and `lightloom render` draw, and how (relighting mode,
 //! exposure, tone mapping).
 
-use crate::engine::{Evaluation, Graph, GraphNode, Request, StageContext, StageError, StageRef, StageValue};
+use crate::engine::{Graph, GraphNode, StageContext, StageError, StageValue};
 use crate::node_kind::{Availability, NodeKindSpec, ParamKind, ParamSpec, ParamValue, PortSpec, PortType, StageSpec};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
+
+pub mod adaptive;
+pub mod area;
+mod bake;
+mod sun;
 
 // Stage value types this module owns (see `engine::value`).
 crate::stage_type!(OutputSettings, "output settings");
@@ -129,7 +134,7 @@ pub fn spec() -> NodeKindSpec {
             input("lights", PortType::Lights, false),
             input("blockers", PortType::Blockers, false),
             input("square_lights", PortType::SquareLights, false),
-            super::output_area::input(),
+            area::input(),
         ],
         outputs: vec![],
         params: vec![
@@ -165,7 +170,7 @@ pub fn spec() -> NodeKindSpec {
                       lighting × visibility varies most within a cell and a glossy material can show it (a sun's \
                       glow, a softbox's edge). They sharpen glossy reflections; 0 keeps the coefficients alone.",
             },
-            super::output_sun::param(),
+            sun::param(),
             ParamSpec {
                 name: "exposure",
                 label: "Exposure",
@@ -213,8 +218,8 @@ pub fn spec() -> NodeKindSpec {
             },
         ]
         .into_iter()
-        .chain(super::output_adaptive::params())
-        .chain(super::output_bake::params())
+        .chain(adaptive::params())
+        .chain(bake::params())
         .collect(),
         stages: [
             StageSpec {
@@ -260,7 +265,7 @@ pub fn spec() -> NodeKindSpec {
                 stages: &["blocked_transport"],
                 inputs: &[("environment", "residual_sh")],
                 persist: None,
-                compute: super::output_sun::incident_residual_sh,
+                compute: sun::incident_residual_sh,
             },
             StageSpec {
                 name: "local_visibility",
@@ -287,7 +292,7 @@ pub fn spec() -> NodeKindSpec {
                 stages: &[],
                 inputs: &[("environment", "sun")],
                 persist: None,
-                compute: super::output_sun::wavelet_residual_environment,
+                compute: sun::wavelet_residual_environment,
             },
             StageSpec {
                 name: "texel_visibility",
@@ -313,14 +318,14 @@ pub fn spec() -> NodeKindSpec {
             },
         ]
         .into_iter()
-        .chain(super::output_adaptive::stages())
-        .chain(super::output_area::stages())
-        .chain(super::output_bake::stages())
+        .chain(adaptive::stages())
+        .chain(area::stages())
+        .chain(bake::stages())
         .collect(),
         previews: Vec::new(),
         availability: Availability::Ready,
         relevant: relevant_to_mode,
-        groups: super::output_bake::GROUPS,
+        groups: bake::GROUPS,
     }
 }
 
@@ -330,7 +335,7 @@ pub const HIGHLIGHT_EYE: &str = "highlight_eye";
 
 /// Which of the `linked` materials (node ids in link order) a mesh naming `material` takes;
 /// `None` for an unnamed mesh or a name none has (both take the first).
-pub(super) fn named_material<'a>(material: &str, mut linked: impl Iterator<Item = &'a str>) -> Option<usize> {
+pub fn named_material<'a>(material: &str, mut linked: impl Iterator<Item = &'a str>) -> Option<usize> {
     if material.is_empty() { None } else { linked.position(|node| node == material) }
 }
 
@@ -550,17 +555,7 @@ fn rsl_visibility(ctx: &StageContext) -> Result<StageValue, StageError> {
     )?))
 }
 
-/// A copy of a gathered stage's value as `T` (an error naming both types otherwise).
-fn typed<T: crate::engine::StageType + Clone>(keyed: &Keyed, stage: &str) -> Result<T, String> {
-    keyed.value.expect::<T>().cloned().map_err(|e| format!("stage `{stage}`: {e}"))
-}
-
-pub use super::output_sun::{SUN, separates_sun};
-use crate::frame::{
-    Background, FogFrame, FrameMaterial, Geometry, IrradianceSurfaces, MediumFrame, PrtSurfaces, RslSurfaces, SunFrame,
-    Surfaces, WaveletLighting, WaveletSurfaces,
-};
-pub use crate::frame::{FrameInputs, Keyed, MAX_LIGHTS, MAX_MATERIALS};
+pub use sun::{SUN, separates_sun};
 
 /// Finds the output node (the one named, or the only one).
 pub fn find_output<'g>(graph: &'g Graph, name: Option<&str>) -> Result<&'g crate::engine::GraphNode, String> {
@@ -579,76 +574,6 @@ pub fn find_output<'g>(graph: &'g Graph, name: Option<&str>) -> Result<&'g crate
     }
 }
 
-/// The stages a frame of `mode` reads from the Output node `output` and what feeds it.
-pub fn mode_stages(graph: &Graph, output: &str, mode: Mode) -> Vec<StageRef> {
-    let mut stages = vec![StageRef::new(output, "settings")];
-    let upstream = |port: &str| graph.upstream(output, port).map(|n| n.id.clone());
-    if let Some(scene) = upstream("scene") {
-        stages.push(StageRef::new(&scene, "geometry"));
-        if matches!(mode, Mode::ShPrt | Mode::ShAdaptive) {
-            stages.push(StageRef::new(&scene, "transport_sh"));
-            stages.push(StageRef::new(output, "blocked_transport"));
-        }
-        if mode == Mode::ShAdaptive {
-            stages.push(StageRef::new(&scene, "adjacency"));
-        }
-        if mode == Mode::Rsl {
-            stages.push(StageRef::new(&scene, "rsl_self_visibility"));
-            stages.push(StageRef::new(&scene, "rsl_occluders"));
-        }
-    }
-    if mode == Mode::Rsl
-        && let Some(lights) = upstream("square_lights")
-    {
-        stages.push(StageRef::new(&lights, "world_lights"));
-    }
-    if let Some(env) = upstream("environment") {
-        stages.push(StageRef::new(&env, "sh"));
-        stages.push(StageRef::new(&env, "rotated_radiance"));
-    }
-    for material in graph.upstream_all(output, "material") {
-        stages.push(StageRef::new(&material.id, "material"));
-        match mode {
-            Mode::ShPrt | Mode::ShAdaptive => stages.push(StageRef::new(&material.id, "sh_lobe")),
-            Mode::WaveletVertex | Mode::WaveletPixel => stages.push(StageRef::new(&material.id, "local_table")),
-            Mode::Rsl => stages.push(StageRef::new(&material.id, "rsl_tables")),
-            Mode::ShIrradiance => {}
-        }
-    }
-    if let Some(medium) = upstream("medium") {
-        stages.extend(["medium", "f_tables", "g_tables"].map(|s| StageRef::new(&medium, s)));
-    }
-    if let Some(lights) = upstream("lights") {
-        stages.push(StageRef::new(&lights, "lights"));
-    }
-    let separate_sun = separates_sun(graph, output);
-    if separate_sun && let Some(env) = upstream("environment") {
-        stages.extend(["sun", "residual_sh", "rotation"].map(|s| StageRef::new(&env, s)));
-    }
-    match mode {
-        Mode::ShIrradiance => {}
-        Mode::ShPrt => {
-            stages.push(StageRef::new(output, if separate_sun { "incident_residual_sh" } else { "incident_sh" }))
-        }
-        Mode::ShAdaptive => stages.push(StageRef::new(output, super::output_adaptive::stage_names(separate_sun).0)),
-        Mode::WaveletVertex | Mode::WaveletPixel => {
-            let environment = if separate_sun { "wavelet_residual_environment" } else { "wavelet_environment" };
-            stages.extend(["local_visibility", environment].map(|s| StageRef::new(output, s)));
-            if let Some(environment) = upstream("environment") {
-                stages.push(StageRef::new(&environment, "rotation"));
-            }
-            if let Some(scene) = upstream("scene") {
-                stages.push(StageRef::new(&scene, "receivers"));
-            }
-            if mode == Mode::WaveletPixel {
-                stages.push(StageRef::new(output, "texel_visibility"));
-            }
-        }
-        Mode::Rsl => stages.push(StageRef::new(output, "rsl_visibility")),
-    }
-    stages
-}
-
 /// The Output's mode and view as set in the graph.
 pub fn output_mode_and_view(node: &GraphNode) -> (Mode, View) {
     let choice = |name: &str| match node.params.get(name) {
@@ -656,410 +581,4 @@ pub fn output_mode_and_view(node: &GraphNode) -> (Mode, View) {
         _ => String::new(),
     };
     (choice("mode").parse().unwrap_or(Mode::ShIrradiance), choice("view").parse().unwrap_or(View::Approximation))
-}
-
-/// What drawing the Output node `output` needs, as an engine request. A shadowed mode first
-/// gets an unshadowed tier, so a frame is ready before its transport is. The reference and
-/// error views (and `picking`, for the editor's object selection) add the scene's BVH.
-pub fn frame_request(graph: &Graph, output: &str, picking: bool) -> Request {
-    let Some(node) = graph.node(output) else { return Request::default() };
-    let (mode, view) = output_mode_and_view(node);
-    let mut first = mode_stages(graph, output, Mode::ShIrradiance);
-    // Normal maps load with the first frame; their vMF lobes (seconds to fit) come last.
-    let (normal_maps, normal_lobes): (Vec<StageRef>, Vec<StageRef>) = graph
-        .upstream_all(output, "material")
-        .iter()
-        .flat_map(|m| super::brdf_normal_map::frame_stages(graph, &m.id))
-        .partition(|s| s.stage != "vmf_lobes");
-    first.extend(normal_maps);
-    if (picking || view != View::Approximation)
-        && let Some(scene) = graph.upstream(output, "scene")
-    {
-        first.push(StageRef::new(&scene.id, "ray_scene"));
-        // The reference traces the blocker spheres whatever the mode.
-        if let Some(blockers) = graph.upstream(output, "blockers") {
-            first.push(StageRef::new(&blockers.id, "spheres"));
-        }
-    }
-    let request = if mode == Mode::ShAdaptive {
-        // The PSNR against the full product comes after the frame.
-        Request::new(format!("output `{output}`: unshadowed preview"), first)
-            .then(format!("output `{output}`: mode {mode}"), mode_stages(graph, output, mode))
-            .then(
-                format!("output `{output}`: error of mode {mode}"),
-                vec![StageRef::new(output, super::output_adaptive::stage_names(separates_sun(graph, output)).1)],
-            )
-    } else if mode.is_shadowed() {
-        Request::new(format!("output `{output}`: unshadowed preview"), first)
-            .then(format!("output `{output}`: mode {mode}"), mode_stages(graph, output, mode))
-    } else {
-        Request::new(format!("output `{output}`: mode {mode}"), first)
-    };
-    let request = if normal_lobes.is_empty() {
-        request
-    } else {
-        request.then(format!("output `{output}`: normal-map lobes"), normal_lobes)
-    };
-    // Area lights trace their own transport: frames show without them until it is ready.
-    if graph.upstream_all(output, "area_lights").is_empty() {
-        request
-    } else {
-        // Highlights follow the view: the diffuse light shows first.
-        request
-            .then(format!("output `{output}`: area lights"), vec![StageRef::new(output, "area_irradiance")])
-            .then(format!("output `{output}`: area-light highlights"), vec![StageRef::new(output, "area_highlights")])
-    }
-}
-
-impl FrameInputs {
-    pub fn gather(evaluation: &Evaluation, graph: &Graph, output: &str) -> Result<Self, String> {
-        let keyed = |node: &str, stage: &str| -> Result<Keyed, String> {
-            let r = evaluation.get(node, stage).ok_or_else(|| format!("stage {node}.{stage} was not evaluated"))?;
-            match &r.value {
-                Ok(v) => Ok(Keyed { key: r.key, value: v.clone() }),
-                Err(e) => Err(format!("{node}.{stage} failed: {e}")),
-            }
-        };
-        let upstream = |port: &str| graph.upstream(output, port).map(|n| n.id.clone());
-        let scene = upstream("scene").ok_or("the Output node's scene input is not connected")?;
-        let meshes = keyed(&scene, "geometry")?;
-        let ray_scene = evaluation.get(&scene, "ray_scene").map(|_| keyed(&scene, "ray_scene")).transpose()?;
-        let (sh, radiance) = match upstream("environment") {
-            Some(env) => (Some(keyed(&env, "sh")?), Some(keyed(&env, "rotated_radiance")?)),
-            None => (None, None),
-        };
-        let material_nodes = graph.upstream_all(output, "material");
-        if material_nodes.len() > MAX_MATERIALS {
-            return Err(format!(
-                "{} materials are linked to the Output; at most {MAX_MATERIALS} are supported",
-                material_nodes.len()
-            ));
-        }
-        let settings: OutputSettings = typed(&keyed(output, "settings")?, "settings")?;
-        // The best mode ready now: the requested one, or the unshadowed preview while the
-        // requested mode's transport is still computing.
-        let ready =
-            mode_stages(graph, output, settings.mode).iter().all(|r| evaluation.get(&r.node, &r.stage).is_some());
-        let mode = if ready { settings.mode } else { Mode::ShIrradiance };
-        let pending =
-            (!ready).then(|| format!("unshadowed preview: mode {} is still computing what it needs", settings.mode));
-        let mut materials = Vec::new();
-        let mut normal_notes = Vec::new();
-        let mut lobes = Vec::new();
-        let mut tables = Vec::new();
-        let mut rsl_tables = Vec::new();
-        for node in &material_nodes {
-            let normal = super::brdf_normal_map::frame_detail(&keyed, graph, &node.id, mode, &mut normal_notes);
-            materials.push(FrameMaterial {
-                node: node.id.clone(),
-                material: typed(&keyed(&node.id, "material")?, "material")?,
-                normal,
-            });
-            if matches!(mode, Mode::ShPrt | Mode::ShAdaptive) {
-                lobes.push(Some(typed(&keyed(&node.id, "sh_lobe")?, "sh_lobe")?));
-            }
-            if mode.is_wavelet() {
-                tables.push(keyed(&node.id, "local_table")?);
-            }
-            if mode == Mode::Rsl {
-                rsl_tables.push(keyed(&node.id, "rsl_tables")?);
-            }
-        }
-        if materials.is_empty() {
-            if mode.is_wavelet() || mode == Mode::Rsl {
-                return Err(format!("the {mode} mode needs a material: link a BRDF editor to the Output"));
-            }
-            materials.push(FrameMaterial { node: String::new(), material: Default::default(), normal: None });
-            lobes.push(None);
-        }
-        let fog = match upstream("medium") {
-            Some(node) => Some(fog_frame(&keyed, &node, sh.as_ref(), mode)?),
-            None => None,
-        };
-        let fogged = fog.as_ref().and_then(|f| f.environment.as_ref());
-        // With the sun lit apart, the transport carries the sky without it.
-        let separate_sun = separates_sun(graph, output);
-        let (lighting_sh, sun) = match upstream("environment") {
-            Some(env) if separate_sun => {
-                let split = keyed(&env, "sun")?;
-                let split = split.value.expect::<crate::sun::SunSplit>().map_err(|e| e.to_string())?;
-                let rotation = *keyed(&env, "rotation")?.value.expect::<glam::DMat3>().map_err(|e| e.to_string())?;
-                (Some(keyed(&env, "residual_sh")?), split.sun.map(|s| SunFrame::new(&s.rotated(rotation))))
-            }
-            _ => (sh.clone(), None),
-        };
-        let light = lighting_sh
-            .as_ref()
-            .map(|sh| sh.value.expect::<crate::sh::ShRgb>())
-            .transpose()
-            .map_err(|e| e.to_string())?;
-        let mut mesh_materials = Vec::new();
-        let mut unmatched: std::collections::BTreeMap<String, usize> = Default::default();
-        if let Some(set) = meshes.value.get::<crate::mesh::MeshSet>() {
-            for mesh in &set.meshes {
-                let found = named_material(&mesh.material, materials.iter().map(|m| m.node.as_str()));
-                if found.is_none() && !mesh.material.is_empty() {
-                    *unmatched.entry(mesh.material.clone()).or_default() += 1;
-                }
-                mesh_materials.push(found.unwrap_or(0) as u32);
-            }
-        }
-        let geometry = Geometry { meshes, mesh_materials };
-        // Without an environment the wavelet modes have no lighting to multiply in: surfaces get
-        // no environment light.
-        let wavelet_environment = match mode.is_wavelet() {
-            true if separate_sun => Some(keyed(output, "wavelet_residual_environment")?),
-            true => Some(keyed(output, "wavelet_environment")?),
-            false => None,
-        };
-        let no_environment = wavelet_environment
-            .as_ref()
-            .is_some_and(|e| e.value.get::<crate::cubemap::CubeMap>().is_some_and(|c| c.size == 0));
-        let surfaces = match mode {
-            Mode::ShPrt | Mode::ShAdaptive => Surfaces::Prt(PrtSurfaces::new(
-                keyed(output, "blocked_transport")?,
-                keyed(
-                    output,
-                    match mode {
-                        Mode::ShAdaptive => super::output_adaptive::stage_names(separate_sun).0,
-                        _ if separate_sun => "incident_residual_sh",
-                        _ => "incident_sh",
-                    },
-                )?,
-                light,
-                fogged,
-                &materials,
-                lobes,
-                geometry.vertex_count(),
-            )?),
-            Mode::WaveletVertex | Mode::WaveletPixel if !no_environment => {
-                let environment = upstream("environment").ok_or("the wavelet modes need an environment")?;
-                let scene = upstream("scene").ok_or("the wavelet modes need a scene")?;
-                let rotation =
-                    *keyed(&environment, "rotation")?.value.expect::<glam::DMat3>().map_err(|e| e.to_string())?;
-                let lighting = WaveletLighting {
-                    visibility: keyed(output, "local_visibility")?,
-                    receivers: keyed(&scene, "receivers")?,
-                    environment: wavelet_environment.ok_or("the wavelet environment was not evaluated")?,
-                    rotation,
-                };
-                let texels = if mode == Mode::WaveletPixel { Some(keyed(output, "texel_visibility")?) } else { None };
-                Surfaces::Wavelet(Box::new(WaveletSurfaces::new(
-                    lighting,
-                    &tables,
-                    texels,
-                    fogged,
-                    &geometry,
-                    &materials,
-                    settings.wavelet_details,
-                )?))
-            }
-            Mode::Rsl => {
-                let node = upstream("square_lights").ok_or(
-                    "the rsl mode needs square lights: link an RSL decomposer to the Output's square_lights input",
-                )?;
-                let lights = keyed(&node, "world_lights")?;
-                let world = lights.value.expect::<crate::rsl::WorldLights>().map_err(|e| e.to_string())?;
-                Surfaces::Rsl(RslSurfaces::new(
-                    world,
-                    lights.key,
-                    keyed(output, "rsl_visibility")?,
-                    &rsl_tables,
-                    fogged,
-                    &geometry,
-                )?)
-            }
-            _ => Surfaces::Irradiance(IrradianceSurfaces::new(light, fogged, &materials)),
-        };
-        let mut lights = match upstream("lights") {
-            Some(node) => typed::<Vec<crate::light::PointLight>>(&keyed(&node, "lights")?, "lights")?,
-            None => Vec::new(),
-        };
-        let mut ignored_inputs = Vec::new();
-        if !matches!(settings.mode, Mode::ShPrt | Mode::ShAdaptive)
-            && let Some(n) = upstream("blockers")
-        {
-            ignored_inputs.push(format!(
-                "`blockers` (from `{n}`) shadow the SH modes sh_prt and sh_adaptive only (the reference traces them \
-                 in every mode)"
-            ));
-        }
-        let blockers = match upstream("blockers") {
-            Some(n) if evaluation.get(&n, "spheres").is_some() => {
-                Some(typed::<crate::kinds::blockers::BlockerSet>(&keyed(&n, "spheres")?, "spheres")?)
-            }
-            _ => None,
-        };
-        if settings.mode != Mode::Rsl
-            && let Some(n) = upstream("square_lights")
-        {
-            ignored_inputs.push(format!("`square_lights` (from `{n}`) are drawn by the rsl mode only"));
-        }
-        if lights.len() > MAX_LIGHTS {
-            ignored_inputs.push(format!("{} point lights are linked; the first {MAX_LIGHTS} are drawn", lights.len()));
-            lights.truncate(MAX_LIGHTS);
-        }
-        // With one material linked everything uses it by design; with several, say which
-        // names matched nothing.
-        if materials.len() > 1 && !unmatched.is_empty() {
-            let names: Vec<String> = unmatched.iter().map(|(name, n)| format!("`{name}` ({n} mesh(es))")).collect();
-            ignored_inputs.push(format!(
-                "materials not linked to the Output: {}; those meshes use `{}`",
-                names.join(", "),
-                materials[0].node
-            ));
-        }
-        // Area lights join once their transport is traced (a later request tier).
-        let light_nodes = graph.upstream_all(output, "area_lights");
-        let area_lights =
-            super::output_area::frame(evaluation, &light_nodes, output, &keyed, &materials, geometry.vertex_count())?;
-        let normal_maps = crate::frame::NormalMapFrame::new(
-            &materials,
-            light,
-            !matches!(mode, Mode::ShIrradiance),
-            &mut normal_notes,
-        );
-        let mut lobe_limits = lobe_limits(graph, output, &scene, settings.mode, &materials, sun.is_some());
-        lobe_limits.extend(normal_notes);
-        let medium = MediumFrame::new(lights, &materials, fog);
-        if !light_nodes.is_empty() && upstream("blockers").is_some() {
-            ignored_inputs.push(
-                "`area_lights` cast no blocker-sphere shadows (the reference has them): the spheres shadow the \
-                 environment only"
-                    .into(),
-            );
-        }
-        Ok(Self {
-            geometry,
-            ray_scene,
-            mode,
-            pending,
-            background: Background { radiance, visible: settings.background },
-            settings,
-            ignored_inputs,
-            lobe_limits,
-            materials,
-            surfaces,
-            medium,
-            area_lights,
-            blockers,
-            sun,
-            normal_maps,
-        })
-    }
-}
-
-/// The medium linked to the Output as one frame's [`FogFrame`].
-fn fog_frame(
-    keyed: &dyn Fn(&str, &str) -> Result<Keyed, String>,
-    node: &str,
-    sh: Option<&Keyed>,
-    mode: Mode,
-) -> Result<FogFrame, String> {
-    let m: crate::kinds::fog::Medium = typed(&keyed(node, "medium")?, "medium")?;
-    let phase = m.phase_function().ok_or_else(|| format!("{node}: the phase polynomial is invalid"))?;
-    let f_tables = keyed(node, "f_tables")?;
-    let environment = match sh {
-        Some(sh) => {
-            let tables = f_tables.value.expect::<Vec<crate::single_scattering::FTable>>().map_err(|e| e.to_string())?;
-            let light = sh.value.expect::<crate::sh::ShRgb>().map_err(|e| e.to_string())?;
-            Some(crate::single_scattering::FoggedEnvironment::new(
-                m.beta,
-                m.environment_distance,
-                &phase,
-                tables,
-                light,
-            ))
-        }
-        None => None,
-    };
-    Ok(FogFrame {
-        beta: m.beta,
-        phase: phase.weights,
-        f_tables,
-        g_tables: keyed(node, "g_tables")?,
-        environment,
-        scatter_onto_surfaces: mode.is_wavelet(),
-    })
-}
-
-/// Materials whose highlight `mode` cannot show as it is, and why: irradiance shows no
-/// highlights; SH of the Scene's order keeps less than half of a sharp lobe's energy
-/// ([`crate::brdf::phong_sh_energy_kept`]); the wavelet table needs the lobe's half-maximum
-/// cone to cover two of its cells ([`crate::brdf::sharpest_phong_for_cells`]), or with detail
-/// terms two of the finest samples and the view step
-/// ([`crate::triple_product::details::sharpest_phong_with_details`]).
-fn lobe_limits(
-    graph: &Graph,
-    output: &str,
-    scene: &str,
-    mode: Mode,
-    materials: &[FrameMaterial],
-    sun_apart: bool,
-) -> Vec<(String, String)> {
-    let int = |node: &str, name: &str, default: i64| match graph.node(node).and_then(|n| n.params.get(name)) {
-        Some(ParamValue::Int(v)) => *v,
-        _ => default,
-    };
-    let mut bands = int(scene, "transport_bands", 6).clamp(1, 16) as usize;
-    if mode == Mode::ShAdaptive {
-        // The glossy lobe is drawn at the adaptive level, within the environment's bands.
-        let env = graph.upstream(output, "environment").map(|n| int(&n.id, "sh_bands", 4) as usize).unwrap_or(bands);
-        bands = bands.min(env).min(int(output, "adaptive_level", 10) as usize + 1).clamp(1, 12);
-    }
-    let cells = match graph.node(output).and_then(|n| n.params.get("wavelet_terms")) {
-        Some(ParamValue::Choice(c)) => c.parse().unwrap_or(320),
-        _ => 320,
-    };
-    let sh_limit = crate::brdf::sharpest_phong_for_sh(bands, 0.5);
-    let details = int(output, "wavelet_details", 32) > 0;
-    let cell_limit = match details {
-        true => crate::triple_product::details::sharpest_phong_with_details(cells),
-        false => crate::brdf::sharpest_phong_for_cells(cells),
-    };
-    let shown_by = if details {
-        format!("{cells} wavelet cells and their detail terms")
-    } else {
-        format!("{cells} wavelet cells")
-    };
-    let table_limit = crate::rsl::brdf_sat::sharpest_phong();
-    let mut out = Vec::new();
-    for m in materials.iter().filter(|m| !m.node.is_empty()) {
-        let brdf = crate::brdf::Brdf::from_material(&m.material);
-        let Some(exponent) = brdf.equivalent_phong_exponent() else { continue };
-        if brdf.specular.max_element() * brdf.f0 <= 0.0 {
-            continue;
-        }
-        let width = crate::brdf::phong_half_width(exponent).to_degrees();
-        let lobe = format!("its {} highlight (about Phong {exponent:.0}, {width:.1}° half-width)", m.material.model);
-        let message = match mode {
-            Mode::ShIrradiance if sun_apart => Some(format!(
-                "{mode} draws the sky's diffuse light and the sun's highlight: {lobe} shows the sun but not the \
-                 sky; sh_prt shows lobes up to about Phong {sh_limit:.0}, the wavelet modes up to about Phong \
-                 {cell_limit:.0}"
-            )),
-            Mode::ShIrradiance => Some(format!(
-                "{mode} draws diffuse light only: {lobe} is not shown; sh_prt shows lobes up to about Phong \
-                 {sh_limit:.0}, the wavelet modes up to about Phong {cell_limit:.0}"
-            )),
-            Mode::ShPrt | Mode::ShAdaptive if exponent > sh_limit => Some(format!(
-                "{lobe} is sharper than {bands} SH bands show (about Phong {sh_limit:.0}): it is drawn broader and \
-                 dimmer; raise the SH bands (the Scene's transport; in sh_adaptive also the environment's and the level), or use \
-                 wavelet_pixel (to about Phong {cell_limit:.0})"
-            )),
-            Mode::WaveletVertex | Mode::WaveletPixel if exponent > cell_limit => Some(format!(
-                "{lobe} is sharper than {shown_by} show (about Phong {cell_limit:.0}): it is drawn broader and \
-                 dimmer than the reference"
-            )),
-            Mode::Rsl if exponent > table_limit => Some(format!(
-                "{lobe} is sharper than the square lights' BRDF tables show (about Phong {table_limit:.0}): it is \
-                 drawn broader and dimmer than the reference, and a square light's highlight is as large as the light"
-            )),
-            _ => None,
-        };
-        if let Some(message) = message {
-            out.push((m.node.clone(), message));
-        }
-    }
-    out
 }

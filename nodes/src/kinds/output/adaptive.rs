@@ -17,7 +17,7 @@ const PARAMS: &[&str] =
     &["adaptive_level", "adaptive_threshold", "adaptive_refine", "adaptive_smooth", "adaptive_hysteresis", "exposure"];
 const INPUTS: &[(&str, &str)] =
     &[("environment", "sh"), ("scene", "geometry"), ("scene", "adjacency"), ("material", "sh_lobe")];
-/// With the sun lit apart ([`super::output_sun`]), the products take the sky without it.
+/// With the sun lit apart ([`super::sun`]), the products take the sky without it.
 const RESIDUAL_INPUTS: &[(&str, &str)] =
     &[("environment", "residual_sh"), ("scene", "geometry"), ("scene", "adjacency"), ("material", "sh_lobe")];
 

@@ -2,7 +2,7 @@
 //! ([`crate::sun`]): the parameter, the decision, and the transport's inputs over the sky
 //! without its sun. The viewport shadows the disc (`render/src/passes/sun.rs`).
 
-use super::output::{Mode, incident_from, output_mode_and_view, wavelet_grid};
+use super::{Mode, incident_from, output_mode_and_view, wavelet_grid};
 use crate::engine::{Graph, StageContext, StageError, StageValue};
 use crate::node_kind::{ParamKind, ParamSpec, ParamValue};
 

@@ -204,7 +204,7 @@ fn bake_texel_sh(ctx: &StageContext) -> Result<StageValue, StageError> {
     let atlas = ctx.stage::<crate::bake::lightmap::LightmapAtlas>("bake_atlas")?;
     let scene = ctx.required_input::<crate::raycast::RayScene>("scene", "ray_scene")?;
     let vertices = ctx.required_input::<crate::transport::ShTransport>("scene", "transport_sh")?;
-    super::scene::check_ray_budget(atlas.receivers.len(), vertices.rays, "the lightmap's texels per metre")?;
+    crate::kinds::scene::check_ray_budget(atlas.receivers.len(), vertices.rays, "the lightmap's texels per metre")?;
     Ok(StageValue::new(crate::transport::sh_transport(
         scene,
         &atlas.receivers,
@@ -220,7 +220,7 @@ fn bake_texel_sh(ctx: &StageContext) -> Result<StageValue, StageError> {
 fn bake_texel_blocked(ctx: &StageContext) -> Result<StageValue, StageError> {
     let atlas = ctx.stage::<crate::bake::lightmap::LightmapAtlas>("bake_atlas")?;
     let transport = ctx.stage::<crate::transport::ShTransport>("bake_texel_sh")?;
-    Ok(StageValue::new(super::output::with_blockers(ctx, transport, &atlas.receivers)?))
+    Ok(StageValue::new(super::with_blockers(ctx, transport, &atlas.receivers)?))
 }
 
 /// The square lights' lit cosine at every texel, traced ([`crate::bake::square_light_texels`]).
@@ -231,7 +231,7 @@ fn bake_texel_square_lights(ctx: &StageContext) -> Result<StageValue, StageError
     let Some(lights) = ctx.input::<crate::rsl::WorldLights>("square_lights", "turned_lights")? else {
         return Ok(StageValue::new(SquareLightTexels::default()));
     };
-    super::scene::check_ray_budget(
+    crate::kinds::scene::check_ray_budget(
         atlas.receivers.len(),
         lights.lights.len() * RINGS * SECTORS,
         "the lightmap's texels per metre",
@@ -242,14 +242,14 @@ fn bake_texel_square_lights(ctx: &StageContext) -> Result<StageValue, StageError
 /// The area lights' top-face transport at every texel (as `area_transport` per vertex).
 fn bake_texel_area_transport(ctx: &StageContext) -> Result<StageValue, StageError> {
     let atlas = ctx.stage::<crate::bake::lightmap::LightmapAtlas>("bake_atlas")?;
-    Ok(StageValue::new(super::output_area::transport_of(ctx, &atlas.receivers, "the lightmap's texels per metre")?))
+    Ok(StageValue::new(super::area::transport_of(ctx, &atlas.receivers, "the lightmap's texels per metre")?))
 }
 
 /// The area lights' irradiance at every texel.
 fn bake_texel_area(ctx: &StageContext) -> Result<StageValue, StageError> {
     let atlas = ctx.stage::<crate::bake::lightmap::LightmapAtlas>("bake_atlas")?;
-    let transports = ctx.stage::<super::output_area::AreaTransport>("bake_texel_area_transport")?;
-    Ok(StageValue::new(super::output_area::irradiance_of(ctx, &atlas.receivers, transports)?))
+    let transports = ctx.stage::<super::area::AreaTransport>("bake_texel_area_transport")?;
+    Ok(StageValue::new(super::area::irradiance_of(ctx, &atlas.receivers, transports)?))
 }
 
 /// The texels' local-frame visibility, at the vertices' depth and terms.
@@ -258,7 +258,7 @@ fn bake_texel_local(ctx: &StageContext) -> Result<StageValue, StageError> {
     let scene = ctx.required_input::<crate::raycast::RayScene>("scene", "ray_scene")?;
     let vertices = ctx.required_input::<crate::transport::SphericalTransport>("scene", "transport_local")?;
     let depth = vertices.depth;
-    super::scene::check_ray_budget(
+    crate::kinds::scene::check_ray_budget(
         atlas.receivers.len(),
         20 << (2 * depth.min(20)),
         "the lightmap's texels per metre",

@@ -1,0 +1,311 @@
+//! The wavelet modes' surfaces (Ma et al.; Sun 2008 ch. 4).
+
+use super::*;
+
+/// What the wavelet modes multiply into `P_c = ΔΩ_c L_c V_c`: per-vertex visibility cells and
+/// frames, and the environment with its rotation. None of it changes with the rotation but
+/// the rotation itself, so a renderer rebuilds `P` from a uniform.
+#[derive(Clone, Debug)]
+pub struct WaveletLighting {
+    /// [`crate::triple_product::LocalVisibility`] per vertex.
+    pub visibility: Keyed,
+    /// [`crate::transport::Receivers`]: the vertices' frames.
+    pub receivers: Keyed,
+    /// The unrotated environment prefiltered for the cells ([`crate::triple_product::prefiltered`]).
+    pub environment: Keyed,
+    /// `R`: the lit world sees `L(R⁻¹ d)`.
+    pub rotation: glam::DMat3,
+}
+
+/// One set of receivers the viewport lights on the GPU: each one's frame and visibility cells.
+#[derive(Clone, Debug)]
+pub struct WaveletReceivers {
+    pub key: Key,
+    /// Per receiver `[t, 0]` then `[n, 0]`: its frame `[t, n × t, n]`.
+    pub frames: Arc<Vec<[f32; 4]>>,
+    /// [`crate::triple_product::LocalVisibility`], or [`crate::triple_product::TexelVisibility`]
+    /// (which holds its receivers too).
+    pub visibility: Keyed,
+    /// [`crate::transport::Receivers`] for vertices; for texels the same as `visibility`.
+    source: Keyed,
+}
+
+impl WaveletReceivers {
+    fn new(source: Keyed, visibility: Keyed) -> Result<Self, String> {
+        let mut set =
+            Self { key: source.key ^ visibility.key.rotate_left(17), frames: Arc::default(), visibility, source };
+        let receivers = set.receivers()?;
+        let frames = (0..receivers.len())
+            .flat_map(|i| {
+                let f = receivers.frame(i);
+                [f.x_axis, f.z_axis].map(|a| [a.x as f32, a.y as f32, a.z as f32, 0.0])
+            })
+            .collect();
+        set.frames = Arc::new(frames);
+        Ok(set)
+    }
+
+    /// The receivers whose frames these are.
+    pub fn receivers(&self) -> Result<&crate::transport::Receivers, String> {
+        if let Some(t) = self.source.value.get::<crate::triple_product::TexelVisibility>() {
+            return Ok(&t.receivers);
+        }
+        self.source.value.expect::<crate::transport::Receivers>().map_err(|e| e.to_string())
+    }
+
+    /// The visibility cells, whichever stage made them.
+    pub fn cells(&self) -> Result<&crate::triple_product::LocalVisibility, String> {
+        use crate::triple_product::{LocalVisibility, TexelVisibility};
+        if let Some(t) = self.visibility.value.get::<TexelVisibility>() {
+            return Ok(&t.visibility);
+        }
+        self.visibility.value.expect::<LocalVisibility>().map_err(|e| e.to_string())
+    }
+}
+
+/// The wavelet modes: the local-frame triple product `B = albedo Σ P_c D_c + specular Σ P_c
+/// S_c(ω_o)` per vertex, and per texel on meshes with a visibility texture (`wavelet_pixel`).
+/// `P` and the view-independent diffuse sum `E = Σ P_c D_c` are rebuilt only when the lighting
+/// or visibility change (a GPU kernel; [`Self::cpu_products`] is its CPU twin).
+#[derive(Clone, Debug)]
+pub struct WaveletSurfaces {
+    /// Changes whenever any buffer below but the environment does.
+    pub key: Key,
+    pub cells: usize,
+    pub vertices: WaveletReceivers,
+    /// `wavelet_pixel`: every texel slot of the visibility textures when it matches `cells`.
+    pub texels: Option<WaveletReceivers>,
+    /// Texels per side of the visibility textures.
+    pub texel_size: usize,
+    /// [`crate::cubemap::CubeMap`], prefiltered for the cells.
+    pub environment: Keyed,
+    /// `R`: the lit world sees `L(R⁻¹ d)`.
+    pub rotation: glam::DMat3,
+    /// Per cell its sub-cell samples `[direction in the local frame, solid angle]`, the same
+    /// count per cell ([`crate::triple_product::CellGrid::samples`]).
+    pub cell_samples: Arc<Vec<[f32; 4]>>,
+    /// `D_c`, shared by all materials.
+    pub diffuse_table: Arc<Vec<f32>>,
+    /// Every material's `S_c(ω_o)` table coarsened to `cells`, zeros without a lobe; each
+    /// [`Self::specular_stride`] long.
+    pub specular_tables: Arc<Vec<f32>>,
+    /// Per material and patch of the outgoing grid, `[first, count]` into `specular_cells`:
+    /// the cells its glossy sum reads ([`crate::triple_product::significant_cells`]).
+    pub specular_ranges: Arc<Vec<[u32; 2]>>,
+    pub specular_cells: Arc<Vec<u32>>,
+    /// Per material: diffuse albedo and specular colour (`None` without a lobe), both scaled
+    /// by what reaches surfaces through fog (fog adds its scattered light separately).
+    pub albedo: Vec<[f64; 3]>,
+    pub specular: Vec<Option<[f64; 3]>>,
+    /// Per vertex: its mesh's texel layer, or -1.
+    pub vertex_layers: Arc<Vec<i32>>,
+    /// Detail terms each receiver keeps (0 without any glossy material) and their per-node
+    /// weights ([`crate::triple_product::details`]).
+    pub details: Arc<crate::triple_product::details::DetailWeights>,
+    /// Per material its fine lobe table
+    /// ([`crate::triple_product::BrdfTable::fine_specular`] at `cells`), empty without a lobe
+    /// or detail terms; a renderer lays them one after another.
+    pub fine_specular_tables: Vec<Arc<Vec<half::f16>>>,
+    /// Per material: where its fine table starts in that concatenation.
+    pub fine_specular_offsets: Vec<u32>,
+}
+
+impl WaveletSurfaces {
+    /// `tables` are the materials' [`crate::triple_product::BrdfTable`]s, one per material;
+    /// each receiver keeps up to `details` detail terms.
+    pub fn new(
+        lighting: WaveletLighting,
+        tables: &[Keyed],
+        texels: Option<Keyed>,
+        fog: Option<&FoggedEnvironment>,
+        geometry: &Geometry,
+        materials: &[FrameMaterial],
+        details: usize,
+    ) -> Result<Self, String> {
+        use crate::triple_product::{BrdfTable, CellGrid, LocalVisibility, TexelVisibility};
+        let visibility = lighting.visibility.value.expect::<LocalVisibility>().map_err(|e| e.to_string())?;
+        let receivers = lighting.receivers.value.expect::<crate::transport::Receivers>().map_err(|e| e.to_string())?;
+        let vertices = geometry.vertex_count();
+        let cells = visibility.cells;
+        if cells == 0 || visibility.receivers() != vertices || receivers.len() != vertices {
+            return Err(format!(
+                "the triple-product data covers {} receivers ({} frames) for {vertices} vertices",
+                visibility.receivers(),
+                receivers.len()
+            ));
+        }
+        let grid = CellGrid::for_coefficients(cells)?;
+        let mut coarse = Vec::new();
+        let mut key =
+            lighting.visibility.key ^ lighting.receivers.key.rotate_left(5) ^ geometry.meshes.key.rotate_left(3);
+        for keyed in tables {
+            let table = keyed.value.expect::<BrdfTable>().map_err(|e| e.to_string())?;
+            coarse.push(table.coarsened(cells)?);
+            key = key.rotate_left(7) ^ keyed.key;
+        }
+        let Some(first) = coarse.first() else {
+            return Err("the wavelet modes need a material: link a BRDF editor to the Output".into());
+        };
+        let stride = Self::specular_stride(cells);
+        let mut specular_tables = vec![0.0f32; stride * coarse.len()];
+        for (i, t) in coarse.iter().enumerate() {
+            if !t.specular.is_empty() {
+                specular_tables[i * stride..(i + 1) * stride].copy_from_slice(&t.specular);
+            }
+        }
+        let (mut specular_ranges, mut specular_cells) = (Vec::new(), Vec::new());
+        for t in &coarse {
+            let (ranges, cells) = if t.specular.is_empty() {
+                (vec![[0, 0]; (crate::triple_product::THETA_STEPS - 1) * crate::triple_product::PHI_STEPS], Vec::new())
+            } else {
+                crate::triple_product::significant_cells(&t.specular, grid)
+            };
+            let offset = specular_cells.len() as u32;
+            specular_ranges.extend(ranges.into_iter().map(|[first, count]| [first + offset, count]));
+            specular_cells.extend(cells);
+        }
+        // Without any mesh that has a visibility texture there are no texels to light.
+        let texels = texels
+            .filter(|t| t.value.get::<TexelVisibility>().is_some_and(|t| t.visibility.cells == cells && t.slots() > 0));
+        let texel_data = texels.as_ref().and_then(|t| t.value.get::<TexelVisibility>());
+        let mut vertex_layers = Vec::with_capacity(vertices);
+        if let Some(set) = geometry.meshes.value.get::<crate::mesh::MeshSet>() {
+            for (m, mesh) in set.meshes.iter().enumerate() {
+                let layer = texel_data.and_then(|t| t.mesh_layers.get(m)).copied().unwrap_or(-1);
+                vertex_layers.extend(std::iter::repeat_n(layer, mesh.positions.len()));
+            }
+        }
+        let texel_size = texel_data.map_or(0, |t| t.size);
+        let texels = match texels {
+            Some(keyed) => {
+                key = key.rotate_left(11) ^ keyed.key;
+                Some(WaveletReceivers::new(keyed.clone(), keyed)?)
+            }
+            None => None,
+        };
+        let attenuation = fog.map_or([1.0; 3], |f| f.fog.attenuation);
+        let scale = |c: [f64; 3]| std::array::from_fn(|i| c[i] * attenuation[i]);
+        let specular: Vec<Option<[f64; 3]>> =
+            coarse.iter().map(|t| (!t.specular.is_empty()).then(|| scale(t.specular_color.map(f64::from)))).collect();
+        let weighted: Vec<(&BrdfTable, f64)> =
+            coarse.iter().zip(&specular).map(|(t, s)| (t, s.map_or(0.0, |s| s[0].max(s[1]).max(s[2])))).collect();
+        let details = crate::triple_product::details::DetailWeights::new(grid, &weighted, details);
+        let (mut fine_specular_tables, mut fine_specular_offsets, mut offset) = (Vec::new(), Vec::new(), 0);
+        for t in &coarse {
+            let table = if details.kept > 0 { t.fine_specular.clone() } else { Arc::default() };
+            fine_specular_offsets.push(offset as u32);
+            offset += table.len();
+            fine_specular_tables.push(table);
+        }
+        if details.kept > 0 {
+            key = key.rotate_left(19) ^ details.kept as Key;
+        }
+        Ok(Self {
+            key,
+            cells,
+            vertices: WaveletReceivers::new(lighting.receivers, lighting.visibility)?,
+            texels,
+            texel_size,
+            environment: lighting.environment,
+            rotation: lighting.rotation,
+            cell_samples: Arc::new(
+                grid.samples.iter().flatten().map(|(d, w)| [d.x as f32, d.y as f32, d.z as f32, *w as f32]).collect(),
+            ),
+            diffuse_table: Arc::new(first.diffuse.clone()),
+            specular_tables: Arc::new(specular_tables),
+            specular_ranges: Arc::new(specular_ranges),
+            specular_cells: Arc::new(specular_cells),
+            albedo: materials.iter().map(|m| scale(m.material.albedo)).collect(),
+            specular,
+            vertex_layers: Arc::new(vertex_layers),
+            details: Arc::new(details),
+            fine_specular_tables,
+            fine_specular_offsets,
+        })
+    }
+
+    /// Rows of `R⁻¹`, in f32 (what the relight kernel reads).
+    pub fn inverse_rotation(&self) -> [[f32; 3]; 3] {
+        let inverse = self.rotation.transpose();
+        [inverse.row(0), inverse.row(1), inverse.row(2)].map(|r| r.as_vec3().to_array())
+    }
+
+    /// What the relit products depend on besides the lighting: the receiver sets.
+    pub fn receivers_key(&self) -> Key {
+        self.vertices.key
+            ^ self.texels.as_ref().map_or(0, |t| t.key.rotate_left(13))
+            ^ self.cells as Key
+            ^ (self.details.kept as Key).rotate_left(29)
+    }
+
+    /// What the kept detail terms depend on besides the lighting and receivers: the
+    /// materials' weights (a BRDF edit moves them, and so relights).
+    pub fn details_key(&self) -> Key {
+        self.details.squared.iter().fold(self.details.kept as Key, |k, w| k.rotate_left(7) ^ Key::from(w.to_bits()))
+    }
+
+    /// `P` per vertex on the CPU (the GPU kernel's twin; the bake's vertex light, which reads
+    /// the diffuse transfer alone and so keeps no detail terms). Big meshes read the lighting
+    /// from a pre-rotated [`crate::triple_product::FrameTable`].
+    pub fn cpu_products(&self) -> Result<crate::triple_product::LocalProducts, String> {
+        let plain = Self { details: Arc::default(), ..self.clone() };
+        let table = plain.frame_table_for(&plain.vertices)?;
+        Ok(plain.cpu_products_of(&plain.vertices, table.as_ref())?.0)
+    }
+
+    /// The pre-rotated lighting table when `set` has more receivers than
+    /// [`crate::triple_product::FRAME_TABLE_THRESHOLD`] (built once per environment).
+    pub fn frame_table_for(&self, set: &WaveletReceivers) -> Result<Option<crate::triple_product::FrameTable>, String> {
+        use crate::triple_product::{CellGrid, FRAME_TABLE_THRESHOLD, FrameTable};
+        // Detail terms sample the lighting directly.
+        if set.frames.len() / 2 <= FRAME_TABLE_THRESHOLD || self.details.kept > 0 {
+            return Ok(None);
+        }
+        let environment = self.environment.value.expect::<crate::cubemap::CubeMap>().map_err(|e| e.to_string())?;
+        Ok(Some(FrameTable::build(CellGrid::for_coefficients(self.cells)?, environment)))
+    }
+
+    /// `P` and the kept detail terms of one receiver set on the CPU, with the lighting from
+    /// `table` when given (and no details are kept).
+    pub fn cpu_products_of(
+        &self,
+        set: &WaveletReceivers,
+        table: Option<&crate::triple_product::FrameTable>,
+    ) -> Result<(crate::triple_product::LocalProducts, crate::triple_product::details::LocalDetails), String> {
+        use crate::triple_product::{CellGrid, Lighting, local_products_with_details};
+        let grid = CellGrid::for_coefficients(self.cells)?;
+        let environment = self.environment.value.expect::<crate::cubemap::CubeMap>().map_err(|e| e.to_string())?;
+        let lighting = Lighting { environment, rotation: self.rotation, table };
+        let cancel = crate::engine::CancelToken::default();
+        local_products_with_details(grid, &lighting, set.receivers()?, set.cells()?, &self.details, &cancel)
+            .map_err(|e| e.to_string())
+    }
+
+    /// The CPU relight of one receiver set from its pre-rotated `table`, in one pass: its
+    /// products packed by `pack` and its diffuse transfer (the frame table is only built where
+    /// no detail terms are kept).
+    pub fn cpu_packed_products_of(
+        &self,
+        set: &WaveletReceivers,
+        table: &crate::triple_product::FrameTable,
+        pack: impl Fn([f32; 3]) -> u32 + Sync,
+    ) -> Result<(Vec<u32>, Vec<[f32; 4]>), String> {
+        let cancel = crate::engine::CancelToken::default();
+        let (receivers, visibility) = (set.receivers()?, set.cells()?);
+        crate::triple_product::table_products_packed(
+            table,
+            self.rotation,
+            receivers,
+            visibility,
+            &self.diffuse_table,
+            pack,
+            &cancel,
+        )
+        .map_err(|e| e.to_string())
+    }
+
+    /// Floats of one material's specular table.
+    pub fn specular_stride(cells: usize) -> usize {
+        crate::triple_product::THETA_STEPS * crate::triple_product::PHI_STEPS * cells
+    }
+}

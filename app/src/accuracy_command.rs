@@ -5,10 +5,10 @@
 use crate::project_commands::{evaluate, fail_on_errors, load, upstream_of};
 use anyhow::{Result, anyhow, bail};
 use clap::Args;
+use lightloom_nodes::engine::spec::ParamValue;
 use lightloom_nodes::engine::{CancelToken, Graph};
 use lightloom_nodes::frame::{FrameInputs, frame_request, mode_stages};
 use lightloom_nodes::kinds::output::{SUN, find_output};
-use lightloom_nodes::node_kind::ParamValue;
 use lightloom_nodes::reference::{self, ImageError, PinholeCamera};
 use lightloom_render::{CameraView, GpuContext, ViewportRenderer};
 use serde::Serialize;

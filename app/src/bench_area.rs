@@ -12,12 +12,12 @@
 use crate::bench_command::{BenchArgs, evaluate_frame, median, timed_frame};
 use anyhow::{Result, anyhow};
 use glam::DVec3;
+use lightloom_nodes::engine::spec::ParamValue;
 use lightloom_nodes::engine::{Engine, Graph};
 use lightloom_nodes::light_texture::{Blend, PaintOp, render};
 use lightloom_nodes::near_field::{
     LightPlacement, TargetKeep, TopFace, face_transport, irradiance, light_source, responses, shade,
 };
-use lightloom_nodes::node_kind::ParamValue;
 use lightloom_render::{CameraView, GpuContext, ViewportRenderer};
 use std::sync::Arc;
 use std::time::Instant;

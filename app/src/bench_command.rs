@@ -22,13 +22,13 @@
 use crate::project_commands::{evaluate, fail_on_errors, output_request, upstream_of};
 use anyhow::{Result, anyhow};
 use clap::Args;
+use lightloom_nodes::engine::spec::ParamValue;
 use lightloom_nodes::engine::{CancelToken, Engine, Graph, StageValue};
 use lightloom_nodes::frame::{
     Background, FrameInputs, FrameMaterial, Geometry, IrradianceSurfaces, Keyed, MediumFrame, PrtSurfaces, Surfaces,
     WaveletLighting, WaveletSurfaces,
 };
 use lightloom_nodes::kinds::output::{Mode, Tonemap, View};
-use lightloom_nodes::node_kind::ParamValue;
 use lightloom_nodes::transport::{Receivers, ShTransport, SphericalTransport};
 use lightloom_nodes::wavelet::SparseVector;
 use lightloom_render::{CameraView, GpuContext, ViewportRenderer};

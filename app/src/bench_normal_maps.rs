@@ -6,7 +6,7 @@
 use crate::bench_command::{BenchArgs, evaluate_frame, median, timed_frame};
 use anyhow::{Result, anyhow};
 use lightloom_nodes::engine::Engine;
-use lightloom_nodes::node_kind::ParamValue;
+use lightloom_nodes::engine::spec::ParamValue;
 use lightloom_render::{CameraView, GpuContext, ViewportRenderer};
 use std::sync::Arc;
 

@@ -3,11 +3,11 @@
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use lightloom_nodes::engine::graph::NodeInput;
+use lightloom_nodes::engine::spec::{
+    Availability, NodeKindSpec, ParamKind, ParamSpec, ParamValue, PortSpec, PortType, StageSpec,
+};
 use lightloom_nodes::engine::{
     CancelToken, Engine, Graph, Link, Request, StageContext, StageError, StageRef, StageValue,
-};
-use lightloom_nodes::node_kind::{
-    Availability, NodeKindSpec, ParamKind, ParamSpec, ParamValue, PortSpec, PortType, StageSpec,
 };
 use std::collections::BTreeMap;
 use std::path::PathBuf;
@@ -46,8 +46,9 @@ fn registry() -> &'static [NodeKindSpec] {
         stages: vec![stage("a", &[], &[("in", "medium")]), stage("b", &["a"], &[]), stage("medium", &["b"], &[])],
         previews: Vec::new(),
         availability: Availability::Ready,
-        relevant: lightloom_nodes::node_kind::always_relevant,
+        relevant: lightloom_nodes::engine::spec::always_relevant,
         groups: &[],
+        referenced_files: lightloom_nodes::engine::spec::no_referenced_files,
     }]))
 }
 

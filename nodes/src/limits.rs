@@ -11,6 +11,9 @@ pub const MAX_IMAGE_PIXELS: u64 = 16384 * 8192;
 /// Largest radiance kept from an image; larger finite values are clamped with a warning
 /// (a sun is about 1e5; 1e9 leaves room while keeping SH and sums finite in f32).
 pub const MAX_RADIANCE: f32 = 1e9;
+/// A `.gltf` file's JSON, read to find the files it refers to.
+pub const MAX_GLTF_JSON_BYTES: u64 = 256 << 20;
+
 /// Most mesh instances a glTF node hierarchy may expand to.
 pub const MAX_GLTF_INSTANCES: usize = 100_000;
 /// Most nodes a glTF node hierarchy may expand to (a node listed twice as a child is visited

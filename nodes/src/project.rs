@@ -2,8 +2,8 @@
 //!
 //! See `projects/README.md` for the schema with an example.
 
+use crate::engine::spec::ParamValue;
 use crate::engine::{Graph, GraphError, Link, graph::NodeInput};
-use crate::node_kind::ParamValue;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::io::Write;

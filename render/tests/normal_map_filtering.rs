@@ -5,10 +5,10 @@
 //! ground truth). The sun is lit apart and stands where the plane mirrors it to the camera, so
 //! the highlight decides the glossy case.
 
+use lightloom_nodes::engine::spec::ParamValue;
 use lightloom_nodes::engine::{CancelToken, Engine, Graph};
 use lightloom_nodes::frame::FrameInputs;
 use lightloom_nodes::frame::frame_request;
-use lightloom_nodes::node_kind::ParamValue;
 use lightloom_nodes::project::Project;
 use lightloom_nodes::reference::{self, PinholeCamera};
 use lightloom_render::{CameraView, GpuContext, ViewportRenderer};

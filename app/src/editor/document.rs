@@ -267,7 +267,7 @@ pub(crate) fn test_state_dir() -> PathBuf {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use lightloom_nodes::node_kind::ParamValue;
+    use lightloom_nodes::engine::spec::ParamValue;
     use lightloom_nodes::project::default_project;
 
     fn set_exposure(doc: &mut Document, v: f64, merge: Option<&str>) {

@@ -2,8 +2,8 @@
 //! remove, duplicate, copy and paste. Pure functions of the project, used by the graph
 //! editor, the inspector and the menus; each returns a reason when it refuses.
 
+use lightloom_nodes::engine::spec::{NodeKindSpec, PortType};
 use lightloom_nodes::kinds;
-use lightloom_nodes::node_kind::{NodeKindSpec, PortType};
 use lightloom_nodes::project::{Project, ProjectLink, ProjectNode};
 use serde::{Deserialize, Serialize};
 use std::collections::{BTreeMap, HashMap};

@@ -8,8 +8,8 @@ use eframe::egui::{self, Color32, RichText};
 use egui_snarl::ui::{AnyPins, PinInfo, SnarlStyle, SnarlViewer, SnarlWidget};
 use egui_snarl::{InPin, InPinId, NodeId, OutPin, OutPinId, Snarl};
 use lightloom_nodes::engine::Evaluation;
+use lightloom_nodes::engine::spec::{Availability, PortType};
 use lightloom_nodes::kinds;
-use lightloom_nodes::node_kind::{Availability, PortType};
 use lightloom_nodes::project::Project;
 use std::collections::{HashMap, HashSet};
 
@@ -503,7 +503,7 @@ impl Viewer<'_> {
         self.query
     }
 
-    fn kind(&self, id: &str) -> Option<&'static lightloom_nodes::node_kind::NodeKindSpec> {
+    fn kind(&self, id: &str) -> Option<&'static lightloom_nodes::engine::spec::NodeKindSpec> {
         super::edits::kind_of(self.project, id)
     }
 

@@ -7,8 +7,8 @@ use super::edits;
 use super::jobs::NodeStatus;
 use eframe::egui::{self, Color32, RichText};
 use lightloom_nodes::engine::Report;
+use lightloom_nodes::engine::spec::{ParamKind, ParamSpec, ParamValue};
 use lightloom_nodes::kinds::scene::{SceneObject, Shape};
-use lightloom_nodes::node_kind::{ParamKind, ParamSpec, ParamValue};
 use lightloom_nodes::project::Project;
 
 /// What a picked file is for.
@@ -243,7 +243,12 @@ impl Inspector<'_> {
         }
     }
 
-    fn inputs_section(&mut self, ui: &mut egui::Ui, id: &str, kind: &'static lightloom_nodes::node_kind::NodeKindSpec) {
+    fn inputs_section(
+        &mut self,
+        ui: &mut egui::Ui,
+        id: &str,
+        kind: &'static lightloom_nodes::engine::spec::NodeKindSpec,
+    ) {
         if kind.inputs.is_empty() {
             return;
         }

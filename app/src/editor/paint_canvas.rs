@@ -7,9 +7,9 @@
 use super::document::Document;
 use super::edits;
 use eframe::egui::{self, Color32, Stroke};
+use lightloom_nodes::engine::spec::ParamValue;
 use lightloom_nodes::engine::{Evaluation, key::Key};
 use lightloom_nodes::light_texture::{Blend, LightTexture, PaintOp, Shape};
-use lightloom_nodes::node_kind::ParamValue;
 
 /// Canvas side in points.
 const CANVAS: f32 = 240.0;

@@ -4,8 +4,8 @@
 
 use eframe::egui::{self, Color32, Stroke};
 use lightloom_nodes::brdf::LobePreview;
+use lightloom_nodes::engine::spec::{NodeKindSpec, PreviewSpec};
 use lightloom_nodes::engine::{Evaluation, key::Key};
-use lightloom_nodes::node_kind::{NodeKindSpec, PreviewSpec};
 use lightloom_nodes::picture::Preview;
 use std::collections::HashMap;
 

@@ -115,7 +115,7 @@ impl EditorApp {
         ui.horizontal_wrapped(|ui| {
             for (name, label) in [("view", "View"), ("mode", "Mode"), ("tonemap", "Tone map")] {
                 let ParamValue::Choice(current) = value(&self.doc, name) else { continue };
-                let lightloom_nodes::node_kind::ParamKind::Choice { options, labels, .. } =
+                let lightloom_nodes::engine::spec::ParamKind::Choice { options, labels, .. } =
                     &spec.param(name).expect("param").kind
                 else {
                     continue;

@@ -3,7 +3,7 @@
 //! or read bilinearly from the lightmap at the hit's `TEXCOORD_1`. The bake's consumers (a
 //! game engine, three.js) draw the same thing, so their pictures are compared with this one.
 
-use super::lightmap::LightmapAtlas;
+use crate::lightmap::LightmapAtlas;
 use crate::mesh::MeshSet;
 use crate::raycast::RayScene;
 use crate::reference::PinholeCamera;

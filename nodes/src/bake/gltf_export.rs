@@ -58,7 +58,7 @@ pub struct ExportScene<'a> {
 /// `{"lightmapTexture": {"index", "texCoord": 1}, "encoding": "RGBM", "range", "exr"}`, the
 /// decoded value being `E/π` as in `COLOR_0 × scale`.
 pub struct ExportLightmap<'a> {
-    pub atlas: &'a super::lightmap::LightmapAtlas,
+    pub atlas: &'a crate::lightmap::LightmapAtlas,
     pub png: &'a [u8],
     pub range: f32,
     /// The float EXR beside the GLB.

@@ -9,14 +9,14 @@
 //! (point-light shadows) and the area lights' irradiance. Everything expensive is a cached
 //! stage, so a bake after an edit recomputes only what the edit touched; [`bake`] then turns
 //! the evaluation into files, and [`write_atomically`] puts them in place.
+//!
+//! The bake's techniques sit below the node kinds, whose stages run them: [`crate::lightmap`]
+//! (the atlas, texel receivers, RGBM and EXR), [`crate::probes`] (the SH probe grid) and
+//! [`crate::specular_cube`] (the GGX-prefiltered environment and its KTX2 file).
 
 pub mod baked_render;
-pub mod environment;
 pub mod gltf_export;
-pub mod lightmap;
 pub mod material_fit;
-pub mod probes;
-pub mod square_light_texels;
 pub mod vertex_light;
 
 use crate::engine::Evaluation;
@@ -24,6 +24,8 @@ use crate::engine::{Graph, Request, StageRef};
 use crate::frame::FrameInputs;
 use crate::frame::mode_stages;
 use crate::kinds::output::{Mode, output_mode_and_view};
+use crate::lightmap::{self, square_light_texels};
+use crate::{probes, specular_cube};
 use serde::Serialize;
 use std::path::Path;
 
@@ -187,7 +189,7 @@ pub struct ManifestMaterial {
 /// The bake's own stages from its evaluation ([`bake_request`]).
 pub struct BakedStages<'a> {
     pub probes: Option<&'a probes::ProbeGrid>,
-    pub environment: Option<&'a environment::EnvironmentBake>,
+    pub environment: Option<&'a specular_cube::EnvironmentBake>,
     pub atlas: &'a lightmap::LightmapAtlas,
     /// With the blocker spheres multiplied in.
     pub texel_sh: Option<&'a crate::transport::ShTransport>,
@@ -313,9 +315,9 @@ pub fn bake(
     if let Some(env) = lightmap_inputs.and_then(|i| i.environment) {
         files.push(BakedFile {
             name: ENVIRONMENT_JSON.into(),
-            bytes: environment::json_bytes(&env.sh, &env.cube, ENVIRONMENT_KTX2),
+            bytes: specular_cube::json_bytes(&env.sh, &env.cube, ENVIRONMENT_KTX2),
         });
-        files.push(BakedFile { name: ENVIRONMENT_KTX2.into(), bytes: environment::ktx2_bytes(&env.cube) });
+        files.push(BakedFile { name: ENVIRONMENT_KTX2.into(), bytes: specular_cube::ktx2_bytes(&env.cube) });
     }
 
     progress("scene.glb", 0.6);

@@ -499,7 +499,7 @@ fn specular_cube_levels_match_brute_force_ggx_convolution() {
     assert!(levels >= 4, "{levels} levels");
     let mut rng = rand::rngs::SmallRng::seed_from_u64(4);
     for (m, level) in env.cube.levels.iter().enumerate().skip(1) {
-        let alpha = environment::level_roughness(m, levels).powi(2);
+        let alpha = crate::specular_cube::level_roughness(m, levels).powi(2);
         let (mut diff, mut total) = (0.0, 0.0);
         for _ in 0..24 {
             let i = rng.random_range(0..level.texels.len());
@@ -510,12 +510,15 @@ fn specular_cube_levels_match_brute_force_ggx_convolution() {
                 ((i / n % n) as f64 + 0.5) / n as f64,
             );
             let got = DVec3::from(level.texels[i].map(f64::from));
-            let expected = DVec3::from(environment::brute_force(&source, dir, alpha));
+            let expected = DVec3::from(crate::specular_cube::brute_force(&source, dir, alpha));
             diff += (got - expected).abs().element_sum();
             total += expected.element_sum();
         }
         let error = diff / total;
-        eprintln!("level {m} (roughness {:.2}): relative L1 error {error:.4}", environment::level_roughness(m, levels));
+        eprintln!(
+            "level {m} (roughness {:.2}): relative L1 error {error:.4}",
+            crate::specular_cube::level_roughness(m, levels)
+        );
         assert!(error < 0.03, "level {m}: {error}");
     }
 }
@@ -526,7 +529,7 @@ fn specular_cube_levels_match_brute_force_ggx_convolution() {
 fn the_specular_ktx2_reads_back() {
     let (evaluation, _, output) = default_evaluated(&["output.mode=sh_irradiance", "output.bake_cube_size=32"]);
     let env = BakedStages::gather(&evaluation, &output).unwrap().environment.unwrap();
-    let bytes = environment::ktx2_bytes(&env.cube);
+    let bytes = crate::specular_cube::ktx2_bytes(&env.cube);
     let reader = ktx2::Reader::new(&bytes[..]).expect("a valid KTX2 file");
     let header = reader.header();
     assert_eq!(header.format, Some(ktx2::Format::R16G16B16A16_SFLOAT));

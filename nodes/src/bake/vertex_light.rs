@@ -115,7 +115,7 @@ enum Transport<'a> {
     Sh(&'a crate::transport::ShTransport),
     Products(&'a crate::triple_product::LocalProducts),
     /// Traced at lightmap texels, in place of the vertices' `V̄`.
-    SquareLights(&'a super::square_light_texels::SquareLightTexels),
+    SquareLights(&'a crate::lightmap::square_light_texels::SquareLightTexels),
 }
 
 fn add(light: &mut [[f64; 3]], more: &[[f64; 3]]) {

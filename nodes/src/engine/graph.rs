@@ -1,6 +1,6 @@
 //! The validated, evaluable form of a project's node graph.
 
-use crate::node_kind::{NodeKindSpec, ParamValue};
+use crate::engine::spec::{NodeKindSpec, ParamValue};
 use std::collections::{BTreeMap, HashMap};
 use std::fmt;
 use std::path::PathBuf;

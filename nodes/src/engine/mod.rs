@@ -9,17 +9,22 @@ pub mod cache;
 mod context;
 mod flight;
 pub mod graph;
+mod job;
 pub mod key;
+mod report;
 pub mod request;
+pub mod spec;
 pub mod value;
 
 pub use context::StageContext;
 pub use graph::{Graph, GraphError, GraphNode, Link};
+pub use job::{EvalJob, Scheduler};
 pub use key::Key;
+pub use report::{Evaluation, Report, StageReport, StageResult, StageStatus};
 pub use request::{Request, StageRef, Tier};
 pub use value::{Codec, Persisted, StageType, StageValue};
 
-use crate::node_kind::{ParamValue, StageSpec};
+use crate::engine::spec::{ParamValue, StageSpec};
 use cache::{DiskCache, DiskLookup, MemoryCache};
 use rustc_hash::FxHashMap as HashMap;
 use serde::{Deserialize, Serialize};
@@ -136,102 +141,6 @@ impl<T: StageType> std::ops::Deref for Memo<T> {
     type Target = T;
     fn deref(&self) -> &T {
         self.value.get::<T>().expect("memo holds its type")
-    }
-}
-
-/// How a stage's value was obtained.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum StageStatus {
-    Computed,
-    MemoryHit,
-    DiskHit,
-    Failed,
-    /// Failed before with the same key; not retried until something it reads changes.
-    KnownFailure,
-    /// Not run because a stage it reads failed.
-    Blocked,
-    Cancelled,
-    /// Not run: no requested output reads it (the reasons say what was requested).
-    NotNeeded,
-}
-
-/// One line of the evaluation report.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct StageReport {
-    pub node: String,
-    pub kind: Cow<'static, str>,
-    pub stage: Cow<'static, str>,
-    /// The stage key (hex in JSON).
-    #[serde(with = "key::hex")]
-    pub key: Key,
-    pub status: StageStatus,
-    /// Why it ran: "first evaluation", "parameter `x` changed", "input `p.s` changed", ...
-    pub reasons: Vec<String>,
-    pub ms: f64,
-    pub error: Option<String>,
-    /// Repairs and adjustments the stage made (also listed in the report's notes).
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub warnings: Vec<String>,
-    /// What the stage says about its result (accuracy, work done).
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub info: Vec<String>,
-}
-
-/// What an evaluation did.
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-pub struct Report {
-    pub stages: Vec<StageReport>,
-    pub total_ms: f64,
-    pub memory_cache_bytes: usize,
-    pub notes: Vec<String>,
-}
-
-impl Report {
-    /// `(node, stage)` of every stage that was computed.
-    pub fn computed(&self) -> Vec<(String, String)> {
-        self.stages
-            .iter()
-            .filter(|s| s.status == StageStatus::Computed)
-            .map(|s| (s.node.clone(), s.stage.to_string()))
-            .collect()
-    }
-
-    pub fn failed(&self) -> Vec<&StageReport> {
-        self.stages
-            .iter()
-            .filter(|s| matches!(s.status, StageStatus::Failed | StageStatus::KnownFailure | StageStatus::Blocked))
-            .collect()
-    }
-}
-
-/// The result of one stage in an evaluation.
-#[derive(Clone, Debug)]
-pub struct StageResult {
-    pub key: Key,
-    pub value: Result<Arc<StageValue>, StageError>,
-}
-
-/// The outcome of evaluating a graph.
-#[derive(Clone, Debug)]
-pub struct Evaluation {
-    /// Every stage's result, in report order.
-    pub results: Vec<StageResult>,
-    /// `stage_slot(node, stage)` → index into `results`.
-    index: HashMap<u64, usize>,
-    pub report: Report,
-}
-
-impl Evaluation {
-    pub fn get(&self, node: &str, stage: &str) -> Option<&StageResult> {
-        self.index.get(&stage_slot(node, stage)).map(|&i| &self.results[i])
-    }
-
-    pub fn value(&self, node: &str, stage: &str) -> Result<Arc<StageValue>, StageError> {
-        match self.get(node, stage) {
-            Some(r) => r.value.clone(),
-            None => Err(StageError::Internal(format!("no stage `{stage}` on node `{node}`"))),
-        }
     }
 }
 
@@ -495,12 +404,12 @@ impl Engine {
             for spec in &node.kind.stages {
                 let mut builder = key::KeyBuilder::new(node.kind.name, spec.name, spec.version);
                 for &param in spec.params {
-                    if param == crate::node_kind::NODE_ID {
+                    if param == crate::engine::spec::NODE_ID {
                         builder.add(key::Component::Param(param), node.id.as_bytes());
                         continue;
                     }
                     let value = &node.params[param];
-                    self.param_bytes(graph, value, &mut buffer);
+                    self.param_bytes(graph, node.kind, value, &mut buffer);
                     builder.add(key::Component::Param(param), &buffer);
                 }
                 let mut deps = Vec::new();
@@ -541,14 +450,14 @@ impl Engine {
     }
 
     /// Canonical bytes of a parameter value; file paths also hash the file's content.
-    fn param_bytes(&self, graph: &Graph, value: &ParamValue, bytes: &mut Vec<u8>) {
+    fn param_bytes(&self, graph: &Graph, kind: &spec::NodeKindSpec, value: &ParamValue, bytes: &mut Vec<u8>) {
         bytes.clear();
         let taken = std::mem::take(bytes);
         *bytes = postcard::to_extend(value, taken).unwrap_or_default();
         for p in value.files() {
             let path = graph.project_dir.join(p);
             bytes.extend_from_slice(&self.file_hash(&path).to_le_bytes());
-            for sidecar in gltf_sidecars(&path) {
+            for sidecar in (kind.referenced_files)(&path) {
                 bytes.extend_from_slice(&self.file_hash(&sidecar).to_le_bytes());
             }
         }
@@ -694,7 +603,7 @@ impl Engine {
                 .spec
                 .params
                 .iter()
-                .filter(|p| **p != crate::node_kind::NODE_ID)
+                .filter(|p| **p != crate::engine::spec::NODE_ID)
                 .map(|p| (*p, &inst.node.params[*p]))
                 .collect(),
             stages: HashMap::default(),
@@ -801,134 +710,6 @@ impl Engine {
             }
         }
     }
-
-    /// Runs [`Engine::evaluate`] (every stage) on a background thread.
-    pub fn spawn(self: &Arc<Self>, graph: Graph) -> EvalJob {
-        let request = Request::everything(&graph);
-        self.spawn_request(graph, request)
-    }
-
-    /// Runs [`Engine::evaluate_request`] on a background thread; the evaluation after each
-    /// tier but the last is kept for [`EvalJob::take_partial`].
-    pub fn spawn_request(self: &Arc<Self>, graph: Graph, request: Request) -> EvalJob {
-        let cancel = CancelToken::default();
-        // Stages it needs that an older evaluation is computing keep running for it, even
-        // when that evaluation is cancelled right after this call.
-        // (Only while something runs: scheduling hashes the graph's files, which the running
-        // evaluation has already done.)
-        if self.flights.any_live() {
-            let (instances, index) = self.schedule(&graph);
-            let tier_of = request::needed_tiers(&graph, &instances, &index, &request, &mut Vec::new());
-            for (inst, tier) in instances.iter().zip(&tier_of) {
-                if tier.is_some() {
-                    self.flights.adopt(inst.key, &cancel);
-                }
-            }
-        }
-        let (tx, rx) = std::sync::mpsc::channel();
-        let engine = Arc::clone(self);
-        let token = cancel.clone();
-        let partial: Arc<Mutex<Option<(usize, Evaluation)>>> = Arc::default();
-        let slot = partial.clone();
-        let handle = std::thread::Builder::new()
-            .name("lightloom-eval".into())
-            .spawn(move || {
-                let keep = |tier: usize, evaluation: Evaluation| *slot.lock().unwrap() = Some((tier, evaluation));
-                engine.evaluate_request(&graph, &request, &token, Some(&tx), &keep)
-            })
-            .expect("spawn evaluation thread");
-        EvalJob { cancel, events: rx, handle: Some(handle), partial }
-    }
-}
-
-/// A running background evaluation.
-pub struct EvalJob {
-    cancel: CancelToken,
-    pub events: std::sync::mpsc::Receiver<EvalEvent>,
-    handle: Option<std::thread::JoinHandle<Evaluation>>,
-    partial: Arc<Mutex<Option<(usize, Evaluation)>>>,
-}
-
-impl EvalJob {
-    /// Marks the evaluation stale: running stages stop at their next check, nothing partial is
-    /// cached.
-    pub fn cancel(&self) {
-        self.cancel.cancel();
-    }
-
-    /// The evaluation's cancellation flag (to cancel it from elsewhere, e.g. on Ctrl+C).
-    pub fn cancel_token(&self) -> CancelToken {
-        self.cancel.clone()
-    }
-
-    pub fn is_finished(&self) -> bool {
-        self.handle.as_ref().is_none_or(|h| h.is_finished())
-    }
-
-    /// The evaluation after the latest finished tier (not the last), once.
-    pub fn take_partial(&self) -> Option<(usize, Evaluation)> {
-        self.partial.lock().unwrap().take()
-    }
-
-    /// Waits for the result.
-    pub fn wait(mut self) -> Evaluation {
-        self.handle.take().expect("joined once").join().expect("evaluation thread panicked")
-    }
-}
-
-/// Keeps at most one evaluation in flight: submitting a new graph cancels the stale one.
-#[derive(Default)]
-pub struct Scheduler {
-    current: Option<EvalJob>,
-}
-
-impl Scheduler {
-    pub fn submit(&mut self, engine: &Arc<Engine>, graph: Graph) {
-        let request = Request::everything(&graph);
-        self.submit_request(engine, graph, request);
-    }
-
-    pub fn submit_request(&mut self, engine: &Arc<Engine>, graph: Graph, request: Request) {
-        // The new evaluation first adopts what it shares with the old one's running stages,
-        // then the old one is cancelled.
-        let new = engine.spawn_request(graph, request);
-        if let Some(old) = self.current.replace(new) {
-            old.cancel();
-            // Let it wind down on its own thread; its results are discarded.
-            std::thread::spawn(move || drop(old.wait()));
-        }
-    }
-
-    /// The finished evaluation, if the current one is done.
-    pub fn poll(&mut self) -> Option<Evaluation> {
-        if self.current.as_ref().is_some_and(|j| j.is_finished()) {
-            return self.current.take().map(|j| j.wait());
-        }
-        None
-    }
-
-    pub fn current(&self) -> Option<&EvalJob> {
-        self.current.as_ref()
-    }
-}
-
-/// External files a `.gltf` refers to (buffers and images by relative URI), so editing a `.bin`
-/// next to the `.gltf` changes the keys of the stages that read it. Empty for other files.
-fn gltf_sidecars(path: &Path) -> Vec<PathBuf> {
-    if !path.extension().is_some_and(|e| e.eq_ignore_ascii_case("gltf")) {
-        return Vec::new();
-    }
-    let Ok(text) = std::fs::read(path) else { return Vec::new() };
-    let Ok(json) = serde_json::from_slice::<serde_json::Value>(&text) else { return Vec::new() };
-    let dir = path.parent().unwrap_or(Path::new("."));
-    ["buffers", "images"]
-        .iter()
-        .filter_map(|k| json.get(k)?.as_array())
-        .flatten()
-        .filter_map(|entry| entry.get("uri")?.as_str())
-        .filter(|uri| !uri.starts_with("data:"))
-        .map(|uri| dir.join(uri.replace("%20", " ")))
-        .collect()
 }
 
 #[cfg(test)]

@@ -55,7 +55,7 @@ impl Request {
     pub fn assets(graph: &Graph) -> Self {
         let mut stages = Vec::new();
         for node in &graph.nodes {
-            let reads_file = |s: &&crate::node_kind::StageSpec| s.params.iter().any(|p| !node.files(p).is_empty());
+            let reads_file = |s: &&crate::engine::spec::StageSpec| s.params.iter().any(|p| !node.files(p).is_empty());
             for stage in node.kind.stages.iter().filter(reads_file) {
                 stages.push(StageRef::new(&node.id, stage.name));
             }

@@ -5,11 +5,11 @@
 //! renderer only packs and draws.
 
 use crate::brdf::Material;
+use crate::engine::spec::ParamValue;
 use crate::engine::{Evaluation, Graph, Request, StageRef};
 use crate::engine::{Key, StageValue};
 use crate::kinds::output::{Mode, OutputSettings, View, separates_sun};
 use crate::light::PointLight;
-use crate::node_kind::ParamValue;
 use crate::sh::ShRgb;
 use crate::single_scattering::FoggedEnvironment;
 use std::sync::Arc;

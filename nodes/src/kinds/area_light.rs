@@ -9,10 +9,12 @@
 //! scale and the light as the reference samples it; the Output memoises each light's
 //! propagation, so intensity and tint only rescale it.
 
+use crate::engine::spec::{
+    Availability, NodeKindSpec, ParamKind, ParamSpec, ParamValue, PortSpec, PortType, StageSpec,
+};
 use crate::engine::{StageContext, StageError, StageValue};
 use crate::light_texture::{LightTexture, PaintOp, load_image, render, turned_extent};
 use crate::near_field::{AccMode, FACE_ORDER, LightPlacement, LightSource, Shading, TargetKeep, TopFace, light_source};
-use crate::node_kind::{Availability, NodeKindSpec, ParamKind, ParamSpec, ParamValue, PortSpec, PortType, StageSpec};
 use crate::picture::Preview;
 use crate::reference::AreaEmitter;
 use serde::{Deserialize, Serialize};
@@ -223,15 +225,16 @@ pub fn spec() -> NodeKindSpec {
                 compute: light,
             },
         ],
-        previews: vec![crate::node_kind::PreviewSpec {
+        previews: vec![crate::engine::spec::PreviewSpec {
             stages: &["texture"],
             make: |v| Some(Preview::Image(texture_preview(v[0].get()?))),
             size: [96.0, 96.0],
             caption: "the light's emission, seen from above (auto-exposed)",
         }],
         availability: Availability::Ready,
-        relevant: crate::node_kind::always_relevant,
+        relevant: crate::engine::spec::always_relevant,
         groups: &[],
+        referenced_files: crate::engine::spec::no_referenced_files,
     }
 }
 

@@ -3,8 +3,10 @@
 //! `blocked_transport` stage multiplies each receiver's SH transport by the spheres'
 //! visibility in the `sh_prt` mode.
 
+use crate::engine::spec::{
+    Availability, NodeKindSpec, ParamKind, ParamSpec, ParamValue, PortSpec, PortType, StageSpec,
+};
 use crate::engine::{StageContext, StageError, StageValue};
-use crate::node_kind::{Availability, NodeKindSpec, ParamKind, ParamSpec, ParamValue, PortSpec, PortType, StageSpec};
 use crate::sh_exponential::{Blocker, ExpMethod, LOG_CLIP_RELATIVE, LogCapTable, OlTable, ShExp};
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
@@ -193,8 +195,9 @@ pub fn spec() -> NodeKindSpec {
         ],
         previews: Vec::new(),
         availability: Availability::Ready,
-        relevant: crate::node_kind::always_relevant,
+        relevant: crate::engine::spec::always_relevant,
         groups: &[],
+        referenced_files: crate::gltf_import::referenced_files,
     }
 }
 

@@ -3,9 +3,9 @@
 //! triple product modes (Ma et al. §3.2; `triple_product::tabulate_brdf`).
 
 pub use crate::brdf::{Material, Model};
+use crate::engine::spec::PreviewSpec;
+use crate::engine::spec::{Availability, NodeKindSpec, ParamKind, ParamSpec, PortSpec, PortType, StageSpec};
 use crate::engine::{StageContext, StageError, StageValue};
-use crate::node_kind::PreviewSpec;
-use crate::node_kind::{Availability, NodeKindSpec, ParamKind, ParamSpec, PortSpec, PortType, StageSpec};
 use crate::picture::Preview;
 
 pub fn spec() -> NodeKindSpec {
@@ -120,8 +120,9 @@ pub fn spec() -> NodeKindSpec {
             caption: "f·cos θi in the plane of incidence (each curve scaled to its peak)",
         }, super::brdf_normal_map::preview()],
         availability: Availability::Ready,
-        relevant: crate::node_kind::always_relevant,
+        relevant: crate::engine::spec::always_relevant,
         groups: &[],
+        referenced_files: crate::gltf_import::referenced_files,
     }
 }
 

@@ -3,8 +3,8 @@
 //! Loading and pyramids are keyed by the file and strength alone, so the filter choice and
 //! tiling (read by `normal_settings`) rebuild nothing.
 
+use crate::engine::spec::{ParamKind, ParamSpec, StageSpec};
 use crate::engine::{StageContext, StageError, StageValue};
-use crate::node_kind::{ParamKind, ParamSpec, StageSpec};
 use crate::normal_filtering::{MomentPyramid, NormalMap, VmfPyramid};
 use serde::{Deserialize, Serialize};
 
@@ -112,8 +112,8 @@ pub(super) fn params() -> Vec<ParamSpec> {
 
 /// The normal-map preview: the map, the NDF of its centre texel at the preview level, and the
 /// effective lobe there ([`crate::preview::normal_map_panels`]).
-pub(super) fn preview() -> crate::node_kind::PreviewSpec {
-    crate::node_kind::PreviewSpec {
+pub(super) fn preview() -> crate::engine::spec::PreviewSpec {
+    crate::engine::spec::PreviewSpec {
         stages: &["normal_preview"],
         make: |v| {
             let image = v[0].get::<crate::picture::PreviewImage>()?;
@@ -131,7 +131,7 @@ pub(super) fn stages() -> Vec<StageSpec> {
         StageSpec {
             name: "normal_map",
             version: 2,
-            params: &["normal_map", "normal_strength", crate::node_kind::NODE_ID],
+            params: &["normal_map", "normal_strength", crate::engine::spec::NODE_ID],
             stages: &[],
             inputs: &[],
             persist: None,

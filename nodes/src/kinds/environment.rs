@@ -4,9 +4,9 @@
 //! unrotated SH.
 
 use crate::cubemap::{CubeMap, Equirect};
+use crate::engine::spec::PreviewSpec;
+use crate::engine::spec::{Availability, NodeKindSpec, ParamKind, ParamSpec, PortSpec, PortType, StageSpec};
 use crate::engine::{StageContext, StageError, StageValue};
-use crate::node_kind::PreviewSpec;
-use crate::node_kind::{Availability, NodeKindSpec, ParamKind, ParamSpec, PortSpec, PortType, StageSpec};
 use crate::preview::{self, Preview};
 use crate::sh::{self, ShRotation};
 use crate::sky::ProceduralSky;
@@ -248,8 +248,9 @@ pub fn spec() -> NodeKindSpec {
             },
         ],
         availability: Availability::Ready,
-        relevant: crate::node_kind::always_relevant,
+        relevant: crate::engine::spec::always_relevant,
         groups: &[],
+        referenced_files: crate::engine::spec::no_referenced_files,
     }
 }
 

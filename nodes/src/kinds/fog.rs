@@ -4,9 +4,9 @@
 //! number of phase terms, so changing β, the phase weights, a material or a light recomputes
 //! no table.
 
+use crate::engine::spec::PreviewSpec;
+use crate::engine::spec::{Availability, NodeKindSpec, ParamKind, ParamSpec, PortSpec, PortType, StageSpec};
 use crate::engine::{Codec, StageContext, StageError, StageValue};
-use crate::node_kind::PreviewSpec;
-use crate::node_kind::{Availability, NodeKindSpec, ParamKind, ParamSpec, PortSpec, PortType, StageSpec};
 use crate::picture::Preview;
 use serde::{Deserialize, Serialize};
 
@@ -126,8 +126,9 @@ pub fn spec() -> NodeKindSpec {
             caption: "a point light 10 m away seen through this fog (airlight, eq. 3.16)",
         }],
         availability: Availability::Ready,
-        relevant: crate::node_kind::always_relevant,
+        relevant: crate::engine::spec::always_relevant,
         groups: &[],
+        referenced_files: crate::engine::spec::no_referenced_files,
     }
 }
 
@@ -180,8 +181,8 @@ fn g_tables(ctx: &StageContext) -> Result<StageValue, StageError> {
 
 #[cfg(test)]
 mod tests {
+    use crate::engine::spec::ParamValue;
     use crate::engine::{CancelToken, Engine};
-    use crate::node_kind::ParamValue;
     use crate::project::{Project, ProjectNode};
     use std::collections::BTreeMap;
     use std::path::Path;

@@ -1,7 +1,7 @@
 //! Point light node: isotropic point lights, chained into a light list.
 
+use crate::engine::spec::{Availability, NodeKindSpec, ParamKind, ParamSpec, PortSpec, PortType, StageSpec};
 use crate::engine::{StageContext, StageError, StageValue};
-use crate::node_kind::{Availability, NodeKindSpec, ParamKind, ParamSpec, PortSpec, PortType, StageSpec};
 
 pub use crate::light::PointLight;
 
@@ -40,8 +40,9 @@ pub fn point_light_spec() -> NodeKindSpec {
         }],
         previews: Vec::new(),
         availability: Availability::Ready,
-        relevant: crate::node_kind::always_relevant,
+        relevant: crate::engine::spec::always_relevant,
         groups: &[],
+        referenced_files: crate::engine::spec::no_referenced_files,
     }
 }
 

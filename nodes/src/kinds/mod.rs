@@ -13,7 +13,7 @@ pub use output::adaptive::AdaptiveError;
 pub mod rsl;
 pub mod scene;
 
-use crate::node_kind::NodeKindSpec;
+use crate::engine::spec::NodeKindSpec;
 use std::sync::OnceLock;
 
 /// All node kinds, in menu order.
@@ -51,7 +51,7 @@ mod tests {
                 assert!(seen.insert(stage.name), "{}: duplicate stage {}", kind.name, stage.name);
                 for p in stage.params {
                     assert!(
-                        kind.param(p).is_some() || *p == crate::node_kind::NODE_ID,
+                        kind.param(p).is_some() || *p == crate::engine::spec::NODE_ID,
                         "{}.{} reads unknown parameter {p}",
                         kind.name,
                         stage.name
@@ -79,7 +79,7 @@ mod tests {
             }
             for p in &kind.params {
                 assert!(p.check(&p.default_value()).is_ok(), "{}.{} default is invalid", kind.name, p.name);
-                if let crate::node_kind::ParamKind::Choice { options, labels, .. } = &p.kind {
+                if let crate::engine::spec::ParamKind::Choice { options, labels, .. } = &p.kind {
                     assert!(
                         labels.is_empty() || labels.len() == options.len(),
                         "{}.{}: {} labels for {} options",

@@ -2,8 +2,10 @@
 //! `crate::rsl`). The decomposition reads the environment before exposure, tint and rotation,
 //! so those edits only rescale and turn the lights (`world_lights`, O(K)).
 
+use crate::engine::spec::{
+    Availability, NodeKindSpec, ParamKind, ParamSpec, PortSpec, PortType, PreviewSpec, StageSpec,
+};
 use crate::engine::{StageContext, StageError, StageValue};
-use crate::node_kind::{Availability, NodeKindSpec, ParamKind, ParamSpec, PortSpec, PortType, PreviewSpec, StageSpec};
 use crate::preview::{self, Preview};
 
 pub fn spec() -> NodeKindSpec {
@@ -104,8 +106,9 @@ pub fn spec() -> NodeKindSpec {
             },
         ],
         availability: Availability::Ready,
-        relevant: crate::node_kind::always_relevant,
+        relevant: crate::engine::spec::always_relevant,
         groups: &[],
+        referenced_files: crate::engine::spec::no_referenced_files,
     }
 }
 

@@ -1,9 +1,11 @@
 //! Scene node: the objects lit by the graph (built-in shapes and a glTF file), their receiver
 //! points, the ray-tracing BVH, and the visibility transport every PRT technique reads.
 
+use crate::engine::spec::{
+    Availability, NodeKindSpec, ParamKind, ParamSpec, ParamValue, PortSpec, PortType, StageSpec,
+};
 use crate::engine::{Codec, StageContext, StageError, StageValue};
 use crate::mesh::{self, MeshSet};
-use crate::node_kind::{Availability, NodeKindSpec, ParamKind, ParamSpec, ParamValue, PortSpec, PortType, StageSpec};
 use crate::raycast::RayScene;
 pub use crate::scene_object::{SceneObject, Shape};
 use crate::transport::{self, Receivers};
@@ -333,8 +335,9 @@ pub fn spec() -> NodeKindSpec {
         ],
         previews: Vec::new(),
         availability: Availability::Ready,
-        relevant: crate::node_kind::always_relevant,
+        relevant: crate::engine::spec::always_relevant,
         groups: &[],
+        referenced_files: crate::gltf_import::referenced_files,
     }
 }
 

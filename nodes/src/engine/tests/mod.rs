@@ -1,5 +1,5 @@
 use super::*;
-use crate::node_kind::{Availability, NodeKindSpec, ParamKind, ParamSpec, PortSpec, PortType, StageSpec};
+use crate::engine::spec::{Availability, NodeKindSpec, ParamKind, ParamSpec, PortSpec, PortType, StageSpec};
 use crate::project::{Project, ProjectLink, ProjectNode, default_project};
 use crate::scene_object::{SceneObject, Shape};
 use serde::{Deserialize, Serialize};
@@ -192,12 +192,13 @@ fn test_kind(name: &'static str, compute: StageFn, persist: bool) -> NodeKindSpe
         }],
         previews: Vec::new(),
         availability: Availability::Ready,
-        relevant: crate::node_kind::always_relevant,
+        relevant: crate::engine::spec::always_relevant,
         groups: &[],
+        referenced_files: crate::engine::spec::no_referenced_files,
     }
 }
 
-use crate::node_kind::StageFn;
+use crate::engine::spec::StageFn;
 
 /// SH with a NaN, an infinity and 1e38 among finite coefficients.
 fn absurd(_: &StageContext) -> Result<StageValue, StageError> {
@@ -753,26 +754,6 @@ fn the_first_evaluation_shows_an_unshadowed_frame_before_the_transport_then_a_sh
     assert_eq!(shadowed.mode, Mode::WaveletPixel);
     let per_texel = matches!(&shadowed.surfaces, crate::frame::Surfaces::Wavelet(w) if w.texels.is_some());
     assert!(shadowed.pending.is_none() && per_texel, "the shadowed frame draws per texel");
-}
-
-/// The engine and the graph model name no technique: a new technique never edits them, and
-/// no module cycle runs through them (doc comments may still link to techniques).
-#[test]
-fn the_engine_and_graph_model_import_no_technique() {
-    let allowed = ["engine", "node_kind", "scene_object", "paint", "picture", "choice_enum", "stage_type"];
-    let files = ["engine/mod.rs", "engine/cache.rs", "engine/graph.rs", "engine/key.rs", "engine/request.rs"];
-    let files = files.into_iter().chain(["engine/value.rs", "node_kind.rs", "scene_object.rs", "picture.rs"]);
-    for file in files {
-        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("src").join(file);
-        let source = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{file}: {e}"));
-        for (n, line) in source.lines().enumerate().filter(|(_, l)| !l.trim_start().starts_with("//")) {
-            for (at, _) in line.match_indices("crate::") {
-                let module: String =
-                    line[at + 7..].chars().take_while(|c| c.is_ascii_alphanumeric() || *c == '_').collect();
-                assert!(allowed.contains(&module.as_str()), "{file}:{}: imports `crate::{module}`", n + 1);
-            }
-        }
-    }
 }
 
 /// Transport parameters at their documented maxima once ran for minutes and took gigabytes;

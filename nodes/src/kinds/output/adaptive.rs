@@ -6,8 +6,8 @@ use crate::adaptive_sh::{
     AdaptiveIncident, AdaptiveInputs, AdaptiveSettings, Adjacency, LightProducts, ShadingWeights, adaptive_incident,
     full_incident, view_mse, view_psnr,
 };
+use crate::engine::spec::{ParamKind, ParamSpec, StageSpec};
 use crate::engine::{StageContext, StageError, StageValue};
-use crate::node_kind::{ParamKind, ParamSpec, StageSpec};
 use crate::prt::GlossyLobe;
 use crate::sh::ShRgb;
 use crate::transport::ShTransport;

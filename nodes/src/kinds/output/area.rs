@@ -14,13 +14,13 @@
 //!   face and the coefficient's index, so a stroke computes only the coefficients it newly keeps
 //!   and a move recomputes them all.
 
+use crate::engine::spec::{PortSpec, PortType, StageSpec};
 use crate::engine::{Key, StageContext, StageError, StageValue};
 use crate::kinds::area_light::AreaLight;
 use crate::near_field::{
     FaceTransport, FaceVisibility, TargetKeep, TopFace, face_visibility, irradiance, response_batch, responses, shade,
     visible_transport,
 };
-use crate::node_kind::{PortSpec, PortType, StageSpec};
 use crate::raycast::RayScene;
 use crate::transport::Receivers;
 use glam::DVec3;

@@ -3,8 +3,8 @@
 //! mode. Cached like every stage, so a second bake after an edit recomputes only what the edit
 //! touched (a material edit no transport, a light move no atlas).
 
+use crate::engine::spec::{ParamGroup, ParamKind, ParamSpec, StageSpec};
 use crate::engine::{Codec, StageContext, StageError, StageValue};
-use crate::node_kind::{ParamGroup, ParamKind, ParamSpec, StageSpec};
 
 /// The bake's settings, folded in the Output's inspector.
 pub const GROUPS: &[ParamGroup] = &[ParamGroup {
@@ -182,7 +182,7 @@ fn bake_atlas(ctx: &StageContext) -> Result<StageValue, StageError> {
     let density = ctx.float("bake_lightmap_density")? as f32;
     let padding = ctx.int("bake_lightmap_padding")? as u32;
     let cancel = ctx.cancel_token();
-    let atlas = crate::bake::lightmap::LightmapAtlas::build(meshes, density, padding, &|f| {
+    let atlas = crate::lightmap::LightmapAtlas::build(meshes, density, padding, &|f| {
         ctx.progress(f);
         !cancel.is_cancelled()
     });
@@ -201,7 +201,7 @@ fn bake_atlas(ctx: &StageContext) -> Result<StageValue, StageError> {
 
 /// The texels' SH transport, with the vertices' bands and rays.
 fn bake_texel_sh(ctx: &StageContext) -> Result<StageValue, StageError> {
-    let atlas = ctx.stage::<crate::bake::lightmap::LightmapAtlas>("bake_atlas")?;
+    let atlas = ctx.stage::<crate::lightmap::LightmapAtlas>("bake_atlas")?;
     let scene = ctx.required_input::<crate::raycast::RayScene>("scene", "ray_scene")?;
     let vertices = ctx.required_input::<crate::transport::ShTransport>("scene", "transport_sh")?;
     crate::kinds::scene::check_ray_budget(atlas.receivers.len(), vertices.rays, "the lightmap's texels per metre")?;
@@ -218,15 +218,15 @@ fn bake_texel_sh(ctx: &StageContext) -> Result<StageValue, StageError> {
 /// The texels' SH transport with the blocker spheres multiplied in (as `blocked_transport`
 /// per vertex).
 fn bake_texel_blocked(ctx: &StageContext) -> Result<StageValue, StageError> {
-    let atlas = ctx.stage::<crate::bake::lightmap::LightmapAtlas>("bake_atlas")?;
+    let atlas = ctx.stage::<crate::lightmap::LightmapAtlas>("bake_atlas")?;
     let transport = ctx.stage::<crate::transport::ShTransport>("bake_texel_sh")?;
     Ok(StageValue::new(super::with_blockers(ctx, transport, &atlas.receivers)?))
 }
 
-/// The square lights' lit cosine at every texel, traced ([`crate::bake::square_light_texels`]).
+/// The square lights' lit cosine at every texel, traced ([`crate::lightmap::square_light_texels`]).
 fn bake_texel_square_lights(ctx: &StageContext) -> Result<StageValue, StageError> {
-    use crate::bake::square_light_texels::{RINGS, SECTORS, SquareLightTexels, trace};
-    let atlas = ctx.stage::<crate::bake::lightmap::LightmapAtlas>("bake_atlas")?;
+    use crate::lightmap::square_light_texels::{RINGS, SECTORS, SquareLightTexels, trace};
+    let atlas = ctx.stage::<crate::lightmap::LightmapAtlas>("bake_atlas")?;
     let scene = ctx.required_input::<crate::raycast::RayScene>("scene", "ray_scene")?;
     let Some(lights) = ctx.input::<crate::rsl::WorldLights>("square_lights", "turned_lights")? else {
         return Ok(StageValue::new(SquareLightTexels::default()));
@@ -241,20 +241,20 @@ fn bake_texel_square_lights(ctx: &StageContext) -> Result<StageValue, StageError
 
 /// The area lights' top-face transport at every texel (as `area_transport` per vertex).
 fn bake_texel_area_transport(ctx: &StageContext) -> Result<StageValue, StageError> {
-    let atlas = ctx.stage::<crate::bake::lightmap::LightmapAtlas>("bake_atlas")?;
+    let atlas = ctx.stage::<crate::lightmap::LightmapAtlas>("bake_atlas")?;
     Ok(StageValue::new(super::area::transport_of(ctx, &atlas.receivers, "the lightmap's texels per metre")?))
 }
 
 /// The area lights' irradiance at every texel.
 fn bake_texel_area(ctx: &StageContext) -> Result<StageValue, StageError> {
-    let atlas = ctx.stage::<crate::bake::lightmap::LightmapAtlas>("bake_atlas")?;
+    let atlas = ctx.stage::<crate::lightmap::LightmapAtlas>("bake_atlas")?;
     let transports = ctx.stage::<super::area::AreaTransport>("bake_texel_area_transport")?;
     Ok(StageValue::new(super::area::irradiance_of(ctx, &atlas.receivers, transports)?))
 }
 
 /// The texels' local-frame visibility, at the vertices' depth and terms.
 fn bake_texel_local(ctx: &StageContext) -> Result<StageValue, StageError> {
-    let atlas = ctx.stage::<crate::bake::lightmap::LightmapAtlas>("bake_atlas")?;
+    let atlas = ctx.stage::<crate::lightmap::LightmapAtlas>("bake_atlas")?;
     let scene = ctx.required_input::<crate::raycast::RayScene>("scene", "ray_scene")?;
     let vertices = ctx.required_input::<crate::transport::SphericalTransport>("scene", "transport_local")?;
     let depth = vertices.depth;
@@ -285,7 +285,7 @@ fn bake_texel_residual_products(ctx: &StageContext) -> Result<StageValue, StageE
 }
 
 fn texel_products(ctx: &StageContext, environment: Option<&crate::cubemap::CubeMap>) -> Result<StageValue, StageError> {
-    let atlas = ctx.stage::<crate::bake::lightmap::LightmapAtlas>("bake_atlas")?;
+    let atlas = ctx.stage::<crate::lightmap::LightmapAtlas>("bake_atlas")?;
     let transport = ctx.stage::<crate::transport::SphericalTransport>("bake_texel_local")?;
     let terms: usize =
         ctx.choice("wavelet_terms")?.parse().map_err(|_| StageError::Internal("wavelet_terms".into()))?;
@@ -334,12 +334,12 @@ fn bake_probes(ctx: &StageContext) -> Result<StageValue, StageError> {
         }
         _ => None,
     };
-    let lighting = crate::bake::probes::ProbeLighting {
+    let lighting = crate::probes::ProbeLighting {
         points: lights.map_or(&[], |l| l.as_slice()),
         areas: areas.iter().map(|(_, a)| &a.emitter).collect(),
         fog: fogged.as_ref().map(|(beta, environment)| (*beta, environment)),
     };
-    let grid = crate::bake::probes::bake(
+    let grid = crate::probes::bake(
         scene,
         meshes.bounds(),
         ctx.float("bake_probe_spacing")?,
@@ -364,7 +364,7 @@ fn bake_environment(ctx: &StageContext) -> Result<StageValue, StageError> {
     let size: usize =
         ctx.choice("bake_cube_size")?.parse().map_err(|_| StageError::Internal("bake_cube_size".into()))?;
     let sh = sh.truncated(3);
-    let specular = crate::bake::environment::prefilter(cube, size, ctx.cancel_token())?;
+    let specular = crate::specular_cube::prefilter(cube, size, ctx.cancel_token())?;
     ctx.inform(format!("specular cube {}² with {} roughness levels", specular.levels[0].size, specular.levels.len()));
-    Ok(StageValue::new(crate::bake::environment::EnvironmentBake { sh, cube: specular }))
+    Ok(StageValue::new(crate::specular_cube::EnvironmentBake { sh, cube: specular }))
 }

@@ -1,8 +1,10 @@
 //! Output node: what the viewport and `lightloom render` draw, and how (relighting mode,
 //! exposure, tone mapping).
 
+use crate::engine::spec::{
+    Availability, NodeKindSpec, ParamKind, ParamSpec, ParamValue, PortSpec, PortType, StageSpec,
+};
 use crate::engine::{Graph, GraphNode, StageContext, StageError, StageValue};
-use crate::node_kind::{Availability, NodeKindSpec, ParamKind, ParamSpec, ParamValue, PortSpec, PortType, StageSpec};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -326,6 +328,7 @@ pub fn spec() -> NodeKindSpec {
         availability: Availability::Ready,
         relevant: relevant_to_mode,
         groups: bake::GROUPS,
+        referenced_files: crate::engine::spec::no_referenced_files,
     }
 }
 

@@ -3,8 +3,8 @@
 //! without its sun. The viewport shadows the disc (`render/src/passes/sun.rs`).
 
 use super::{Mode, incident_from, output_mode_and_view, wavelet_grid};
+use crate::engine::spec::{ParamKind, ParamSpec, ParamValue};
 use crate::engine::{Graph, StageContext, StageError, StageValue};
-use crate::node_kind::{ParamKind, ParamSpec, ParamValue};
 
 /// The Output parameter choosing whether the environment's sun is lit apart from the
 /// transport ([`crate::sun`]).

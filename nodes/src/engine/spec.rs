@@ -417,6 +417,10 @@ pub struct NodeKindSpec {
     pub relevant: RelevantFn,
     /// Parameters the inspector folds under a header of their own (the rest come first).
     pub groups: &'static [ParamGroup],
+    /// Files a parameter's file refers to (a `.gltf`'s buffers and images), whose content keys
+    /// the node's stages as the file's own does: editing a `.bin` next to a `.gltf` recomputes
+    /// what reads it. [`no_referenced_files`] for kinds whose files stand alone.
+    pub referenced_files: ReferencedFilesFn,
 }
 
 /// Parameters shown together under a collapsible header, closed at first.
@@ -425,6 +429,15 @@ pub struct ParamGroup {
     pub label: &'static str,
     pub doc: &'static str,
     pub params: &'static [&'static str],
+}
+
+/// The files a file refers to, resolved against its folder (see
+/// [`NodeKindSpec::referenced_files`]).
+pub type ReferencedFilesFn = fn(&std::path::Path) -> Vec<std::path::PathBuf>;
+
+/// For kinds whose files refer to no others.
+pub fn no_referenced_files(_: &std::path::Path) -> Vec<std::path::PathBuf> {
+    Vec::new()
 }
 
 /// Reads the node's parameter values (by name) and says whether parameter `name` matters.

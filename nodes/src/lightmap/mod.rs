@@ -8,6 +8,8 @@
 //! take the mean of their filled neighbours, `padding` rings deep, so bilinear filtering at a
 //! chart's edge reads light from that chart.
 
+pub mod square_light_texels;
+
 use crate::mesh::MeshSet;
 use crate::transport::Receivers;
 use serde::{Deserialize, Serialize};

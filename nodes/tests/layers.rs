@@ -1,0 +1,197 @@
+//! The crate's layers, read from its source: plain data and techniques at the bottom, the engine
+//! beside them, the node kinds above the techniques, frame assembly above the kinds, and the
+//! bake above the frame. A module never imports one above it, so no import circle forms and a
+//! technique can be read, tested and reused without the node layer.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::{Path, PathBuf};
+
+/// The layers above the techniques, lowest first. Every other top-level module is a technique
+/// or plain data.
+const LAYERS: &[&str] = &["engine", "kinds", "frame", "project", "bake", "fuzzing"];
+
+/// What the engine (the graph model, keys, caches, scheduling) may name: itself and the plain
+/// data its parameters carry. A new technique or kind never edits it.
+const ENGINE_MAY_IMPORT: &[&str] = &["engine", "scene_object", "paint", "picture", "choice_enum", "stage_type"];
+
+/// Longest non-test source file, in lines.
+const MAX_FILE_LINES: usize = 800;
+
+fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
+    for entry in std::fs::read_dir(dir).unwrap_or_else(|e| panic!("{}: {e}", dir.display())) {
+        let path = entry.unwrap().path();
+        if path.is_dir() {
+            rust_files(&path, out);
+        } else if path.extension().is_some_and(|e| e == "rs") {
+            out.push(path);
+        }
+    }
+}
+
+/// Whether a file holds tests only (`tests.rs`, anything under a `tests/` or `ui_tests/`
+/// folder, benches and integration tests).
+fn is_test_file(relative: &Path) -> bool {
+    relative.file_name().is_some_and(|n| n == "tests.rs")
+        || relative.components().any(|c| matches!(c.as_os_str().to_str(), Some("tests" | "ui_tests" | "benches")))
+}
+
+/// The file's code before its inline `#[cfg(test)] mod tests`, with comment lines blanked (so
+/// line numbers stay right).
+fn code_of(source: &str) -> Vec<&str> {
+    let mut lines: Vec<&str> = Vec::new();
+    let mut it = source.lines().peekable();
+    while let Some(line) = it.next() {
+        let inline_tests = |next: &&str| next.trim_start().starts_with("mod ") && next.trim_end().ends_with('{');
+        if line.trim() == "#[cfg(test)]" && it.peek().is_some_and(inline_tests) {
+            break;
+        }
+        lines.push(if line.trim_start().starts_with("//") { "" } else { line });
+    }
+    lines
+}
+
+/// The top-level module a `src/`-relative path belongs to (`frame/gather.rs` → `frame`).
+fn unit_of(relative: &Path) -> String {
+    let first = relative.components().next().unwrap().as_os_str().to_string_lossy().into_owned();
+    first.strip_suffix(".rs").map(str::to_owned).unwrap_or(first)
+}
+
+/// Every `crate::NAME` a line names.
+fn crate_names(line: &str) -> impl Iterator<Item = String> + '_ {
+    line.match_indices("crate::")
+        .map(move |(at, _)| line[at + 7..].chars().take_while(|c| c.is_ascii_alphanumeric() || *c == '_').collect())
+}
+
+/// `unit → imported unit → where`, over the crate's non-test code.
+fn imports() -> BTreeMap<String, BTreeMap<String, Vec<String>>> {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
+    let mut files = Vec::new();
+    rust_files(&src, &mut files);
+    let mut graph: BTreeMap<String, BTreeMap<String, Vec<String>>> = BTreeMap::new();
+    for path in files {
+        let relative = path.strip_prefix(&src).unwrap().to_path_buf();
+        if is_test_file(&relative) || relative == Path::new("lib.rs") {
+            continue;
+        }
+        let unit = unit_of(&relative);
+        let source = std::fs::read_to_string(&path).unwrap();
+        let edges = graph.entry(unit.clone()).or_default();
+        for (n, line) in code_of(&source).into_iter().enumerate() {
+            for name in crate_names(line).filter(|name| *name != unit) {
+                edges.entry(name).or_default().push(format!("{}:{}", relative.display(), n + 1));
+            }
+        }
+    }
+    graph
+}
+
+/// A circle through `from`, if any (depth-first, each unit once).
+fn circle(graph: &BTreeMap<String, BTreeMap<String, Vec<String>>>, from: &str) -> Option<Vec<String>> {
+    fn walk(
+        graph: &BTreeMap<String, BTreeMap<String, Vec<String>>>,
+        at: &str,
+        target: &str,
+        path: &mut Vec<String>,
+        seen: &mut BTreeSet<String>,
+    ) -> bool {
+        for next in graph.get(at).into_iter().flat_map(|e| e.keys()) {
+            if next == target {
+                return true;
+            }
+            if seen.insert(next.clone()) {
+                path.push(next.clone());
+                if walk(graph, next, target, path, seen) {
+                    return true;
+                }
+                path.pop();
+            }
+        }
+        false
+    }
+    let mut path = vec![from.to_owned()];
+    walk(graph, from, from, &mut path, &mut BTreeSet::new()).then_some(path)
+}
+
+#[test]
+fn the_crate_has_no_import_circle() {
+    let graph = imports();
+    for unit in graph.keys() {
+        if let Some(path) = circle(&graph, unit) {
+            let hops: Vec<String> = path
+                .iter()
+                .zip(path.iter().cycle().skip(1))
+                .map(|(a, b)| format!("{a} → {b} ({})", graph[a][b][0]))
+                .collect();
+            panic!("an import circle: {}", hops.join(", "));
+        }
+    }
+}
+
+#[test]
+fn techniques_import_no_layer_above_them() {
+    let graph = imports();
+    assert!(graph.contains_key("brdf") && graph.contains_key("frame"), "the crate's modules were found");
+    for (unit, edges) in graph.iter().filter(|(unit, _)| !LAYERS.contains(&unit.as_str())) {
+        let above = ["kinds", "frame", "project", "bake"];
+        if let Some((name, at)) = edges.iter().find(|(name, _)| above.contains(&name.as_str())) {
+            panic!("the technique `{unit}` imports `crate::{name}` ({}): techniques sit below the node layer", at[0]);
+        }
+    }
+    // Each layer imports only those below it.
+    for (i, layer) in LAYERS.iter().enumerate() {
+        for above in &LAYERS[i + 1..] {
+            if let Some(at) = graph.get(*layer).and_then(|e| e.get(*above)) {
+                panic!("`{layer}` imports `crate::{above}` ({}), a layer above it", at[0]);
+            }
+        }
+    }
+}
+
+#[test]
+fn the_engine_imports_no_technique() {
+    let graph = imports();
+    for (name, at) in &graph["engine"] {
+        assert!(ENGINE_MAY_IMPORT.contains(&name.as_str()), "the engine imports `crate::{name}` ({})", at[0]);
+    }
+}
+
+/// Files split by concern stay readable: none of the workspace's non-test sources is longer
+/// than [`MAX_FILE_LINES`], inline tests included (long tests move to a `tests.rs` beside).
+#[test]
+fn no_source_file_is_over_800_lines() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).parent().unwrap();
+    let mut long = Vec::new();
+    for krate in ["nodes", "render", "app"] {
+        let src = root.join(krate).join("src");
+        let mut files = Vec::new();
+        rust_files(&src, &mut files);
+        for path in files {
+            let relative = path.strip_prefix(&src).unwrap();
+            if is_test_file(relative) {
+                continue;
+            }
+            let source = std::fs::read_to_string(&path).unwrap();
+            let lines = source.lines().count();
+            if lines > MAX_FILE_LINES {
+                long.push(format!("{krate}/src/{} ({lines} lines)", relative.display()));
+            }
+        }
+    }
+    assert!(long.is_empty(), "over {MAX_FILE_LINES} lines, tests aside: {}", long.join(", "));
+}
+
+/// The checks see what they should: a circle and a file's inline tests.
+#[test]
+fn the_checks_find_a_circle_and_skip_inline_tests() {
+    let mut graph: BTreeMap<String, BTreeMap<String, Vec<String>>> = BTreeMap::new();
+    graph.entry("a".into()).or_default().insert("b".into(), vec!["a.rs:1".into()]);
+    graph.entry("b".into()).or_default().insert("c".into(), vec!["b.rs:1".into()]);
+    assert_eq!(circle(&graph, "a"), None);
+    graph.entry("c".into()).or_default().insert("a".into(), vec!["c.rs:1".into()]);
+    assert_eq!(circle(&graph, "a"), Some(vec!["a".to_owned(), "b".to_owned(), "c".to_owned()]));
+    let code = code_of(
+        "#[cfg(test)]\nmod tests;\nuse crate::x;\n// crate::y\n#[cfg(test)]\nmod tests {\n    use crate::z;\n}\n",
+    );
+    let names: Vec<String> = code.iter().flat_map(|l| crate_names(l)).collect();
+    assert_eq!(names, ["x"]);
+}

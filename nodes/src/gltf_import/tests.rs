@@ -1,3 +1,4 @@
+
 use super::*;
 
 fn assets() -> std::path::PathBuf {
@@ -99,9 +100,9 @@ fn a_stride_smaller_than_an_element_is_an_error() {
     let buffer = triangle_buffer([[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]);
     let json = format!(
         r#"{{"asset":{{"version":"2.0"}},"buffers":[{buffer}],
-        "bufferViews":[{{"buffer":0,"byteLength":36,"byteStride":4}}],
-        "accessors":[{{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3","min":[0,0,0],"max":[1,1,0]}}],
-        "meshes":[{{"primitives":[{{"attributes":{{"POSITION":0}}}}]}}],"nodes":[{{"mesh":0}}],"scenes":[{{"nodes":[0]}}],"scene":0}}"#
+            "bufferViews":[{{"buffer":0,"byteLength":36,"byteStride":4}}],
+            "accessors":[{{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3","min":[0,0,0],"max":[1,1,0]}}],
+            "meshes":[{{"primitives":[{{"attributes":{{"POSITION":0}}}}]}}],"nodes":[{{"mesh":0}}],"scenes":[{{"nodes":[0]}}],"scene":0}}"#
     );
     let e = import_json("small-stride", &json).unwrap_err();
     assert!(e.contains("byteStride 4 is smaller than one element (12 bytes)"), "{e}");
@@ -115,8 +116,8 @@ fn node_hierarchies_that_multiply_are_capped() {
     nodes.push(r#"{"mesh":0}"#.into());
     let json = format!(
         r#"{{"asset":{{"version":"2.0"}},"buffers":[{buffer}],"bufferViews":[{{"buffer":0,"byteLength":36}}],
-        "accessors":[{{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3","min":[0,0,0],"max":[1,1,0]}}],
-        "meshes":[{{"primitives":[{{"attributes":{{"POSITION":0}}}}]}}],"nodes":[{}],"scenes":[{{"nodes":[0]}}],"scene":0}}"#,
+            "accessors":[{{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3","min":[0,0,0],"max":[1,1,0]}}],
+            "meshes":[{{"primitives":[{{"attributes":{{"POSITION":0}}}}]}}],"nodes":[{}],"scenes":[{{"nodes":[0]}}],"scene":0}}"#,
         nodes.join(",")
     );
     let e = import_json("dag", &json).unwrap_err();
@@ -167,11 +168,11 @@ fn normal_textures_are_found_by_material() {
     assert!(e.contains("ClearCoatTest.gltf") && e.contains("`Simple_Base` has no normal texture"), "{e}");
     let json = std::fs::read_to_string(&file).unwrap().replacen(
         r#""normalTexture" : {
-            "index" : 3,
-            "texCoord" : 0"#,
+                "index" : 3,
+                "texCoord" : 0"#,
         r#""normalTexture" : {
-            "index" : 3,
-            "texCoord" : 1"#,
+                "index" : 3,
+                "texCoord" : 1"#,
         1,
     );
     assert!(json.contains(r#""texCoord" : 1"#), "the asset's layout changed");

@@ -20,11 +20,47 @@ struct Fog {
     specular: array<vec4<f32>, 8>,
     light_position: array<vec4<f32>, 8>,
     light_intensity: array<vec4<f32>, 8>,
+    // Per light: its angular profile's axis (xyz; w: 1 when it has a profile, else isotropic)
+    // and the profile's phi = 0 direction (nodes/src/light.rs `AngularProfile`).
+    light_axis: array<vec4<f32>, 8>,
+    light_x: array<vec4<f32>, 8>,
 };
 
 @group(1) @binding(0) var<uniform> fog: Fog;
 @group(1) @binding(1) var f_tables: texture_2d_array<f32>;
 @group(1) @binding(2) var g_table: texture_2d_array<f32>;
+// One layer per light: the profile over (phi, theta), theta from 0 to pi over the rows.
+@group(1) @binding(3) var light_profiles: texture_2d_array<f32>;
+
+// Light `i`'s angular profile towards the unit vector `dir` leaving it (1 when isotropic),
+// bilinear in theta and phi as nodes/src/light.rs `AngularProfile::toward` reads it.
+fn light_profile(i: i32, dir: vec3<f32>) -> f32 {
+    if (fog.light_axis[i].w < 0.5) {
+        return 1.0;
+    }
+    let z = fog.light_axis[i].xyz;
+    let x = fog.light_x[i].xyz;
+    let y = cross(z, x);
+    let dims = textureDimensions(light_profiles);
+    let cols = i32(dims.x);
+    let rows = i32(dims.y);
+    let theta = acos(clamp(dot(dir, z), -1.0, 1.0));
+    var phi = atan2(dot(dir, y), dot(dir, x));
+    if (phi < 0.0) {
+        phi = phi + 2.0 * PI;
+    }
+    let fy = clamp(theta / PI, 0.0, 1.0) * f32(rows - 1);
+    let fx = phi / (2.0 * PI) * f32(cols);
+    let y0 = min(i32(floor(fy)), rows - 1);
+    let y1 = min(y0 + 1, rows - 1);
+    let x0 = i32(floor(fx)) % cols;
+    let x1 = (x0 + 1) % cols;
+    let ty = fy - floor(fy);
+    let tx = fx - floor(fx);
+    let top = mix(textureLoad(light_profiles, vec2<i32>(x0, y0), i, 0).x, textureLoad(light_profiles, vec2<i32>(x1, y0), i, 0).x, tx);
+    let bottom = mix(textureLoad(light_profiles, vec2<i32>(x0, y1), i, 0).x, textureLoad(light_profiles, vec2<i32>(x1, y1), i, 0).x, tx);
+    return mix(top, bottom, ty);
+}
 
 const FOG_U_MAX: f32 = 64.0;
 const FOG_U_WARP: f32 = 4.0;
@@ -197,9 +233,11 @@ fn fog_shade(lit_in: vec3<f32>, p: vec3<f32>, n: vec3<f32>, tangent: vec3<f32>, 
         var surface = lit[c];
         var air = 0.0;
         for (var i = 0; i < i32(fog.counts.x); i = i + 1) {
-            let i0 = fog.light_intensity[i][c];
             let to_light = fog.light_position[i].xyz - p;
             let d_sp = max(length(to_light), 1e-4);
+            // A profiled light: its intensity towards this point lights the surface; its airlight
+            // (eq. 3.16 holds for isotropic lights) takes its intensity towards the viewer.
+            let i0 = fog.light_intensity[i][c] * light_profile(i, -to_light / d_sp);
             let cos_s = dot(to_light / d_sp, n);
             let t_sp = beta * d_sp;
             let direct = exp(-t_sp) / (d_sp * d_sp);
@@ -235,7 +273,8 @@ fn fog_shade(lit_in: vec3<f32>, p: vec3<f32>, n: vec3<f32>, tangent: vec3<f32>, 
                 let to_source = fog.light_position[i].xyz - viewer;
                 let d_sv = max(length(to_source), 1e-4);
                 let gamma = fog_angle(view, to_source / d_sv);
-                air = air + fog_airlight(beta, d_sv, d_vp, gamma, i0);
+                let i_air = fog.light_intensity[i][c] * light_profile(i, -to_source / d_sv);
+                air = air + fog_airlight(beta, d_sv, d_vp, gamma, i_air);
             }
             surface = surface + i0 * (kd[c] * reflected + ks[c] * specular);
         }
@@ -259,7 +298,9 @@ fn fog_background(env: vec3<f32>, dir: vec3<f32>) -> vec3<f32> {
             let to_source = fog.light_position[i].xyz - viewer;
             let d_sv = max(length(to_source), 1e-4);
             let gamma = fog_angle(dir, to_source / d_sv);
-            air = air + fog_airlight(fog.beta[c], d_sv, -1.0, gamma, fog.light_intensity[i][c]);
+            // A profiled light glows as bright as it shines back at the viewer.
+            let i0 = fog.light_intensity[i][c] * light_profile(i, -to_source / d_sv);
+            air = air + fog_airlight(fog.beta[c], d_sv, -1.0, gamma, i0);
         }
         out[c] = out[c] + air;
     }

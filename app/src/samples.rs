@@ -11,29 +11,9 @@
 use anyhow::{Context, Result, bail};
 use std::path::{Path, PathBuf};
 
-/// A file of the samples: its path in the repository, and its bytes.
-macro_rules! file {
-    ($path:literal) => {
-        ($path, include_bytes!(concat!(env!("CARGO_MANIFEST_DIR"), "/../", $path)).as_slice())
-    };
-}
-
-/// Every file the samples read: the projects, their textures and the assets they name.
-const FILES: &[(&str, &[u8])] = &[
-    file!("projects/samples/area_light.ron"),
-    file!("projects/samples/engine.ron"),
-    file!("projects/samples/fog_street.ron"),
-    file!("projects/samples/glossy_courtyard.ron"),
-    file!("projects/samples/hammered_metal.ron"),
-    file!("projects/samples/square_lights.ron"),
-    file!("projects/samples/textures/bumps.png"),
-    file!("assets/envmaps/LICENSE.txt"),
-    file!("assets/envmaps/courtyard.hdr"),
-    file!("assets/envmaps/night.hdr"),
-    file!("assets/envmaps/studio.hdr"),
-    file!("assets/gltf/COPYRIGHT-assimp-testmodels.txt"),
-    file!("assets/gltf/assimp-glTF2/2CylinderEngine-glTF-Binary/2CylinderEngine.glb"),
-];
+/// Every file the samples read, as `(path in the repository, bytes)`: the projects, their
+/// textures and the assets they name, with those assets' licences (listed by `build.rs`).
+const FILES: &[(&str, &[u8])] = include!(concat!(env!("OUT_DIR"), "/sample_files.rs"));
 
 /// Where the sample projects sit among [`FILES`].
 const PROJECTS: &str = "projects/samples/";

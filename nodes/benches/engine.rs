@@ -45,6 +45,7 @@ fn registry() -> &'static [NodeKindSpec] {
         }],
         stages: vec![stage("a", &[], &[("in", "medium")]), stage("b", &["a"], &[]), stage("medium", &["b"], &[])],
         previews: Vec::new(),
+        gizmo: lightloom_nodes::engine::spec::GizmoSpec::None,
         availability: Availability::Ready,
         relevant: lightloom_nodes::engine::spec::always_relevant,
         groups: &[],

@@ -252,9 +252,10 @@ pub fn bake(
                     continue;
                 }
                 let (y, fade) = (basis.eval_vec(l), attenuation(d));
+                let intensity = light.intensity_toward(-l);
                 for (s, y) in sum.iter_mut().zip(&y) {
                     for c in 0..3 {
-                        s[c] += light.intensity[c] * fade[c] / (d * d) * y;
+                        s[c] += intensity[c] * fade[c] / (d * d) * y;
                     }
                 }
             }

@@ -173,6 +173,9 @@ pub struct ReferenceScene<'a> {
     pub blockers: &'a [crate::sh_exponential::Blocker],
     /// Painted area lights (not seen by camera rays, as in the viewport).
     pub area_lights: &'a [AreaEmitter],
+    /// Point lights, with their profiles (not seen by camera rays), shadowed by the scene and
+    /// the blockers.
+    pub point_lights: &'a [crate::light::PointLight],
     /// Per mesh, the normal map its shading normal is perturbed by and the map's repeats per
     /// unit of UV (in the frame of its normal, tangent and `± n × t` by the vertices'
     /// handedness, at the hit's UV); none
@@ -330,6 +333,24 @@ fn direct_lighting(
             if pb > 0.0 && visible(wi_world) {
                 total += f * env.radiance(wi_world) * wi.z / (pe + pb);
             }
+        }
+    }
+    // Point lights: each one's direct light, `f · I(ω) cos θ / d²`, where nothing blocks it.
+    for light in rs.point_lights {
+        let to_light = DVec3::from(light.position) - hit.position;
+        let dist = to_light.length();
+        if dist <= 1e-9 {
+            continue;
+        }
+        let wi_world = to_light / dist;
+        let wi = to_local * wi_world;
+        if wi.z <= 0.0 || wi_world.dot(hit.geometric) <= 0.0 {
+            continue;
+        }
+        let blocked = rs.blockers.iter().any(|b| segment_hits_sphere(hit.position, wi_world, dist, b))
+            || rs.scene.occluded(origin, Vec3A::from(wi_world.as_vec3()), (dist * (1.0 - 1e-6)) as f32);
+        if !blocked {
+            total += brdf.eval(wi, wo) * DVec3::from(light.intensity_toward(-wi_world)) * wi.z / (dist * dist);
         }
     }
     // One sample of each area light (they are not geometry, so BRDF samples never reach them).
@@ -522,6 +543,7 @@ mod tests {
             background: false,
             blockers: &[],
             area_lights: &[],
+            point_lights: &[],
             normal_maps: &[],
         }
     }

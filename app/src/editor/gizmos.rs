@@ -1,10 +1,12 @@
-//! Gizmos in the viewport: every point light drawn where it is (filled when it lights the
-//! output, hollow when it is not linked), every blocker sphere as its outline, and every
+//! Gizmos in the viewport: every light whose kind declares a light gizmo
+//! ([`GizmoSpec::Light`]) drawn where it is (filled when it lights the output, hollow when it
+//! is not linked; a spot with a line along its aim), every blocker sphere as its outline, and every
 //! painted area light as its rectangle with a centre handle and four edge handles. A click
 //! selects the node; a drag moves the light, the sphere or the area light in the view plane, and
 //! an edge handle resizes the area light about its centre (one undo step per drag).
 
 use super::*;
+use lightloom_nodes::engine::spec::GizmoSpec;
 
 /// Pointer distance, in points, within which a light's gizmo (or a sphere's centre) is hit.
 const HIT_RADIUS: f32 = 12.0;
@@ -16,20 +18,13 @@ const EDGE_HIT: f32 = 7.0;
 /// What a gizmo stands for.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(super) enum GizmoTarget {
-    Light,
+    /// A light; dragging sets its `position` parameter. `aim`: the way it shines, if it has one.
+    Light { position: &'static str, aim: Option<[f64; 3]> },
     /// A painted area light's rectangle (metres), turned by `angle` degrees about the vertical.
-    AreaLight {
-        width: f64,
-        depth: f64,
-        angle: f64,
-    },
+    AreaLight { width: f64, depth: f64, angle: f64 },
     /// Sphere `index` of a blocker set, of `radius` metres; `fitted` when the set is fitted to a
     /// model (its spheres come from the fit, and a drag moves the whole set).
-    Sphere {
-        index: usize,
-        radius: f64,
-        fitted: bool,
-    },
+    Sphere { index: usize, radius: f64, fitted: bool },
 }
 
 pub(super) struct Gizmo {
@@ -121,7 +116,7 @@ fn preview_light(
 impl Gizmo {
     fn gizmo_id(&self) -> GizmoId {
         let sphere = match self.target {
-            GizmoTarget::Light | GizmoTarget::AreaLight { .. } => None,
+            GizmoTarget::Light { .. } | GizmoTarget::AreaLight { .. } => None,
             GizmoTarget::Sphere { index, .. } => Some(index),
         };
         GizmoId { node: self.id.clone(), sphere, edge: None }
@@ -180,21 +175,25 @@ impl EditorApp {
         for n in &self.doc.project.nodes {
             let Some(spec) = lightloom_nodes::kinds::kind(&n.kind) else { continue };
             let value = |name: &str| spec.param(name).map(|s| inspector::param_value(&self.doc.project, &n.id, s));
+            if let GizmoSpec::Light { position, colour, aim } = spec.gizmo {
+                let (Some(ParamValue::Vec3(at)), Some(ParamValue::Color(rgb))) = (value(position), value(colour))
+                else {
+                    continue;
+                };
+                let aim = aim.and_then(|name| match value(name) {
+                    Some(ParamValue::Vec3(aim)) => Some(aim),
+                    _ => None,
+                });
+                out.push(Gizmo {
+                    id: n.id.clone(),
+                    target: GizmoTarget::Light { position, aim },
+                    position: at,
+                    colour: full_brightness(rgb),
+                    linked: linked(&n.id),
+                });
+                continue;
+            }
             match n.kind.as_str() {
-                "PointLight" => {
-                    let (Some(ParamValue::Vec3(position)), Some(ParamValue::Color(intensity))) =
-                        (value("position"), value("intensity"))
-                    else {
-                        continue;
-                    };
-                    out.push(Gizmo {
-                        id: n.id.clone(),
-                        target: GizmoTarget::Light,
-                        position,
-                        colour: full_brightness(intensity),
-                        linked: linked(&n.id),
-                    });
-                }
                 "AreaLightPainter" => {
                     let (Some(ParamValue::Vec3(position)), Some(ParamValue::Color(tint))) =
                         (value("position"), value("tint"))
@@ -283,7 +282,7 @@ impl EditorApp {
             .filter_map(|g| {
                 let d = screen_pos(&camera, rect, g.position)?.distance(pos);
                 let hit = match g.target {
-                    GizmoTarget::Light | GizmoTarget::AreaLight { .. } => d <= HIT_RADIUS,
+                    GizmoTarget::Light { .. } | GizmoTarget::AreaLight { .. } => d <= HIT_RADIUS,
                     // A sphere by its centre or its outline, so the objects it stands in for
                     // stay pickable; never from inside it.
                     GizmoTarget::Sphere { radius, .. } => {
@@ -335,7 +334,16 @@ impl EditorApp {
             let is_selected = selected == Some(g.id.as_str());
             let outline = if is_selected { Color32::from_rgb(255, 200, 80) } else { Color32::BLACK };
             let label = match g.target {
-                GizmoTarget::Light => {
+                GizmoTarget::Light { aim, .. } => {
+                    // A spot's aim: a line half a metre along it.
+                    let aimed = aim.and_then(|aim| {
+                        let aim = glam::DVec3::from(aim).try_normalize()?;
+                        screen_pos(&camera, rect, (glam::DVec3::from(g.position) + aim * 0.5).to_array())
+                    });
+                    if let Some(to) = aimed {
+                        painter.line_segment([at, to], egui::Stroke::new(2.0, g.colour));
+                        painter.circle_filled(to, 2.5, g.colour);
+                    }
                     for i in 0..8 {
                         let angle = i as f32 * std::f32::consts::FRAC_PI_4;
                         let dir = egui::vec2(angle.cos(), angle.sin());
@@ -395,7 +403,7 @@ impl EditorApp {
                 }
             };
             let hovered = hovered_id.as_ref().is_some_and(|h| h.node == g.id && h.sphere == g.gizmo_id().sphere);
-            if hovered || (is_selected && g.target == GizmoTarget::Light) {
+            if hovered || (is_selected && matches!(g.target, GizmoTarget::Light { .. })) {
                 let galley = painter.layout_no_wrap(label, egui::FontId::proportional(12.0), Color32::WHITE);
                 let corner = at + egui::vec2(14.0, -8.0);
                 painter.rect_filled(
@@ -453,7 +461,10 @@ impl EditorApp {
                 let half = (moved - glam::DVec3::from(gizmo.position)).dot(axis.normalize_or_zero());
                 Some((edge.param(), ParamValue::Float((2.0 * half).clamp(0.01, 1e3))))
             }
-            (None, None) => Some(("position", ParamValue::Vec3(moved))),
+            (None, None) => match gizmo.target {
+                GizmoTarget::Light { position, .. } => Some((position, ParamValue::Vec3(moved))),
+                _ => Some(("position", ParamValue::Vec3(moved))),
+            },
             (Some(_), None) if matches!(gizmo.target, GizmoTarget::Sphere { fitted: true, .. }) => {
                 // A fitted sphere moves its whole set.
                 self.sphere_transform(&id.node).map(|t| {

@@ -370,8 +370,17 @@ pub fn write_glb(scene: &ExportScene) -> Result<Glb, String> {
         use_extension("KHR_lights_punctual");
         for (i, light) in scene.lights.iter().enumerate() {
             use json::extensions::scene::khr_lights_punctual as punctual;
-            let peak = light.intensity.iter().fold(0.0f64, |m, &c| m.max(c));
-            let color = light.intensity.map(|c| if peak > 0.0 { (c / peak) as f32 } else { 1.0 });
+            // A profiled light keeps its cone as a glTF spot (its profile within the cone is
+            // not carried), or else its mean intensity as a point light.
+            let (intensity, spot) = match light.profile.as_deref() {
+                None => (light.intensity, None),
+                Some(p) => match p.cone {
+                    Some((inner, outer)) => (light.intensity, Some((inner, outer, p.frame.z_axis))),
+                    None => (light.flux().map(|f| f / (4.0 * std::f64::consts::PI)), None),
+                },
+            };
+            let peak = intensity.iter().fold(0.0f64, |m, &c| m.max(c));
+            let color = intensity.map(|c| if peak > 0.0 { (c / peak) as f32 } else { 1.0 });
             let lights: &mut Vec<punctual::Light> = root.as_mut();
             lights.push(punctual::Light {
                 color,
@@ -380,12 +389,22 @@ pub fn write_glb(scene: &ExportScene) -> Result<Glb, String> {
                 intensity: peak as f32,
                 name: Some(format!("point light {}", i + 1)),
                 range: None,
-                spot: None,
-                type_: Valid(punctual::Type::Point),
+                spot: spot.map(|(inner, outer, _)| {
+                    let outer = outer.min(std::f64::consts::FRAC_PI_2);
+                    punctual::Spot { inner_cone_angle: inner.min(outer * 0.999) as f32, outer_cone_angle: outer as f32 }
+                }),
+                type_: Valid(if spot.is_some() { punctual::Type::Spot } else { punctual::Type::Point }),
+            });
+            // glTF lights shine along their node's −Z.
+            let rotation = spot.map(|(_, _, axis)| {
+                json::scene::UnitQuaternion(
+                    DQuat::from_rotation_arc(DVec3::NEG_Z, axis).as_quat().normalize().to_array(),
+                )
             });
             nodes.push(root.push(json::Node {
                 name: Some(format!("point light {}", i + 1)),
                 translation: Some(light.position.map(|c| c as f32)),
+                rotation,
                 extensions: Some(json::extensions::scene::Node {
                     khr_lights_punctual: Some(json::extensions::scene::khr_lights_punctual::KhrLightsPunctual {
                         light: json::Index::new(i as u32),

@@ -341,13 +341,14 @@ impl<'a> PointLightShading<'a> {
                         .length() as f32;
                     !scene.occluded(origin, direction, tmax * (1.0 - 1e-4))
                 });
+            let intensity = light.intensity_toward(-l);
             for c in 0..3 {
                 let beta = self.fog.map_or(0.0, |f| f.0[c]);
                 let direct = if visible { (-beta * d).exp() / (d * d) * cos } else { 0.0 };
                 let scattered = self.fog.map_or(0.0, |(_, g)| {
                     crate::single_scattering::surface_scattered(beta, d, cos.clamp(-1.0, 1.0).acos(), 1.0, g)
                 });
-                out[c] += light.intensity[c] * (direct + scattered) / PI;
+                out[c] += intensity[c] * (direct + scattered) / PI;
             }
         }
         out

@@ -411,6 +411,8 @@ pub struct NodeKindSpec {
     pub stages: Vec<StageSpec>,
     /// Pictures the graph editor shows in the node (none for most kinds).
     pub previews: Vec<PreviewSpec>,
+    /// How the viewport draws the node and what dragging it edits.
+    pub gizmo: GizmoSpec,
     pub availability: Availability,
     /// Whether parameter `name` matters, given the node's parameter values (the inspector
     /// shows only those; evaluation reads every parameter regardless).
@@ -464,6 +466,17 @@ impl NodeKindSpec {
     pub fn stage(&self, name: &str) -> Option<&StageSpec> {
         self.stages.iter().find(|s| s.name == name)
     }
+}
+
+/// A node's handle in the viewport, named by the parameters it shows and edits.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum GizmoSpec {
+    /// None (or one the editor draws for that kind alone).
+    #[default]
+    None,
+    /// A light at the `Vec3` parameter `position`, in the colour of the `Color` parameter
+    /// `colour`, shining along the `Vec3` parameter `aim` when it has one. Dragging moves it.
+    Light { position: &'static str, colour: &'static str, aim: Option<&'static str> },
 }
 
 /// A picture a node shows in the graph editor, made from some of its stages.

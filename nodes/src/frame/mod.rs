@@ -196,6 +196,7 @@ impl FrameInputs {
             // casts nothing (fractional strengths are an artistic fade it does not model).
             blockers: self.blockers.as_ref().filter(|b| b.strength > 0.0).map_or(&[], |b| b.blockers.as_slice()),
             area_lights: self.area_lights.as_ref().map_or(&[], |a| a.emitters.as_slice()),
+            point_lights: &self.medium.lights,
             normal_maps: &normal_maps,
         };
         crate::reference::render(&rs, camera, size, self.settings.reference_samples, seed, cancel, progress)

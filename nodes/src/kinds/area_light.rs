@@ -231,6 +231,7 @@ pub fn spec() -> NodeKindSpec {
             size: [96.0, 96.0],
             caption: "the light's emission, seen from above (auto-exposed)",
         }],
+        gizmo: crate::engine::spec::GizmoSpec::None,
         availability: Availability::Ready,
         relevant: crate::engine::spec::always_relevant,
         groups: &[],

@@ -119,6 +119,7 @@ pub fn spec() -> NodeKindSpec {
             size: [200.0, 104.0],
             caption: "f·cos θi in the plane of incidence (each curve scaled to its peak)",
         }, super::brdf_normal_map::preview()],
+        gizmo: crate::engine::spec::GizmoSpec::None,
         availability: Availability::Ready,
         relevant: crate::engine::spec::always_relevant,
         groups: &[],

@@ -247,6 +247,7 @@ pub fn spec() -> NodeKindSpec {
                 caption: "SH lighting on a white diffuse sphere (auto-exposed)",
             },
         ],
+        gizmo: crate::engine::spec::GizmoSpec::None,
         availability: Availability::Ready,
         relevant: crate::engine::spec::always_relevant,
         groups: &[],

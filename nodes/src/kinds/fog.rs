@@ -125,6 +125,7 @@ pub fn spec() -> NodeKindSpec {
             size: [80.0, 80.0],
             caption: "a point light 10 m away seen through this fog (airlight, eq. 3.16)",
         }],
+        gizmo: crate::engine::spec::GizmoSpec::None,
         availability: Availability::Ready,
         relevant: crate::engine::spec::always_relevant,
         groups: &[],

@@ -39,6 +39,7 @@ pub fn point_light_spec() -> NodeKindSpec {
             compute: lights,
         }],
         previews: Vec::new(),
+        gizmo: crate::engine::spec::GizmoSpec::Light { position: "position", colour: "intensity", aim: None },
         availability: Availability::Ready,
         relevant: crate::engine::spec::always_relevant,
         groups: &[],
@@ -48,6 +49,6 @@ pub fn point_light_spec() -> NodeKindSpec {
 
 fn lights(ctx: &StageContext) -> Result<StageValue, StageError> {
     let mut list = ctx.input::<Vec<PointLight>>("lights", "lights")?.cloned().unwrap_or_default();
-    list.push(PointLight { position: ctx.vec3("position")?, intensity: ctx.vec3("intensity")? });
+    list.push(PointLight::isotropic(ctx.vec3("position")?, ctx.vec3("intensity")?));
     Ok(StageValue::new(list))
 }

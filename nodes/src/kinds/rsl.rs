@@ -105,6 +105,7 @@ pub fn spec() -> NodeKindSpec {
                 caption: "the square lights on the environment sphere (auto-exposed)",
             },
         ],
+        gizmo: crate::engine::spec::GizmoSpec::None,
         availability: Availability::Ready,
         relevant: crate::engine::spec::always_relevant,
         groups: &[],

@@ -334,6 +334,7 @@ pub fn spec() -> NodeKindSpec {
             },
         ],
         previews: Vec::new(),
+        gizmo: crate::engine::spec::GizmoSpec::None,
         availability: Availability::Ready,
         relevant: crate::engine::spec::always_relevant,
         groups: &[],

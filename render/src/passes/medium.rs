@@ -2,10 +2,11 @@
 //! scene pass. They are shaded in the same fragment as each surface because they depend on its
 //! normal and material (eqs. 3.27–3.29), so this pass binds data and draws nothing itself.
 
-use super::{entry, stage_value, uniform_buffer, upload_tables, vec4};
+use super::{entry, stage_value, uniform_buffer, upload_table_layers, upload_tables, vec4};
 use crate::{GpuContext, RenderError};
 use lightloom_nodes::engine::Key;
 use lightloom_nodes::frame::{MAX_LIGHTS, MAX_MATERIALS, MediumFrame};
+use lightloom_nodes::light::{PROFILE_PHI, PROFILE_THETA};
 use lightloom_nodes::single_scattering::{
     FTable, MAX_ENVIRONMENT_FOG_BANDS, PHONG_STEPS_PER_OCTAVE, PhongGTables, Table2,
 };
@@ -29,6 +30,10 @@ pub(crate) struct FogParams {
     pub(crate) specular: [[f32; 4]; MAX_MATERIALS],
     pub(crate) light_position: [[f32; 4]; MAX_LIGHTS],
     pub(crate) light_intensity: [[f32; 4]; MAX_LIGHTS],
+    /// Per light: its profile's axis (xyz) and whether it has one (w: 1; 0 is isotropic).
+    pub(crate) light_axis: [[f32; 4]; MAX_LIGHTS],
+    /// Per light: its profile's `φ = 0` direction.
+    pub(crate) light_x: [[f32; 4]; MAX_LIGHTS],
 }
 
 pub(crate) struct MediumPass {
@@ -37,6 +42,10 @@ pub(crate) struct MediumPass {
     pub bind_group: wgpu::BindGroup,
     /// The `F^k` and `G_n` stages the bound tables came from.
     tables: Option<Key>,
+    /// The bound tables and light profiles (one layer per light, [`PROFILE_PHI`] ×
+    /// [`PROFILE_THETA`]), and a hash of the profiles' values.
+    views: [wgpu::TextureView; 3],
+    profiles: u64,
 }
 
 impl MediumPass {
@@ -47,31 +56,63 @@ impl MediumPass {
                 entry::uniform(0, wgpu::ShaderStages::VERTEX_FRAGMENT),
                 entry::texture(1, wgpu::TextureViewDimension::D2Array, false),
                 entry::texture(2, wgpu::TextureViewDimension::D2Array, false),
+                entry::texture(3, wgpu::TextureViewDimension::D2Array, false),
             ],
         });
         let params = uniform_buffer::<FogParams>(&gpu.device, "fog");
-        let bind_group = Self::bind(gpu, &layout, &params, (1, &[0.0]), (1, &[0.0]));
-        Self { layout, params, bind_group, tables: None }
+        let views = [
+            upload_tables(gpu, "f-tables", 1, &[0.0]),
+            upload_tables(gpu, "g-tables", 1, &[0.0]),
+            upload_table_layers(gpu, "light profiles", (1, 1), &[1.0]),
+        ];
+        let bind_group = Self::bind(gpu, &layout, &params, &views);
+        Self { layout, params, bind_group, tables: None, views, profiles: 0 }
     }
 
     fn bind(
         gpu: &GpuContext,
         layout: &wgpu::BindGroupLayout,
         params: &wgpu::Buffer,
-        (f_size, f): (u32, &[f32]),
-        (g_size, g): (u32, &[f32]),
+        views: &[wgpu::TextureView; 3],
     ) -> wgpu::BindGroup {
-        let f = upload_tables(gpu, "f-tables", f_size, f);
-        let g = upload_tables(gpu, "g-tables", g_size, g);
         gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("medium"),
             layout,
             entries: &[
                 wgpu::BindGroupEntry { binding: 0, resource: params.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::TextureView(&f) },
-                wgpu::BindGroupEntry { binding: 2, resource: wgpu::BindingResource::TextureView(&g) },
+                wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::TextureView(&views[0]) },
+                wgpu::BindGroupEntry { binding: 2, resource: wgpu::BindingResource::TextureView(&views[1]) },
+                wgpu::BindGroupEntry { binding: 3, resource: wgpu::BindingResource::TextureView(&views[2]) },
             ],
         })
+    }
+
+    /// The lights' profiles as one layer each (isotropic lights' layers stay unread), uploaded
+    /// when their values change.
+    fn upload_profiles(&mut self, gpu: &GpuContext, medium: &MediumFrame) -> bool {
+        let lights = &medium.lights[..medium.lights.len().min(MAX_LIGHTS)];
+        if lights.iter().all(|l| l.profile.is_none()) {
+            return false;
+        }
+        let mut hasher = std::hash::DefaultHasher::new();
+        for light in lights {
+            let bytes: &[u8] = light.profile.as_ref().map_or(&[], |p| bytemuck::cast_slice(&p.values));
+            std::hash::Hash::hash(bytes, &mut hasher);
+        }
+        let hash = std::hash::Hasher::finish(&hasher);
+        if hash == self.profiles {
+            return false;
+        }
+        let layer = PROFILE_PHI * PROFILE_THETA;
+        let mut values = vec![1.0f32; layer * lights.len()];
+        for (light, out) in lights.iter().zip(values.chunks_mut(layer)) {
+            if let Some(p) = &light.profile {
+                out.copy_from_slice(&p.values);
+            }
+        }
+        self.views[2] = upload_table_layers(gpu, "light profiles", (PROFILE_PHI as u32, PROFILE_THETA as u32), &values);
+        self.profiles = hash;
+        true
     }
 
     /// Uniforms every frame, tables when their stages change.
@@ -82,7 +123,12 @@ impl MediumPass {
         for (i, l) in medium.lights.iter().take(MAX_LIGHTS).enumerate() {
             params.light_position[i] = vec4(l.position, 1.0);
             params.light_intensity[i] = vec4(l.intensity, 0.0);
+            if let Some(p) = &l.profile {
+                params.light_axis[i] = vec4(p.frame.z_axis.to_array(), 1.0);
+                params.light_x[i] = vec4(p.frame.x_axis.to_array(), 0.0);
+            }
         }
+        let mut rebind = self.upload_profiles(gpu, medium);
         for (slot, lobe) in params.specular.iter_mut().zip(&medium.surface_lobes) {
             if let Some((weight, exponent)) = lobe {
                 *slot = vec4(*weight, *exponent as f32);
@@ -115,9 +161,14 @@ impl MediumPass {
                 let g_size = g.tables.first().map_or(1, |t| t.table.width) as u32;
                 let f_values = layers(&mut f.iter().map(|t| &t.table));
                 let g_values = layers(&mut g.tables.iter().map(|t| &t.table));
-                self.bind_group = Self::bind(gpu, &self.layout, &self.params, (f_size, &f_values), (g_size, &g_values));
+                self.views[0] = upload_tables(gpu, "f-tables", f_size, &f_values);
+                self.views[1] = upload_tables(gpu, "g-tables", g_size, &g_values);
                 self.tables = Some(key);
+                rebind = true;
             }
+        }
+        if rebind {
+            self.bind_group = Self::bind(gpu, &self.layout, &self.params, &self.views);
         }
         gpu.queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
         Ok(())

@@ -326,10 +326,20 @@ pub(crate) fn storage_buffer<T: bytemuck::Pod + Default>(gpu: &GpuContext, label
 
 /// Square R32Float tables, `values.len() / size²` layers, as a 2D array view.
 pub(crate) fn upload_tables(gpu: &GpuContext, label: &str, size: u32, values: &[f32]) -> wgpu::TextureView {
-    let layers = (values.len() / (size * size).max(1) as usize).max(1) as u32;
+    upload_table_layers(gpu, label, (size, size), values)
+}
+
+/// Uploads `width × height` `R32Float` layers (as many as `values` holds) as a 2D array.
+pub(crate) fn upload_table_layers(
+    gpu: &GpuContext,
+    label: &str,
+    (width, height): (u32, u32),
+    values: &[f32],
+) -> wgpu::TextureView {
+    let layers = (values.len() / (width * height).max(1) as usize).max(1) as u32;
     let texture = gpu.device.create_texture(&wgpu::TextureDescriptor {
         label: Some(label),
-        size: wgpu::Extent3d { width: size, height: size, depth_or_array_layers: layers },
+        size: wgpu::Extent3d { width, height, depth_or_array_layers: layers },
         mip_level_count: 1,
         sample_count: 1,
         dimension: wgpu::TextureDimension::D2,
@@ -345,8 +355,8 @@ pub(crate) fn upload_tables(gpu: &GpuContext, label: &str, size: u32, values: &[
             aspect: wgpu::TextureAspect::All,
         },
         bytemuck::cast_slice(values),
-        wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(size * 4), rows_per_image: Some(size) },
-        wgpu::Extent3d { width: size, height: size, depth_or_array_layers: layers },
+        wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(width * 4), rows_per_image: Some(height) },
+        wgpu::Extent3d { width, height, depth_or_array_layers: layers },
     );
     texture.create_view(&wgpu::TextureViewDescriptor {
         dimension: Some(wgpu::TextureViewDimension::D2Array),
@@ -456,7 +466,18 @@ mod layout_tests {
             irr,
             "Fog",
             medium::FogParams,
-            [beta, phase, counts, environment, environment_scattered, specular, light_position, light_intensity]
+            [
+                beta,
+                phase,
+                counts,
+                environment,
+                environment_scattered,
+                specular,
+                light_position,
+                light_intensity,
+                light_axis,
+                light_x
+            ]
         );
         check!(irr, "Sun", sun::SunParams, [irradiance, offset, axis, directions, view_proj, lobes, lobe_colours]);
         check!(

@@ -191,6 +191,7 @@ fn test_kind(name: &'static str, compute: StageFn, persist: bool) -> NodeKindSpe
             compute,
         }],
         previews: Vec::new(),
+        gizmo: crate::engine::spec::GizmoSpec::None,
         availability: Availability::Ready,
         relevant: crate::engine::spec::always_relevant,
         groups: &[],

@@ -325,6 +325,7 @@ pub fn spec() -> NodeKindSpec {
         .chain(bake::stages())
         .collect(),
         previews: Vec::new(),
+        gizmo: crate::engine::spec::GizmoSpec::None,
         availability: Availability::Ready,
         relevant: relevant_to_mode,
         groups: bake::GROUPS,

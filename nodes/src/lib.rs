@@ -20,6 +20,7 @@ pub mod frame;
 #[doc(hidden)]
 pub mod fuzzing;
 pub mod gltf_import;
+pub mod ies;
 pub mod kinds;
 pub mod light;
 pub mod light_texture;

@@ -335,3 +335,30 @@ fn normal_maps_mutated_every_way_never_panic() {
     let n = replay(fuzzing::normal_map, inputs);
     assert!(n > 500, "{n} inputs");
 }
+
+/// The fuzz target's check: a file that reads gives finite, non-negative candela everywhere.
+fn ies(bytes: &[u8]) {
+    if let Ok(photometry) = lightloom_nodes::ies::Photometry::parse(bytes) {
+        for k in 0..64 {
+            let value = photometry.candela(f64::from(k) * 3.0, f64::from(k) * 11.0);
+            assert!(value.is_finite() && value >= 0.0, "candela {value}");
+        }
+    }
+}
+
+#[test]
+fn ies_profiles_mutated_every_way_never_panic() {
+    let mut rng = SmallRng::seed_from_u64(7);
+    let mut inputs = committed("ies");
+    assert!(inputs.len() >= 5, "the committed IES corpus");
+    for (name, bytes) in committed("ies") {
+        let text = String::from_utf8_lossy(&bytes).into_owned();
+        inputs.extend(text_mutants(&name, &text, 300, &mut rng));
+        inputs.extend(byte_mutants(&name, &bytes, 100, &mut rng));
+    }
+    // Counts that would allocate without bound if trusted.
+    inputs.push(("huge counts".into(), b"TILT=NONE\n1 -1 1 4096 4096 1 2 0 0 0\n1 1 1\n0 90".to_vec()));
+    inputs.push(("huge tilt".into(), b"TILT=INCLUDE\n1 999999999\n".to_vec()));
+    let n = replay(ies, inputs);
+    assert!(n > 2000, "{n} inputs");
+}

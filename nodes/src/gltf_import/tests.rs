@@ -1,4 +1,3 @@
-
 use super::*;
 
 fn assets() -> std::path::PathBuf {

@@ -12,6 +12,7 @@ pub mod output;
 pub use output::adaptive::AdaptiveError;
 pub mod rsl;
 pub mod scene;
+pub mod spot_light;
 
 use crate::engine::spec::NodeKindSpec;
 use std::sync::OnceLock;
@@ -27,6 +28,7 @@ pub fn registry() -> &'static [NodeKindSpec] {
             output::spec(),
             fog::spec(),
             lights::point_light_spec(),
+            spot_light::spec(),
             area_light::spec(),
             rsl::spec(),
             blockers::spec(),

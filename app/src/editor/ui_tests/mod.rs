@@ -823,15 +823,30 @@ fn a_gltf_model_is_an_object_in_the_list_and_framed() {
 /// follows.
 #[test]
 fn a_light_gizmo_drag_moves_the_light() {
+    light_gizmo_drag("PointLight", &[]);
+}
+
+/// A spot light's gizmo is a point light's with a line along its aim, and drags the same way.
+#[test]
+fn a_spot_light_gizmo_drag_moves_the_light() {
+    let spot = light_gizmo_drag("SpotLight", &[("cone", ParamValue::Float(80.0))]);
+    let gizmos::GizmoTarget::Light { aim, .. } = spot.target else { panic!("a light gizmo: {:?}", spot.target) };
+    assert_eq!(aim, Some([0.0, -1.0, 0.0]), "the spot shows where it points");
+}
+
+fn light_gizmo_drag(kind: &str, params: &[(&str, ParamValue)]) -> gizmos::Gizmo {
     let mut harness = default_harness();
     harness
         .state_mut()
         .doc
         .edit("Add light", None, |p| {
-            let id = edits::add_node(p, "PointLight", [320.0, 420.0])?;
+            let id = edits::add_node(p, kind, [320.0, 420.0])?;
             let n = p.nodes.iter_mut().find(|n| n.id == id).unwrap();
             n.params.insert("position".into(), ParamValue::Vec3([1.2, 1.5, 1.0]));
             n.params.insert("intensity".into(), ParamValue::Color([30.0, 30.0, 30.0]));
+            for (name, value) in params {
+                n.params.insert((*name).into(), value.clone());
+            }
             p.links.push(lightloom_nodes::project::ProjectLink {
                 from: (id.clone(), "lights".into()),
                 to: ("output".into(), "lights".into()),
@@ -865,7 +880,8 @@ fn a_light_gizmo_drag_moves_the_light() {
     harness.state_mut().undo();
     let back = harness.state().gizmos().pop().unwrap();
     assert_eq!(back.position, light.position);
-    harness.render().unwrap().save(state_dir().join("light-gizmo.png")).unwrap();
+    harness.render().unwrap().save(state_dir().join(format!("light-gizmo-{kind}.png"))).unwrap();
+    back
 }
 
 /// Where the mode cannot show a material's highlight, the editor says so (Problems and the

@@ -12,6 +12,7 @@ mod blockers_mode;
 mod disk_cache;
 mod recompute;
 mod rsl_mode;
+mod spot_light_node;
 
 fn default_graph() -> Graph {
     default_project().graph(Path::new("default.ron")).expect("default project is valid")

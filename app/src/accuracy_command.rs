@@ -114,34 +114,10 @@ pub fn run(args: &AccuracyArgs) -> Result<()> {
         .iter()
         .map(|e| project.parse_override(e).map_err(|e| anyhow!(e.replacen("--set", "--edit", 1))))
         .collect::<Result<Vec<_>>>()?;
-    // What the rows set themselves, and the flag that sets it: an edit of it would silently
-    // replace each row's value.
+    refuse_edits_the_rows_make(args, &graph, &output, &edits)?;
     let upstream_id = |input: &str| graph.upstream(&output, input).map(|n| n.id.clone());
     let (scene_id, environment_id, decomposer_id) =
         (upstream_id("scene"), upstream_id("environment"), upstream_id("square_lights"));
-    let set_by_rows = |node: &str, param: &str| -> Option<&'static str> {
-        let is = |id: &Option<String>| id.as_deref() == Some(node);
-        match param {
-            "mode" if node == output => Some("the rows themselves (one per mode)"),
-            "wavelet_terms" if node == output => Some("--wavelets"),
-            "adaptive_level" if node == output => Some("--adaptive"),
-            "wavelet_details" if node == output && !args.details.is_empty() => Some("--details"),
-            "reference_samples" if node == output => Some("--samples"),
-            SUN if node == output && !args.sun.is_empty() => Some("--sun"),
-            "transport_bands" if is(&scene_id) => Some("--bands and --adaptive"),
-            "sh_bands" if is(&environment_id) => Some("--bands and --adaptive"),
-            "light_count" if is(&decomposer_id) => Some("--square-lights"),
-            _ => None,
-        }
-    };
-    for (node, param, _) in &edits {
-        if let Some(flag) = set_by_rows(node, param) {
-            bail!(
-                "--edit {node}.{param}: each row sets {node}.{param} itself (from {flag}); edit a light, material, \
-                 camera or scene parameter instead"
-            );
-        }
-    }
     let camera = project.camera(args.camera.as_deref()).map_err(|e| anyhow!(e))?;
     let engine = Arc::new(args.eval.engine());
     let size = (args.width, args.height);
@@ -155,22 +131,7 @@ pub fn run(args: &AccuracyArgs) -> Result<()> {
         let evaluation = evaluate(engine.clone(), graph, frame_request(graph, &output, true), true);
         fail_on_errors(&evaluation, &upstream_of(graph, &output))?;
         let frame = FrameInputs::gather(&evaluation, graph, &output).map_err(|e| anyhow!(e))?;
-        let memory = mode_stages(graph, &output, frame.mode)
-            .iter()
-            .filter(|r| !matches!(r.stage.as_str(), "settings" | "geometry" | "material"))
-            .filter_map(|r| evaluation.get(&r.node, &r.stage)?.value.as_ref().ok().map(|v| v.approx_bytes()))
-            .sum::<usize>();
-        // The viewport's shadow maps of a separately lit sun.
-        let memory = memory + if frame.sun.is_some() { lightloom_render::SUN_SHADOW_MAP_BYTES } else { 0 };
-        // The kept detail terms (five words per receiver and term) and the fine lobe tables.
-        let memory = memory
-            + match &frame.surfaces {
-                lightloom_nodes::frame::Surfaces::Wavelet(w) => {
-                    let receivers = (w.vertices.frames.len() + w.texels.as_ref().map_or(0, |t| t.frames.len())) / 2;
-                    receivers * w.details.kept * 20 + w.fine_specular_tables.iter().map(|t| t.len() * 2).sum::<usize>()
-                }
-                _ => 0,
-            };
+        let memory = frame_memory(&evaluation, graph, &output, &frame);
         Ok((frame, memory))
     };
     let evaluated = |graph: &Graph| evaluated_in(&engine, graph);
@@ -270,52 +231,9 @@ pub fn run(args: &AccuracyArgs) -> Result<()> {
         Ok(rows)
     };
     let scene = scene_id.as_deref().ok_or_else(|| anyhow!("no scene"))?;
-    let mut rows = Vec::new();
-    let mut irradiance = base.clone();
-    irradiance.set_param(&output, "mode", ParamValue::Choice("sh_irradiance".into()))?;
-    rows.extend(measure(&irradiance, "sh_irradiance (unshadowed sky)", 25)?);
-    // An SH mode with its lighting and transport at `bands`.
-    let sh_mode = |mode: &str, bands: usize| -> Result<Graph> {
-        let mut g = base.clone();
-        g.set_param(&output, "mode", ParamValue::Choice(mode.into()))?;
-        g.set_param(scene, "transport_bands", ParamValue::Int(bands as i64))?;
-        if let Some(env) = &environment_id {
-            g.set_param(env, "sh_bands", ParamValue::Int(bands as i64))?;
-        }
-        Ok(g)
-    };
-    for &bands in &args.bands {
-        rows.extend(measure(&sh_mode("sh_prt", bands)?, "sh_prt", bands * bands)?);
-    }
-    for &level in &args.adaptive {
-        let bands = level + 1;
-        let mut g = sh_mode("sh_adaptive", bands)?;
-        g.set_param(&output, "adaptive_level", ParamValue::Int(level as i64))?;
-        rows.extend(measure(&g, "sh_adaptive", bands * bands)?);
-    }
-    let details: Vec<Option<usize>> =
-        if args.details.is_empty() { vec![None] } else { args.details.iter().map(|d| Some(*d)).collect() };
-    for mode in ["wavelet_vertex", "wavelet_pixel"] {
-        for &terms in &args.wavelets {
-            for &details in &details {
-                let mut g = base.clone();
-                g.set_param(&output, "mode", ParamValue::Choice(mode.into()))?;
-                g.set_param(&output, "wavelet_terms", ParamValue::Choice(terms.to_string()))?;
-                if let Some(details) = details {
-                    g.set_param(&output, "wavelet_details", ParamValue::Int(details as i64))?;
-                }
-                rows.extend(measure(&g, mode, terms)?);
-            }
-        }
-    }
-    if let Some(decomposer) = &decomposer_id {
-        for &k in &args.square_lights {
-            let mut g = base.clone();
-            g.set_param(&output, "mode", ParamValue::Choice("rsl".into()))?;
-            g.set_param(decomposer, "light_count", ParamValue::Int(k as i64))?;
-            rows.extend(measure(&g, "rsl", k)?);
-        }
-    }
+    let linked =
+        Linked { output: &output, scene, environment: environment_id.as_deref(), decomposer: decomposer_id.as_deref() };
+    let mut rows = every_row(args, &base, &linked, &mut measure)?;
     mark_pareto_front(&mut rows);
     let report = Report {
         project: args.project.display().to_string(),
@@ -327,6 +245,89 @@ pub fn run(args: &AccuracyArgs) -> Result<()> {
         edits: args.edits.clone(),
         rows,
     };
+    print_report(args, &report, !edits.is_empty())
+}
+
+/// Marks the rows no other row dominates in (error less noise, steady frame time, memory).
+fn mark_pareto_front(rows: &mut [Row]) {
+    let key = |r: &Row| [r.relative_rmse_less_noise, r.frame_ms, r.memory_bytes as f64];
+    let keys: Vec<[f64; 3]> = rows.iter().map(key).collect();
+    for (i, row) in rows.iter_mut().enumerate() {
+        row.pareto = !keys.iter().enumerate().any(|(j, other)| {
+            j != i && other.iter().zip(&keys[i]).all(|(o, m)| o <= m) && other.iter().zip(&keys[i]).any(|(o, m)| o < m)
+        });
+    }
+}
+
+/// Refuses an `--edit` of what the rows set themselves (each would silently replace it),
+/// naming the flag that sets it.
+fn refuse_edits_the_rows_make(
+    args: &AccuracyArgs,
+    graph: &Graph,
+    output: &str,
+    edits: &[(String, String, ParamValue)],
+) -> Result<()> {
+    // What the rows set themselves, and the flag that sets it: an edit of it would silently
+    // replace each row's value.
+    let upstream_id = |input: &str| graph.upstream(output, input).map(|n| n.id.clone());
+    let (scene_id, environment_id, decomposer_id) =
+        (upstream_id("scene"), upstream_id("environment"), upstream_id("square_lights"));
+    let set_by_rows = |node: &str, param: &str| -> Option<&'static str> {
+        let is = |id: &Option<String>| id.as_deref() == Some(node);
+        match param {
+            "mode" if node == output => Some("the rows themselves (one per mode)"),
+            "wavelet_terms" if node == output => Some("--wavelets"),
+            "adaptive_level" if node == output => Some("--adaptive"),
+            "wavelet_details" if node == output && !args.details.is_empty() => Some("--details"),
+            "reference_samples" if node == output => Some("--samples"),
+            SUN if node == output && !args.sun.is_empty() => Some("--sun"),
+            "transport_bands" if is(&scene_id) => Some("--bands and --adaptive"),
+            "sh_bands" if is(&environment_id) => Some("--bands and --adaptive"),
+            "light_count" if is(&decomposer_id) => Some("--square-lights"),
+            _ => None,
+        }
+    };
+    for (node, param, _) in edits {
+        if let Some(flag) = set_by_rows(node, param) {
+            bail!(
+                "--edit {node}.{param}: each row sets {node}.{param} itself (from {flag}); edit a light, material, \
+                 camera or scene parameter instead"
+            );
+        }
+    }
+    Ok(())
+}
+
+/// The bytes a frame keeps for its mode: the stages it reads (but the scene's geometry and
+/// the materials, which every mode keeps), a separately lit sun's shadow maps, and the kept
+/// detail terms and fine lobe tables of the wavelet modes.
+fn frame_memory(
+    evaluation: &lightloom_nodes::engine::Evaluation,
+    graph: &Graph,
+    output: &str,
+    frame: &FrameInputs,
+) -> usize {
+    let memory = mode_stages(graph, output, frame.mode)
+        .iter()
+        .filter(|r| !matches!(r.stage.as_str(), "settings" | "geometry" | "material"))
+        .filter_map(|r| evaluation.get(&r.node, &r.stage)?.value.as_ref().ok().map(|v| v.approx_bytes()))
+        .sum::<usize>();
+    // The viewport's shadow maps of a separately lit sun.
+    let memory = memory + if frame.sun.is_some() { lightloom_render::SUN_SHADOW_MAP_BYTES } else { 0 };
+    // The kept detail terms (five words per receiver and term) and the fine lobe tables.
+    memory
+        + match &frame.surfaces {
+            lightloom_nodes::frame::Surfaces::Wavelet(w) => {
+                let receivers = (w.vertices.frames.len() + w.texels.as_ref().map_or(0, |t| t.frames.len())) / 2;
+                receivers * w.details.kept * 20 + w.fine_specular_tables.iter().map(|t| t.len() * 2).sum::<usize>()
+            }
+            _ => 0,
+        }
+}
+
+/// The report as JSON, or as a table with what it measured.
+fn print_report(args: &AccuracyArgs, report: &Report, edited: bool) -> Result<()> {
+    let (size, noise, reference_ms) = ((report.width, report.height), &report.reference_noise, report.reference_ms);
     if args.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
     } else {
@@ -340,7 +341,7 @@ pub fn run(args: &AccuracyArgs) -> Result<()> {
             noise.rmse,
             noise.relative_rmse * 100.0
         );
-        if !edits.is_empty() {
+        if edited {
             println!("after the edit {}; edit ms: from the edit to its frame drawn", args.edits.join(" "));
         }
         println!(
@@ -383,13 +384,66 @@ pub fn run(args: &AccuracyArgs) -> Result<()> {
     Ok(())
 }
 
-/// Marks the rows no other row dominates in (error less noise, steady frame time, memory).
-fn mark_pareto_front(rows: &mut [Row]) {
-    let key = |r: &Row| [r.relative_rmse_less_noise, r.frame_ms, r.memory_bytes as f64];
-    let keys: Vec<[f64; 3]> = rows.iter().map(key).collect();
-    for (i, row) in rows.iter_mut().enumerate() {
-        row.pareto = !keys.iter().enumerate().any(|(j, other)| {
-            j != i && other.iter().zip(&keys[i]).all(|(o, m)| o <= m) && other.iter().zip(&keys[i]).any(|(o, m)| o < m)
-        });
+/// Measures a graph as one mode's rows: `(graph, mode label, coefficients)`.
+type Measure<'a> = dyn FnMut(&Graph, &str, usize) -> Result<Vec<Row>> + 'a;
+
+/// The nodes linked to the Output that the rows set.
+struct Linked<'a> {
+    output: &'a str,
+    scene: &'a str,
+    environment: Option<&'a str>,
+    decomposer: Option<&'a str>,
+}
+
+/// Every row the flags ask for: the unshadowed sky, then `sh_prt` per band count,
+/// `sh_adaptive` per level, the wavelet modes per term count and detail count, and `rsl` per
+/// square-light count, each `measure`d on `base` with the row's settings.
+fn every_row(args: &AccuracyArgs, base: &Graph, linked: &Linked, measure: &mut Measure) -> Result<Vec<Row>> {
+    let mut rows = Vec::new();
+    let mut irradiance = base.clone();
+    irradiance.set_param(linked.output, "mode", ParamValue::Choice("sh_irradiance".into()))?;
+    rows.extend(measure(&irradiance, "sh_irradiance (unshadowed sky)", 25)?);
+    // An SH mode with its lighting and transport at `bands`.
+    let sh_mode = |mode: &str, bands: usize| -> Result<Graph> {
+        let mut g = base.clone();
+        g.set_param(linked.output, "mode", ParamValue::Choice(mode.into()))?;
+        g.set_param(linked.scene, "transport_bands", ParamValue::Int(bands as i64))?;
+        if let Some(env) = linked.environment {
+            g.set_param(env, "sh_bands", ParamValue::Int(bands as i64))?;
+        }
+        Ok(g)
+    };
+    for &bands in &args.bands {
+        rows.extend(measure(&sh_mode("sh_prt", bands)?, "sh_prt", bands * bands)?);
     }
+    for &level in &args.adaptive {
+        let bands = level + 1;
+        let mut g = sh_mode("sh_adaptive", bands)?;
+        g.set_param(linked.output, "adaptive_level", ParamValue::Int(level as i64))?;
+        rows.extend(measure(&g, "sh_adaptive", bands * bands)?);
+    }
+    let details: Vec<Option<usize>> =
+        if args.details.is_empty() { vec![None] } else { args.details.iter().map(|d| Some(*d)).collect() };
+    for mode in ["wavelet_vertex", "wavelet_pixel"] {
+        for &terms in &args.wavelets {
+            for &details in &details {
+                let mut g = base.clone();
+                g.set_param(linked.output, "mode", ParamValue::Choice(mode.into()))?;
+                g.set_param(linked.output, "wavelet_terms", ParamValue::Choice(terms.to_string()))?;
+                if let Some(details) = details {
+                    g.set_param(linked.output, "wavelet_details", ParamValue::Int(details as i64))?;
+                }
+                rows.extend(measure(&g, mode, terms)?);
+            }
+        }
+    }
+    if let Some(decomposer) = linked.decomposer {
+        for &k in &args.square_lights {
+            let mut g = base.clone();
+            g.set_param(linked.output, "mode", ParamValue::Choice("rsl".into()))?;
+            g.set_param(decomposer, "light_count", ParamValue::Int(k as i64))?;
+            rows.extend(measure(&g, "rsl", k)?);
+        }
+    }
+    Ok(rows)
 }

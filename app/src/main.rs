@@ -2,13 +2,7 @@
 
 mod accuracy_command;
 mod bake_command;
-mod bench_adaptive;
-mod bench_anchors;
-mod bench_area;
-mod bench_blockers;
-mod bench_command;
-mod bench_normal_maps;
-mod bench_rays;
+mod bench;
 mod editor;
 mod project_commands;
 mod samples;
@@ -76,7 +70,7 @@ enum Command {
     /// Render the Monte Carlo reference once and report each relighting mode's error against it.
     Accuracy(accuracy_command::AccuracyArgs),
     /// Print relighting figures: edit-to-frame latency, frame times, 100k-vertex relight cost.
-    Bench(bench_command::BenchArgs),
+    Bench(bench::BenchArgs),
     /// Print the SH coefficients (RGB) of an environment map and its irradiance along ±X, ±Y, ±Z.
     Sh(sh_command::ShArgs),
     /// List the built-in sample projects (`sample:NAME` opens or renders one from any folder).
@@ -125,7 +119,7 @@ fn main() {
         Some(Command::Replay(args)) => project_commands::replay(&args),
         Some(Command::Info(args)) => project_commands::info(&args).map(|_| true),
         Some(Command::Accuracy(args)) => accuracy_command::run(&args).map(|_| true),
-        Some(Command::Bench(args)) => bench_command::run(&args).map(|_| true),
+        Some(Command::Bench(args)) => bench::run(&args).map(|_| true),
         Some(Command::Sh(args)) => sh_command::run(&args).map(|_| true),
         Some(Command::Bake(args)) => bake_command::run(&args).map(|_| true),
         Some(Command::Samples) => list_samples().map(|_| true),

@@ -159,23 +159,40 @@ fn decompose(transform: DMat4) -> Option<(DVec3, DQuat, DVec3, DMat4)> {
         .then_some((translation, rotation, scale, inverse))
 }
 
-/// Writes `scene` as a GLB.
-pub fn write_glb(scene: &ExportScene) -> Result<Glb, String> {
-    let mut root = json::Root::default();
-    root.asset.generator = Some(format!("Lightloom {}", env!("CARGO_PKG_VERSION")));
-    let mut bin = BinBuilder::default();
-    let mut extensions_used = Vec::new();
-    let mut use_extension = |name: &str| {
-        if !extensions_used.iter().any(|e| e == name) {
-            extensions_used.push(name.to_string());
-        }
-    };
+/// A GLB being written: the JSON document, the binary chunk, the extensions used and the
+/// scene's nodes.
+#[derive(Default)]
+struct GlbWriter {
+    root: json::Root,
+    bin: BinBuilder,
+    extensions_used: Vec<String>,
+    nodes: Vec<json::Index<json::Node>>,
+}
 
-    let lightmap_texture = scene.lightmap.as_ref().map(|lightmap| {
-        let view = bin.view(&mut root, lightmap.png, json::buffer::Target::ArrayBuffer);
+/// Per (material, base colour) pair the meshes use: its glTF material, and what was written.
+#[derive(Default)]
+struct Materials {
+    written: Vec<WrittenMaterial>,
+    index: BTreeMap<(u32, [u32; 3]), json::Index<json::Material>>,
+}
+
+fn add_extension(used: &mut Vec<String>, name: &str) {
+    if !used.iter().any(|e| e == name) {
+        used.push(name.to_string());
+    }
+}
+
+impl GlbWriter {
+    fn use_extension(&mut self, name: &str) {
+        add_extension(&mut self.extensions_used, name);
+    }
+
+    /// The lightmap as a PNG texture, and the extension object materials carry to use it.
+    fn lightmap(&mut self, lightmap: &ExportLightmap) -> serde_json::Value {
+        let view = self.bin.view(&mut self.root, lightmap.png, json::buffer::Target::ArrayBuffer);
         // Images in a buffer view take no target.
-        root.buffer_views[view.value()].target = None;
-        let image = root.push(json::Image {
+        self.root.buffer_views[view.value()].target = None;
+        let image = self.root.push(json::Image {
             buffer_view: Some(view),
             mime_type: Some(json::image::MimeType("image/png".into())),
             name: Some("lightmap (RGBM)".into()),
@@ -183,14 +200,14 @@ pub fn write_glb(scene: &ExportScene) -> Result<Glb, String> {
             extensions: None,
             extras: Default::default(),
         });
-        let sampler = root.push(json::texture::Sampler {
+        let sampler = self.root.push(json::texture::Sampler {
             mag_filter: Some(Valid(json::texture::MagFilter::Linear)),
             min_filter: Some(Valid(json::texture::MinFilter::Linear)),
             wrap_s: Valid(json::texture::WrappingMode::ClampToEdge),
             wrap_t: Valid(json::texture::WrappingMode::ClampToEdge),
             ..Default::default()
         });
-        let texture = root.push(json::Texture {
+        let texture = self.root.push(json::Texture {
             sampler: Some(sampler),
             source: image,
             name: Some("lightmap".into()),
@@ -203,58 +220,54 @@ pub fn write_glb(scene: &ExportScene) -> Result<Glb, String> {
             "range": lightmap.range,
             "exr": lightmap.exr_name,
         })
-    });
-    if lightmap_texture.is_some() {
-        use_extension(LIGHTMAP_EXTENSION);
     }
 
-    // One glTF material per (material, base colour) pair the meshes use.
-    let mut written: Vec<WrittenMaterial> = Vec::new();
-    let mut material_of: BTreeMap<(u32, [u32; 3]), json::Index<json::Material>> = BTreeMap::new();
-    let mut nodes = Vec::new();
-    let mut first_vertex = 0usize;
-    let scale = vertex_light_scale(scene.vertex_light);
-    for (m, mesh) in scene.meshes.meshes.iter().enumerate() {
-        let count = mesh.positions.len();
-        let light = scene
-            .vertex_light
-            .get(first_vertex..first_vertex + count)
-            .ok_or("the baked light covers fewer vertices than the scene has")?;
-        first_vertex += count;
-        if count == 0 || mesh.indices.is_empty() {
-            continue;
-        }
-        let slot = scene.mesh_materials.get(m).copied().unwrap_or(0);
+    /// The glTF material of mesh `mesh`'s material and base colour, written the first time a
+    /// pair is used (a material tinted differently by several objects is one per tint).
+    fn material(
+        &mut self,
+        scene: &ExportScene,
+        mesh: &crate::mesh::Mesh,
+        slot: u32,
+        materials: &mut Materials,
+        lightmap: Option<&serde_json::Value>,
+    ) -> Result<json::Index<json::Material>, String> {
         let (name, source) = scene.materials.get(slot as usize).ok_or("a mesh names a material the frame lacks")?;
         let key = (slot, mesh.base_color.map(f32::to_bits));
-        let material = match material_of.get(&key) {
-            Some(index) => *index,
-            None => {
-                let fit = super::material_fit::fit(source, mesh.base_color);
-                // A material tinted differently by several objects is one glTF material per tint.
-                let uses = written.iter().filter(|w| w.source == *name).count();
-                let written_name = match (uses, name.is_empty()) {
-                    (0, false) => name.clone(),
-                    (0, true) => "default".into(),
-                    (n, _) => format!("{} {}", if name.is_empty() { "default" } else { name }, n + 1),
-                };
-                let mut material = gltf_material(&fit, &written_name, &mut use_extension);
-                if let (Some(extension), Some(extensions)) = (&lightmap_texture, material.extensions.as_mut()) {
-                    extensions.others.insert(LIGHTMAP_EXTENSION.into(), extension.clone());
-                }
-                let index = root.push(material);
-                written.push(WrittenMaterial {
-                    name: written_name,
-                    source: name.clone(),
-                    model: source.model.to_string(),
-                    fit,
-                });
-                material_of.insert(key, index);
-                index
-            }
+        if let Some(index) = materials.index.get(&key) {
+            return Ok(*index);
+        }
+        let fit = super::material_fit::fit(source, mesh.base_color);
+        let uses = materials.written.iter().filter(|w| w.source == *name).count();
+        let written_name = match (uses, name.is_empty()) {
+            (0, false) => name.clone(),
+            (0, true) => "default".into(),
+            (n, _) => format!("{} {}", if name.is_empty() { "default" } else { name }, n + 1),
         };
-        let anisotropic = written[material.value()].fit.anisotropy.is_some();
+        let mut material = gltf_material(&fit, &written_name, &mut |n| add_extension(&mut self.extensions_used, n));
+        if let (Some(extension), Some(extensions)) = (lightmap, material.extensions.as_mut()) {
+            extensions.others.insert(LIGHTMAP_EXTENSION.into(), extension.clone());
+        }
+        let index = self.root.push(material);
+        let model = source.model.to_string();
+        materials.written.push(WrittenMaterial { name: written_name, source: name.clone(), model, fit });
+        materials.index.insert(key, index);
+        Ok(index)
+    }
 
+    /// Mesh `m` of the scene, its vertices' baked light (`light`, one per vertex, divided by
+    /// `scale`) in `COLOR_0`, under a node with the object's transform.
+    fn mesh(
+        &mut self,
+        scene: &ExportScene,
+        m: usize,
+        light: &[[f32; 3]],
+        scale: f32,
+        material: json::Index<json::Material>,
+        anisotropic: bool,
+    ) {
+        let mesh = &scene.meshes.meshes[m];
+        let count = mesh.positions.len();
         // Geometry in object space under a node with the object's transform.
         let transform = DMat4::from_cols_array(&mesh.transform);
         let (trs, to_object) = match decompose(transform) {
@@ -290,26 +303,26 @@ pub fn write_glb(scene: &ExportScene) -> Result<Glb, String> {
         use json::buffer::Target::*;
         use json::mesh::Semantic;
         let mut attributes = BTreeMap::new();
-        let view = bin.view(&mut root, &floats(&positions), ArrayBuffer);
-        attributes.insert(Valid(Semantic::Positions), accessor(&mut root, view, count, F32, Vec3, Some((lo, hi))));
-        let view = bin.view(&mut root, &floats(&normals), ArrayBuffer);
-        attributes.insert(Valid(Semantic::Normals), accessor(&mut root, view, count, F32, Vec3, None));
+        let view = self.bin.view(&mut self.root, &floats(&positions), ArrayBuffer);
+        attributes.insert(Valid(Semantic::Positions), accessor(&mut self.root, view, count, F32, Vec3, Some((lo, hi))));
+        let view = self.bin.view(&mut self.root, &floats(&normals), ArrayBuffer);
+        attributes.insert(Valid(Semantic::Normals), accessor(&mut self.root, view, count, F32, Vec3, None));
         if mesh.uvs.len() == mesh.positions.len() {
             let uvs: Vec<[f32; 2]> = remap.iter().map(|&i| mesh.uvs[i]).collect();
-            let view = bin.view(&mut root, &floats(&uvs), ArrayBuffer);
-            attributes.insert(Valid(Semantic::TexCoords(0)), accessor(&mut root, view, count, F32, Vec2, None));
+            let view = self.bin.view(&mut self.root, &floats(&uvs), ArrayBuffer);
+            attributes.insert(Valid(Semantic::TexCoords(0)), accessor(&mut self.root, view, count, F32, Vec2, None));
         }
         if let Some(a) = atlas {
-            let view = bin.view(&mut root, &floats(&a.uvs), ArrayBuffer);
-            let uv1 = accessor(&mut root, view, count, F32, Vec2, None);
+            let view = self.bin.view(&mut self.root, &floats(&a.uvs), ArrayBuffer);
+            let uv1 = accessor(&mut self.root, view, count, F32, Vec2, None);
             // glTF numbers texture coordinates from 0 without gaps: a mesh without its own
             // shares the lightmap's.
             attributes.entry(Valid(Semantic::TexCoords(0))).or_insert(uv1);
             attributes.insert(Valid(Semantic::TexCoords(1)), uv1);
         }
         let light: Vec<[f32; 3]> = pick(light).iter().map(|l| l.map(|c| (c / scale).clamp(0.0, 1.0))).collect();
-        let view = bin.view(&mut root, &floats(&light), ArrayBuffer);
-        attributes.insert(Valid(Semantic::Colors(0)), accessor(&mut root, view, count, F32, Vec3, None));
+        let view = self.bin.view(&mut self.root, &floats(&light), ArrayBuffer);
+        attributes.insert(Valid(Semantic::Colors(0)), accessor(&mut self.root, view, count, F32, Vec3, None));
         if anisotropic {
             let world = if mesh.tangents.len() == mesh.positions.len() {
                 mesh.tangents.clone()
@@ -326,8 +339,8 @@ pub fn write_glb(scene: &ExportScene) -> Result<Glb, String> {
                     [t.x, t.y, t.z, 1.0]
                 })
                 .collect();
-            let view = bin.view(&mut root, &floats(&tangents), ArrayBuffer);
-            attributes.insert(Valid(Semantic::Tangents), accessor(&mut root, view, count, F32, Vec4, None));
+            let view = self.bin.view(&mut self.root, &floats(&tangents), ArrayBuffer);
+            attributes.insert(Valid(Semantic::Tangents), accessor(&mut self.root, view, count, F32, Vec4, None));
         }
         // The world-space mesh already flipped a mirroring transform's winding; glTF flips it
         // again for a node whose transform mirrors, so undo ours.
@@ -338,9 +351,9 @@ pub fn write_glb(scene: &ExportScene) -> Result<Glb, String> {
             }
         }
         let indices: Vec<u8> = indices.iter().flat_map(|i| i.to_le_bytes()).collect();
-        let view = bin.view(&mut root, &indices, ElementArrayBuffer);
-        let indices = accessor(&mut root, view, mesh.indices.len(), U32, Scalar, None);
-        let gltf_mesh = root.push(json::Mesh {
+        let view = self.bin.view(&mut self.root, &indices, ElementArrayBuffer);
+        let indices = accessor(&mut self.root, view, mesh.indices.len(), U32, Scalar, None);
+        let gltf_mesh = self.root.push(json::Mesh {
             extensions: None,
             extras: Default::default(),
             name: Some(mesh.name.clone()),
@@ -356,7 +369,7 @@ pub fn write_glb(scene: &ExportScene) -> Result<Glb, String> {
             weights: None,
         });
         let f32s = |v: DVec3| v.as_vec3().to_array();
-        nodes.push(root.push(json::Node {
+        self.nodes.push(self.root.push(json::Node {
             mesh: Some(gltf_mesh),
             name: Some(mesh.name.clone()),
             translation: trs.map(|(t, _, _)| f32s(t)),
@@ -366,9 +379,10 @@ pub fn write_glb(scene: &ExportScene) -> Result<Glb, String> {
         }));
     }
 
-    if !scene.lights.is_empty() {
-        use_extension("KHR_lights_punctual");
-        for (i, light) in scene.lights.iter().enumerate() {
+    /// Point lights as `KHR_lights_punctual` point lights, spots as spot lights.
+    fn point_lights(&mut self, lights: &[PointLight]) {
+        self.use_extension("KHR_lights_punctual");
+        for (i, light) in lights.iter().enumerate() {
             use json::extensions::scene::khr_lights_punctual as punctual;
             // A profiled light keeps its cone as a glTF spot (its profile within the cone is
             // not carried), or else its mean intensity as a point light.
@@ -381,7 +395,7 @@ pub fn write_glb(scene: &ExportScene) -> Result<Glb, String> {
             };
             let peak = intensity.iter().fold(0.0f64, |m, &c| m.max(c));
             let color = intensity.map(|c| if peak > 0.0 { (c / peak) as f32 } else { 1.0 });
-            let lights: &mut Vec<punctual::Light> = root.as_mut();
+            let lights: &mut Vec<punctual::Light> = self.root.as_mut();
             lights.push(punctual::Light {
                 color,
                 extensions: None,
@@ -401,7 +415,7 @@ pub fn write_glb(scene: &ExportScene) -> Result<Glb, String> {
                     DQuat::from_rotation_arc(DVec3::NEG_Z, axis).as_quat().normalize().to_array(),
                 )
             });
-            nodes.push(root.push(json::Node {
+            self.nodes.push(self.root.push(json::Node {
                 name: Some(format!("point light {}", i + 1)),
                 translation: Some(light.position.map(|c| c as f32)),
                 rotation,
@@ -419,16 +433,16 @@ pub fn write_glb(scene: &ExportScene) -> Result<Glb, String> {
     // Square lights as KHR directional lights: intensity is the irradiance on a surface facing
     // the light (radiance × solid angle, the "lux" of the extension in the project's units);
     // its size goes into extras: solid angle and the radius of the cone of equal solid angle.
-    if !scene.directional.is_empty() {
-        use_extension("KHR_lights_punctual");
-        for (k, light) in scene.directional.iter().enumerate() {
+    fn directional_lights(&mut self, lights: &[DirectionalLight]) {
+        self.use_extension("KHR_lights_punctual");
+        for (k, light) in lights.iter().enumerate() {
             use json::extensions::scene::khr_lights_punctual as punctual;
-            let index = AsRef::<[punctual::Light]>::as_ref(&root).len();
+            let index = AsRef::<[punctual::Light]>::as_ref(&self.root).len();
             let peak = light.radiance.iter().fold(0.0f64, |m, &c| m.max(c));
             let color = light.radiance.map(|c| if peak > 0.0 { (c / peak) as f32 } else { 1.0 });
             let radius = (1.0 - light.solid_angle / (2.0 * std::f64::consts::PI)).clamp(-1.0, 1.0).acos();
             let name = format!("square light {}", k + 1);
-            let lights: &mut Vec<punctual::Light> = root.as_mut();
+            let lights: &mut Vec<punctual::Light> = self.root.as_mut();
             lights.push(punctual::Light {
                 color,
                 extensions: None,
@@ -447,7 +461,7 @@ pub fn write_glb(scene: &ExportScene) -> Result<Glb, String> {
             // A directional light shines down its node's -Z: +Z points at the light.
             let towards = DVec3::from(light.direction).normalize_or(DVec3::Y);
             let rotation = DQuat::from_rotation_arc(DVec3::Z, towards);
-            nodes.push(root.push(json::Node {
+            self.nodes.push(self.root.push(json::Node {
                 name: Some(name),
                 rotation: Some(json::scene::UnitQuaternion(rotation.as_quat().normalize().to_array())),
                 extensions: Some(json::extensions::scene::Node {
@@ -461,7 +475,8 @@ pub fn write_glb(scene: &ExportScene) -> Result<Glb, String> {
         }
     }
 
-    if let Some(camera) = &scene.camera {
+    /// The project's camera.
+    fn camera(&mut self, camera: &ExportCamera) {
         let eye = DVec3::from(camera.position);
         let target = DVec3::from(camera.target);
         let forward = (target - eye).normalize_or(DVec3::NEG_Z);
@@ -469,7 +484,7 @@ pub fn write_glb(scene: &ExportScene) -> Result<Glb, String> {
         // glTF cameras look down their node's -Z with +Y up.
         let right = forward.cross(up).normalize();
         let rotation = DQuat::from_mat3(&DMat3::from_cols(right, right.cross(forward), -forward));
-        let index = root.push(json::Camera {
+        let index = self.root.push(json::Camera {
             name: Some(camera.name.clone()),
             orthographic: None,
             perspective: Some(json::camera::Perspective {
@@ -484,7 +499,7 @@ pub fn write_glb(scene: &ExportScene) -> Result<Glb, String> {
             extensions: None,
             extras: Default::default(),
         });
-        nodes.push(root.push(json::Node {
+        self.nodes.push(self.root.push(json::Node {
             camera: Some(index),
             name: Some(camera.name.clone()),
             translation: Some(eye.as_vec3().to_array()),
@@ -493,38 +508,82 @@ pub fn write_glb(scene: &ExportScene) -> Result<Glb, String> {
         }));
     }
 
-    let scene_index = root.push(json::Scene {
-        extensions: None,
-        extras: Some(json_raw(&serde_json::json!({ "lightloom": { "vertexLightScale": scale } }))),
-        name: Some("baked".into()),
-        nodes,
-    });
-    root.scene = Some(scene_index);
-    root.extensions_used = extensions_used;
-    root.push(json::Buffer {
-        byte_length: USize64::from(bin.data.len()),
-        extensions: None,
-        extras: Default::default(),
-        name: None,
-        uri: None,
-    });
-    let json_bytes = json::serialize::to_vec(&root).map_err(|e| format!("glTF JSON: {e}"))?;
-    let mut json_padded = json_bytes;
-    while !json_padded.len().is_multiple_of(4) {
-        json_padded.push(b' ');
+    /// The GLB's bytes: the scene of every node, the buffer, the JSON and BIN chunks.
+    fn finish(mut self, scale: f32) -> Result<Vec<u8>, String> {
+        let scene_index = self.root.push(json::Scene {
+            extensions: None,
+            extras: Some(json_raw(&serde_json::json!({ "lightloom": { "vertexLightScale": scale } }))),
+            name: Some("baked".into()),
+            nodes: self.nodes,
+        });
+        self.root.scene = Some(scene_index);
+        self.root.extensions_used = self.extensions_used;
+        self.root.push(json::Buffer {
+            byte_length: USize64::from(self.bin.data.len()),
+            extensions: None,
+            extras: Default::default(),
+            name: None,
+            uri: None,
+        });
+        let json_bytes = json::serialize::to_vec(&self.root).map_err(|e| format!("glTF JSON: {e}"))?;
+        let mut json_padded = json_bytes;
+        while !json_padded.len().is_multiple_of(4) {
+            json_padded.push(b' ');
+        }
+        let length = 12 + 8 + json_padded.len() + 8 + self.bin.data.len();
+        let glb = gltf::binary::Glb {
+            header: gltf::binary::Header {
+                magic: *b"glTF",
+                version: 2,
+                length: u32::try_from(length).map_err(|_| "the scene is over the 4 GiB a GLB can hold")?,
+            },
+            json: Cow::Owned(json_padded),
+            bin: Some(Cow::Owned(self.bin.data)),
+        };
+        let bytes = glb.to_vec().map_err(|e| format!("GLB: {e}"))?;
+        Ok(bytes)
     }
-    let length = 12 + 8 + json_padded.len() + 8 + bin.data.len();
-    let glb = gltf::binary::Glb {
-        header: gltf::binary::Header {
-            magic: *b"glTF",
-            version: 2,
-            length: u32::try_from(length).map_err(|_| "the scene is over the 4 GiB a GLB can hold")?,
-        },
-        json: Cow::Owned(json_padded),
-        bin: Some(Cow::Owned(bin.data)),
-    };
-    let bytes = glb.to_vec().map_err(|e| format!("GLB: {e}"))?;
-    Ok(Glb { bytes, materials: written, vertex_light_scale: scale })
+}
+
+/// Writes `scene` as a GLB.
+pub fn write_glb(scene: &ExportScene) -> Result<Glb, String> {
+    let mut writer = GlbWriter::default();
+    writer.root.asset.generator = Some(format!("Lightloom {}", env!("CARGO_PKG_VERSION")));
+    let lightmap = scene.lightmap.as_ref().map(|l| writer.lightmap(l));
+    if lightmap.is_some() {
+        writer.use_extension(LIGHTMAP_EXTENSION);
+    }
+    let mut materials = Materials::default();
+    let mut first_vertex = 0usize;
+    let scale = vertex_light_scale(scene.vertex_light);
+    for (m, mesh) in scene.meshes.meshes.iter().enumerate() {
+        let count = mesh.positions.len();
+        let light = scene
+            .vertex_light
+            .get(first_vertex..first_vertex + count)
+            .ok_or("the baked light covers fewer vertices than the scene has")?;
+        first_vertex += count;
+        if count == 0 || mesh.indices.is_empty() {
+            continue;
+        }
+        let slot = scene.mesh_materials.get(m).copied().unwrap_or(0);
+        let material = writer.material(scene, mesh, slot, &mut materials, lightmap.as_ref())?;
+        let anisotropic = materials.written[material.value()].fit.anisotropy.is_some();
+        writer.mesh(scene, m, light, scale, material, anisotropic);
+    }
+    if !scene.lights.is_empty() {
+        writer.use_extension("KHR_lights_punctual");
+        writer.point_lights(scene.lights);
+    }
+    if !scene.directional.is_empty() {
+        writer.use_extension("KHR_lights_punctual");
+        writer.directional_lights(scene.directional);
+    }
+    if let Some(camera) = &scene.camera {
+        writer.camera(camera);
+    }
+    let bytes = writer.finish(scale)?;
+    Ok(Glb { bytes, materials: materials.written, vertex_light_scale: scale })
 }
 
 /// The smallest power of two at least the largest channel of `light` (1 for a dark scene).

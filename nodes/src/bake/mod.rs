@@ -281,28 +281,8 @@ pub fn bake(
     if let (Some(request), Some(scene)) = (preview, shadows) {
         progress("previews", 0.5);
         let start = std::time::Instant::now();
-        // The glTF's base colours: albedo × the mesh's colour, clamped to 0..1.
-        let albedo: Vec<[f32; 3]> = meshes
-            .meshes
-            .iter()
-            .enumerate()
-            .map(|(i, m)| {
-                let a = frame.mesh_material(i).albedo;
-                std::array::from_fn(|c| (a[c] * f64::from(m.base_color[c])).clamp(0.0, 1.0) as f32)
-            })
-            .collect();
-        let mut pictures = vec![("preview_vertex.exr", baked_render::BakedLight::Vertex(&light))];
-        if let Some(inputs) = lightmap_inputs {
-            pictures.push((
-                "preview_lightmap.exr",
-                baked_render::BakedLight::Lightmap { atlas: inputs.atlas, image: &lightmap_image },
-            ));
-        }
-        for (name, light) in pictures {
-            let picture = baked_render::render(meshes, scene, &albedo, &light, &request.camera, request.size);
-            let (w, h) = (request.size.0 as u32, request.size.1 as u32);
-            files.push(BakedFile { name: name.into(), bytes: lightmap::exr_bytes(&picture.pixels, w, h)? });
-        }
+        let lightmap = lightmap_inputs.map(|inputs| (inputs.atlas, lightmap_image.as_slice()));
+        files.extend(previews(frame, meshes, scene, &light, lightmap, &request)?);
         timed("previews", start);
     }
 
@@ -324,18 +304,7 @@ pub fn bake(
     let start = std::time::Instant::now();
     let materials: Vec<(String, crate::brdf::Material)> =
         frame.materials.iter().map(|m| (m.node.clone(), m.material.clone())).collect();
-    let directional: Vec<gltf_export::DirectionalLight> = match &frame.surfaces {
-        crate::frame::Surfaces::Rsl(s) => s
-            .lights
-            .iter()
-            .map(|l| gltf_export::DirectionalLight {
-                direction: [l[0], l[1], l[2]].map(f64::from),
-                solid_angle: f64::from(l[3]),
-                radiance: [l[4], l[5], l[6]].map(f64::from),
-            })
-            .collect(),
-        _ => Vec::new(),
-    };
+    let directional = square_lights(frame);
     let glb = gltf_export::write_glb(&gltf_export::ExportScene {
         meshes,
         vertex_light: &light,
@@ -359,20 +328,7 @@ pub fn bake(
         generator: format!("Lightloom {}", env!("CARGO_PKG_VERSION")),
         mode: frame.mode.to_string(),
         conventions: Conventions::default(),
-        materials: glb
-            .materials
-            .iter()
-            .map(|m| ManifestMaterial {
-                name: m.name.clone(),
-                model: m.model.to_string(),
-                base_color: m.fit.base_color,
-                roughness: m.fit.roughness,
-                specular_factor: m.fit.specular_factor,
-                specular_color: m.fit.specular_color,
-                anisotropy: m.fit.anisotropy,
-                fit_error: m.fit.error,
-            })
-            .collect(),
+        materials: glb.materials.iter().map(ManifestMaterial::of).collect(),
         vertex_light_scale: glb.vertex_light_scale,
         lightmap: lightmap_inputs.map(|inputs| ManifestLightmap {
             width: inputs.atlas.width,
@@ -392,6 +348,70 @@ pub fn bake(
         files: files.iter().map(|f| (f.name.clone(), f.bytes.len())).collect(),
     };
     Ok(Bake { files, manifest })
+}
+
+/// Lightloom's own pictures of the baked light (per vertex, and from the lightmap when there
+/// is one), as EXR files, seen from `request`'s camera.
+fn previews(
+    frame: &FrameInputs,
+    meshes: &crate::mesh::MeshSet,
+    scene: &crate::raycast::RayScene,
+    light: &[[f32; 3]],
+    lightmap: Option<(&lightmap::LightmapAtlas, &[[f32; 3]])>,
+    request: &PreviewRequest,
+) -> Result<Vec<BakedFile>, String> {
+    // The glTF's base colours: albedo × the mesh's colour, clamped to 0..1.
+    let albedo: Vec<[f32; 3]> = meshes
+        .meshes
+        .iter()
+        .enumerate()
+        .map(|(i, m)| {
+            let a = frame.mesh_material(i).albedo;
+            std::array::from_fn(|c| (a[c] * f64::from(m.base_color[c])).clamp(0.0, 1.0) as f32)
+        })
+        .collect();
+    let mut pictures = vec![("preview_vertex.exr", baked_render::BakedLight::Vertex(light))];
+    if let Some((atlas, image)) = lightmap {
+        pictures.push(("preview_lightmap.exr", baked_render::BakedLight::Lightmap { atlas, image }));
+    }
+    let mut files = Vec::new();
+    for (name, light) in pictures {
+        let picture = baked_render::render(meshes, scene, &albedo, &light, &request.camera, request.size);
+        let (w, h) = (request.size.0 as u32, request.size.1 as u32);
+        files.push(BakedFile { name: name.into(), bytes: lightmap::exr_bytes(&picture.pixels, w, h)? });
+    }
+    Ok(files)
+}
+
+/// The rsl mode's square lights, as the directional lights the glTF carries.
+fn square_lights(frame: &FrameInputs) -> Vec<gltf_export::DirectionalLight> {
+    match &frame.surfaces {
+        crate::frame::Surfaces::Rsl(s) => s
+            .lights
+            .iter()
+            .map(|l| gltf_export::DirectionalLight {
+                direction: [l[0], l[1], l[2]].map(f64::from),
+                solid_angle: f64::from(l[3]),
+                radiance: [l[4], l[5], l[6]].map(f64::from),
+            })
+            .collect(),
+        _ => Vec::new(),
+    }
+}
+
+impl ManifestMaterial {
+    fn of(m: &gltf_export::WrittenMaterial) -> Self {
+        Self {
+            name: m.name.clone(),
+            model: m.model.to_string(),
+            base_color: m.fit.base_color,
+            roughness: m.fit.roughness,
+            specular_factor: m.fit.specular_factor,
+            specular_color: m.fit.specular_color,
+            anisotropy: m.fit.anisotropy,
+            fit_error: m.fit.error,
+        }
+    }
 }
 
 impl Bake {

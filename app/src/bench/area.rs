@@ -9,7 +9,7 @@
 //! * the transport precompute per vertex (unoccluded rays here: the time is the face sampling
 //!   and the Haar transform, not ray casting) and its memory.
 
-use crate::bench_command::{BenchArgs, evaluate_frame, median, timed_frame};
+use super::common::{BenchArgs, evaluate_frame, median, timed_frame};
 use anyhow::{Result, anyhow};
 use glam::DVec3;
 use lightloom_nodes::engine::spec::ParamValue;
@@ -80,7 +80,7 @@ pub fn area_light_figures() {
         let (first, seconds) = (times[0], median(times));
         let rate = positions.len() as f64 / seconds / 1e6;
         let anchors =
-            crate::bench_anchors::sun_area_relights(source_pct, target_pct).map_or(String::new(), |(eight, one)| {
+            super::anchors::sun_area_relights(source_pct, target_pct).map_or(String::new(), |(eight, one)| {
                 format!(
                     "; {}; per thread {}",
                     eight.beside(rate),

@@ -106,7 +106,7 @@ pub fn ray_figures(dump: Option<&Path>) -> Result<()> {
         let differ: usize =
             single.iter().zip(&bundled).map(|(a, b)| a.iter().zip(b).filter(|(a, b)| a != b).count()).sum();
         let rate = cast / bundled_s / 1e6;
-        let embree = crate::bench_anchors::embree(count).map_or(String::new(), |a| a.beside(rate));
+        let embree = super::anchors::embree(count).map_or(String::new(), |a| a.beside(rate));
         println!(
             "  {count:>4} directions, {cast} rays: one at a time {:.2} M rays/s, bundles {rate:.2} M rays/s ({:.1}× single), \
              {embree}; {differ} rays differ between the two ({:.3}%)",

@@ -3,7 +3,7 @@
 //! glinting on them) drawn without its map and with each filter, and the stages that build
 //! its pyramids.
 
-use crate::bench_command::{BenchArgs, evaluate_frame, median, timed_frame};
+use super::common::{BenchArgs, evaluate_frame, median, timed_frame};
 use anyhow::{Result, anyhow};
 use lightloom_nodes::engine::Engine;
 use lightloom_nodes::engine::spec::ParamValue;

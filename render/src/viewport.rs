@@ -4,21 +4,18 @@
 //! come from changes.
 
 use crate::capture::{CapturedFrame, read_texture};
-use crate::passes::area_light::AreaLightPass;
 use crate::passes::background::BackgroundPass;
 use crate::passes::camera::CameraBinding;
 use crate::passes::geometry::GeometryBuffers;
-use crate::passes::irradiance::IrradiancePass;
 use crate::passes::medium::MediumPass;
-use crate::passes::prt::PrtPass;
-use crate::passes::rsl::RslPass;
 use crate::passes::sun::SunPass;
 use crate::passes::tonemap::TonemapPass;
-use crate::passes::wavelet::WaveletPass;
-use crate::passes::{DEPTH_FORMAT, Draw, HDR_FORMAT, LDR_FORMAT, Pass, PassSetup, to_rgba_f16};
+use crate::passes::{
+    DEPTH_FORMAT, Draw, HDR_FORMAT, LDR_FORMAT, Pass, PassSetup, ScenePass, scene_passes, to_rgba_f16,
+};
 use crate::{GpuContext, RenderError};
 use glam::{Mat4, Vec3};
-use lightloom_nodes::frame::{FrameInputs, Surfaces};
+use lightloom_nodes::frame::FrameInputs;
 use lightloom_nodes::kinds::output::Tonemap;
 use lightloom_nodes::project::Camera;
 
@@ -76,11 +73,9 @@ pub struct ViewportRenderer {
     sun: SunPass,
     normal_maps: crate::passes::normal_map::NormalMapPass,
     background: BackgroundPass,
-    irradiance: IrradiancePass,
-    prt: PrtPass,
-    wavelet: WaveletPass,
-    rsl: RslPass,
-    area_lights: AreaLightPass,
+    /// The passes over the background ([`scene_passes`]), and which drew the last frame.
+    passes: Vec<Box<dyn ScenePass>>,
+    drawn: Vec<bool>,
     tonemap: TonemapPass,
     geometry: Option<GeometryBuffers>,
     targets: Option<Targets>,
@@ -103,21 +98,21 @@ impl ViewportRenderer {
             normal_map_layout: &normal_maps.layout,
             sample_count,
         };
-        let mut wavelet = WaveletPass::new(&setup);
+        let mut passes = scene_passes(&setup);
         // `LIGHTLOOM_RELIGHT=gpu` or `cpu` picks where the wavelet modes relight (to compare the
         // two); otherwise the device decides.
-        wavelet.set_relight_on(match std::env::var("LIGHTLOOM_RELIGHT").as_deref() {
+        let relight_on = match std::env::var("LIGHTLOOM_RELIGHT").as_deref() {
             Ok("gpu") => crate::RelightOn::Gpu,
             Ok("cpu") => crate::RelightOn::Cpu,
             _ => crate::RelightOn::Auto,
-        });
+        };
+        for pass in &mut passes {
+            pass.relight_on(relight_on);
+        }
         Self {
             background: BackgroundPass::new(gpu, &setup),
-            irradiance: IrradiancePass::new(&setup),
-            prt: PrtPass::new(&setup),
-            wavelet,
-            rsl: RslPass::new(&setup),
-            area_lights: AreaLightPass::new(&setup),
+            drawn: vec![false; passes.len()],
+            passes,
             tonemap: TonemapPass::new(&gpu.device),
             camera,
             medium,
@@ -132,7 +127,9 @@ impl ViewportRenderer {
     /// Where the wavelet modes rebuild their products after a lighting change (by default the
     /// GPU's compute kernel, or the CPU on a CPU adapter).
     pub fn set_relight_on(&mut self, on: crate::RelightOn) {
-        self.wavelet.set_relight_on(on);
+        for pass in &mut self.passes {
+            pass.relight_on(on);
+        }
     }
 
     /// Uploads what changed and draws the frame into the offscreen targets.
@@ -150,15 +147,8 @@ impl ViewportRenderer {
         self.normal_maps.prepare(gpu, &frame.normal_maps)?;
         self.sun.prepare(gpu, frame.sun.as_ref(), &frame.materials, self.geometry.as_ref());
         self.background.prepare(gpu, &frame.background)?;
-        match &frame.surfaces {
-            Surfaces::Irradiance(data) => self.irradiance.prepare(gpu, data)?,
-            Surfaces::Prt(data) => self.prt.prepare(gpu, data)?,
-            Surfaces::Wavelet(data) => self.wavelet.prepare(gpu, data)?,
-            Surfaces::Rsl(data) => self.rsl.prepare(gpu, data)?,
-        }
-        match &frame.area_lights {
-            Some(data) => self.area_lights.prepare(gpu, data)?,
-            None => self.area_lights.clear(),
+        for (pass, drawn) in self.passes.iter_mut().zip(&mut self.drawn) {
+            *drawn = pass.prepare_frame(gpu, frame)?;
         }
         self.ensure_targets(gpu, width, height);
         let bounds = self.geometry.as_ref().map_or(([0.0; 3], [0.0; 3]), |m| m.bounds);
@@ -198,14 +188,9 @@ impl ViewportRenderer {
             pass.set_bind_group(4, &self.normal_maps.bind_group, &[]);
             let mapped = frame.normal_maps.materials.iter().any(Option::is_some);
             self.background.draw(&mut pass, None, mapped);
-            let surfaces: &dyn Draw = match &frame.surfaces {
-                Surfaces::Irradiance(_) => &self.irradiance,
-                Surfaces::Prt(_) => &self.prt,
-                Surfaces::Wavelet(_) => &self.wavelet,
-                Surfaces::Rsl(_) => &self.rsl,
-            };
-            surfaces.draw(&mut pass, self.geometry.as_ref(), mapped);
-            self.area_lights.draw(&mut pass, self.geometry.as_ref(), mapped);
+            for (scene_pass, _) in self.passes.iter().zip(&self.drawn).filter(|(_, drawn)| **drawn) {
+                scene_pass.draw(&mut pass, self.geometry.as_ref(), mapped);
+            }
         }
         gpu.queue.submit(Some(encoder.finish()));
         self.tone_map(gpu, frame.settings.exposure, frame.settings.tonemap);

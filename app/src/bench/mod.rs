@@ -1,7 +1,7 @@
 //! `lightloom bench`: prints the relighting figures (the numbers behind the speed claims).
 //! Benchmarks print; tests never time anything.
 //!
-//! * Visibility rays (`bench_rays`): one at a time and in bundles, beside Embree's rate.
+//! * Visibility rays (`rays.rs`): one at a time and in bundles, beside Embree's rate.
 //! * Edit-to-new-frame latency for a BRDF edit on the default project, per relighting mode
 //!   (evaluate the changed stages, upload, draw, wait for the GPU).
 //! * Frame time of the default project at 1280×720 per mode (nothing re-uploaded).
@@ -16,7 +16,7 @@
 //! * The `rsl` mode on a 60k-vertex torus with one moving occluder and 30 square lights:
 //!   BRDF table builds, self-visibility and occluder-field precompute and their memory, the
 //!   CPU cost of a move (per-vertex visibility) and the GPU frame, beside the paper's Table 1.
-//! * Blocker spheres (`bench_blockers`): the thesis's Fig. 5.5 speed-up table and its scenes'
+//! * Blocker spheres (`blockers.rs`): the thesis's Fig. 5.5 speed-up table and its scenes'
 //!   update rates, on the CPU.
 
 mod adaptive;

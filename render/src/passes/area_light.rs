@@ -50,6 +50,14 @@ impl AreaLightPass {
 impl Pass for AreaLightPass {
     type Data = AreaLightFrame;
 
+    fn of(frame: &lightloom_nodes::frame::FrameInputs) -> Option<&Self::Data> {
+        frame.area_lights.as_ref()
+    }
+
+    fn absent(&mut self) {
+        self.clear();
+    }
+
     fn prepare(&mut self, gpu: &GpuContext, data: &AreaLightFrame) -> Result<(), RenderError> {
         let keys = (data.irradiance.key, data.highlights.as_ref().map(|h| h.key));
         if self.bound.as_ref().is_none_or(|(k, _)| *k != keys) {

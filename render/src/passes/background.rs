@@ -51,6 +51,10 @@ impl BackgroundPass {
 impl Pass for BackgroundPass {
     type Data = Background;
 
+    fn of(frame: &lightloom_nodes::frame::FrameInputs) -> Option<&Self::Data> {
+        Some(&frame.background)
+    }
+
     fn prepare(&mut self, gpu: &GpuContext, background: &Background) -> Result<(), RenderError> {
         let key = background.radiance.as_ref().map(|r| r.key);
         if self.key == Some(key) {

@@ -43,6 +43,13 @@ impl IrradiancePass {
 impl Pass for IrradiancePass {
     type Data = IrradianceSurfaces;
 
+    fn of(frame: &lightloom_nodes::frame::FrameInputs) -> Option<&Self::Data> {
+        match &frame.surfaces {
+            lightloom_nodes::frame::Surfaces::Irradiance(data) => Some(data),
+            _ => None,
+        }
+    }
+
     fn prepare(&mut self, gpu: &GpuContext, data: &IrradianceSurfaces) -> Result<(), RenderError> {
         let mut params: IrradianceParams = bytemuck::Zeroable::zeroed();
         for (dst, albedo) in params.albedo.iter_mut().zip(&data.albedo) {

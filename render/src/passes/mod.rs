@@ -24,7 +24,7 @@ pub mod wavelet;
 use crate::{GpuContext, RenderError};
 use geometry::GeometryBuffers;
 use lightloom_nodes::engine::StageType;
-use lightloom_nodes::frame::Keyed;
+use lightloom_nodes::frame::{FrameInputs, Keyed};
 use wgpu::util::DeviceExt;
 
 pub(crate) const HDR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Float;
@@ -35,8 +35,52 @@ pub(crate) const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth3
 pub(crate) trait Pass: Draw {
     /// The frame data of the feature this pass draws.
     type Data: ?Sized;
+    /// This pass's part of `frame` (`None`: it draws nothing in this frame).
+    fn of(frame: &FrameInputs) -> Option<&Self::Data>
+    where
+        Self: Sized;
     /// Uploads what changed since the last frame.
     fn prepare(&mut self, gpu: &GpuContext, data: &Self::Data) -> Result<(), RenderError>;
+    /// A frame without this pass's part (drop what was uploaded for the last one).
+    fn absent(&mut self) {}
+    /// Where the pass rebuilds its lighting after a change, for passes with a choice.
+    fn set_relight_on(&mut self, _on: crate::RelightOn) {}
+}
+
+/// A scene pass as the viewport holds it: it finds its part of the frame, uploads what
+/// changed, and says whether it draws.
+pub(crate) trait ScenePass: Draw {
+    /// Prepares this pass's part of `frame`; whether it draws in it.
+    fn prepare_frame(&mut self, gpu: &GpuContext, frame: &FrameInputs) -> Result<bool, RenderError>;
+    fn relight_on(&mut self, on: crate::RelightOn);
+}
+
+impl<P: Pass> ScenePass for P {
+    fn prepare_frame(&mut self, gpu: &GpuContext, frame: &FrameInputs) -> Result<bool, RenderError> {
+        match P::of(frame) {
+            Some(data) => self.prepare(gpu, data).map(|()| true),
+            None => {
+                self.absent();
+                Ok(false)
+            }
+        }
+    }
+
+    fn relight_on(&mut self, on: crate::RelightOn) {
+        self.set_relight_on(on);
+    }
+}
+
+/// The passes drawn over the background, in order: the surfaces of each relighting mode (one
+/// of them draws a frame) and what adds onto them. A new pass is one line here.
+pub(crate) fn scene_passes(setup: &PassSetup) -> Vec<Box<dyn ScenePass>> {
+    vec![
+        Box::new(irradiance::IrradiancePass::new(setup)),
+        Box::new(prt::PrtPass::new(setup)),
+        Box::new(wavelet::WaveletPass::new(setup)),
+        Box::new(rsl::RslPass::new(setup)),
+        Box::new(area_light::AreaLightPass::new(setup)),
+    ]
 }
 
 pub(crate) trait Draw {

@@ -54,6 +54,13 @@ impl PrtPass {
 impl Pass for PrtPass {
     type Data = PrtSurfaces;
 
+    fn of(frame: &lightloom_nodes::frame::FrameInputs) -> Option<&Self::Data> {
+        match &frame.surfaces {
+            lightloom_nodes::frame::Surfaces::Prt(data) => Some(data),
+            _ => None,
+        }
+    }
+
     fn prepare(&mut self, gpu: &GpuContext, data: &PrtSurfaces) -> Result<(), RenderError> {
         let t = stage_value::<lightloom_nodes::transport::ShTransport>(&data.transport)?;
         let r = lightloom_nodes::frame::incident_sh(&data.incident.value).map_err(RenderError::Invalid)?;

@@ -87,6 +87,13 @@ impl RslPass {
 impl Pass for RslPass {
     type Data = RslSurfaces;
 
+    fn of(frame: &lightloom_nodes::frame::FrameInputs) -> Option<&Self::Data> {
+        match &frame.surfaces {
+            lightloom_nodes::frame::Surfaces::Rsl(data) => Some(data),
+            _ => None,
+        }
+    }
+
     fn prepare(&mut self, gpu: &GpuContext, data: &RslSurfaces) -> Result<(), RenderError> {
         if self.bound.as_ref().is_none_or(|b| b.key != data.key) {
             self.bound = None;

@@ -431,6 +431,17 @@ impl WaveletPass {
 impl Pass for WaveletPass {
     type Data = WaveletSurfaces;
 
+    fn of(frame: &lightloom_nodes::frame::FrameInputs) -> Option<&Self::Data> {
+        match &frame.surfaces {
+            lightloom_nodes::frame::Surfaces::Wavelet(data) => Some(data),
+            _ => None,
+        }
+    }
+
+    fn set_relight_on(&mut self, on: RelightOn) {
+        WaveletPass::set_relight_on(self, on);
+    }
+
     fn prepare(&mut self, gpu: &GpuContext, data: &WaveletSurfaces) -> Result<(), RenderError> {
         if stage_value::<CubeMap>(&data.environment)?.size == 0 {
             return Err(RenderError::Invalid("the wavelet modes were given no environment".into()));

@@ -62,6 +62,12 @@ fn light_profile(i: i32, dir: vec3<f32>) -> f32 {
     return mix(top, bottom, ty);
 }
 
+// The unit vector from light `i` to `p` (nearly zero when `p` is at the light).
+fn light_direction(i: i32, p: vec3<f32>) -> vec3<f32> {
+    let d = p - fog.light_position[i].xyz;
+    return d / max(length(d), 1e-4);
+}
+
 const FOG_U_MAX: f32 = 64.0;
 const FOG_U_WARP: f32 = 4.0;
 const FOG_MIN_GAMMA: f32 = 1e-4;
@@ -227,6 +233,13 @@ fn fog_shade(lit_in: vec3<f32>, p: vec3<f32>, n: vec3<f32>, tangent: vec3<f32>, 
             lit = lit * fog.environment.rgb + kd * fog_environment_glow_irradiance(n);
         }
     }
+    // Each light's profile towards this point and towards the viewer, once for all channels.
+    var toward_point: array<f32, 8>;
+    var toward_viewer: array<f32, 8>;
+    for (var i = 0; i < i32(fog.counts.x); i = i + 1) {
+        toward_point[i] = light_profile(i, light_direction(i, p));
+        toward_viewer[i] = light_profile(i, light_direction(i, viewer));
+    }
     var out = vec3<f32>(0.0);
     for (var c = 0; c < 3; c = c + 1) {
         let beta = select(0.0, fog.beta[c], fogged);
@@ -237,7 +250,7 @@ fn fog_shade(lit_in: vec3<f32>, p: vec3<f32>, n: vec3<f32>, tangent: vec3<f32>, 
             let d_sp = max(length(to_light), 1e-4);
             // A profiled light: its intensity towards this point lights the surface; its airlight
             // (eq. 3.16 holds for isotropic lights) takes its intensity towards the viewer.
-            let i0 = fog.light_intensity[i][c] * light_profile(i, -to_light / d_sp);
+            let i0 = fog.light_intensity[i][c] * toward_point[i];
             let cos_s = dot(to_light / d_sp, n);
             let t_sp = beta * d_sp;
             let direct = exp(-t_sp) / (d_sp * d_sp);
@@ -273,7 +286,7 @@ fn fog_shade(lit_in: vec3<f32>, p: vec3<f32>, n: vec3<f32>, tangent: vec3<f32>, 
                 let to_source = fog.light_position[i].xyz - viewer;
                 let d_sv = max(length(to_source), 1e-4);
                 let gamma = fog_angle(view, to_source / d_sv);
-                let i_air = fog.light_intensity[i][c] * light_profile(i, -to_source / d_sv);
+                let i_air = fog.light_intensity[i][c] * toward_viewer[i];
                 air = air + fog_airlight(beta, d_sv, d_vp, gamma, i_air);
             }
             surface = surface + i0 * (kd[c] * reflected + ks[c] * specular);
@@ -292,6 +305,10 @@ fn fog_background(env: vec3<f32>, dir: vec3<f32>) -> vec3<f32> {
     }
     let viewer = globals.camera_pos.xyz;
     var out = env * fog.environment.rgb + fog_environment_glow(dir) * globals.flags.y;
+    var toward_viewer: array<f32, 8>;
+    for (var i = 0; i < i32(fog.counts.x); i = i + 1) {
+        toward_viewer[i] = light_profile(i, light_direction(i, viewer));
+    }
     for (var c = 0; c < 3; c = c + 1) {
         var air = 0.0;
         for (var i = 0; i < i32(fog.counts.x); i = i + 1) {
@@ -299,7 +316,7 @@ fn fog_background(env: vec3<f32>, dir: vec3<f32>) -> vec3<f32> {
             let d_sv = max(length(to_source), 1e-4);
             let gamma = fog_angle(dir, to_source / d_sv);
             // A profiled light glows as bright as it shines back at the viewer.
-            let i0 = fog.light_intensity[i][c] * light_profile(i, -to_source / d_sv);
+            let i0 = fog.light_intensity[i][c] * toward_viewer[i];
             air = air + fog_airlight(fog.beta[c], d_sv, -1.0, gamma, i0);
         }
         out[c] = out[c] + air;

@@ -43,7 +43,13 @@ const PEAK: f64 = 10.0;
 /// A white Lambert floor seen from straight above, lit only by a spot 2 m over it pointing
 /// down, with the file's profile and no cone; `view` is `approximation` or `reference`.
 fn render(dir: &Path, view: &str) -> Vec<[f32; 3]> {
-    let ies = repo().join("assets/ies/downlight_30.ies");
+    render_spot(dir, view, "downlight_30.ies", [0.0, -1.0, 0.0], 0.0)
+}
+
+/// The same floor under a spot with profile `ies`, aimed along `direction` and spun `spin`°.
+fn render_spot(dir: &Path, view: &str, ies: &str, direction: [f64; 3], spin: f64) -> Vec<[f32; 3]> {
+    let ies = repo().join("assets/ies").join(ies);
+    let [dx, dy, dz] = direction;
     let project = format!(
         r#"(
         version: 4,
@@ -55,7 +61,8 @@ fn render(dir: &Path, view: &str) -> Vec<[f32; 3]> {
                 "tessellation": Int(8),
             }}),
             (id: "spot", kind: "SpotLight", params: {{
-                "position": Vec3((0.0, {HEIGHT}, 0.0)), "direction": Vec3((0.0, -1.0, 0.0)), "cone": Float(180.0),
+                "position": Vec3((0.0, {HEIGHT}, 0.0)), "direction": Vec3(({dx}, {dy}, {dz})), "cone": Float(180.0),
+                "spin": Float({spin}),
                 "profile": Path("{}"), "intensity": Color(({PEAK}, {PEAK}, {PEAK})),
             }}),
             (id: "white", kind: "BrdfEditor", params: {{"albedo": Color((1.0, 1.0, 1.0))}}),
@@ -72,9 +79,10 @@ fn render(dir: &Path, view: &str) -> Vec<[f32; 3]> {
     )"#,
         ies.display()
     );
-    let path = dir.join(format!("spot-{view}.ron"));
+    let name = format!("spot-{view}-{}", ies.file_stem().unwrap().to_string_lossy());
+    let path = dir.join(format!("{name}.ron"));
     std::fs::write(&path, project).unwrap();
-    let exr = dir.join(format!("spot-{view}.exr"));
+    let exr = dir.join(format!("{name}.exr"));
     let out = lightloom()
         .args(["render", path.to_str().unwrap(), "-o", exr.to_str().unwrap(), "--no-disk-cache", "-q"])
         .output()
@@ -177,4 +185,30 @@ fn a_bad_ies_file_is_named_with_its_problem() {
     let out = lightloom().args(["eval", path.to_str().unwrap(), "--no-disk-cache"]).output().unwrap();
     let text = format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
     assert!(text.contains("broken.ies") && text.contains("type B"), "{text}");
+}
+
+/// An asymmetric profile (the wall pack: 21 planes), aimed off the vertical and spun: the
+/// viewport's shader reads the profile's table as the reference's Rust lookup does, every
+/// plane where it belongs.
+#[test]
+fn the_viewport_reads_an_asymmetric_profile_as_the_reference_does() {
+    let dir = std::env::temp_dir().join(format!("lightloom-spot-wall-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let direction = [0.35, -1.0, 0.2];
+    let viewport = render_spot(&dir, "approximation", "wall_pack.ies", direction, 40.0);
+    let reference = render_spot(&dir, "reference", "wall_pack.ies", direction, 40.0);
+    let truth: Vec<f64> = reference.iter().map(|p| f64::from(p[1])).collect();
+    let (rmse, bias) = error(&viewport, &truth);
+    // And the pattern is not symmetric: mirrored about the image's centre, it differs.
+    let mirrored: Vec<[f32; 3]> = (0..SIZE * SIZE).map(|i| viewport[SIZE * SIZE - 1 - i]).collect();
+    let (asymmetry, _) = error(&mirrored, &truth);
+    println!(
+        "wall pack, aimed and spun: viewport against the reference {:.2}% relative RMSE ({:+.2}% mean); the \
+         pattern turned half a turn differs by {:.0}%",
+        rmse * 100.0,
+        bias * 100.0,
+        asymmetry * 100.0
+    );
+    assert!(rmse < 0.03 && bias.abs() < 0.01, "viewport against the reference: {rmse:.4} RMSE, {bias:+.4} mean");
+    assert!(asymmetry > 0.1, "the profile's planes differ: {asymmetry:.3}");
 }

@@ -21,6 +21,9 @@ pub const MAX_VALUES: usize = 1 << 20;
 /// Bytes of a file read.
 pub const MAX_FILE_BYTES: u64 = 16 << 20;
 
+/// Largest candela value read (a searchlight peaks near 1e8 cd).
+pub const MAX_CANDELA: f64 = 1e9;
+
 /// Lumens of a watt at 555 nm: a candela is `1/683` W/sr of green light.
 pub const LUMENS_PER_WATT: f64 = 683.0;
 
@@ -140,7 +143,11 @@ impl Photometry {
             if row.iter().any(|c| *c < 0.0) {
                 return Err(bad("a candela value is negative"));
             }
-            candela.push(row.into_iter().map(|c| c * multiplier * ballast).collect());
+            let row: Vec<f64> = row.into_iter().map(|c| c * multiplier * ballast).collect();
+            if row.iter().any(|c| !c.is_finite() || *c > MAX_CANDELA) {
+                return Err(bad(format!("a candela value times the multiplier is over {MAX_CANDELA:e}")));
+            }
+            candela.push(row);
         }
         let ascending = |v: &[f64]| v.windows(2).all(|w| w[0] < w[1]);
         if !ascending(&vertical) || vertical[0] < 0.0 || vertical[vertical_count - 1] > 180.0 {
@@ -296,6 +303,7 @@ mod tests {
             ("TILT=NONE\n1 -1 1 2 1 1 2 0 0 0\n1 1 1\n0 90\n0\n1 -1", "negative"),
             ("TILT=NONE\n1 -1 1 2 1 1 2 0 0 0\n1 1 1\n0 90\n0\n1 x", "not a number"),
             ("TILT=NONE\n1 -1 1 2 1 1 2 0 0 0\n1 1 1\n0 90\n0\n1 inf", "not finite"),
+            ("TILT=NONE\n1 -1 1e200 2 1 1 2 0 0 0\n1 1 1\n0 90\n0\n1 1e200", "over 1e9"),
             ("TILT=NONE\n1 -1 0 2 1 1 2 0 0 0\n1 1 1\n0 90\n0\n1 1", "must be positive"),
             ("TILT=NONE\n1 -1 1 2 2 1 2 0 0 0\n1 1 1\n0 90\n10 20\n1 1 1 1", "horizontal angles"),
         ];

@@ -3,10 +3,11 @@
 //! A point light radiates `I(ω) = intensity · P(ω)` W/sr towards `ω`, where the angular profile
 //! `P` is 1 for an isotropic light, and for a spot or a photometric (IES) light a table over the
 //! light's own frame with values in `[0, 1]`. Irradiance at distance `d` on a surface whose
-//! normal makes angle `θ` with the way to the light is `I(ω) cos θ / d²`. Every consumer (the
-//! viewport's shading, the bake, the probes, the Monte Carlo reference) evaluates the profile
-//! through [`PointLight::intensity_toward`] or the same table on the GPU, so a new kind of
-//! light that fills in a profile needs no change anywhere else.
+//! normal makes angle `θ` with the way to the light is `I(ω) cos θ / d²`. Every consumer that
+//! lights with it (the viewport's shading, the bake, the probes, the Monte Carlo reference)
+//! evaluates the profile through [`PointLight::intensity_toward`] or the same table on the
+//! GPU, so a new kind of light that fills in a profile needs no change anywhere else; the glTF
+//! export, whose lights have no profiles, keeps a spot's beam or else the mean intensity.
 
 use glam::{DMat3, DVec3};
 use std::f64::consts::PI;
@@ -62,8 +63,8 @@ pub struct AngularProfile {
     pub frame: DMat3,
     /// `PROFILE_THETA × PROFILE_PHI` values in `[0, 1]`, row by row.
     pub values: Vec<f32>,
-    /// The cone the light shines into, `(inner, outer)` half-angles in radians, when it is a
-    /// spot: what formats without profiles (glTF's `KHR_lights_punctual`) keep of it.
+    /// The beam, `(inner, outer)` half-angles in radians, of a light that shines into at most
+    /// a hemisphere: what formats without profiles (glTF's `KHR_lights_punctual`) keep of it.
     pub cone: Option<(f64, f64)>,
 }
 

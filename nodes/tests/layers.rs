@@ -59,10 +59,19 @@ fn unit_of(relative: &Path) -> String {
     first.strip_suffix(".rs").map(str::to_owned).unwrap_or(first)
 }
 
-/// Every `crate::NAME` a line names.
+/// Every `crate::NAME` a line names, with each name of a grouped `crate::{a, b::c}`.
 fn crate_names(line: &str) -> impl Iterator<Item = String> + '_ {
-    line.match_indices("crate::")
-        .map(move |(at, _)| line[at + 7..].chars().take_while(|c| c.is_ascii_alphanumeric() || *c == '_').collect())
+    let word = |text: &str| -> String { text.chars().take_while(|c| c.is_ascii_alphanumeric() || *c == '_').collect() };
+    line.match_indices("crate::").flat_map(move |(at, _)| {
+        let rest = &line[at + 7..];
+        match rest.strip_prefix('{') {
+            Some(group) => {
+                let group = &group[..group.find('}').unwrap_or(group.len())];
+                group.split(',').map(|item| word(item.trim())).filter(|w| !w.is_empty()).collect::<Vec<_>>()
+            }
+            None => vec![word(rest)],
+        }
+    })
 }
 
 /// `unit → imported unit → where`, over the `nodes` crate's non-test code.
@@ -249,10 +258,10 @@ fn the_checks_find_a_circle_and_skip_inline_tests() {
     graph.entry("c".into()).or_default().insert("a".into(), vec!["c.rs:1".into()]);
     assert_eq!(circle(&graph, "a"), Some(vec!["a".to_owned(), "b".to_owned(), "c".to_owned()]));
     let code = code_of(
-        "#[cfg(test)]\nmod tests;\nuse crate::x;\n// crate::y\n#[cfg(test)]\nmod tests {\n    use crate::z;\n}\n",
+        "#[cfg(test)]\nmod tests;\nuse crate::x;\nuse crate::{kinds, frame::Keyed};\n// crate::y\n#[cfg(test)]\nmod tests {\n    use crate::z;\n}\n",
     );
     let names: Vec<String> = code.iter().flat_map(|l| crate_names(l)).collect();
-    assert_eq!(names, ["x"]);
+    assert_eq!(names, ["x", "kinds", "frame"]);
     let body = vec!["    let x = 1;"; MAX_FUNCTION_LINES];
     let long: Vec<&str> = ["pub fn long() {"].into_iter().chain(body.iter().copied()).chain(["}"]).collect();
     assert_eq!(long_functions(&long), [("long".to_owned(), 1, MAX_FUNCTION_LINES + 2)]);

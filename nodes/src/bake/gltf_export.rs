@@ -384,8 +384,8 @@ impl GlbWriter {
         self.use_extension("KHR_lights_punctual");
         for (i, light) in lights.iter().enumerate() {
             use json::extensions::scene::khr_lights_punctual as punctual;
-            // A profiled light keeps its cone as a glTF spot (its profile within the cone is
-            // not carried), or else its mean intensity as a point light.
+            // A profiled light within a hemisphere keeps its beam as a glTF spot (its profile
+            // within the beam is not carried), or else its mean intensity as a point light.
             let (intensity, spot) = match light.profile.as_deref() {
                 None => (light.intensity, None),
                 Some(p) => match p.cone {

@@ -149,7 +149,8 @@ impl Default for Conventions {
                        from the texel's own transport in the mode: blockers, area lights and point-light \
                        shadows included; square lights traced over their caps",
             point_lights: "KHR_lights_punctual intensity is the light's radiant intensity (W/sr) in the project's \
-                           units; their diffuse light is already baked (extras.lightloom.baked = true), so add them \
+                           units (a spot's along its axis, its beam as the spot's cones; a light with a profile \
+                           wider than a hemisphere, its mean intensity as a point light); their diffuse light is already baked (extras.lightloom.baked = true), so add them \
                            for specular only. In the square-light mode each square light is a directional light \
                            (intensity = radiance x solid angle, the irradiance facing it) with its solid angle and \
                            the radius of the cone of equal solid angle in extras.lightloom; its diffuse light is \

@@ -595,6 +595,62 @@ fn square_lights_export_as_directional_lights_with_their_size() {
     assert!((2.0 * PI * (1.0 - radius.cos()) - 0.05).abs() < 1e-9);
 }
 
+/// A spot exports as a `KHR_lights_punctual` spot: its node's −Z along the spot's axis, its
+/// beam as the cones, its peak intensity; a profiled light wider than a hemisphere exports as a
+/// point light of its mean intensity (flux / 4π).
+#[test]
+fn spots_export_as_spot_lights_and_wide_profiles_as_point_lights() {
+    use crate::light::{AngularProfile, PointLight, cone};
+    let mesh = crate::mesh::Mesh {
+        name: "tri".into(),
+        positions: vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]],
+        normals: vec![[0.0, 1.0, 0.0]; 3],
+        indices: vec![0, 1, 2],
+        ..Default::default()
+    };
+    let meshes = crate::mesh::MeshSet { meshes: vec![mesh] };
+    let axis = DVec3::new(0.2, -1.0, 0.3).normalize();
+    let (inner, outer) = (15f64.to_radians(), 30f64.to_radians());
+    let mut spot = AngularProfile::tabulate(axis, 0.0, |t, _| cone(t, inner, outer));
+    spot.cone = Some((inner, outer));
+    let wide = AngularProfile::tabulate(DVec3::NEG_Y, 0.0, |t, _| 0.5 + 0.5 * t.cos());
+    let lights = [
+        PointLight {
+            position: [0.0, 3.0, 0.0],
+            intensity: [30.0, 15.0, 30.0],
+            profile: Some(std::sync::Arc::new(spot)),
+        },
+        PointLight { position: [1.0, 3.0, 0.0], intensity: [8.0; 3], profile: Some(std::sync::Arc::new(wide.clone())) },
+    ];
+    let glb = gltf_export::write_glb(&gltf_export::ExportScene {
+        meshes: &meshes,
+        vertex_light: &[[0.5; 3]; 3],
+        mesh_materials: &[0],
+        materials: &[(String::new(), crate::brdf::Material::default())],
+        lights: &lights,
+        directional: &[],
+        camera: None,
+        lightmap: None,
+    })
+    .unwrap();
+    let (document, _, _) = gltf::import_slice(&glb.bytes).unwrap();
+    let nodes: Vec<_> = document.nodes().filter(|n| n.light().is_some()).collect();
+    assert_eq!(nodes.len(), 2);
+    let l = nodes[0].light().unwrap();
+    let gltf::khr_lights_punctual::Kind::Spot { inner_cone_angle, outer_cone_angle } = l.kind() else {
+        panic!("the spot exports as another kind of light")
+    };
+    assert!((f64::from(inner_cone_angle) - inner).abs() < 1e-6 && (f64::from(outer_cone_angle) - outer).abs() < 1e-6);
+    assert!((l.intensity() - 30.0).abs() < 1e-4 && l.color() == [1.0, 0.5, 1.0]);
+    let m = glam::Mat4::from_cols_array_2d(&nodes[0].transform().matrix());
+    let shines = m.transform_vector3(glam::Vec3::NEG_Z).as_dvec3();
+    assert!(shines.dot(axis) > 0.99999, "{shines} against {axis}");
+    let point = nodes[1].light().unwrap();
+    assert!(matches!(point.kind(), gltf::khr_lights_punctual::Kind::Point));
+    // The mean of 0.5 + 0.5 cos θ over the sphere is 0.5.
+    assert!((f64::from(point.intensity()) - 8.0 * 0.5).abs() < 0.01, "{}", point.intensity());
+}
+
 /// A floor and a ball under a sky with a sun, coarsely tessellated (vertices about 0.5 m
 /// apart, wider than the ball's shadow detail), with `extra` nodes and links.
 fn coarse_floor_and_ball(mode: &str, ball_is_a_blocker: bool, extra_nodes: &str, extra_links: &str) -> String {

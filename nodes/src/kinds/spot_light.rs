@@ -137,14 +137,16 @@ fn lights(ctx: &StageContext) -> Result<StageValue, StageError> {
     let outer = ctx.float("cone")?.to_radians();
     let inner = outer * (1.0 - ctx.float("falloff")?);
     let peak = photometry.map_or(1.0, Photometry::peak);
-    let mut profile =
-        AngularProfile::tabulate(DVec3::from(ctx.vec3("direction")?), ctx.float("spin")?.to_radians(), |theta, phi| {
-            let shape = photometry.map_or(1.0, |p| p.candela(theta.to_degrees(), phi.to_degrees()) / peak.max(1e-30));
-            shape * cone(theta, inner, outer)
-        });
-    if outer < std::f64::consts::PI {
-        profile.cone = Some((inner, outer));
-    }
+    let cut = outer < std::f64::consts::PI;
+    // Type C horizontal angles turn counter-clockwise seen from above the luminaire (from
+    // behind its nadir), the opposite way to the light frame's φ about its nadir axis.
+    let shape = |theta: f64, phi: f64| {
+        let file = photometry.map_or(1.0, |p| p.candela(theta.to_degrees(), -phi.to_degrees()) / peak.max(1e-30));
+        file * if cut { cone(theta, inner, outer) } else { 1.0 }
+    };
+    let aim = DVec3::from(ctx.vec3("direction")?);
+    let mut profile = AngularProfile::tabulate(aim, ctx.float("spin")?.to_radians(), shape);
+    profile.cone = beam(&profile, cut.then_some((inner, outer)));
     let intensity = ctx.vec3("intensity")?;
     let intensity = match (ctx.option::<Strength>("strength")?, photometry) {
         (Strength::File, Some(_)) => {
@@ -155,4 +157,20 @@ fn lights(ctx: &StageContext) -> Result<StageValue, StageError> {
     };
     list.push(PointLight { position: ctx.vec3("position")?, intensity, profile: Some(Arc::new(profile)) });
     Ok(StageValue::new(list))
+}
+
+/// The cone a format without profiles keeps of the light: where its brightest ring falls
+/// below half its peak (inner) and below 1% (outer), within the node's own cone; `None` when
+/// light leaves wider than a hemisphere (it is no spot).
+fn beam(profile: &AngularProfile, node_cone: Option<(f64, f64)>) -> Option<(f64, f64)> {
+    use crate::light::{PROFILE_PHI, PROFILE_THETA};
+    let ring =
+        |row: usize| profile.values[row * PROFILE_PHI..(row + 1) * PROFILE_PHI].iter().fold(0.0f32, |m, &v| m.max(v));
+    let theta = |row: usize| std::f64::consts::PI * row as f64 / (PROFILE_THETA - 1) as f64;
+    let last_above = |level: f32| (0..PROFILE_THETA).rev().find(|&r| ring(r) >= level).map_or(0.0, theta);
+    let (mut inner, mut outer) = (last_above(0.5), last_above(0.01));
+    if let Some((cone_inner, cone_outer)) = node_cone {
+        (inner, outer) = (inner.min(cone_inner), outer.min(cone_outer));
+    }
+    (outer <= std::f64::consts::FRAC_PI_2).then_some((inner.min(outer), outer))
 }

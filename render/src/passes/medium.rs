@@ -111,6 +111,9 @@ impl MediumPass {
             }
         }
         self.views[2] = upload_table_layers(gpu, "light profiles", (PROFILE_PHI as u32, PROFILE_THETA as u32), &values);
+        // Bound at once: a later failure in this frame must not leave the old layers bound
+        // under the new hash.
+        self.bind_group = Self::bind(gpu, &self.layout, &self.params, &self.views);
         self.profiles = hash;
         true
     }
@@ -128,7 +131,8 @@ impl MediumPass {
                 params.light_x[i] = vec4(p.frame.x_axis.to_array(), 0.0);
             }
         }
-        let mut rebind = self.upload_profiles(gpu, medium);
+        self.upload_profiles(gpu, medium);
+        let mut rebind = false;
         for (slot, lobe) in params.specular.iter_mut().zip(&medium.surface_lobes) {
             if let Some((weight, exponent)) = lobe {
                 *slot = vec4(*weight, *exponent as f32);

@@ -310,6 +310,11 @@ fn direct_lighting(
         !rs.blockers.iter().any(|b| ray_hits_sphere(hit.position, wi_world, b))
             && !rs.scene.occluded(origin, Vec3A::from(wi_world.as_vec3()), f32::INFINITY)
     };
+    // Whether the way to a light `dist` away along `wi_world` is blocked.
+    let blocked = |wi_world: DVec3, dist: f64| {
+        rs.blockers.iter().any(|b| segment_hits_sphere(hit.position, wi_world, dist, b))
+            || rs.scene.occluded(origin, Vec3A::from(wi_world.as_vec3()), (dist * (1.0 - 1e-6)) as f32)
+    };
     let mut total = DVec3::ZERO;
     // Environment sample.
     let wi_world = env.sample([rng.random(), rng.random(), rng.random()]);
@@ -347,9 +352,7 @@ fn direct_lighting(
         if wi.z <= 0.0 || wi_world.dot(hit.geometric) <= 0.0 {
             continue;
         }
-        let blocked = rs.blockers.iter().any(|b| segment_hits_sphere(hit.position, wi_world, dist, b))
-            || rs.scene.occluded(origin, Vec3A::from(wi_world.as_vec3()), (dist * (1.0 - 1e-6)) as f32);
-        if !blocked {
+        if !blocked(wi_world, dist) {
             total += brdf.eval(wi, wo) * DVec3::from(light.intensity_toward(-wi_world)) * wi.z / (dist * dist);
         }
     }
@@ -361,9 +364,7 @@ fn direct_lighting(
         if wi.z <= 0.0 || wi_world.dot(hit.geometric) <= 0.0 {
             continue;
         }
-        let blocked = rs.blockers.iter().any(|b| segment_hits_sphere(hit.position, wi_world, dist, b))
-            || rs.scene.occluded(origin, Vec3A::from(wi_world.as_vec3()), (dist * (1.0 - 1e-6)) as f32);
-        if !blocked {
+        if !blocked(wi_world, dist) {
             total += brdf.eval(wi, wo) * radiance * wi.z * g / pdf;
         }
     }

@@ -176,26 +176,35 @@ fn the_engine_imports_no_technique() {
     }
 }
 
-/// Files split by concern stay readable: none of the workspace's non-test sources is longer
-/// than [`MAX_FILE_LINES`], inline tests included (long tests move to a `tests.rs` beside).
-#[test]
-fn no_source_file_is_over_800_lines() {
+/// The non-test sources of the `nodes`, `render` and `app` crates: `(crate/src/path, text)`.
+fn workspace_sources() -> Vec<(String, String)> {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).parent().unwrap();
-    let mut long = Vec::new();
+    let mut out = Vec::new();
     for krate in ["nodes", "render", "app"] {
         let src = root.join(krate).join("src");
         let mut files = Vec::new();
         rust_files(&src, &mut files);
         for path in files {
             let relative = path.strip_prefix(&src).unwrap();
-            if is_test_file(relative) {
-                continue;
+            if !is_test_file(relative) {
+                let text = std::fs::read_to_string(&path).unwrap();
+                out.push((format!("{krate}/src/{}", relative.display()), text));
             }
-            let source = std::fs::read_to_string(&path).unwrap();
-            let lines = source.lines().count();
-            if lines > MAX_FILE_LINES {
-                long.push(format!("{krate}/src/{} ({lines} lines)", relative.display()));
-            }
+        }
+    }
+    assert!(out.len() > 100, "the workspace's sources were found");
+    out
+}
+
+/// Files split by concern stay readable: none of the workspace's non-test sources is longer
+/// than [`MAX_FILE_LINES`], inline tests included (long tests move to a `tests.rs` beside).
+#[test]
+fn no_source_file_is_over_800_lines() {
+    let mut long = Vec::new();
+    for (name, source) in workspace_sources() {
+        let lines = source.lines().count();
+        if lines > MAX_FILE_LINES {
+            long.push(format!("{name} ({lines} lines)"));
         }
     }
     assert!(long.is_empty(), "over {MAX_FILE_LINES} lines, tests aside: {}", long.join(", "));
@@ -228,21 +237,10 @@ fn long_functions(lines: &[&str]) -> Vec<(String, usize, usize)> {
 /// the declarative tables that describe node kinds.
 #[test]
 fn no_function_is_over_150_lines() {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).parent().unwrap();
     let mut long = Vec::new();
-    for krate in ["nodes", "render", "app"] {
-        let src = root.join(krate).join("src");
-        let mut files = Vec::new();
-        rust_files(&src, &mut files);
-        for path in files {
-            let relative = path.strip_prefix(&src).unwrap();
-            if is_test_file(relative) {
-                continue;
-            }
-            let source = std::fs::read_to_string(&path).unwrap();
-            for (name, line, length) in long_functions(&code_of(&source)) {
-                long.push(format!("{krate}/src/{}:{line} `{name}` ({length} lines)", relative.display()));
-            }
+    for (name, source) in workspace_sources() {
+        for (function, line, length) in long_functions(&code_of(&source)) {
+            long.push(format!("{name}:{line} `{function}` ({length} lines)"));
         }
     }
     assert!(long.is_empty(), "functions over {MAX_FUNCTION_LINES} lines: {}", long.join(", "));

@@ -556,14 +556,7 @@ fn the_specular_ktx2_reads_back() {
 /// size in extras.
 #[test]
 fn square_lights_export_as_directional_lights_with_their_size() {
-    let mesh = crate::mesh::Mesh {
-        name: "tri".into(),
-        positions: vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]],
-        normals: vec![[0.0, 1.0, 0.0]; 3],
-        indices: vec![0, 1, 2],
-        ..Default::default()
-    };
-    let meshes = crate::mesh::MeshSet { meshes: vec![mesh] };
+    let meshes = one_triangle();
     let direction = DVec3::new(0.3, 0.8, -0.52).normalize();
     let light = gltf_export::DirectionalLight {
         direction: direction.to_array(),
@@ -595,12 +588,8 @@ fn square_lights_export_as_directional_lights_with_their_size() {
     assert!((2.0 * PI * (1.0 - radius.cos()) - 0.05).abs() < 1e-9);
 }
 
-/// A spot exports as a `KHR_lights_punctual` spot: its node's −Z along the spot's axis, its
-/// beam as the cones, its peak intensity; a profiled light wider than a hemisphere exports as a
-/// point light of its mean intensity (flux / 4π).
-#[test]
-fn spots_export_as_spot_lights_and_wide_profiles_as_point_lights() {
-    use crate::light::{AngularProfile, PointLight, cone};
+/// One upward-facing triangle, for the exports that only need a mesh to carry.
+fn one_triangle() -> crate::mesh::MeshSet {
     let mesh = crate::mesh::Mesh {
         name: "tri".into(),
         positions: vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]],
@@ -608,7 +597,16 @@ fn spots_export_as_spot_lights_and_wide_profiles_as_point_lights() {
         indices: vec![0, 1, 2],
         ..Default::default()
     };
-    let meshes = crate::mesh::MeshSet { meshes: vec![mesh] };
+    crate::mesh::MeshSet { meshes: vec![mesh] }
+}
+
+/// A spot exports as a `KHR_lights_punctual` spot: its node's −Z along the spot's axis, its
+/// beam as the cones, its peak intensity; a profiled light wider than a hemisphere exports as a
+/// point light of its mean intensity (flux / 4π).
+#[test]
+fn spots_export_as_spot_lights_and_wide_profiles_as_point_lights() {
+    use crate::light::{AngularProfile, PointLight, cone};
+    let meshes = one_triangle();
     let axis = DVec3::new(0.2, -1.0, 0.3).normalize();
     let (inner, outer) = (15f64.to_radians(), 30f64.to_radians());
     let mut spot = AngularProfile::tabulate(axis, 0.0, |t, _| cone(t, inner, outer));

@@ -43,7 +43,7 @@ impl Installed {
     }
 
     fn run(&self, args: &[&str]) -> Output {
-        let out = self.command().args(args).output().unwrap();
+        let out = output(self.command().args(args));
         assert!(
             out.status.success(),
             "lightloom {args:?} failed: {}\n{}",
@@ -112,7 +112,7 @@ fn every_sample_renders_from_an_installed_binary_in_an_empty_folder() {
     let written: Vec<_> = std::fs::read_dir(&installed.work).unwrap().map(|e| e.unwrap().file_name()).collect();
     assert_eq!(written.len(), samples.len(), "{written:?}");
     // A name that is no sample is refused with the list.
-    let out = installed.command().args(["info", "sample:nonesuch"]).output().unwrap();
+    let out = output(installed.command().args(["info", "sample:nonesuch"]));
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(2), "{stderr}");
     assert!(stderr.contains("nonesuch") && stderr.contains(&samples[0]), "{stderr}");
@@ -148,4 +148,19 @@ fn the_installed_editor_opens_a_sample() {
     let image = image::open(&shot).unwrap().to_rgb8();
     let (_, std) = luma_stats(&image);
     assert!(std > 10.0, "the window is blank (luma std {std:.1})");
+}
+
+/// Runs `command` to its end. A binary copied a moment ago can be refused with "text file
+/// busy" while another test thread's fork still holds the copy's write handle (until that child
+/// execs); that passes within moments, so it is retried.
+fn output(command: &mut Command) -> Output {
+    for _ in 0..100 {
+        match command.output() {
+            Err(e) if e.kind() == std::io::ErrorKind::ExecutableFileBusy => {
+                std::thread::sleep(std::time::Duration::from_millis(20))
+            }
+            result => return result.unwrap(),
+        }
+    }
+    command.output().unwrap()
 }

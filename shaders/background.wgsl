@@ -1,5 +1,8 @@
 // Background pass: the environment's radiance cube map seen through the camera.
 
+#import lightloom::common::globals
+#import lightloom::fog::fog_background
+
 @group(2) @binding(0) var environment: texture_cube<f32>;
 @group(2) @binding(1) var environment_sampler: sampler;
 

@@ -1,6 +1,8 @@
 // Shared by every scene pass: the camera (group 0, render/src/passes/camera.rs), the vertex
 // layout and the SH basis.
 
+#define_import_path lightloom::common
+
 struct Globals {
     view_proj: mat4x4<f32>,
     inv_view_proj: mat4x4<f32>,

@@ -4,6 +4,12 @@
 // about the mirror direction with cos^n and G_n), L_a from eq. 3.16.
 // Tables are R32Float, read with textureLoad and interpolated here (no float filtering needed).
 
+#define_import_path lightloom::fog
+
+#import lightloom::common::{PI, globals, sh_walk, sh_walk_next}
+#import lightloom::normal_map::{SurfaceNdf, ndf_mapped, ndf_direct_diffuse, ndf_widened_lobe}
+#import lightloom::sun::sun_direct
+
 struct Fog {
     // rgb: beta per channel (1/m); w: 1 when a medium is linked.
     beta: vec4<f32>,

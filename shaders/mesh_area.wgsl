@@ -3,6 +3,12 @@
 // per vertex, specular colour applied), added over the mode's surfaces: radiance out =
 // albedo * E / pi + highlight, seen through the medium's extinction when there is one.
 
+#define_import_path lightloom::mesh_area
+
+#import lightloom::common::{MeshVertex, PI, globals}
+#import lightloom::mesh_vertex::VertexOut
+#import lightloom::fog::fog
+
 struct AreaLights {
     // Diffuse albedo (rgb) of each material, indexed by the vertex's material.
     albedo: array<vec4<f32>, 8>,
@@ -14,25 +20,15 @@ struct AreaLights {
 // Per vertex: reflected radiance (rgb) of the lights' highlights (zeros without them).
 @group(2) @binding(2) var<storage, read> highlight: array<vec4<f32>>;
 
-struct VertexOut {
-    @builtin(position) @invariant clip: vec4<f32>,
-    @location(0) radiance: vec3<f32>,
-    @location(1) world: vec3<f32>,
-};
-
-@vertex
-fn vs_main(v: MeshVertex, @builtin(vertex_index) index: u32) -> VertexOut {
-    var out: VertexOut;
-    out.clip = globals.view_proj * vec4<f32>(v.position, 1.0);
+fn light_vertex(v: MeshVertex, index: u32, common_out: VertexOut) -> VertexOut {
+    var out = common_out;
     let kd = area.albedo[v.material].rgb * v.color / PI;
-    out.radiance = kd * irradiance[index].rgb + highlight[index].rgb;
-    out.world = v.position;
+    out.diffuse = kd * irradiance[index].rgb + highlight[index].rgb;
     return out;
 }
 
-@fragment
-fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
-    var radiance = in.radiance;
+fn shade(in: VertexOut, front: bool) -> vec4<f32> {
+    var radiance = in.diffuse;
     if (fog.beta.w > 0.5) {
         radiance = radiance * exp(-fog.beta.rgb * length(globals.camera_pos.xyz - in.world));
     }

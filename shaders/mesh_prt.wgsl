@@ -5,6 +5,12 @@
 // mirror direction of the view, f_l the per-band factors of the material's Phong lobe. Under a
 // normal map each pixel corrects B_s for its NDF (normal_map.wgsl ndf_vertex_glossy).
 
+#define_import_path lightloom::mesh_prt
+
+#import lightloom::common::{MeshVertex, PI, globals, sh_walk, sh_walk_next}
+#import lightloom::mesh_vertex::VertexOut
+#import lightloom::normal_map::{SurfaceNdf, surface_ndf, ndf_vertex_diffuse_scale, ndf_open_fraction, ndf_vertex_glossy}
+#import lightloom::fog::fog_shade
 
 struct PrtParams {
     // x: diffuse bands (<= 12), y: transfer floats per vertex, z: incident floats per vertex,
@@ -45,24 +51,8 @@ fn glossy_sum(r: vec3<f32>, bands: i32, ib: u32, material: u32) -> vec3<f32> {
     return sum;
 }
 
-struct VertexOut {
-    @builtin(position) @invariant clip: vec4<f32>,
-    @location(0) color: vec3<f32>,
-    @location(1) world: vec3<f32>,
-    @location(2) normal: vec3<f32>,
-    @location(3) kd: vec3<f32>,
-    @location(4) @interpolate(flat) material: u32,
-    @location(5) tangent: vec4<f32>,
-    @location(6) glossy: vec3<f32>,
-    @location(7) uv: vec2<f32>,
-    // How open the vertex is to the transported light (normal_map.wgsl ndf_open_fraction).
-    @location(8) open: vec3<f32>,
-};
-
-@vertex
-fn vs_main(v: MeshVertex, @builtin(vertex_index) index: u32) -> VertexOut {
-    var out: VertexOut;
-    out.clip = globals.view_proj * vec4<f32>(v.position, 1.0);
+fn light_vertex(v: MeshVertex, index: u32, common_out: VertexOut) -> VertexOut {
+    var out = common_out;
     let bands = i32(prt.counts.x);
     let coeffs = u32(bands * bands);
     var diffuse = vec3<f32>(0.0);
@@ -71,8 +61,8 @@ fn vs_main(v: MeshVertex, @builtin(vertex_index) index: u32) -> VertexOut {
         diffuse = diffuse + prt.light[k].rgb * transfer[tb + k];
     }
     let m = v.material;
-    out.color = prt.albedo[m].rgb * v.color * max(diffuse, vec3<f32>(0.0)) / PI;
-    out.glossy = vec3<f32>(0.0);
+    out.albedo = prt.albedo[m].rgb * v.color;
+    out.diffuse = out.albedo * max(diffuse, vec3<f32>(0.0)) / PI;
     out.open = ndf_open_fraction(diffuse, normalize(v.normal));
     if (prt.counts.w > 0u && prt.specular[m].w > 0.0) {
         let n = normalize(v.normal);
@@ -81,17 +71,10 @@ fn vs_main(v: MeshVertex, @builtin(vertex_index) index: u32) -> VertexOut {
         let glossy = glossy_sum(r, i32(prt.counts.w), index * prt.counts.z, m);
         out.glossy = prt.specular[m].rgb * max(glossy, vec3<f32>(0.0)) * max(dot(n, r), 0.0);
     }
-    out.uv = v.uv;
-    out.world = v.position;
-    out.normal = v.normal;
-    out.tangent = v.tangent;
-    out.kd = prt.albedo[m].rgb * v.color / PI;
-    out.material = m;
     return out;
 }
 
-@fragment
-fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
+fn shade(in: VertexOut, front: bool) -> vec4<f32> {
     let n = normalize(in.normal);
     var ndf: SurfaceNdf;
     surface_ndf(&ndf, in.material, in.uv, n, in.tangent);
@@ -100,6 +83,6 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
         let view = normalize(globals.camera_pos.xyz - in.world);
         glossy = ndf_vertex_glossy(&ndf, n, view, in.material, in.open, glossy);
     }
-    let lit = in.color * ndf_vertex_diffuse_scale(&ndf, n) + glossy;
-    return vec4<f32>(fog_shade(lit, in.world, n, in.tangent.xyz, in.kd, in.material, &ndf), 1.0);
+    let lit = in.diffuse * ndf_vertex_diffuse_scale(&ndf, n) + glossy;
+    return vec4<f32>(fog_shade(lit, in.world, n, in.tangent.xyz, in.albedo / PI, in.material, &ndf), 1.0);
 }

@@ -5,6 +5,13 @@
 // summed-area table each (nodes/src/rsl/brdf_sat.rs); Vbar per vertex and light comes from
 // the CPU (the rsl_visibility stage). Per vertex, Gouraud between vertices as in the paper.
 
+#define_import_path lightloom::mesh_rsl
+
+#import lightloom::common::{MeshVertex, PI, frame_tangent, globals}
+#import lightloom::mesh_vertex::VertexOut
+#import lightloom::normal_map::{SurfaceNdf, surface_ndf, ndf_vertex_diffuse_scale, ndf_open_fraction, ndf_vertex_glossy}
+#import lightloom::fog::fog_shade
+
 struct RslParams {
     // x: lights, y: table texels per side
     counts: vec4<u32>,
@@ -106,30 +113,9 @@ fn lobe_mean(m: u32, c: vec3<f32>, half_edge: f32, wo: vec3<f32>) -> f32 {
     return mix(mix(s00, s10, f.x), mix(s01, s11, f.x), f.y);
 }
 
-struct VertexOut {
-    @builtin(position) @invariant clip: vec4<f32>,
-    @location(0) radiance: vec3<f32>,
-    @location(1) albedo: vec3<f32>,
-    @location(2) @interpolate(flat) material: u32,
-    @location(3) position: vec3<f32>,
-    @location(4) normal: vec3<f32>,
-    @location(5) tangent: vec4<f32>,
-    @location(6) uv: vec2<f32>,
-    @location(7) glossy: vec3<f32>,
-    // How open the vertex is to the environment (normal_map.wgsl ndf_open_fraction).
-    @location(8) open: vec3<f32>,
-};
-
-@vertex
-fn vs_main(v: MeshVertex, @builtin(vertex_index) index: u32) -> VertexOut {
-    var out: VertexOut;
-    out.clip = globals.view_proj * vec4<f32>(v.position, 1.0);
+fn light_vertex(v: MeshVertex, index: u32, common_out: VertexOut) -> VertexOut {
+    var out = common_out;
     let m = v.material;
-    out.material = m;
-    out.position = v.position;
-    out.normal = v.normal;
-    out.tangent = v.tangent;
-    out.uv = v.uv;
     out.albedo = rp.albedo[m].rgb * v.color;
     let n = normalize(v.normal);
     let t = frame_tangent(n, v.tangent.xyz);
@@ -151,21 +137,20 @@ fn vs_main(v: MeshVertex, @builtin(vertex_index) index: u32) -> VertexOut {
         diffuse = diffuse + energy * square_mean(rp.layouts[m].x, to_plane(c), half_edge);
         glossy = glossy + energy * lobe_mean(m, c, half_edge, wo);
     }
-    out.radiance = out.albedo * diffuse;
+    out.diffuse = out.albedo * diffuse;
     out.glossy = rp.specular[m].rgb * glossy;
     out.open = ndf_open_fraction(PI * diffuse, n);
     return out;
 }
 
-@fragment
-fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
+fn shade(in: VertexOut, front: bool) -> vec4<f32> {
     let n = normalize(in.normal);
     // The square lights' shading is per vertex; under a normal map each pixel scales its diffuse
     // light and corrects its highlight for the NDF (normal_map.wgsl), as the SH and wavelet modes do.
     var ndf: SurfaceNdf;
     surface_ndf(&ndf, in.material, in.uv, n, in.tangent);
-    let view = normalize(globals.camera_pos.xyz - in.position);
+    let view = normalize(globals.camera_pos.xyz - in.world);
     let glossy = ndf_vertex_glossy(&ndf, n, view, in.material, in.open, in.glossy);
-    let lit = in.radiance * ndf_vertex_diffuse_scale(&ndf, n) + glossy;
-    return vec4<f32>(fog_shade(lit, in.position, n, in.tangent.xyz, in.albedo / PI, in.material, &ndf), 1.0);
+    let lit = in.diffuse * ndf_vertex_diffuse_scale(&ndf, n) + glossy;
+    return vec4<f32>(fog_shade(lit, in.world, n, in.tangent.xyz, in.albedo / PI, in.material, &ndf), 1.0);
 }

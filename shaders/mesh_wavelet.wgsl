@@ -12,6 +12,12 @@
 // Per vertex everywhere; in `wavelet_pixel`, meshes with a visibility texture are shaded per
 // pixel from their texels instead: E and P of the four nearest texels, weighted bilinearly.
 
+#define_import_path lightloom::mesh_wavelet
+
+#import lightloom::common::{MeshVertex, PI, frame_tangent, globals}
+#import lightloom::mesh_vertex::VertexOut
+#import lightloom::normal_map::{SurfaceNdf, surface_ndf, ndf_vertex_diffuse_scale, ndf_open_fraction, ndf_vertex_glossy}
+#import lightloom::fog::fog_shade
 
 struct WaveletParams {
     // x: cells, y: floats per material's specular table, z: theta steps, w: phi steps
@@ -26,7 +32,7 @@ struct WaveletParams {
 };
 
 @group(2) @binding(0) var<uniform> wp: WaveletParams;
-// P_c per vertex and cell, RGB9E5-packed (render/src/packing.rs).
+// P_c per vertex and cell, RGB9E5-packed (nodes/src/triple_product/packing.rs).
 @group(2) @binding(1) var<storage, read> products: array<u32>;
 // E per vertex.
 @group(2) @binding(2) var<storage, read> irradiance: array<vec4<f32>>;
@@ -55,10 +61,8 @@ fn rgb9e5(v: u32) -> vec3<f32> {
 
 // Rows of material m's specular table around w_o and the bilinear fractions.
 struct TableRows {
-    r00: u32,
-    r01: u32,
-    r10: u32,
-    r11: u32,
+    // The four rows' offsets into specular_table: (i, j), (i, j + 1), (i + 1, j), (i + 1, j + 1).
+    rows: vec4<u32>,
     fi: f32,
     fj: f32,
     // The cells that carry the lobe here: [first, count] into specular_cells.
@@ -84,10 +88,10 @@ fn table_rows(wo: vec3<f32>, m: u32) -> TableRows {
     let j1 = (j + 1u) % phi_steps;
     let table = m * wp.counts.y;
     var rows: TableRows;
-    rows.r00 = table + (i * phi_steps + j) * cells;
-    rows.r01 = table + (i * phi_steps + j1) * cells;
-    rows.r10 = table + ((i + 1u) * phi_steps + j) * cells;
-    rows.r11 = table + ((i + 1u) * phi_steps + j1) * cells;
+    rows.rows.x = table + (i * phi_steps + j) * cells;
+    rows.rows.y = table + (i * phi_steps + j1) * cells;
+    rows.rows.z = table + ((i + 1u) * phi_steps + j) * cells;
+    rows.rows.w = table + ((i + 1u) * phi_steps + j1) * cells;
     rows.fi = ft - f32(i);
     rows.fj = fp - f32(j);
     rows.cells = specular_ranges[(m * (theta_steps - 1u) + i) * phi_steps + j];
@@ -99,8 +103,8 @@ fn table_rows(wo: vec3<f32>, m: u32) -> TableRows {
 }
 
 fn specular_at(rows: TableRows, c: u32) -> f32 {
-    let top = mix(specular_table[rows.r00 + c], specular_table[rows.r01 + c], rows.fj);
-    let bottom = mix(specular_table[rows.r10 + c], specular_table[rows.r11 + c], rows.fj);
+    let top = mix(specular_table[rows.rows.x + c], specular_table[rows.rows.y + c], rows.fj);
+    let bottom = mix(specular_table[rows.rows.z + c], specular_table[rows.rows.w + c], rows.fj);
     return mix(top, bottom, rows.fi);
 }
 
@@ -135,34 +139,11 @@ fn local_view(position: vec3<f32>, normal: vec3<f32>, tangent: vec3<f32>) -> vec
     return vec3<f32>(dot(view, t), dot(view, b), dot(view, n));
 }
 
-struct VertexOut {
-    @builtin(position) @invariant clip: vec4<f32>,
-    @location(0) diffuse: vec3<f32>,
-    @location(1) specular: vec3<f32>,
-    @location(2) albedo: vec3<f32>,
-    @location(3) uv: vec2<f32>,
-    @location(4) @interpolate(flat) layer: i32,
-    @location(5) @interpolate(flat) material: u32,
-    @location(6) position: vec3<f32>,
-    @location(7) normal: vec3<f32>,
-    @location(8) tangent: vec4<f32>,
-    // How open the vertex is to the transported light (normal_map.wgsl ndf_open_fraction).
-    @location(9) open: vec3<f32>,
-};
-
-@vertex
-fn vs_main(v: MeshVertex, @builtin(vertex_index) index: u32) -> VertexOut {
-    var out: VertexOut;
-    out.clip = globals.view_proj * vec4<f32>(v.position, 1.0);
+fn light_vertex(v: MeshVertex, index: u32, common_out: VertexOut) -> VertexOut {
+    var out = common_out;
     let m = v.material;
-    out.material = m;
-    out.position = v.position;
-    out.normal = v.normal;
-    out.tangent = v.tangent;
-    out.uv = v.uv;
     out.layer = vertex_layers[index];
     out.albedo = wp.albedo[m].rgb * v.color;
-    out.specular = vec3<f32>(0.0);
     let cells = wp.counts.x;
     let base = index * cells;
     out.diffuse = out.albedo * irradiance[index].rgb;
@@ -185,26 +166,25 @@ fn vs_main(v: MeshVertex, @builtin(vertex_index) index: u32) -> VertexOut {
             glossy = glossy + detail_glossy(w0, vertex_details[at + 1u], vertex_details[at + 2u],
                 vertex_details[at + 3u], vertex_details[at + 4u], rows);
         }
-        out.specular = wp.specular[m].rgb * glossy;
+        out.glossy = wp.specular[m].rgb * glossy;
     }
     return out;
 }
 
-@fragment
-fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
+fn shade(in: VertexOut, front: bool) -> vec4<f32> {
     let n = normalize(in.normal);
     var ndf: SurfaceNdf;
     surface_ndf(&ndf, in.material, in.uv, n, in.tangent);
     let diffuse_scale = ndf_vertex_diffuse_scale(&ndf, n);
-    let view = normalize(globals.camera_pos.xyz - in.position);
+    let view = normalize(globals.camera_pos.xyz - in.world);
     let glossy = wp.specular[in.material].w > 0.0 && dot(view, n) > 0.0;
     if (wp.texels.x == 0u || in.layer < 0) {
-        var specular = in.specular;
+        var specular = in.glossy;
         if (glossy) {
             specular = ndf_vertex_glossy(&ndf, n, view, in.material, in.open, specular);
         }
         let lit = in.diffuse * diffuse_scale + specular;
-        return vec4<f32>(fog_shade(lit, in.position, n, in.tangent.xyz, in.albedo / PI, in.material, &ndf), 1.0);
+        return vec4<f32>(fog_shade(lit, in.world, n, in.tangent.xyz, in.albedo / PI, in.material, &ndf), 1.0);
     }
     let m = in.material;
     // The four texels around the pixel (texel centres at (x + 0.5) / size), clamped at the
@@ -227,7 +207,7 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     let e = mix(e_top, e_bottom, w.y);
     let diffuse = in.albedo * e;
     var specular = vec3<f32>(0.0);
-    let wo = local_view(in.position, in.normal, in.tangent.xyz);
+    let wo = local_view(in.world, in.normal, in.tangent.xyz);
     if (wp.specular[m].w > 0.0 && wo.z > 0.0) {
         let rows = table_rows(wo, m);
         let t00 = s00 * cells;
@@ -262,5 +242,5 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
         specular = ndf_vertex_glossy(&ndf, n, view, m, ndf_open_fraction(PI * e, n), specular);
     }
     let lit = diffuse * diffuse_scale + specular;
-    return vec4<f32>(fog_shade(lit, in.position, n, in.tangent.xyz, in.albedo / PI, in.material, &ndf), 1.0);
+    return vec4<f32>(fog_shade(lit, in.world, n, in.tangent.xyz, in.albedo / PI, in.material, &ndf), 1.0);
 }

@@ -5,6 +5,14 @@
 // into the world by the surface frame, and shades diffuse light with them and highlights
 // through one or more vMF lobes of normals.
 
+#define_import_path lightloom::normal_map
+
+#import lightloom::common::{frame_tangent, sh_walk, sh_walk_next}
+
+// Whether pixels shade through normal maps at all: each pipeline is composed with it set
+// (render/src/shaders.rs), false for frames without a mapped material.
+const NORMAL_MAPS: bool = #{NORMAL_MAPS};
+
 // The lobe budget of a pixel's NDF: the up to 48 lobes of two vMF levels' four texels each are
 // merged by moment matching into at most this many (ndf_insert_lobe).
 const NDF_MAX_LOBES: i32 = 12;
@@ -67,8 +75,8 @@ struct SurfaceNdf {
     kappas: array<f32, 12>,
 };
 
-// Whether the pixel shades through a normal map. `NORMAL_MAPS` is a constant each pipeline is
-// composed with (`passes::compose`): frames without a mapped material draw with it false, and
+// Whether the pixel shades through a normal map. `NORMAL_MAPS` is a shader def each pipeline
+// is composed with (render/src/shaders.rs): frames without a mapped material draw with it false, and
 // every normal-map path folds away (the pixel's lobes are then never read, nor initialised).
 fn ndf_mapped(ndf: ptr<function, SurfaceNdf>) -> bool {
     return NORMAL_MAPS && (*ndf).method != 0;

@@ -1,5 +1,5 @@
 // Blocker-sphere visibility per receiver (Sun 2008 §5.2), one invocation per receiver,
-// composed after common.wgsl (sh_basis). The CPU twin is nodes/src/sh_exponential.rs
+// importing common.wgsl's SH basis. The CPU twin is nodes/src/sh_exponential.rs
 // (BlockedProduct); render/src/shexp.rs packs the inputs.
 //
 // `visibility`, one invocation per receiver:
@@ -9,6 +9,8 @@
 //    or HYB (halving, OL, squaring back).
 // `multiply`, one invocation per receiver and transport vector: the vector v becomes the
 // truncated product v * g (Eq. 5.8).
+
+#import lightloom::common::{PI, sh_basis}
 
 const MAX_B: i32 = 36; // visibility coefficients: up to 6 bands
 const MAX_T: i32 = 196; // transport coefficients: up to 14 bands

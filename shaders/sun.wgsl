@@ -2,6 +2,11 @@
 // directions come from nodes/src/sun.rs): each direction carries an equal share of the disc's
 // power and is shadowed by its own orthographic shadow map (2x2 PCF by the comparison sampler).
 
+#define_import_path lightloom::sun
+
+#import lightloom::common::frame_tangent
+#import lightloom::normal_map::{NDF_SINGLE_NORMAL, SurfaceNdf, ndf_mapped, ndf_direct_diffuse, ndf_widened_lobe}
+
 const MAX_SUN_DIRECTIONS: i32 = 32;
 const SUN_MATERIALS: i32 = 8;
 const SUN_PI: f32 = 3.14159265358979;

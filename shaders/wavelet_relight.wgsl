@@ -32,7 +32,7 @@ struct RelightParams {
 @group(0) @binding(4) var<storage, read> cell_samples: array<vec4<f32>>;
 // D_c per cell, then W_n^2 per detail node (5 cells).
 @group(0) @binding(5) var<storage, read> cell_tables: array<f32>;
-// P_c per receiver and cell, RGB9E5 (render/src/packing.rs).
+// P_c per receiver and cell, RGB9E5 (nodes/src/triple_product/packing.rs).
 @group(0) @binding(6) var<storage, read_write> products: array<u32>;
 // E per receiver.
 @group(0) @binding(7) var<storage, read_write> irradiance: array<vec4<f32>>;
@@ -165,7 +165,7 @@ fn sample_environment(d: vec3<f32>) -> vec3<f32> {
     return mix(top, bottom, t.y);
 }
 
-// render/src/packing.rs `rgb9e5`: shared exponent from the largest channel's float bits.
+// nodes/src/triple_product/packing.rs `rgb9e5`: shared exponent from the largest channel's float bits.
 fn pack_rgb9e5(rgb: vec3<f32>) -> u32 {
     let c = clamp(rgb, vec3<f32>(0.0), vec3<f32>(65408.0));
     let m = max(c.x, max(c.y, c.z));

@@ -27,6 +27,7 @@ mod brdf_table;
 mod cell_light;
 pub mod details;
 mod frame_table;
+pub mod packing;
 
 pub use brdf_table::{
     BrdfTable, PHI_STEPS, SPECULAR_DROPPED_MASS, THETA_STEPS, grid_position, outgoing_direction, significant_cells,

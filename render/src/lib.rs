@@ -4,8 +4,8 @@
 
 pub mod capture;
 pub mod device;
-pub mod packing;
 mod passes;
+mod shaders;
 pub mod shexp;
 pub mod viewport;
 

@@ -14,7 +14,8 @@ use lightloom_nodes::sh_exponential::{Blocker, ExpMethod, MIN_ANGULAR_RADIUS, re
 use std::time::{Duration, Instant};
 use wgpu::util::DeviceExt;
 
-const SHADER: &str = include_str!("../../shaders/shexp.wgsl");
+pub(crate) const SHADER: crate::shaders::Shader =
+    crate::shaders::Shader::file("shexp", crate::shaders::source!("shexp.wgsl"));
 
 /// Visibility bands the kernel holds per receiver (`MAX_B` in the shader).
 pub const MAX_BLOCKER_BANDS: usize = 6;
@@ -145,12 +146,8 @@ impl GpuBlockedProduct {
         params.gaunt_tb_count = tb.len() as u32;
         pack(&tb, &mut tables);
 
-        let source = format!("{}\n{SHADER}", crate::passes::SHADER_PRELUDE[0]);
         let device = &gpu.device;
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("shexp.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(source.into()),
-        });
+        let module = SHADER.module(device, false);
         use crate::passes::entry;
         let compute = wgpu::ShaderStages::COMPUTE;
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {

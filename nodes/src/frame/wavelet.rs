@@ -63,6 +63,19 @@ impl WaveletReceivers {
     }
 }
 
+/// One receiver set relit on the CPU ([`WaveletSurfaces::relight_on_cpu`]), as the relight
+/// kernel (`wavelet_relight.wgsl`) writes its buffers.
+#[derive(Clone, Debug, Default)]
+pub struct RelitReceivers {
+    /// `P_c` per receiver and cell, RGB9E5 ([`crate::triple_product::packing::rgb9e5`]).
+    pub products: Vec<u32>,
+    /// `E = Σ_c P_c D_c` per receiver, `[r, g, b, 0]`.
+    pub irradiance: Vec<[f32; 4]>,
+    /// The kept detail terms, five words per receiver and slot
+    /// ([`crate::triple_product::packing::detail_words`]); empty when none are kept.
+    pub details: Vec<u32>,
+}
+
 /// The wavelet modes: the local-frame triple product `B = albedo Σ P_c D_c + specular Σ P_c
 /// S_c(ω_o)` per vertex, and per texel on meshes with a visibility texture (`wavelet_pixel`).
 /// `P` and the view-independent diffuse sum `E = Σ P_c D_c` are rebuilt only when the lighting
@@ -250,7 +263,7 @@ impl WaveletSurfaces {
     pub fn cpu_products(&self) -> Result<crate::triple_product::LocalProducts, String> {
         let plain = Self { details: Arc::default(), ..self.clone() };
         let table = plain.frame_table_for(&plain.vertices)?;
-        Ok(plain.cpu_products_of(&plain.vertices, table.as_ref())?.0)
+        Ok(plain.cpu_products_of(&plain.vertices, table.as_ref(), &crate::engine::CancelToken::default())?.0)
     }
 
     /// The pre-rotated lighting table when `set` has more receivers than
@@ -271,37 +284,45 @@ impl WaveletSurfaces {
         &self,
         set: &WaveletReceivers,
         table: Option<&crate::triple_product::FrameTable>,
+        cancel: &crate::engine::CancelToken,
     ) -> Result<(crate::triple_product::LocalProducts, crate::triple_product::details::LocalDetails), String> {
         use crate::triple_product::{CellGrid, Lighting, local_products_with_details};
         let grid = CellGrid::for_coefficients(self.cells)?;
         let environment = self.environment.value.expect::<crate::cubemap::CubeMap>().map_err(|e| e.to_string())?;
         let lighting = Lighting { environment, rotation: self.rotation, table };
-        let cancel = crate::engine::CancelToken::default();
-        local_products_with_details(grid, &lighting, set.receivers()?, set.cells()?, &self.details, &cancel)
+        local_products_with_details(grid, &lighting, set.receivers()?, set.cells()?, &self.details, cancel)
             .map_err(|e| e.to_string())
     }
 
-    /// The CPU relight of one receiver set from its pre-rotated `table`, in one pass: its
-    /// products packed by `pack` and its diffuse transfer (the frame table is only built where
-    /// no detail terms are kept).
-    pub fn cpu_packed_products_of(
+    /// The relight kernel's CPU twin for one receiver set, packed as the kernel writes its
+    /// buffers. A set read from a pre-rotated `table` (built only where no detail terms are
+    /// kept, [`Self::frame_table_for`]) goes from the table to the packed words in one pass.
+    pub fn relight_on_cpu(
         &self,
         set: &WaveletReceivers,
-        table: &crate::triple_product::FrameTable,
-        pack: impl Fn([f32; 3]) -> u32 + Sync,
-    ) -> Result<(Vec<u32>, Vec<[f32; 4]>), String> {
-        let cancel = crate::engine::CancelToken::default();
-        let (receivers, visibility) = (set.receivers()?, set.cells()?);
-        crate::triple_product::table_products_packed(
-            table,
-            self.rotation,
-            receivers,
-            visibility,
-            &self.diffuse_table,
-            pack,
-            &cancel,
-        )
-        .map_err(|e| e.to_string())
+        table: Option<&crate::triple_product::FrameTable>,
+        cancel: &crate::engine::CancelToken,
+    ) -> Result<RelitReceivers, String> {
+        use crate::triple_product::{diffuse_transfer, packing};
+        if let Some(table) = table {
+            let (products, irradiance) = crate::triple_product::table_products_packed(
+                table,
+                self.rotation,
+                set.receivers()?,
+                set.cells()?,
+                &self.diffuse_table,
+                packing::rgb9e5,
+                cancel,
+            )
+            .map_err(|e| e.to_string())?;
+            return Ok(RelitReceivers { products, irradiance, details: Vec::new() });
+        }
+        let (products, details) = self.cpu_products_of(set, None, cancel)?;
+        let irradiance =
+            diffuse_transfer(&products, &self.diffuse_table).into_iter().map(|e| [e[0], e[1], e[2], 0.0]).collect();
+        let details =
+            if details.kept > 0 { packing::detail_words(&details.nodes, &details.values) } else { Vec::new() };
+        Ok(RelitReceivers { products: packing::rgb9e5_all(&products.values), irradiance, details })
     }
 
     /// Floats of one material's specular table.

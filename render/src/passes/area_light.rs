@@ -4,12 +4,13 @@
 
 use super::geometry::GeometryBuffers;
 use super::{Draw, Pass, PassSetup, entry, stage_value, storage_buffer, uniform_buffer, vec4};
+use crate::shaders::Shader;
 use crate::{GpuContext, RenderError};
 use lightloom_nodes::engine::Key;
 use lightloom_nodes::frame::{AreaLightFrame, MAX_MATERIALS};
 use lightloom_nodes::kinds::output::area::{AreaHighlights, AreaIrradiance};
 
-pub(crate) const SHADER: (&str, &str) = ("mesh_area.wgsl", include_str!("../../../shaders/mesh_area.wgsl"));
+pub(crate) const SHADER: Shader = Shader::mesh("mesh_area", "AREA");
 
 /// `mesh_area.wgsl` `AreaLights`.
 #[repr(C)]

@@ -2,11 +2,12 @@
 
 use super::geometry::GeometryBuffers;
 use super::{Draw, Pass, PassSetup, entry, linear_sampler, stage_value, upload_layered};
+use crate::shaders::Shader;
 use crate::{GpuContext, RenderError};
 use lightloom_nodes::engine::Key;
 use lightloom_nodes::frame::Background;
 
-pub(crate) const SHADER: (&str, &str) = ("background.wgsl", include_str!("../../../shaders/background.wgsl"));
+pub(crate) const SHADER: Shader = Shader::file("background", crate::shaders::source!("background.wgsl"));
 
 pub(crate) struct BackgroundPass {
     layout: wgpu::BindGroupLayout,

@@ -1,6 +1,6 @@
 //! `common.wgsl`'s functions run on the device against the Rust they mirror.
 
-use super::{SHADER_PRELUDE, entry};
+use super::entry;
 use crate::GpuContext;
 use glam::Vec3;
 use wgpu::util::DeviceExt;
@@ -8,6 +8,7 @@ use wgpu::util::DeviceExt;
 /// `frame_tangent(n, t)` for each `(n, t)` pair, computed by a compute shader.
 fn frame_tangents_on_device(gpu: &GpuContext, pairs: &[(Vec3, Vec3)]) -> Vec<Vec3> {
     let kernel = "
+#import lightloom::common::frame_tangent
 @group(1) @binding(0) var<storage, read> pairs: array<vec4<f32>>;
 @group(1) @binding(1) var<storage, read_write> tangents: array<vec4<f32>>;
 @compute @workgroup_size(64)
@@ -17,10 +18,11 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     }
 }";
     let device = &gpu.device;
-    let source = format!("{}\n{kernel}", SHADER_PRELUDE[0]);
     let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some("frame_tangent"),
-        source: wgpu::ShaderSource::Wgsl(source.into()),
+        source: wgpu::ShaderSource::Naga(std::borrow::Cow::Owned(
+            crate::shaders::compose_source(kernel).unwrap_or_else(|e| panic!("{e}")),
+        )),
     });
     let compute = wgpu::ShaderStages::COMPUTE;
     let globals = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {

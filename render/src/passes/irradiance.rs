@@ -3,12 +3,13 @@
 
 use super::geometry::GeometryBuffers;
 use super::{Draw, Pass, PassSetup, entry, uniform_buffer, vec4};
+use crate::shaders::Shader;
 use crate::{GpuContext, RenderError};
 use lightloom_nodes::frame::{IRRADIANCE_BANDS, IrradianceSurfaces, MAX_MATERIALS};
 
-pub(crate) const SHADER: (&str, &str) = ("mesh.wgsl", include_str!("../../../shaders/mesh.wgsl"));
+pub(crate) const SHADER: Shader = Shader::mesh("mesh_irradiance", "IRRADIANCE");
 
-/// `mesh.wgsl` `Irradiance`.
+/// `mesh_irradiance.wgsl` `Irradiance`.
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
 pub(crate) struct IrradianceParams {
@@ -28,7 +29,7 @@ impl IrradiancePass {
     pub fn new(setup: &PassSetup) -> Self {
         let layout = setup.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("irradiance"),
-            entries: &[entry::uniform(0, wgpu::ShaderStages::FRAGMENT)],
+            entries: &[entry::uniform(0, wgpu::ShaderStages::VERTEX_FRAGMENT)],
         });
         let params = uniform_buffer::<IrradianceParams>(setup.device, "irradiance");
         let bind_group = setup.device.create_bind_group(&wgpu::BindGroupDescriptor {

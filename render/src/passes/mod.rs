@@ -21,6 +21,7 @@ pub mod sun;
 pub mod tonemap;
 pub mod wavelet;
 
+use crate::shaders::Shader;
 use crate::{GpuContext, RenderError};
 use geometry::GeometryBuffers;
 use lightloom_nodes::engine::StageType;
@@ -114,9 +115,9 @@ pub(crate) struct PassSetup<'a> {
 }
 
 impl PassSetup<'_> {
-    /// A pipeline drawing the scene's meshes with `shader` (composed with the prelude), its own
+    /// A pipeline drawing the scene's meshes with `shader` (composed with the modules it imports), its own
     /// bind group `own` as group 2, depth-tested.
-    pub fn surface_pipeline(&self, shader: (&str, &str), own: &wgpu::BindGroupLayout) -> SurfacePipelines {
+    pub fn surface_pipeline(&self, shader: Shader, own: &wgpu::BindGroupLayout) -> SurfacePipelines {
         SurfacePipelines {
             mapped: self.mesh_pipeline(shader, own, Depth::Write, None, true),
             plain: self.mesh_pipeline(shader, own, Depth::Write, None, false),
@@ -125,7 +126,7 @@ impl PassSetup<'_> {
 
     /// A pipeline adding `shader`'s output onto the surfaces already drawn (same meshes, depth
     /// tested equal-or-nearer, not written).
-    pub fn additive_surface_pipeline(&self, shader: (&str, &str), own: &wgpu::BindGroupLayout) -> wgpu::RenderPipeline {
+    pub fn additive_surface_pipeline(&self, shader: Shader, own: &wgpu::BindGroupLayout) -> wgpu::RenderPipeline {
         let add = wgpu::BlendComponent {
             src_factor: wgpu::BlendFactor::One,
             dst_factor: wgpu::BlendFactor::One,
@@ -137,7 +138,7 @@ impl PassSetup<'_> {
     /// A pipeline over the shared mesh vertex buffer.
     fn mesh_pipeline(
         &self,
-        shader: (&str, &str),
+        shader: Shader,
         own: &wgpu::BindGroupLayout,
         depth: Depth,
         blend: Option<wgpu::BlendState>,
@@ -153,23 +154,21 @@ impl PassSetup<'_> {
     }
 
     /// A pipeline drawing one screen-covering triangle behind everything.
-    pub fn fullscreen_pipeline(&self, shader: (&str, &str), own: &wgpu::BindGroupLayout) -> wgpu::RenderPipeline {
+    pub fn fullscreen_pipeline(&self, shader: Shader, own: &wgpu::BindGroupLayout) -> wgpu::RenderPipeline {
         self.pipeline(shader, own, &[], Depth::Behind, None, true)
     }
 
     fn pipeline(
         &self,
-        (label, source): (&str, &str),
+        shader: Shader,
         own: &wgpu::BindGroupLayout,
         buffers: &[Option<wgpu::VertexBufferLayout<'_>>],
         depth: Depth,
         blend: Option<wgpu::BlendState>,
         normal_maps: bool,
     ) -> wgpu::RenderPipeline {
-        let module = self.device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some(label),
-            source: wgpu::ShaderSource::Wgsl(compose_with(source, normal_maps).into()),
-        });
+        let label = shader.label;
+        let module = shader.module(self.device, normal_maps);
         let layout = self.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some(label),
             bind_group_layouts: &[
@@ -216,39 +215,10 @@ enum Depth {
     Behind,
 }
 
-/// The shared WGSL every scene pass includes, in order: the camera uniform, the vertex layout
-/// and the SH basis (`common.wgsl`), the separately lit sun (`sun.wgsl`), then the medium and
-/// point lights (`fog.wgsl`).
-pub(crate) const SHADER_PRELUDE: [&str; 4] = [
-    include_str!("../../../shaders/common.wgsl"),
-    include_str!("../../../shaders/normal_map.wgsl"),
-    include_str!("../../../shaders/sun.wgsl"),
-    include_str!("../../../shaders/fog.wgsl"),
-];
-
 /// Every scene pass's shader (checked by `shaders_compose_and_match_the_rust_uniforms`).
 #[cfg(test)]
-const SCENE_SHADERS: [(&str, &str); 6] =
+const SCENE_SHADERS: [Shader; 6] =
     [irradiance::SHADER, prt::SHADER, wavelet::SHADER, background::SHADER, rsl::SHADER, area_light::SHADER];
-
-/// A scene pass's complete WGSL: the prelude, then the pass's source. WGSL has no includes;
-/// this is the one place modules are joined, and `shaders_compose_and_match_the_rust_uniforms`
-/// checks that every composed shader parses and validates and that each uniform struct has
-/// the Rust layout its pass writes.
-#[cfg(test)]
-pub(crate) fn compose(source: &str) -> String {
-    compose_with(source, true)
-}
-
-/// [`compose`], with the prelude's `NORMAL_MAPS` constant (`normal_map.wgsl`) set to
-/// `normal_maps`.
-pub(crate) fn compose_with(source: &str, normal_maps: bool) -> String {
-    let mut out = format!("const NORMAL_MAPS: bool = {normal_maps};\n");
-    out.push_str(&SHADER_PRELUDE.join("\n"));
-    out.push('\n');
-    out.push_str(source);
-    out
-}
 
 /// A render pipeline with `vs_main`/`fs_main` entry points and one colour target.
 #[allow(clippy::too_many_arguments)]
@@ -460,7 +430,13 @@ mod layout_tests {
 
     /// The WGSL struct `name`: its size and `(member, offset)` list.
     fn wgsl_struct(module: &naga::Module, name: &str) -> (u32, Vec<(String, u32)>) {
-        let ty = module.types.iter().find(|(_, t)| t.name.as_deref() == Some(name)).map(|(_, t)| t);
+        // A struct of an imported module carries the module's name after its own.
+        let named = |t: &naga::Type| {
+            t.name
+                .as_deref()
+                .is_some_and(|n| n == name || n.strip_prefix(name).is_some_and(|r| r.starts_with("X_naga_oil_mod_X")))
+        };
+        let ty = module.types.iter().find(|(_, t)| named(t)).map(|(_, t)| t);
         match ty.map(|t| &t.inner) {
             Some(naga::TypeInner::Struct { members, span }) => {
                 (*span, members.iter().map(|m| (m.name.clone().unwrap_or_default(), m.offset)).collect())
@@ -472,27 +448,19 @@ mod layout_tests {
     #[test]
     fn shaders_compose_and_match_the_rust_uniforms() {
         use std::mem::{offset_of, size_of};
-        let mut modules = Vec::new();
-        let tonemap = tonemap::SHADER;
+        let validate = |shader: Shader, normal_maps: bool| {
+            let module = shader.compose(normal_maps).unwrap_or_else(|e| panic!("{e}"));
+            naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::all())
+                .validate(&module)
+                .unwrap_or_else(|e| panic!("{} does not validate: {e:?}", shader.label));
+            module
+        };
         // Each scene shader without normal maps too (its pipelines for frames without one).
-        for (label, source) in SCENE_SHADERS {
-            let source = compose_with(source, false);
-            let module = naga::front::wgsl::parse_str(&source)
-                .unwrap_or_else(|e| panic!("{label} without normal maps: {}", e.emit_to_string(&source)));
-            naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::all())
-                .validate(&module)
-                .unwrap_or_else(|e| panic!("{label} without normal maps does not validate: {e:?}"));
+        for shader in SCENE_SHADERS {
+            validate(shader, false);
         }
-        for (label, source) in
-            SCENE_SHADERS.into_iter().map(|(l, s)| (l, compose(s))).chain([(tonemap.0, tonemap.1.into())])
-        {
-            let module = naga::front::wgsl::parse_str(&source)
-                .unwrap_or_else(|e| panic!("{label}: {}", e.emit_to_string(&source)));
-            naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::all())
-                .validate(&module)
-                .unwrap_or_else(|e| panic!("{label} does not validate: {e:?}"));
-            modules.push((label, module));
-        }
+        let modules: Vec<naga::Module> =
+            SCENE_SHADERS.into_iter().chain([tonemap::SHADER]).map(|s| validate(s, true)).collect();
         // Each uniform struct, in the shader that declares it, against the Rust struct its pass
         // writes with bytemuck: the same size and every member at the same offset.
         macro_rules! check {
@@ -503,7 +471,7 @@ mod layout_tests {
                 assert_eq!(members, rust, "{} members and offsets", $wgsl);
             }};
         }
-        let [irr, prt, wavelet, _background, rsl, area, tone] = [0, 1, 2, 3, 4, 5, 6].map(|i| &modules[i].1);
+        let [irr, prt, wavelet, _background, rsl, area, tone] = [0, 1, 2, 3, 4, 5, 6].map(|i| &modules[i]);
         check!(irr, "Globals", camera::Globals, [view_proj, inv_view_proj, camera_pos, flags]);
         check!(irr, "Irradiance", irradiance::IrradianceParams, [bands, albedo, coeffs]);
         check!(
@@ -530,29 +498,17 @@ mod layout_tests {
             normal_map::NormalParams,
             [materials, flags, irradiance, vmf_levels, highlight_radiance, highlight_factors, highlight_weights]
         );
-        let source = sun::SHADER.1;
-        let depth = naga::front::wgsl::parse_str(source).unwrap_or_else(|e| panic!("{}", e.emit_to_string(source)));
-        naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::all())
-            .validate(&depth)
-            .unwrap_or_else(|e| panic!("sun_depth.wgsl does not validate: {e:?}"));
+        validate(sun::SHADER, false);
         check!(prt, "PrtParams", prt::PrtParams, [counts, albedo, specular, lobe, light]);
         check!(wavelet, "WaveletParams", wavelet::WaveletParams, [counts, albedo, specular, texels, fine_offsets]);
         // The relight kernel is a compute shader on its own.
-        let source = wavelet::RELIGHT_SHADER.1;
-        let relight = naga::front::wgsl::parse_str(source).unwrap_or_else(|e| panic!("{}", e.emit_to_string(source)));
-        naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::all())
-            .validate(&relight)
-            .unwrap_or_else(|e| panic!("wavelet_relight.wgsl does not validate: {e:?}"));
+        let relight = validate(wavelet::RELIGHT_SHADER, false);
         check!(&relight, "RelightParams", wavelet::RelightParams, [inverse_rotation, counts, dispatch]);
         check!(rsl, "RslParams", rsl::RslParams, [counts, albedo, specular, layouts]);
         check!(area, "AreaLights", area_light::AreaLightParams, [albedo]);
         check!(tone, "ToneParams", tonemap::ToneParams, [params]);
-        // The blocker kernel is a compute shader after common.wgsl alone.
-        let source = format!("{}\n{}", SHADER_PRELUDE[0], include_str!("../../../shaders/shexp.wgsl"));
-        let shexp = naga::front::wgsl::parse_str(&source).unwrap_or_else(|e| panic!("{}", e.emit_to_string(&source)));
-        naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::all())
-            .validate(&shexp)
-            .unwrap_or_else(|e| panic!("shexp.wgsl does not validate: {e:?}"));
+        // The blocker kernel is a compute shader importing common.wgsl alone.
+        let shexp = validate(crate::shexp::SHADER, false);
         check!(
             &shexp,
             "ShexpParams",

@@ -3,11 +3,12 @@
 
 use super::geometry::GeometryBuffers;
 use super::{Draw, Pass, PassSetup, entry, stage_value, storage_buffer, uniform_buffer, vec4};
+use crate::shaders::Shader;
 use crate::{GpuContext, RenderError};
 use lightloom_nodes::engine::Key;
 use lightloom_nodes::frame::{MAX_MATERIALS, PrtSurfaces};
 
-pub(crate) const SHADER: (&str, &str) = ("mesh_prt.wgsl", include_str!("../../../shaders/mesh_prt.wgsl"));
+pub(crate) const SHADER: Shader = Shader::mesh("mesh_prt", "PRT");
 
 /// Transport bands the shader evaluates (higher bands of the transport are dropped).
 pub const MAX_PRT_BANDS: usize = 12;

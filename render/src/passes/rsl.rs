@@ -4,12 +4,13 @@
 
 use super::geometry::GeometryBuffers;
 use super::{Draw, Pass, PassSetup, entry, stage_value, storage_buffer, uniform_buffer, vec4};
+use crate::shaders::Shader;
 use crate::{GpuContext, RenderError};
 use lightloom_nodes::engine::Key;
 use lightloom_nodes::frame::{MAX_MATERIALS, RslSurfaces};
 use lightloom_nodes::rsl::shade::LightVisibility;
 
-pub(crate) const SHADER: (&str, &str) = ("mesh_rsl.wgsl", include_str!("../../../shaders/mesh_rsl.wgsl"));
+pub(crate) const SHADER: Shader = Shader::mesh("mesh_rsl", "RSL");
 
 /// `mesh_rsl.wgsl` `RslParams`.
 #[repr(C)]

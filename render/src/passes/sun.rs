@@ -7,6 +7,7 @@
 use super::geometry::GeometryBuffers;
 use super::{entry, uniform_buffer};
 use crate::GpuContext;
+use crate::shaders::Shader;
 use glam::{Mat4, Vec3};
 use lightloom_nodes::brdf::{Brdf, Lobe};
 use lightloom_nodes::engine::Key;
@@ -22,7 +23,7 @@ pub const SHADOW_MAP_BYTES: usize = MAX_DIRECTIONS * (SHADOW_MAP_SIZE * SHADOW_M
 /// Normal offset against self-shadowing, in shadow-map texels.
 const NORMAL_OFFSET_TEXELS: f32 = 1.5;
 
-pub(crate) const SHADER: (&str, &str) = ("sun-depth", include_str!("../../../shaders/sun_depth.wgsl"));
+pub(crate) const SHADER: Shader = Shader::file("sun-depth", crate::shaders::source!("sun_depth.wgsl"));
 
 /// `sun.wgsl` `Sun`.
 #[repr(C)]
@@ -167,18 +168,15 @@ impl SunPass {
     }
 
     fn depth_pipeline(device: &wgpu::Device, layout: &wgpu::BindGroupLayout) -> wgpu::RenderPipeline {
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some(SHADER.0),
-            source: wgpu::ShaderSource::Wgsl(SHADER.1.into()),
-        });
+        let module = SHADER.module(device, false);
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some(SHADER.0),
+            label: Some(SHADER.label),
             bind_group_layouts: &[Some(layout)],
             immediate_size: 0,
         });
         let position = [wgpu::VertexAttribute { format: wgpu::VertexFormat::Float32x3, offset: 0, shader_location: 0 }];
         device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some(SHADER.0),
+            label: Some(SHADER.label),
             layout: Some(&pipeline_layout),
             vertex: wgpu::VertexState {
                 module: &module,

@@ -2,9 +2,10 @@
 
 use super::{LDR_FORMAT, entry, pipeline, uniform_buffer};
 use crate::GpuContext;
+use crate::shaders::Shader;
 use lightloom_nodes::kinds::output::Tonemap;
 
-pub(crate) const SHADER: (&str, &str) = ("tonemap.wgsl", include_str!("../../../shaders/tonemap.wgsl"));
+pub(crate) const SHADER: Shader = Shader::file("tonemap", crate::shaders::source!("tonemap.wgsl"));
 
 /// `tonemap.wgsl` `ToneParams`.
 #[repr(C)]
@@ -29,10 +30,7 @@ impl TonemapPass {
                 entry::uniform(1, wgpu::ShaderStages::FRAGMENT),
             ],
         });
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some(SHADER.0),
-            source: wgpu::ShaderSource::Wgsl(SHADER.1.into()),
-        });
+        let module = SHADER.module(device, false);
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("tonemap"),
             bind_group_layouts: &[Some(&layout)],

@@ -8,15 +8,16 @@
 
 use super::geometry::GeometryBuffers;
 use super::{Draw, Pass, PassSetup, entry, stage_value, storage_buffer, uniform_buffer, vec4};
+use crate::shaders::Shader;
 use crate::{GpuContext, RenderError};
 use lightloom_nodes::cubemap::CubeMap;
 use lightloom_nodes::engine::Key;
 use lightloom_nodes::frame::{MAX_MATERIALS, WaveletReceivers, WaveletSurfaces};
-use lightloom_nodes::triple_product::{FrameTable, PHI_STEPS, THETA_STEPS, diffuse_transfer};
+use lightloom_nodes::triple_product::{FrameTable, PHI_STEPS, THETA_STEPS};
 
-pub(crate) const SHADER: (&str, &str) = ("mesh_wavelet.wgsl", include_str!("../../../shaders/mesh_wavelet.wgsl"));
-pub(crate) const RELIGHT_SHADER: (&str, &str) =
-    ("wavelet_relight.wgsl", include_str!("../../../shaders/wavelet_relight.wgsl"));
+pub(crate) const SHADER: Shader = Shader::mesh("mesh_wavelet", "WAVELET");
+pub(crate) const RELIGHT_SHADER: Shader =
+    Shader::file("wavelet-relight", crate::shaders::source!("wavelet_relight.wgsl"));
 
 /// Invocations per workgroup of the relight kernel.
 const WORKGROUP: u32 = 64;
@@ -50,7 +51,7 @@ struct LitReceivers {
     visibility: wgpu::Buffer,
     products: wgpu::Buffer,
     irradiance: wgpu::Buffer,
-    /// Five words per receiver and kept detail node (`packing::detail_words`).
+    /// Five words per receiver and kept detail node (`triple_product::packing::detail_words`).
     details: wgpu::Buffer,
     params: wgpu::Buffer,
 }
@@ -115,7 +116,7 @@ pub enum RelightOn {
     Auto,
     /// The compute kernel (`wavelet_relight.wgsl`).
     Gpu,
-    /// The CPU twin ([`WaveletSurfaces::cpu_products_of`]), uploaded.
+    /// The CPU twin ([`WaveletSurfaces::relight_on_cpu`]), uploaded.
     Cpu,
 }
 
@@ -195,10 +196,7 @@ impl WaveletPass {
                 entry::storage_read_write(8, compute),
             ],
         });
-        let module = setup.device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some(RELIGHT_SHADER.0),
-            source: wgpu::ShaderSource::Wgsl(RELIGHT_SHADER.1.into()),
-        });
+        let module = RELIGHT_SHADER.module(setup.device, false);
         let pipeline_layout = setup.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("wavelet-relight"),
             bind_group_layouts: &[Some(&relight_layout)],
@@ -401,27 +399,13 @@ impl WaveletPass {
         let sets =
             std::iter::once((&receivers.vertices, &data.vertices)).chain(receivers.texels.iter().zip(&data.texels));
         for ((buffers, set), table) in sets.zip(&lit.tables) {
-            // Big sets read a frame table (built only without detail terms): one pass from it
-            // to the packed words.
-            if let Some(table) = table {
-                let (packed, irradiance) =
-                    data.cpu_packed_products_of(set, table, crate::packing::rgb9e5).map_err(RenderError::Invalid)?;
-                gpu.queue.write_buffer(&buffers.products, 0, bytemuck::cast_slice(&packed));
-                gpu.queue.write_buffer(&buffers.irradiance, 0, bytemuck::cast_slice(&irradiance));
-                continue;
-            }
-            let (products, details) = data.cpu_products_of(set, table.as_ref()).map_err(RenderError::Invalid)?;
-            let irradiance: Vec<[f32; 4]> =
-                diffuse_transfer(&products, &data.diffuse_table).into_iter().map(|e| [e[0], e[1], e[2], 0.0]).collect();
-            gpu.queue.write_buffer(
-                &buffers.products,
-                0,
-                bytemuck::cast_slice(&crate::packing::rgb9e5_all(&products.values)),
-            );
-            gpu.queue.write_buffer(&buffers.irradiance, 0, bytemuck::cast_slice(&irradiance));
-            if details.kept > 0 {
-                let words = crate::packing::detail_words(&details.nodes, &details.values);
-                gpu.queue.write_buffer(&buffers.details, 0, bytemuck::cast_slice(&words));
+            let relit = data
+                .relight_on_cpu(set, table.as_ref(), &lightloom_nodes::engine::CancelToken::default())
+                .map_err(RenderError::Invalid)?;
+            gpu.queue.write_buffer(&buffers.products, 0, bytemuck::cast_slice(&relit.products));
+            gpu.queue.write_buffer(&buffers.irradiance, 0, bytemuck::cast_slice(&relit.irradiance));
+            if !relit.details.is_empty() {
+                gpu.queue.write_buffer(&buffers.details, 0, bytemuck::cast_slice(&relit.details));
             }
         }
         Ok(())

@@ -5,7 +5,7 @@ use lightloom_nodes::engine::{CancelToken, StageValue};
 use lightloom_nodes::frame::{FrameMaterial, Geometry, Keyed, WaveletLighting};
 use lightloom_nodes::mesh::{MeshSet, sphere};
 use lightloom_nodes::transport::Receivers;
-use lightloom_nodes::triple_product::{CellGrid, LocalVisibility, prefiltered, tabulate_brdf};
+use lightloom_nodes::triple_product::{CellGrid, LocalVisibility, diffuse_transfer, prefiltered, tabulate_brdf};
 use std::sync::Arc;
 
 /// A deterministic stream in [0, 1).
@@ -108,12 +108,12 @@ fn the_relight_kernel_matches_the_cpu_twin() {
         let products: Vec<u32> = bytemuck::cast_slice(&read(&gpu, &buffers.products)).to_vec();
         let irradiance: Vec<[f32; 4]> = bytemuck::cast_slice(&read(&gpu, &buffers.irradiance)).to_vec();
 
-        let (cpu, _) = data.cpu_products_of(&data.vertices, None).unwrap();
+        let (cpu, _) = data.cpu_products_of(&data.vertices, None, &Default::default()).unwrap();
         let cpu_irradiance = diffuse_transfer(&cpu, &data.diffuse_table);
         assert_eq!(irradiance.len(), cpu_irradiance.len());
         let (mut worst, mut beyond): (f32, usize) = (0.0, 0);
         for (g, c) in products.iter().zip(cpu.values.chunks_exact(3)) {
-            let g = crate::packing::rgb9e5_decode(*g);
+            let g = lightloom_nodes::triple_product::packing::rgb9e5_decode(*g);
             let max = c[0].max(c[1]).max(c[2]);
             let error = (0..3).map(|k| (g[k] - c[k]).abs()).fold(0.0, f32::max) / max.max(1e-6);
             // f32 directions on the GPU pick a neighbouring cube face for a sample that lies
@@ -161,9 +161,10 @@ fn the_relight_kernel_keeps_the_twins_detail_terms() {
     pass.prepare(&gpu, &data).unwrap();
     let buffers = &pass.receivers.as_ref().unwrap().vertices;
     let words: Vec<u32> = bytemuck::cast_slice(&read(&gpu, &buffers.details)).to_vec();
-    let (nodes, values): (Vec<u32>, Vec<[f32; 9]>) = words.chunks_exact(5).map(crate::packing::detail_decode).unzip();
+    let (nodes, values): (Vec<u32>, Vec<[f32; 9]>) =
+        words.chunks_exact(5).map(lightloom_nodes::triple_product::packing::detail_decode).unzip();
     let kernel = LocalDetails { kept, nodes, values };
-    let (products, twin) = data.cpu_products_of(&data.vertices, None).unwrap();
+    let (products, twin) = data.cpu_products_of(&data.vertices, None, &Default::default()).unwrap();
     assert_eq!(kernel.nodes.len(), twin.nodes.len());
     let grid = CellGrid::for_coefficients(320).unwrap();
     let table: BrdfTable =

@@ -1,4 +1,5 @@
-//! Compact GPU encodings of per-vertex coefficient data.
+//! Compact GPU encodings of the products and detail terms (what the renderer uploads and
+//! `shaders/mesh_wavelet.wgsl` decodes).
 
 /// Packs a non-negative RGB value into the shared-exponent `RGB9E5` format (9-bit mantissas,
 /// one 5-bit exponent; `EXT_texture_shared_exponent`): 4 bytes instead of 12, relative error

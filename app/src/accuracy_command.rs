@@ -7,7 +7,7 @@ use anyhow::{Result, anyhow, bail};
 use clap::Args;
 use lightloom_nodes::engine::spec::ParamValue;
 use lightloom_nodes::engine::{CancelToken, Graph};
-use lightloom_nodes::frame::{FrameInputs, frame_request, mode_stages};
+use lightloom_nodes::frame::{FrameInputs, FrameNeeds, frame_request_for, mode_stages};
 use lightloom_nodes::kinds::output::{SUN, find_output};
 use lightloom_nodes::reference::{self, ImageError, PinholeCamera};
 use lightloom_render::{CameraView, GpuContext, ViewportRenderer};
@@ -123,12 +123,14 @@ pub fn run(args: &AccuracyArgs) -> Result<()> {
     let size = (args.width, args.height);
     let gpu = GpuContext::headless()?;
     let mut renderer = ViewportRenderer::new(&gpu);
+    let relight_on_cpu = lightloom_render::RelightOn::from_env().on_cpu(&gpu);
     let view = CameraView::from_project(&camera);
     let pinhole =
         PinholeCamera { position: camera.position.into(), target: camera.target.into(), fov_y_deg: camera.fov_y_deg };
 
     let evaluated_in = |engine: &Arc<lightloom_nodes::engine::Engine>, graph: &Graph| -> Result<(FrameInputs, usize)> {
-        let evaluation = evaluate(engine.clone(), graph, frame_request(graph, &output, true), true);
+        let needs = FrameNeeds { picking: true, relight_on_cpu };
+        let evaluation = evaluate(engine.clone(), graph, frame_request_for(graph, &output, needs), true);
         fail_on_errors(&evaluation, &upstream_of(graph, &output))?;
         let frame = FrameInputs::gather(&evaluation, graph, &output).map_err(|e| anyhow!(e))?;
         let memory = frame_memory(&evaluation, graph, &output, &frame);

@@ -117,9 +117,11 @@ pub fn load(path: &Path, overrides: &[String]) -> Result<(Project, Graph)> {
     Ok((project, graph))
 }
 
-/// What rendering the Output node `output` needs (its mode and view), for the CLI.
-pub(crate) fn output_request(graph: &Graph, output: &str) -> Request {
-    lightloom_nodes::frame::frame_request(graph, output, false)
+/// What rendering the Output node `output` needs (its mode and view), for the CLI, with the
+/// wavelet modes relit by the engine when the renderer relights on the CPU.
+pub(crate) fn output_request(graph: &Graph, output: &str, relight_on_cpu: bool) -> Request {
+    let needs = lightloom_nodes::frame::FrameNeeds { picking: false, relight_on_cpu };
+    lightloom_nodes::frame::frame_request_for(graph, output, needs)
 }
 
 /// Evaluates what `request` needs on a background thread, driving a progress bar from its
@@ -235,8 +237,10 @@ pub fn render_project(
     let mut seen = graph.clone();
     lightloom_nodes::kinds::output::see_from(&mut seen, camera.position);
     let graph = &seen;
+    let gpu = GpuContext::headless()?;
+    let relight_on_cpu = lightloom_render::RelightOn::from_env().on_cpu(&gpu);
     let start = Instant::now();
-    let evaluation = evaluate(engine, graph, output_request(graph, &output.id), quiet);
+    let evaluation = evaluate(engine, graph, output_request(graph, &output.id, relight_on_cpu), quiet);
     let eval_ms = start.elapsed().as_secs_f64() * 1e3;
     fail_on_errors(&evaluation, &upstream_of(graph, &output.id))?;
     let frame = FrameInputs::gather(&evaluation, graph, &output.id).map_err(|e| anyhow!(e))?;
@@ -253,7 +257,6 @@ pub fn render_project(
     }
     let (width, height) = (size.0.unwrap_or(project.render.width), size.1.unwrap_or(project.render.height));
     let start = Instant::now();
-    let gpu = GpuContext::headless()?;
     let mut renderer = ViewportRenderer::new(&gpu);
     let captured = renderer.render_offscreen(&gpu, &frame, &CameraView::from_project(&camera), width, height)?;
     let render_ms = start.elapsed().as_secs_f64() * 1e3;
@@ -350,7 +353,7 @@ pub fn eval(args: &EvalArgs) -> Result<()> {
             return Ok(Request::everything(graph));
         }
         let output = find_output(graph, None).map_err(|e| anyhow!("{e} (or pass --all)"))?;
-        Ok(output_request(graph, &output.id))
+        Ok(output_request(graph, &output.id, false))
     };
     let quiet = args.eval.quiet || args.report == "json";
     let initial = evaluate(engine.clone(), &base, request(&base)?, quiet);

@@ -28,6 +28,7 @@ mod cell_light;
 pub mod details;
 mod frame_table;
 pub mod packing;
+pub mod relight;
 
 pub use brdf_table::{
     BrdfTable, PHI_STEPS, SPECULAR_DROPPED_MASS, THETA_STEPS, grid_position, outgoing_direction, significant_cells,
@@ -67,6 +68,7 @@ crate::stage_type!(
     numbers = |v| v.visibility.values.iter().map(|x| f64::from(*x))
 );
 crate::stage_type!(FrameTable, "pre-rotated lighting table", encoding = 1, |v| v.approx_bytes());
+crate::stage_type!(relight::RelitReceivers, "relit receivers", |v| v.approx_bytes());
 
 /// Sub-cell levels below a cell used to average functions over it (16 samples per cell).
 const SUBLEVELS: usize = 2;

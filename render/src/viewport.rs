@@ -99,13 +99,7 @@ impl ViewportRenderer {
             sample_count,
         };
         let mut passes = scene_passes(&setup);
-        // `LIGHTLOOM_RELIGHT=gpu` or `cpu` picks where the wavelet modes relight (to compare the
-        // two); otherwise the device decides.
-        let relight_on = match std::env::var("LIGHTLOOM_RELIGHT").as_deref() {
-            Ok("gpu") => crate::RelightOn::Gpu,
-            Ok("cpu") => crate::RelightOn::Cpu,
-            _ => crate::RelightOn::Auto,
-        };
+        let relight_on = crate::RelightOn::from_env();
         for pass in &mut passes {
             pass.relight_on(relight_on);
         }

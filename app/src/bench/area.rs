@@ -159,7 +159,7 @@ pub fn area_sample_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
     let view = CameraView::from_project(&project.camera(None).map_err(|e| anyhow!(e))?);
     let engine = Arc::new(Engine::in_memory());
     let mut renderer = ViewportRenderer::new(gpu);
-    let frame_of = |graph: &Graph| evaluate_frame(&engine, graph, "out");
+    let frame_of = |graph: &Graph| evaluate_frame(&engine, graph, "out", gpu);
     let (frame, first_ms, _) = frame_of(&graph)?;
     let vertices = frame.geometry.vertex_count();
     timed_frame(gpu, &mut renderer, &frame, &view, (960, 540))?;
@@ -251,14 +251,14 @@ fn glossy_sample_figures(
     graph.set_param("scene", "tessellation", ParamValue::Int(136))?;
     let engine = Arc::new(Engine::in_memory());
     let mut renderer = ViewportRenderer::new(gpu);
-    let (_, first_ms, _) = evaluate_frame(&engine, &graph, "out")?;
+    let (_, first_ms, _) = evaluate_frame(&engine, &graph, "out", gpu)?;
     println!("glossy floor, sphere and box (Phong 30), exact couplings (first evaluation {:.1} s):", first_ms / 1e3);
     let eye = glossy.camera(None).map_err(|e| anyhow!(e))?.position;
     let (mut stages, mut frames) = (Vec::new(), Vec::new());
     for k in 0..args.frames.max(1) {
         let turned = [eye[0] + 0.4 * (k + 1) as f64, eye[1], eye[2]];
         graph.set_param("out", lightloom_nodes::kinds::output::HIGHLIGHT_EYE, ParamValue::Vec3(turned))?;
-        let (frame, ms, _) = evaluate_frame(&engine, &graph, "out")?;
+        let (frame, ms, _) = evaluate_frame(&engine, &graph, "out", gpu)?;
         stages.push(ms);
         frames.push(timed_frame(gpu, &mut renderer, &frame, view, (960, 540))?);
     }

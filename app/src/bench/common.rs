@@ -43,11 +43,18 @@ pub(super) fn median(mut v: Vec<f64>) -> f64 {
     v[v.len() / 2]
 }
 
-/// Evaluates what drawing Output `output` needs and gathers the frame: the frame, the CPU
-/// milliseconds it took and how many stages computed.
-pub(super) fn evaluate_frame(engine: &Arc<Engine>, graph: &Graph, output: &str) -> Result<(FrameInputs, f64, usize)> {
+/// Evaluates what drawing Output `output` on `gpu` needs and gathers the frame: the frame, the
+/// CPU milliseconds it took (the wavelet modes' relight among them on a CPU adapter) and how
+/// many stages computed.
+pub(super) fn evaluate_frame(
+    engine: &Arc<Engine>,
+    graph: &Graph,
+    output: &str,
+    gpu: &GpuContext,
+) -> Result<(FrameInputs, f64, usize)> {
     let start = Instant::now();
-    let evaluation = evaluate(engine.clone(), graph, output_request(graph, output), true);
+    let relight_on_cpu = lightloom_render::RelightOn::from_env().on_cpu(gpu);
+    let evaluation = evaluate(engine.clone(), graph, output_request(graph, output, relight_on_cpu), true);
     fail_on_errors(&evaluation, &upstream_of(graph, output))?;
     let frame = FrameInputs::gather(&evaluation, graph, output).map_err(|e| anyhow!(e))?;
     if std::env::var_os("LIGHTLOOM_BENCH_STAGES").is_some() {

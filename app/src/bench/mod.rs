@@ -87,7 +87,7 @@ fn fog_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
     graph.set_param("fog", "table_resolution", ParamValue::Choice("512".into()))?;
     let engine = Arc::new(Engine::in_memory());
     let mut renderer = ViewportRenderer::new(gpu);
-    let frame_of = |graph: &Graph| evaluate_frame(&engine, graph, "output");
+    let frame_of = |graph: &Graph| evaluate_frame(&engine, graph, "output", gpu);
     let (frame, tables_ms, _) = frame_of(&graph)?;
     timed_frame(gpu, &mut renderer, &frame, &view, (1280, 720))?;
     let frames: Vec<f64> =
@@ -145,7 +145,7 @@ fn default_project_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
         graph.set_param("material", "f0", ParamValue::Float(0.3))?;
         let engine = Arc::new(Engine::in_memory());
         let mut renderer = ViewportRenderer::new(gpu);
-        let frame_of = |graph: &Graph| evaluate_frame(&engine, graph, "output").map(|(frame, _, _)| frame);
+        let frame_of = |graph: &Graph| evaluate_frame(&engine, graph, "output", gpu).map(|(frame, _, _)| frame);
         let frame = frame_of(&graph)?;
         timed_frame(gpu, &mut renderer, &frame, &view, (1280, 720))?;
         // Median evaluation time and edit-to-frame time over `args.frames` edits.

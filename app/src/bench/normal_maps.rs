@@ -35,7 +35,7 @@ pub fn normal_map_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
             graph.set_param("hammered", "normal_map", ParamValue::Path(String::new()))?;
         }
         graph.set_param("hammered", "normal_filter", ParamValue::Choice(filter.into()))?;
-        let (frame, stages_ms, computed) = evaluate_frame(&engine, &graph, "output")?;
+        let (frame, stages_ms, computed) = evaluate_frame(&engine, &graph, "output", gpu)?;
         timed_frame(gpu, &mut renderer, &frame, &view, size)?;
         let times: Vec<f64> =
             (0..args.frames).map(|_| timed_frame(gpu, &mut renderer, &frame, &view, size)).collect::<Result<_>>()?;

@@ -157,7 +157,7 @@ fn square_light_sample_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()>
     let view = CameraView::from_project(&project.camera(None).map_err(|e| anyhow!(e))?);
     let engine = Arc::new(Engine::in_memory());
     let mut renderer = ViewportRenderer::new(gpu);
-    let frame_of = |graph: &Graph| evaluate_frame(&engine, graph, "output");
+    let frame_of = |graph: &Graph| evaluate_frame(&engine, graph, "output", gpu);
     let (frame, first_ms, _) = frame_of(&graph)?;
     let vertices = frame.geometry.vertex_count();
     timed_frame(gpu, &mut renderer, &frame, &view, (960, 540))?;

@@ -5,8 +5,8 @@ use super::common::*;
 use anyhow::{Result, anyhow};
 use lightloom_nodes::engine::{CancelToken, StageValue};
 use lightloom_nodes::frame::{
-    Background, FrameInputs, FrameMaterial, Geometry, IrradianceSurfaces, Keyed, MediumFrame, PrtSurfaces, Surfaces,
-    WaveletLighting, WaveletSurfaces,
+    Background, FrameInputs, FrameMaterial, Geometry, IrradianceSurfaces, Keyed, MediumFrame, PrtSurfaces, RelitSets,
+    Surfaces, WaveletLighting, WaveletSurfaces,
 };
 use lightloom_nodes::kinds::output::{Mode, Tonemap, View};
 use lightloom_nodes::transport::{Receivers, ShTransport, SphericalTransport};
@@ -253,12 +253,32 @@ fn wavelet_rows(
                 continue;
             }
         };
+        // On the CPU the engine relights (the Output's `wavelet_relit` stage, run here as it
+        // runs it: the frame table built once per environment) and the renderer uploads.
+        let mut table: Option<(u128, Option<lightloom_nodes::triple_product::FrameTable>)> = None;
         let mut changed = |rotation: glam::DMat3, environment_key: u128| -> Result<f64> {
-            let frame = frame_with(
-                Mode::WaveletVertex,
-                Surfaces::Wavelet(Box::new(surfaces(rotation, environment_key, details)?)),
-            );
-            Ok(timed_frame(gpu, renderer, &frame, view, (1280, 720))? - steady)
+            let mut surfaces = surfaces(rotation, environment_key, details)?;
+            let mut relight_ms = 0.0;
+            if on == lightloom_render::RelightOn::Cpu {
+                let start = Instant::now();
+                if table.as_ref().is_none_or(|(k, _)| *k != environment_key) {
+                    table =
+                        Some((environment_key, surfaces.frame_table_for(&surfaces.vertices).map_err(|e| anyhow!(e))?));
+                }
+                let table = table.as_ref().and_then(|(_, t)| t.as_ref());
+                let set = &surfaces.vertices;
+                let relit = surfaces
+                    .relight(|r| {
+                        r.packed(set.receivers()?, set.cells()?, table, &CancelToken::default())
+                            .map_err(|e| e.to_string())
+                    })
+                    .map_err(|e| anyhow!(e))?;
+                let key = environment_key ^ u128::from(rotation.x_axis.z.to_bits()).rotate_left(64);
+                surfaces.relit = Some(RelitSets { vertices: keyed(key, StageValue::new(relit)), texels: None });
+                relight_ms = start.elapsed().as_secs_f64() * 1e3;
+            }
+            let frame = frame_with(Mode::WaveletVertex, Surfaces::Wavelet(Box::new(surfaces)));
+            Ok(timed_frame(gpu, renderer, &frame, view, (1280, 720))? - steady + relight_ms)
         };
         let new_environment = changed(glam::DMat3::IDENTITY, key(2))? + prefilter_ms;
         let rotation = changed(glam::DMat3::from_rotation_y(0.7), key(2))?;

@@ -585,7 +585,12 @@ impl EditorApp {
     fn evaluation_request(&self, graph: &lightloom_nodes::engine::Graph) -> lightloom_nodes::engine::Request {
         let output = self.doc.project.render.output_node();
         let request = match find_output(graph, output) {
-            Ok(o) => lightloom_nodes::frame::frame_request(graph, &o.id, true),
+            Ok(o) => {
+                // A viewport relighting on the CPU has the engine relight the wavelet modes.
+                let relight_on_cpu = self.host.as_ref().is_some_and(ViewportHost::relights_on_cpu);
+                let needs = lightloom_nodes::frame::FrameNeeds { picking: true, relight_on_cpu };
+                lightloom_nodes::frame::frame_request_for(graph, &o.id, needs)
+            }
             Err(_) => lightloom_nodes::engine::Request::default(),
         };
         let previews: Vec<_> = graph

@@ -43,6 +43,9 @@ pub struct ViewportHost {
     texture: Option<egui::TextureHandle>,
     description: String,
     cpu: bool,
+    /// Whether its renderer relights the wavelet modes on the CPU (the frames it is sent then
+    /// bring them relit by the engine).
+    relights_on_cpu: bool,
     /// Signature of the newest job sent, and of the frame on screen.
     pub requested: Option<u64>,
     pub shown: Option<u64>,
@@ -61,6 +64,7 @@ impl ViewportHost {
         let gpu = GpuContext::headless().map_err(|e| e.to_string())?;
         let description = gpu.describe();
         let cpu = gpu.adapter.get_info().device_type == eframe::wgpu::DeviceType::Cpu;
+        let relights_on_cpu = lightloom_render::RelightOn::from_env().on_cpu(&gpu);
         let (jobs, job_rx) = std::sync::mpsc::channel::<(u64, Job)>();
         let (done_tx, finished) = std::sync::mpsc::channel();
         let repaint = ctx.clone();
@@ -75,6 +79,7 @@ impl ViewportHost {
             texture: None,
             description,
             cpu,
+            relights_on_cpu,
             requested: None,
             shown: None,
             size: (0, 0),
@@ -91,6 +96,11 @@ impl ViewportHost {
     /// Software rasteriser (lavapipe, llvmpipe)? The editor then renders at a lower resolution.
     pub fn is_cpu(&self) -> bool {
         self.cpu
+    }
+
+    /// Whether frames for it should bring the wavelet modes relit by the engine.
+    pub fn relights_on_cpu(&self) -> bool {
+        self.relights_on_cpu
     }
 
     /// Queues a job unless it is the one already requested; the render thread skips to the

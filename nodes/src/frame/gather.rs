@@ -42,6 +42,21 @@ impl Gather<'_> {
         keyed(self.evaluation, node, stage)
     }
 
+    /// The engine's CPU relight of the wavelet modes' receiver sets, where the request asked
+    /// for it and it finished (else the viewport relights with its kernel).
+    fn relit(&self, texels: bool) -> Option<RelitSets> {
+        use crate::kinds::output::relight::stage_name;
+        let done = |texels: bool| {
+            let r = self.evaluation.get(self.output, stage_name(texels, self.separate_sun))?;
+            r.value.as_ref().ok().map(|v| Keyed { key: r.key, value: v.clone() })
+        };
+        let texels = match texels {
+            true => Some(done(true)?),
+            false => None,
+        };
+        Some(RelitSets { vertices: done(false)?, texels })
+    }
+
     fn upstream(&self, port: &str) -> Option<String> {
         self.graph.upstream(self.output, port).map(|n| n.id.clone())
     }
@@ -171,8 +186,9 @@ impl Gather<'_> {
                 let texels =
                     if mode == Mode::WaveletPixel { Some(self.keyed(output, "texel_visibility")?) } else { None };
                 let details = self.settings.wavelet_details;
-                let surfaces =
+                let mut surfaces =
                     WaveletSurfaces::new(lighting, &parts.tables, texels, fogged, geometry, materials, details)?;
+                surfaces.relit = self.relit(surfaces.texels.is_some());
                 Surfaces::Wavelet(Box::new(surfaces))
             }
             Mode::Rsl => {

@@ -137,9 +137,9 @@ pub use area_lights::AreaLightFrame;
 pub use medium::{FogFrame, MediumFrame};
 pub use normal_maps::{HIGHLIGHT_BANDS, NormalDetail, NormalMapFrame, VertexHighlight, normal_map_stages};
 pub use prt::{IrradianceSurfaces, PrtSurfaces, incident_sh};
-pub use request::{frame_request, mode_stages};
+pub use request::{FrameNeeds, frame_request, frame_request_for, mode_stages};
 pub use rsl::RslSurfaces;
-pub use wavelet::{WaveletLighting, WaveletReceivers, WaveletSurfaces};
+pub use wavelet::{RelitSets, WaveletLighting, WaveletReceivers, WaveletSurfaces};
 
 /// How surfaces are lit: one variant per relighting mode.
 #[derive(Clone, Debug)]

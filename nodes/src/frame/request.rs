@@ -74,10 +74,27 @@ pub fn mode_stages(graph: &Graph, output: &str, mode: Mode) -> Vec<StageRef> {
     stages
 }
 
+/// What a frame is drawn with besides the Output's own settings.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct FrameNeeds {
+    /// The scene's BVH, for the editor's object selection.
+    pub picking: bool,
+    /// The wavelet modes' receivers relit by the engine, for a viewport that relights on the
+    /// CPU (faster there than its kernel): cached, and cancelled with the evaluation.
+    pub relight_on_cpu: bool,
+}
+
+/// What drawing the Output node `output` needs, as an engine request ([`frame_request_for`]
+/// with only `picking`).
+pub fn frame_request(graph: &Graph, output: &str, picking: bool) -> Request {
+    frame_request_for(graph, output, FrameNeeds { picking, ..FrameNeeds::default() })
+}
+
 /// What drawing the Output node `output` needs, as an engine request. A shadowed mode first
 /// gets an unshadowed tier, so a frame is ready before its transport is. The reference and
-/// error views (and `picking`, for the editor's object selection) add the scene's BVH.
-pub fn frame_request(graph: &Graph, output: &str, picking: bool) -> Request {
+/// error views (and `picking`) add the scene's BVH.
+pub fn frame_request_for(graph: &Graph, output: &str, needs: FrameNeeds) -> Request {
+    let picking = needs.picking;
     let Some(node) = graph.node(output) else { return Request::default() };
     let (mode, view) = crate::kinds::output::output_mode_and_view(node);
     let mut first = mode_stages(graph, output, Mode::ShIrradiance);
@@ -109,8 +126,17 @@ pub fn frame_request(graph: &Graph, output: &str, picking: bool) -> Request {
                 )],
             )
     } else if mode.is_shadowed() {
+        let mut stages = mode_stages(graph, output, mode);
+        if needs.relight_on_cpu && mode.is_wavelet() {
+            use crate::kinds::output::relight::stage_name;
+            let separate_sun = separates_sun(graph, output);
+            stages.push(StageRef::new(output, stage_name(false, separate_sun)));
+            if mode == Mode::WaveletPixel {
+                stages.push(StageRef::new(output, stage_name(true, separate_sun)));
+            }
+        }
         Request::new(format!("output `{output}`: unshadowed preview"), first)
-            .then(format!("output `{output}`: mode {mode}"), mode_stages(graph, output, mode))
+            .then(format!("output `{output}`: mode {mode}"), stages)
     } else {
         Request::new(format!("output `{output}`: mode {mode}"), first)
     };

@@ -63,19 +63,6 @@ impl WaveletReceivers {
     }
 }
 
-/// One receiver set relit on the CPU ([`WaveletSurfaces::relight_on_cpu`]), as the relight
-/// kernel (`wavelet_relight.wgsl`) writes its buffers.
-#[derive(Clone, Debug, Default)]
-pub struct RelitReceivers {
-    /// `P_c` per receiver and cell, RGB9E5 ([`crate::triple_product::packing::rgb9e5`]).
-    pub products: Vec<u32>,
-    /// `E = Σ_c P_c D_c` per receiver, `[r, g, b, 0]`.
-    pub irradiance: Vec<[f32; 4]>,
-    /// The kept detail terms, five words per receiver and slot
-    /// ([`crate::triple_product::packing::detail_words`]); empty when none are kept.
-    pub details: Vec<u32>,
-}
-
 /// The wavelet modes: the local-frame triple product `B = albedo Σ P_c D_c + specular Σ P_c
 /// S_c(ω_o)` per vertex, and per texel on meshes with a visibility texture (`wavelet_pixel`).
 /// `P` and the view-independent diffuse sum `E = Σ P_c D_c` are rebuilt only when the lighting
@@ -121,6 +108,19 @@ pub struct WaveletSurfaces {
     pub fine_specular_tables: Vec<Arc<Vec<half::f16>>>,
     /// Per material: where its fine table starts in that concatenation.
     pub fine_specular_offsets: Vec<u32>,
+    /// Every receiver set relit on the CPU, where the frame was asked for it
+    /// ([`super::FrameNeeds::relight_on_cpu`]): a viewport uploads these instead of running
+    /// the relight kernel.
+    pub relit: Option<RelitSets>,
+}
+
+/// The receiver sets relit by the engine ([`crate::triple_product::relight::RelitReceivers`]
+/// each, from the Output's `wavelet_*relit` stages).
+#[derive(Clone, Debug)]
+pub struct RelitSets {
+    pub vertices: Keyed,
+    /// With texels lit ([`WaveletSurfaces::texels`]).
+    pub texels: Option<Keyed>,
 }
 
 impl WaveletSurfaces {
@@ -200,9 +200,7 @@ impl WaveletSurfaces {
         let scale = |c: [f64; 3]| std::array::from_fn(|i| c[i] * attenuation[i]);
         let specular: Vec<Option<[f64; 3]>> =
             coarse.iter().map(|t| (!t.specular.is_empty()).then(|| scale(t.specular_color.map(f64::from)))).collect();
-        let weighted: Vec<(&BrdfTable, f64)> =
-            coarse.iter().zip(&specular).map(|(t, s)| (t, s.map_or(0.0, |s| s[0].max(s[1]).max(s[2])))).collect();
-        let details = crate::triple_product::details::DetailWeights::new(grid, &weighted, details);
+        let details = crate::triple_product::relight::material_detail_weights(grid, &coarse, attenuation, details);
         let (mut fine_specular_tables, mut fine_specular_offsets, mut offset) = (Vec::new(), Vec::new(), 0);
         for t in &coarse {
             let table = if details.kept > 0 { t.fine_specular.clone() } else { Arc::default() };
@@ -234,6 +232,7 @@ impl WaveletSurfaces {
             details: Arc::new(details),
             fine_specular_tables,
             fine_specular_offsets,
+            relit: None,
         })
     }
 
@@ -263,19 +262,34 @@ impl WaveletSurfaces {
     pub fn cpu_products(&self) -> Result<crate::triple_product::LocalProducts, String> {
         let plain = Self { details: Arc::default(), ..self.clone() };
         let table = plain.frame_table_for(&plain.vertices)?;
-        Ok(plain.cpu_products_of(&plain.vertices, table.as_ref(), &crate::engine::CancelToken::default())?.0)
+        let cancel = crate::engine::CancelToken::default();
+        Ok(plain.cpu_products_of(&plain.vertices, table.as_ref(), &cancel)?.0)
     }
 
-    /// The pre-rotated lighting table when `set` has more receivers than
-    /// [`crate::triple_product::FRAME_TABLE_THRESHOLD`] (built once per environment).
-    pub fn frame_table_for(&self, set: &WaveletReceivers) -> Result<Option<crate::triple_product::FrameTable>, String> {
-        use crate::triple_product::{CellGrid, FRAME_TABLE_THRESHOLD, FrameTable};
-        // Detail terms sample the lighting directly.
-        if set.frames.len() / 2 <= FRAME_TABLE_THRESHOLD || self.details.kept > 0 {
-            return Ok(None);
-        }
+    /// The relight's inputs besides the receivers, or an error naming a missing one.
+    pub fn relight<R>(
+        &self,
+        with: impl FnOnce(&crate::triple_product::relight::Relight) -> Result<R, String>,
+    ) -> Result<R, String> {
+        let grid = crate::triple_product::CellGrid::for_coefficients(self.cells)?;
         let environment = self.environment.value.expect::<crate::cubemap::CubeMap>().map_err(|e| e.to_string())?;
-        Ok(Some(FrameTable::build(CellGrid::for_coefficients(self.cells)?, environment)))
+        with(&crate::triple_product::relight::Relight {
+            grid,
+            environment,
+            rotation: self.rotation,
+            diffuse_table: &self.diffuse_table,
+            details: &self.details,
+        })
+    }
+
+    /// The pre-rotated lighting table when `set` reads one
+    /// ([`crate::triple_product::relight::Relight::uses_frame_table`]; built once per
+    /// environment).
+    pub fn frame_table_for(&self, set: &WaveletReceivers) -> Result<Option<crate::triple_product::FrameTable>, String> {
+        self.relight(|r| {
+            Ok(r.uses_frame_table(set.frames.len() / 2)
+                .then(|| crate::triple_product::FrameTable::build(r.grid, r.environment)))
+        })
     }
 
     /// `P` and the kept detail terms of one receiver set on the CPU, with the lighting from
@@ -286,43 +300,7 @@ impl WaveletSurfaces {
         table: Option<&crate::triple_product::FrameTable>,
         cancel: &crate::engine::CancelToken,
     ) -> Result<(crate::triple_product::LocalProducts, crate::triple_product::details::LocalDetails), String> {
-        use crate::triple_product::{CellGrid, Lighting, local_products_with_details};
-        let grid = CellGrid::for_coefficients(self.cells)?;
-        let environment = self.environment.value.expect::<crate::cubemap::CubeMap>().map_err(|e| e.to_string())?;
-        let lighting = Lighting { environment, rotation: self.rotation, table };
-        local_products_with_details(grid, &lighting, set.receivers()?, set.cells()?, &self.details, cancel)
-            .map_err(|e| e.to_string())
-    }
-
-    /// The relight kernel's CPU twin for one receiver set, packed as the kernel writes its
-    /// buffers. A set read from a pre-rotated `table` (built only where no detail terms are
-    /// kept, [`Self::frame_table_for`]) goes from the table to the packed words in one pass.
-    pub fn relight_on_cpu(
-        &self,
-        set: &WaveletReceivers,
-        table: Option<&crate::triple_product::FrameTable>,
-        cancel: &crate::engine::CancelToken,
-    ) -> Result<RelitReceivers, String> {
-        use crate::triple_product::{diffuse_transfer, packing};
-        if let Some(table) = table {
-            let (products, irradiance) = crate::triple_product::table_products_packed(
-                table,
-                self.rotation,
-                set.receivers()?,
-                set.cells()?,
-                &self.diffuse_table,
-                packing::rgb9e5,
-                cancel,
-            )
-            .map_err(|e| e.to_string())?;
-            return Ok(RelitReceivers { products, irradiance, details: Vec::new() });
-        }
-        let (products, details) = self.cpu_products_of(set, None, cancel)?;
-        let irradiance =
-            diffuse_transfer(&products, &self.diffuse_table).into_iter().map(|e| [e[0], e[1], e[2], 0.0]).collect();
-        let details =
-            if details.kept > 0 { packing::detail_words(&details.nodes, &details.values) } else { Vec::new() };
-        Ok(RelitReceivers { products: packing::rgb9e5_all(&products.values), irradiance, details })
+        self.relight(|r| r.products(set.receivers()?, set.cells()?, table, cancel).map_err(|e| e.to_string()))
     }
 
     /// Floats of one material's specular table.

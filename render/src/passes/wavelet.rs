@@ -12,8 +12,9 @@ use crate::shaders::Shader;
 use crate::{GpuContext, RenderError};
 use lightloom_nodes::cubemap::CubeMap;
 use lightloom_nodes::engine::Key;
-use lightloom_nodes::frame::{MAX_MATERIALS, WaveletReceivers, WaveletSurfaces};
-use lightloom_nodes::triple_product::{FrameTable, PHI_STEPS, THETA_STEPS};
+use lightloom_nodes::frame::{MAX_MATERIALS, RelitSets, WaveletReceivers, WaveletSurfaces};
+use lightloom_nodes::triple_product::relight::RelitReceivers;
+use lightloom_nodes::triple_product::{PHI_STEPS, THETA_STEPS};
 
 pub(crate) const SHADER: Shader = Shader::mesh("mesh_wavelet", "WAVELET");
 pub(crate) const RELIGHT_SHADER: Shader =
@@ -116,8 +117,30 @@ pub enum RelightOn {
     Auto,
     /// The compute kernel (`wavelet_relight.wgsl`).
     Gpu,
-    /// The CPU twin ([`WaveletSurfaces::relight_on_cpu`]), uploaded.
+    /// The engine's CPU relight ([`WaveletSurfaces::relit`], asked for with
+    /// `FrameNeeds::relight_on_cpu`), uploaded; the kernel where a frame has none.
     Cpu,
+}
+
+impl RelightOn {
+    /// `LIGHTLOOM_RELIGHT=gpu` or `cpu` (to compare the two); otherwise the device decides.
+    pub fn from_env() -> Self {
+        match std::env::var("LIGHTLOOM_RELIGHT").as_deref() {
+            Ok("gpu") => Self::Gpu,
+            Ok("cpu") => Self::Cpu,
+            _ => Self::Auto,
+        }
+    }
+
+    /// Whether relights run on the CPU on `gpu`'s adapter: what a frame for it asks the
+    /// engine for (`FrameNeeds::relight_on_cpu`).
+    pub fn on_cpu(self, gpu: &GpuContext) -> bool {
+        match self {
+            Self::Gpu => false,
+            Self::Cpu => true,
+            Self::Auto => gpu.adapter.get_info().device_type == wgpu::DeviceType::Cpu,
+        }
+    }
 }
 
 /// The receiver sets on the GPU and what lighting them reads besides the environment.
@@ -136,8 +159,6 @@ struct Receivers {
 struct Lit {
     environment_key: Key,
     bind_groups: Vec<(u32, wgpu::BindGroup)>,
-    /// The pre-rotated lighting tables of the CPU twin's big receiver sets, per set.
-    tables: Vec<Option<FrameTable>>,
 }
 
 /// The draw's bind group: the receivers' products and the materials' tables.
@@ -236,11 +257,7 @@ impl WaveletPass {
 
     /// Whether the kernel runs on the GPU for this device.
     fn kernel_on_gpu(&self, gpu: &GpuContext) -> bool {
-        match self.relight_on {
-            RelightOn::Gpu => true,
-            RelightOn::Cpu => false,
-            RelightOn::Auto => gpu.adapter.get_info().device_type != wgpu::DeviceType::Cpu,
-        }
+        !self.relight_on.on_cpu(gpu)
     }
 
     fn upload_receivers(gpu: &GpuContext, data: &WaveletSurfaces) -> Result<Receivers, RenderError> {
@@ -308,10 +325,10 @@ impl WaveletPass {
 
     /// Uploads the prefiltered environment and binds it with each receiver set.
     fn light(&self, gpu: &GpuContext, receivers: &Receivers, data: &WaveletSurfaces) -> Result<Lit, RenderError> {
+        // The kernel runs wherever the frame brings no relit receivers, so it always has the
+        // environment (a few hundred KiB prefiltered).
         let environment = stage_value::<CubeMap>(&data.environment)?;
-        let kernel = self.kernel_on_gpu(gpu);
-        let texels: Vec<[f32; 4]> =
-            if kernel { environment.texels.iter().map(|t| [t[0], t[1], t[2], 0.0]).collect() } else { Vec::new() };
+        let texels: Vec<[f32; 4]> = environment.texels.iter().map(|t| [t[0], t[1], t[2], 0.0]).collect();
         let buffer = storage_buffer(gpu, "wavelet-environment", &texels);
         let bind = |set: &LitReceivers| {
             let entries = [
@@ -338,16 +355,7 @@ impl WaveletPass {
             (set.count, group)
         };
         let bind_groups = std::iter::once(&receivers.vertices).chain(&receivers.texels).map(bind).collect();
-        let tables = if kernel {
-            Vec::new()
-        } else {
-            std::iter::once(&data.vertices)
-                .chain(&data.texels)
-                .map(|set| data.frame_table_for(set))
-                .collect::<Result<_, _>>()
-                .map_err(RenderError::Invalid)?
-        };
-        Ok(Lit { environment_key: data.environment.key, bind_groups, tables })
+        Ok(Lit { environment_key: data.environment.key, bind_groups })
     }
 
     /// Rebuilds every receiver's `P` and `E` with the compute kernel.
@@ -388,20 +396,26 @@ impl WaveletPass {
         Ok(())
     }
 
-    /// Rebuilds every receiver's `P` and `E` with the CPU twin and uploads them.
-    fn relight_on_cpu(
-        &self,
-        gpu: &GpuContext,
-        receivers: &Receivers,
-        lit: &Lit,
-        data: &WaveletSurfaces,
-    ) -> Result<(), RenderError> {
-        let sets =
-            std::iter::once((&receivers.vertices, &data.vertices)).chain(receivers.texels.iter().zip(&data.texels));
-        for ((buffers, set), table) in sets.zip(&lit.tables) {
-            let relit = data
-                .relight_on_cpu(set, table.as_ref(), &lightloom_nodes::engine::CancelToken::default())
-                .map_err(RenderError::Invalid)?;
+    /// Uploads every receiver's `P`, `E` and detail terms as the engine relit them.
+    fn upload_relit(gpu: &GpuContext, receivers: &Receivers, relit: &RelitSets) -> Result<(), RenderError> {
+        let sets = std::iter::once((&receivers.vertices, Some(&relit.vertices)))
+            .chain(receivers.texels.iter().map(|t| (t, relit.texels.as_ref())));
+        for (buffers, relit) in sets {
+            let relit =
+                stage_value::<RelitReceivers>(relit.ok_or_else(|| {
+                    RenderError::Invalid("the frame's texels were not relit with its vertices".into())
+                })?)?;
+            let fits = |words: usize, buffer: &wgpu::Buffer| (words * 4) as u64 <= buffer.size();
+            if !fits(relit.products.len(), &buffers.products)
+                || !fits(relit.irradiance.len() * 4, &buffers.irradiance)
+                || !fits(relit.details.len(), &buffers.details)
+            {
+                return Err(RenderError::Invalid(format!(
+                    "the relit products ({} words) do not fit the receivers' buffers ({} bytes)",
+                    relit.products.len(),
+                    buffers.products.size()
+                )));
+            }
             gpu.queue.write_buffer(&buffers.products, 0, bytemuck::cast_slice(&relit.products));
             gpu.queue.write_buffer(&buffers.irradiance, 0, bytemuck::cast_slice(&relit.irradiance));
             if !relit.details.is_empty() {
@@ -454,10 +468,10 @@ impl Pass for WaveletPass {
         if self.relit != Some(state) {
             self.relit = None;
             let lit = self.lit.as_ref().expect("lit above");
-            if self.kernel_on_gpu(gpu) {
-                self.relight_on_gpu(gpu, receivers, lit, data)?;
-            } else {
-                self.relight_on_cpu(gpu, receivers, lit, data)?;
+            // On the CPU the engine relights (the frame's `relit`); without that, the kernel.
+            match data.relit.as_ref().filter(|_| !self.kernel_on_gpu(gpu)) {
+                Some(relit) => Self::upload_relit(gpu, receivers, relit)?,
+                None => self.relight_on_gpu(gpu, receivers, lit, data)?,
             }
             self.relit = Some(state);
         }

@@ -11,6 +11,7 @@ mod area_light_node;
 mod blockers_mode;
 mod disk_cache;
 mod recompute;
+mod relight;
 mod rsl_mode;
 mod spot_light_node;
 

@@ -11,6 +11,7 @@ use serde::{Deserialize, Serialize};
 pub mod adaptive;
 pub mod area;
 mod bake;
+pub mod relight;
 mod sun;
 
 // Stage value types this module owns (see `engine::value`).
@@ -323,6 +324,7 @@ pub fn spec() -> NodeKindSpec {
         .chain(adaptive::stages())
         .chain(area::stages())
         .chain(bake::stages())
+        .chain(relight::stages())
         .collect(),
         previews: Vec::new(),
         gizmo: crate::engine::spec::GizmoSpec::None,

@@ -68,7 +68,13 @@ crate::stage_type!(
     numbers = |v| v.visibility.values.iter().map(|x| f64::from(*x))
 );
 crate::stage_type!(FrameTable, "pre-rotated lighting table", encoding = 1, |v| v.approx_bytes());
-crate::stage_type!(relight::RelitReceivers, "relit receivers", |v| v.approx_bytes());
+crate::stage_type!(
+    relight::RelitReceivers,
+    "relit receivers",
+    encoding = 1,
+    |v| v.approx_bytes(),
+    numbers = |v| v.irradiance.iter().flatten().map(|x| f64::from(*x))
+);
 
 /// Sub-cell levels below a cell used to average functions over it (16 samples per cell).
 const SUBLEVELS: usize = 2;

@@ -5,25 +5,22 @@ use super::*;
 use std::collections::BTreeMap;
 
 /// What every part of a gather reads: the evaluation, the Output and the mode drawn.
-struct Gather<'a> {
-    evaluation: &'a Evaluation,
-    graph: &'a Graph,
-    output: &'a str,
-    settings: OutputSettings,
-    mode: Mode,
+pub(super) struct Gather<'a> {
+    pub evaluation: &'a Evaluation,
+    pub graph: &'a Graph,
+    pub output: &'a str,
+    pub settings: OutputSettings,
+    pub mode: Mode,
     /// The environment's sun is lit apart from the mode's transport.
-    separate_sun: bool,
+    pub separate_sun: bool,
 }
 
 /// The materials linked to the Output and what the mode reads of each.
-struct MaterialParts {
-    materials: Vec<FrameMaterial>,
-    /// The SH modes' glossy lobes (one per material; `None` for the default material).
-    lobes: Vec<Option<crate::prt::GlossyLobe>>,
-    /// The wavelet modes' local-frame tables.
-    tables: Vec<Keyed>,
-    /// The rsl mode's BRDF tables.
-    rsl_tables: Vec<Keyed>,
+pub(super) struct MaterialParts {
+    pub materials: Vec<FrameMaterial>,
+    /// Per material, the stages the mode reads of it ([`ModeFrame::material_stages`], in that
+    /// order; none for the default material).
+    pub mode_stages: Vec<Vec<Keyed>>,
     /// Why a material's normal map is drawn approximately or not at all.
     normal_notes: Vec<(String, String)>,
 }
@@ -38,26 +35,11 @@ fn keyed(evaluation: &Evaluation, node: &str, stage: &str) -> Result<Keyed, Stri
 }
 
 impl Gather<'_> {
-    fn keyed(&self, node: &str, stage: &str) -> Result<Keyed, String> {
+    pub fn keyed(&self, node: &str, stage: &str) -> Result<Keyed, String> {
         keyed(self.evaluation, node, stage)
     }
 
-    /// The engine's CPU relight of the wavelet modes' receiver sets, where the request asked
-    /// for it and it finished (else the viewport relights with its kernel).
-    fn relit(&self, texels: bool) -> Option<RelitSets> {
-        use crate::kinds::output::relight::stage_name;
-        let done = |texels: bool| {
-            let r = self.evaluation.get(self.output, stage_name(texels, self.separate_sun))?;
-            r.value.as_ref().ok().map(|v| Keyed { key: r.key, value: v.clone() })
-        };
-        let texels = match texels {
-            true => Some(done(true)?),
-            false => None,
-        };
-        Some(RelitSets { vertices: done(false)?, texels })
-    }
-
-    fn upstream(&self, port: &str) -> Option<String> {
+    pub fn upstream(&self, port: &str) -> Option<String> {
         self.graph.upstream(self.output, port).map(|n| n.id.clone())
     }
 
@@ -69,35 +51,22 @@ impl Gather<'_> {
                 nodes.len()
             ));
         }
-        let mode = self.mode;
-        let mut parts = MaterialParts {
-            materials: Vec::new(),
-            lobes: Vec::new(),
-            tables: Vec::new(),
-            rsl_tables: Vec::new(),
-            normal_notes: Vec::new(),
-        };
+        let (mode, frame) = (self.mode, modes::of(self.mode));
+        let mut parts = MaterialParts { materials: Vec::new(), mode_stages: Vec::new(), normal_notes: Vec::new() };
         let keyed = |node: &str, stage: &str| self.keyed(node, stage);
         for node in &nodes {
             let normal = normal_maps::normal_detail(&keyed, self.graph, &node.id, mode, &mut parts.normal_notes);
             let material = typed(&self.keyed(&node.id, "material")?, "material")?;
             parts.materials.push(FrameMaterial { node: node.id.clone(), material, normal });
-            if matches!(mode, Mode::ShPrt | Mode::ShAdaptive) {
-                parts.lobes.push(Some(typed(&self.keyed(&node.id, "sh_lobe")?, "sh_lobe")?));
-            }
-            if mode.is_wavelet() {
-                parts.tables.push(self.keyed(&node.id, "local_table")?);
-            }
-            if mode == Mode::Rsl {
-                parts.rsl_tables.push(self.keyed(&node.id, "rsl_tables")?);
-            }
+            let stages = frame.material_stages().iter().map(|s| self.keyed(&node.id, s)).collect::<Result<_, _>>()?;
+            parts.mode_stages.push(stages);
         }
         if parts.materials.is_empty() {
-            if mode.is_wavelet() || mode == Mode::Rsl {
+            if frame.needs_material() {
                 return Err(format!("the {mode} mode needs a material: link a BRDF editor to the Output"));
             }
             parts.materials.push(FrameMaterial { node: String::new(), material: Default::default(), normal: None });
-            parts.lobes.push(None);
+            parts.mode_stages.push(Vec::new());
         }
         Ok(parts)
     }
@@ -133,75 +102,6 @@ impl Gather<'_> {
             }
         }
         (Geometry { meshes, mesh_materials }, unmatched)
-    }
-
-    /// How the mode lights surfaces.
-    fn surfaces(
-        &self,
-        parts: &mut MaterialParts,
-        light: Option<&crate::sh::ShRgb>,
-        fogged: Option<&FoggedEnvironment>,
-        geometry: &Geometry,
-    ) -> Result<Surfaces, String> {
-        let (output, mode, separate_sun) = (self.output, self.mode, self.separate_sun);
-        let lobes = std::mem::take(&mut parts.lobes);
-        let materials = &parts.materials;
-        // Without an environment the wavelet modes have no lighting to multiply in: surfaces get
-        // no environment light.
-        let wavelet_environment = match mode.is_wavelet() {
-            true if separate_sun => Some(self.keyed(output, "wavelet_residual_environment")?),
-            true => Some(self.keyed(output, "wavelet_environment")?),
-            false => None,
-        };
-        let no_environment = wavelet_environment
-            .as_ref()
-            .is_some_and(|e| e.value.get::<crate::cubemap::CubeMap>().is_some_and(|c| c.size == 0));
-        Ok(match mode {
-            Mode::ShPrt | Mode::ShAdaptive => {
-                let incident = match mode {
-                    Mode::ShAdaptive => crate::kinds::output::adaptive::stage_names(separate_sun).0,
-                    _ if separate_sun => "incident_residual_sh",
-                    _ => "incident_sh",
-                };
-                Surfaces::Prt(PrtSurfaces::new(
-                    self.keyed(output, "blocked_transport")?,
-                    self.keyed(output, incident)?,
-                    light,
-                    fogged,
-                    materials,
-                    lobes,
-                    geometry.vertex_count(),
-                )?)
-            }
-            Mode::WaveletVertex | Mode::WaveletPixel if !no_environment => {
-                let environment = self.upstream("environment").ok_or("the wavelet modes need an environment")?;
-                let scene = self.upstream("scene").ok_or("the wavelet modes need a scene")?;
-                let rotation = self.keyed(&environment, "rotation")?;
-                let lighting = WaveletLighting {
-                    visibility: self.keyed(output, "local_visibility")?,
-                    receivers: self.keyed(&scene, "receivers")?,
-                    environment: wavelet_environment.ok_or("the wavelet environment was not evaluated")?,
-                    rotation: *rotation.value.expect::<glam::DMat3>().map_err(|e| e.to_string())?,
-                };
-                let texels =
-                    if mode == Mode::WaveletPixel { Some(self.keyed(output, "texel_visibility")?) } else { None };
-                let details = self.settings.wavelet_details;
-                let mut surfaces =
-                    WaveletSurfaces::new(lighting, &parts.tables, texels, fogged, geometry, materials, details)?;
-                surfaces.relit = self.relit(surfaces.texels.is_some());
-                Surfaces::Wavelet(Box::new(surfaces))
-            }
-            Mode::Rsl => {
-                let node = self.upstream("square_lights").ok_or(
-                    "the rsl mode needs square lights: link an RSL decomposer to the Output's square_lights input",
-                )?;
-                let lights = self.keyed(&node, "world_lights")?;
-                let world = lights.value.expect::<crate::rsl::WorldLights>().map_err(|e| e.to_string())?;
-                let visibility = self.keyed(output, "rsl_visibility")?;
-                Surfaces::Rsl(RslSurfaces::new(world, lights.key, visibility, &parts.rsl_tables, fogged, geometry)?)
-            }
-            _ => Surfaces::Irradiance(IrradianceSurfaces::new(light, fogged, materials)),
-        })
     }
 
     /// Inputs the frame does not draw as linked, said plainly: blockers outside the SH modes,
@@ -288,7 +188,7 @@ impl FrameInputs {
             .transpose()
             .map_err(|e| e.to_string())?;
         let (geometry, unmatched) = g.geometry(g.keyed(&scene, "geometry")?, &parts.materials);
-        let surfaces = g.surfaces(&mut parts, light, fogged, &geometry)?;
+        let surfaces = modes::of(g.mode).surfaces(&g, &parts, &SurfaceInputs { light, fogged, geometry: &geometry })?;
         let materials = parts.materials;
         let mut lights = match g.upstream("lights") {
             Some(node) => typed::<Vec<PointLight>>(&g.keyed(&node, "lights")?, "lights")?,

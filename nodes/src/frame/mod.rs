@@ -127,11 +127,15 @@ mod area_lights;
 mod gather;
 mod lobe_limits;
 mod medium;
+mod modes;
 mod normal_maps;
 mod prt;
 mod request;
 mod rsl;
 mod wavelet;
+
+use gather::{Gather, MaterialParts};
+use modes::{Linked, ModeFrame, SurfaceInputs};
 
 pub use area_lights::AreaLightFrame;
 pub use medium::{FogFrame, MediumFrame};

@@ -81,3 +81,71 @@ pub fn incident_sh(value: &crate::engine::StageValue) -> Result<&crate::prt::Inc
         None => value.expect::<crate::prt::IncidentSh>().map_err(|e| e.to_string()),
     }
 }
+
+/// `sh_irradiance` as a frame part: it reads only what every mode reads.
+pub(super) struct Irradiance;
+
+impl ModeFrame for Irradiance {
+    fn stages(&self, _: &Linked) -> Vec<StageRef> {
+        Vec::new()
+    }
+
+    fn surfaces(&self, _: &Gather, parts: &MaterialParts, inputs: &SurfaceInputs) -> Result<Surfaces, String> {
+        Ok(Surfaces::Irradiance(IrradianceSurfaces::new(inputs.light, inputs.fogged, &parts.materials)))
+    }
+}
+
+/// `sh_prt`, and `sh_adaptive` (`adaptive`: Lee's adaptive incident radiance instead of the full
+/// Gaunt product) as frame parts: the scene's SH transport (blocked by the spheres), the
+/// incident radiance per vertex, each material's glossy lobe.
+pub(super) struct Prt {
+    pub adaptive: bool,
+}
+
+impl Prt {
+    /// The Output stage of the per-vertex incident radiance.
+    fn incident(&self, separate_sun: bool) -> &'static str {
+        match (self.adaptive, separate_sun) {
+            (true, _) => crate::kinds::output::adaptive::stage_names(separate_sun).0,
+            (false, true) => "incident_residual_sh",
+            (false, false) => "incident_sh",
+        }
+    }
+}
+
+impl ModeFrame for Prt {
+    fn material_stages(&self) -> &'static [&'static str] {
+        &["sh_lobe"]
+    }
+
+    fn stages(&self, linked: &Linked) -> Vec<StageRef> {
+        let mut stages = Vec::new();
+        if let Some(scene) = &linked.scene {
+            stages.push(StageRef::new(scene, "transport_sh"));
+            stages.push(StageRef::new(linked.output, "blocked_transport"));
+            if self.adaptive {
+                stages.push(StageRef::new(scene, "adjacency"));
+            }
+        }
+        stages.push(StageRef::new(linked.output, self.incident(linked.separate_sun)));
+        stages
+    }
+
+    fn surfaces(&self, g: &Gather, parts: &MaterialParts, inputs: &SurfaceInputs) -> Result<Surfaces, String> {
+        // The default material (none linked) has no lobe.
+        let lobes = parts
+            .mode_stages
+            .iter()
+            .map(|stages| stages.first().map(|lobe| typed(lobe, "sh_lobe")).transpose())
+            .collect::<Result<_, String>>()?;
+        Ok(Surfaces::Prt(PrtSurfaces::new(
+            g.keyed(g.output, "blocked_transport")?,
+            g.keyed(g.output, self.incident(g.separate_sun))?,
+            inputs.light,
+            inputs.fogged,
+            &parts.materials,
+            lobes,
+            inputs.geometry.vertex_count(),
+        )?))
+    }
+}

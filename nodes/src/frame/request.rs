@@ -2,75 +2,35 @@
 
 use super::*;
 
-/// The stages a frame of `mode` reads from the Output node `output` and what feeds it.
+/// The stages a frame of `mode` reads from the Output node `output` and what feeds it: what
+/// every mode reads, then what the mode's part asks for ([`ModeFrame::stages`]).
 pub fn mode_stages(graph: &Graph, output: &str, mode: Mode) -> Vec<StageRef> {
+    let frame = modes::of(mode);
+    let linked = Linked::new(graph, output);
     let mut stages = vec![StageRef::new(output, "settings")];
-    let upstream = |port: &str| graph.upstream(output, port).map(|n| n.id.clone());
-    if let Some(scene) = upstream("scene") {
-        stages.push(StageRef::new(&scene, "geometry"));
-        if matches!(mode, Mode::ShPrt | Mode::ShAdaptive) {
-            stages.push(StageRef::new(&scene, "transport_sh"));
-            stages.push(StageRef::new(output, "blocked_transport"));
-        }
-        if mode == Mode::ShAdaptive {
-            stages.push(StageRef::new(&scene, "adjacency"));
-        }
-        if mode == Mode::Rsl {
-            stages.push(StageRef::new(&scene, "rsl_self_visibility"));
-            stages.push(StageRef::new(&scene, "rsl_occluders"));
-        }
+    if let Some(scene) = &linked.scene {
+        stages.push(StageRef::new(scene, "geometry"));
     }
-    if mode == Mode::Rsl
-        && let Some(lights) = upstream("square_lights")
-    {
-        stages.push(StageRef::new(&lights, "world_lights"));
-    }
-    if let Some(env) = upstream("environment") {
-        stages.push(StageRef::new(&env, "sh"));
-        stages.push(StageRef::new(&env, "rotated_radiance"));
+    if let Some(env) = &linked.environment {
+        stages.push(StageRef::new(env, "sh"));
+        stages.push(StageRef::new(env, "rotated_radiance"));
     }
     for material in graph.upstream_all(output, "material") {
         stages.push(StageRef::new(&material.id, "material"));
-        match mode {
-            Mode::ShPrt | Mode::ShAdaptive => stages.push(StageRef::new(&material.id, "sh_lobe")),
-            Mode::WaveletVertex | Mode::WaveletPixel => stages.push(StageRef::new(&material.id, "local_table")),
-            Mode::Rsl => stages.push(StageRef::new(&material.id, "rsl_tables")),
-            Mode::ShIrradiance => {}
-        }
+        stages.extend(frame.material_stages().iter().map(|s| StageRef::new(&material.id, *s)));
     }
-    if let Some(medium) = upstream("medium") {
-        stages.extend(["medium", "f_tables", "g_tables"].map(|s| StageRef::new(&medium, s)));
+    if let Some(medium) = graph.upstream(output, "medium") {
+        stages.extend(["medium", "f_tables", "g_tables"].map(|s| StageRef::new(&medium.id, s)));
     }
-    if let Some(lights) = upstream("lights") {
-        stages.push(StageRef::new(&lights, "lights"));
+    if let Some(lights) = graph.upstream(output, "lights") {
+        stages.push(StageRef::new(&lights.id, "lights"));
     }
-    let separate_sun = separates_sun(graph, output);
-    if separate_sun && let Some(env) = upstream("environment") {
-        stages.extend(["sun", "residual_sh", "rotation"].map(|s| StageRef::new(&env, s)));
+    if linked.separate_sun
+        && let Some(env) = &linked.environment
+    {
+        stages.extend(["sun", "residual_sh", "rotation"].map(|s| StageRef::new(env, s)));
     }
-    match mode {
-        Mode::ShIrradiance => {}
-        Mode::ShPrt => {
-            stages.push(StageRef::new(output, if separate_sun { "incident_residual_sh" } else { "incident_sh" }))
-        }
-        Mode::ShAdaptive => {
-            stages.push(StageRef::new(output, crate::kinds::output::adaptive::stage_names(separate_sun).0))
-        }
-        Mode::WaveletVertex | Mode::WaveletPixel => {
-            let environment = if separate_sun { "wavelet_residual_environment" } else { "wavelet_environment" };
-            stages.extend(["local_visibility", environment].map(|s| StageRef::new(output, s)));
-            if let Some(environment) = upstream("environment") {
-                stages.push(StageRef::new(&environment, "rotation"));
-            }
-            if let Some(scene) = upstream("scene") {
-                stages.push(StageRef::new(&scene, "receivers"));
-            }
-            if mode == Mode::WaveletPixel {
-                stages.push(StageRef::new(output, "texel_visibility"));
-            }
-        }
-        Mode::Rsl => stages.push(StageRef::new(output, "rsl_visibility")),
-    }
+    stages.extend(frame.stages(&linked));
     stages
 }
 
@@ -127,13 +87,8 @@ pub fn frame_request_for(graph: &Graph, output: &str, needs: FrameNeeds) -> Requ
             )
     } else if mode.is_shadowed() {
         let mut stages = mode_stages(graph, output, mode);
-        if needs.relight_on_cpu && mode.is_wavelet() {
-            use crate::kinds::output::relight::stage_name;
-            let separate_sun = separates_sun(graph, output);
-            stages.push(StageRef::new(output, stage_name(false, separate_sun)));
-            if mode == Mode::WaveletPixel {
-                stages.push(StageRef::new(output, stage_name(true, separate_sun)));
-            }
+        if needs.relight_on_cpu {
+            stages.extend(modes::of(mode).cpu_relight_stages(&Linked::new(graph, output)));
         }
         Request::new(format!("output `{output}`: unshadowed preview"), first)
             .then(format!("output `{output}`: mode {mode}"), stages)

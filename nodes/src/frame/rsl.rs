@@ -93,3 +93,41 @@ impl RslSurfaces {
         })
     }
 }
+
+/// `rsl` as a frame part: the square lights in the world, each vertex's visibility of them
+/// (from the scene's per-object tables), each material's BRDF tables.
+pub(super) struct Rsl;
+
+impl ModeFrame for Rsl {
+    fn material_stages(&self) -> &'static [&'static str] {
+        &["rsl_tables"]
+    }
+
+    fn needs_material(&self) -> bool {
+        true
+    }
+
+    fn stages(&self, linked: &Linked) -> Vec<StageRef> {
+        let mut stages = Vec::new();
+        if let Some(scene) = &linked.scene {
+            stages.push(StageRef::new(scene, "rsl_self_visibility"));
+            stages.push(StageRef::new(scene, "rsl_occluders"));
+        }
+        if let Some(lights) = &linked.square_lights {
+            stages.push(StageRef::new(lights, "world_lights"));
+        }
+        stages.push(StageRef::new(linked.output, "rsl_visibility"));
+        stages
+    }
+
+    fn surfaces(&self, g: &Gather, parts: &MaterialParts, inputs: &SurfaceInputs) -> Result<Surfaces, String> {
+        let node = g
+            .upstream("square_lights")
+            .ok_or("the rsl mode needs square lights: link an RSL decomposer to the Output's square_lights input")?;
+        let lights = g.keyed(&node, "world_lights")?;
+        let world = lights.value.expect::<crate::rsl::WorldLights>().map_err(|e| e.to_string())?;
+        let visibility = g.keyed(g.output, "rsl_visibility")?;
+        let tables: Vec<Keyed> = parts.mode_stages.iter().flatten().cloned().collect();
+        Ok(Surfaces::Rsl(RslSurfaces::new(world, lights.key, visibility, &tables, inputs.fogged, inputs.geometry)?))
+    }
+}

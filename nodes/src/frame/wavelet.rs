@@ -308,3 +308,94 @@ impl WaveletSurfaces {
         crate::triple_product::THETA_STEPS * crate::triple_product::PHI_STEPS * cells
     }
 }
+
+/// `wavelet_vertex`, and `wavelet_pixel` (`texels`: meshes with a visibility texture lit per
+/// texel) as frame parts: the visibility cells, the prefiltered environment and its rotation,
+/// each material's local-frame table; on a CPU viewport, the receivers relit by the engine.
+pub(super) struct Wavelet {
+    pub texels: bool,
+}
+
+impl Wavelet {
+    /// The Output stage of the prefiltered environment the cells are lit by.
+    fn environment(separate_sun: bool) -> &'static str {
+        if separate_sun { "wavelet_residual_environment" } else { "wavelet_environment" }
+    }
+}
+
+impl ModeFrame for Wavelet {
+    fn material_stages(&self) -> &'static [&'static str] {
+        &["local_table"]
+    }
+
+    fn needs_material(&self) -> bool {
+        true
+    }
+
+    fn stages(&self, linked: &Linked) -> Vec<StageRef> {
+        let output = linked.output;
+        let mut stages = vec![
+            StageRef::new(output, "local_visibility"),
+            StageRef::new(output, Self::environment(linked.separate_sun)),
+        ];
+        if let Some(environment) = &linked.environment {
+            stages.push(StageRef::new(environment, "rotation"));
+        }
+        if let Some(scene) = &linked.scene {
+            stages.push(StageRef::new(scene, "receivers"));
+        }
+        if self.texels {
+            stages.push(StageRef::new(output, "texel_visibility"));
+        }
+        stages
+    }
+
+    fn cpu_relight_stages(&self, linked: &Linked) -> Vec<StageRef> {
+        use crate::kinds::output::relight::stage_name;
+        let sets: &[bool] = if self.texels { &[false, true] } else { &[false] };
+        sets.iter().map(|texels| StageRef::new(linked.output, stage_name(*texels, linked.separate_sun))).collect()
+    }
+
+    fn surfaces(&self, g: &Gather, parts: &MaterialParts, inputs: &SurfaceInputs) -> Result<Surfaces, String> {
+        let output = g.output;
+        // Without an environment there is no lighting to multiply in: surfaces get no
+        // environment light.
+        let environment = g.keyed(output, Self::environment(g.separate_sun))?;
+        if environment.value.get::<crate::cubemap::CubeMap>().is_some_and(|c| c.size == 0) {
+            return super::prt::Irradiance.surfaces(g, parts, inputs);
+        }
+        let node = g.upstream("environment").ok_or("the wavelet modes need an environment")?;
+        let scene = g.upstream("scene").ok_or("the wavelet modes need a scene")?;
+        let rotation = g.keyed(&node, "rotation")?;
+        let lighting = WaveletLighting {
+            visibility: g.keyed(output, "local_visibility")?,
+            receivers: g.keyed(&scene, "receivers")?,
+            environment,
+            rotation: *rotation.value.expect::<glam::DMat3>().map_err(|e| e.to_string())?,
+        };
+        let texels = if self.texels { Some(g.keyed(output, "texel_visibility")?) } else { None };
+        let tables: Vec<Keyed> = parts.mode_stages.iter().flatten().cloned().collect();
+        let details = g.settings.wavelet_details;
+        let (fogged, geometry) = (inputs.fogged, inputs.geometry);
+        let mut surfaces =
+            WaveletSurfaces::new(lighting, &tables, texels, fogged, geometry, &parts.materials, details)?;
+        surfaces.relit = relit(g, surfaces.texels.is_some());
+        Ok(Surfaces::Wavelet(Box::new(surfaces)))
+    }
+}
+
+/// The engine's CPU relight of the receiver sets, where the request asked for it and it
+/// finished; all of them or none (a failed texel relight leaves the vertices to the kernel
+/// too: the kernel relights every set in one dispatch, and the failure is reported).
+fn relit(g: &Gather, texels: bool) -> Option<RelitSets> {
+    use crate::kinds::output::relight::stage_name;
+    let done = |texels: bool| {
+        let r = g.evaluation.get(g.output, stage_name(texels, g.separate_sun))?;
+        r.value.as_ref().ok().map(|v| Keyed { key: r.key, value: v.clone() })
+    };
+    let texels = match texels {
+        true => Some(done(true)?),
+        false => None,
+    };
+    Some(RelitSets { vertices: done(false)?, texels })
+}

@@ -13,17 +13,19 @@ use crate::engine::{CancelToken, StageError};
 use crate::transport::Receivers;
 use glam::DMat3;
 use serde::{Deserialize, Serialize};
+use std::sync::Arc;
 
-/// One receiver set relit, as the relight kernel writes its buffers.
+/// One receiver set relit, as the relight kernel writes its buffers (shared: a copy costs
+/// nothing).
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct RelitReceivers {
     /// `P_c` per receiver and cell, RGB9E5 ([`packing::rgb9e5`]).
-    pub products: Vec<u32>,
+    pub products: Arc<Vec<u32>>,
     /// `E = Σ_c P_c D_c` per receiver, `[r, g, b, 0]`.
-    pub irradiance: Vec<[f32; 4]>,
+    pub irradiance: Arc<Vec<[f32; 4]>>,
     /// The kept detail terms, five words per receiver and slot ([`packing::detail_words`]);
     /// empty when none are kept.
-    pub details: Vec<u32>,
+    pub details: Arc<Vec<u32>>,
 }
 
 impl RelitReceivers {
@@ -47,6 +49,28 @@ impl Relight<'_> {
     /// where no detail terms are kept: those sample the lighting directly).
     pub fn uses_frame_table(&self, receivers: usize) -> bool {
         receivers > FRAME_TABLE_THRESHOLD && self.details.kept == 0
+    }
+
+    /// A hash of everything [`Self::packed`] of `receivers` and `visibility` reads, by value:
+    /// equal for equal results, whatever edit upstream led here (an albedo edit relights
+    /// nothing).
+    pub fn content_key(&self, receivers: &Receivers, visibility: &LocalVisibility) -> u128 {
+        let mut hasher = xxhash_rust::xxh3::Xxh3::new();
+        let mut add = |bytes: &[u8]| {
+            hasher.update(&(bytes.len() as u64).to_le_bytes());
+            hasher.update(bytes);
+        };
+        add(&(self.grid.len() as u64).to_le_bytes());
+        add(bytemuck::cast_slice(&self.environment.texels));
+        add(bytemuck::cast_slice(&self.rotation.to_cols_array()));
+        add(bytemuck::cast_slice(self.diffuse_table));
+        add(&(self.details.kept as u64).to_le_bytes());
+        add(bytemuck::cast_slice(&self.details.squared));
+        add(bytemuck::cast_slice(&receivers.normals));
+        add(bytemuck::cast_slice(&receivers.tangents));
+        add(&(visibility.cells as u64).to_le_bytes());
+        add(bytemuck::cast_slice(&visibility.values));
+        hasher.digest128()
     }
 
     /// `P` and the kept detail terms of one receiver set, unpacked, with the lighting from
@@ -81,14 +105,22 @@ impl Relight<'_> {
                 packing::rgb9e5,
                 cancel,
             )?;
-            return Ok(RelitReceivers { products, irradiance, details: Vec::new() });
+            return Ok(RelitReceivers {
+                products: Arc::new(products),
+                irradiance: Arc::new(irradiance),
+                details: Arc::default(),
+            });
         }
         let (products, details) = self.products(receivers, visibility, None, cancel)?;
         let irradiance =
             diffuse_transfer(&products, self.diffuse_table).into_iter().map(|e| [e[0], e[1], e[2], 0.0]).collect();
         let details =
             if details.kept > 0 { packing::detail_words(&details.nodes, &details.values) } else { Vec::new() };
-        Ok(RelitReceivers { products: packing::rgb9e5_all(&products.values), irradiance, details })
+        Ok(RelitReceivers {
+            products: Arc::new(packing::rgb9e5_all(&products.values)),
+            irradiance: Arc::new(irradiance),
+            details: Arc::new(details),
+        })
     }
 }
 

@@ -54,6 +54,9 @@ struct LitReceivers {
     irradiance: wgpu::Buffer,
     /// Five words per receiver and kept detail node (`triple_product::packing::detail_words`).
     details: wgpu::Buffer,
+    /// Bytes the products, diffuse transfer and detail terms take (the buffers hold at least
+    /// 16).
+    sizes: [u64; 3],
     params: wgpu::Buffer,
 }
 
@@ -104,6 +107,7 @@ impl LitReceivers {
             products: output("wavelet-products", bytes),
             irradiance: output("wavelet-irradiance", count as u64 * 16),
             details: output("wavelet-details", detail_bytes),
+            sizes: [bytes, count as u64 * 16, detail_bytes],
             params: uniform_buffer::<RelightParams>(&gpu.device, "wavelet-relight-params"),
         })
     }
@@ -405,21 +409,22 @@ impl WaveletPass {
                 stage_value::<RelitReceivers>(relit.ok_or_else(|| {
                     RenderError::Invalid("the frame's texels were not relit with its vertices".into())
                 })?)?;
-            let fits = |words: usize, buffer: &wgpu::Buffer| (words * 4) as u64 <= buffer.size();
-            if !fits(relit.products.len(), &buffers.products)
-                || !fits(relit.irradiance.len() * 4, &buffers.irradiance)
-                || !fits(relit.details.len(), &buffers.details)
-            {
-                return Err(RenderError::Invalid(format!(
-                    "the relit products ({} words) do not fit the receivers' buffers ({} bytes)",
-                    relit.products.len(),
-                    buffers.products.size()
-                )));
-            }
-            gpu.queue.write_buffer(&buffers.products, 0, bytemuck::cast_slice(&relit.products));
-            gpu.queue.write_buffer(&buffers.irradiance, 0, bytemuck::cast_slice(&relit.irradiance));
-            if !relit.details.is_empty() {
-                gpu.queue.write_buffer(&buffers.details, 0, bytemuck::cast_slice(&relit.details));
+            // Each buffer is filled whole (no detail terms: none kept, and none read).
+            let parts: [(&str, &[u8], &wgpu::Buffer); 3] = [
+                ("products", bytemuck::cast_slice(&relit.products), &buffers.products),
+                ("diffuse transfer", bytemuck::cast_slice(&relit.irradiance), &buffers.irradiance),
+                ("detail terms", bytemuck::cast_slice(&relit.details), &buffers.details),
+            ];
+            for ((what, bytes, buffer), size) in parts.into_iter().zip(buffers.sizes) {
+                if bytes.len() as u64 != size {
+                    return Err(RenderError::Invalid(format!(
+                        "the relit {what} are {} bytes for receivers that take {size}",
+                        bytes.len()
+                    )));
+                }
+                if !bytes.is_empty() {
+                    gpu.queue.write_buffer(buffer, 0, bytes);
+                }
             }
         }
         Ok(())

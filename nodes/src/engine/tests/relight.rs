@@ -79,7 +79,8 @@ fn the_relit_stages_are_the_frames_own_relight() {
 }
 
 /// A rotation relights from the cached visibility and environment; an unchanged graph
-/// relights nothing.
+/// relights nothing, and an albedo edit reruns the stage but reuses its relight (the products
+/// do not depend on it).
 #[test]
 fn a_rotation_relights_from_the_cached_visibility() {
     let engine = Engine::in_memory();
@@ -89,9 +90,18 @@ fn a_rotation_relights_from_the_cached_visibility() {
     let (first, _) = wavelet_frame(&engine, &graph, true);
     let (again, _) = wavelet_frame(&engine, &graph, true);
     assert!(ran(&again.report).is_empty(), "{:?}", ran(&again.report));
+    let parts = |eval: &Evaluation| {
+        let stage = eval.report.stages.iter().find(|s| s.stage == "wavelet_residual_relit").unwrap();
+        stage.reasons.iter().find(|r| r.contains("part(s)")).cloned().unwrap_or_default()
+    };
+    graph.set_param("material", "albedo", ParamValue::Color([0.3, 0.5, 0.2])).unwrap();
+    let (recoloured, _) = wavelet_frame(&engine, &graph, true);
+    assert!(ran(&recoloured.report).contains("output.wavelet_residual_relit"));
+    assert_eq!(parts(&recoloured), "0 part(s) computed, 1 reused");
     graph.set_param("sky", "rotation", ParamValue::Vec3([0.0, 60.0, 0.0])).unwrap();
     let (turned, _) = wavelet_frame(&engine, &graph, true);
     let rerun = ran(&turned.report);
+    assert_eq!(parts(&turned), "1 part(s) computed, 0 reused");
     assert!(rerun.contains("output.wavelet_residual_relit"), "{rerun:?}");
     for cached in ["output.local_visibility", "output.wavelet_residual_environment", "scene.transport_local"] {
         assert!(!rerun.contains(cached), "{cached} reran: {rerun:?}");

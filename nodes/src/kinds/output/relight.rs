@@ -1,9 +1,10 @@
 //! The wavelet modes' relight on the CPU as stages ([`crate::triple_product::relight`]): what
 //! a viewport on a CPU adapter uploads instead of running the relight kernel, where the
 //! kernel is slower. As stages they are cached on everything they read (a rotation back is a
-//! cache hit), run in the evaluation's worker and stop when it is cancelled. Big receiver
-//! sets read a pre-rotated lighting table, memoised on the environment, so a rotation does
-//! not rebuild it.
+//! cache hit), run in the evaluation's worker and stop when it is cancelled. The result is
+//! memoised on the values it depends on, so an edit upstream that changes none of them (an
+//! albedo, the fog's phase) relights nothing. Big receiver sets read a pre-rotated lighting
+//! table, memoised on the environment, so a rotation does not rebuild it.
 
 use super::wavelet_grid;
 use crate::engine::spec::StageSpec;
@@ -95,7 +96,21 @@ fn relit(ctx: &StageContext, texels: bool, environment: &str) -> Result<StageVal
         .map_or([1.0; 3], |m| m.beta.map(|b| (-b * m.environment_distance).exp()));
     let details = material_detail_weights(grid, &coarse, attenuation, ctx.int("wavelet_details")?.max(0) as usize);
     let relight = Relight { grid, environment, rotation, diffuse_table: &first.diffuse, details: &details };
-    let table = if relight.uses_frame_table(receivers.len()) {
+    let relit = ctx.memo(relight.content_key(receivers, visibility), || {
+        let table = frame_table(ctx, &relight, receivers.len())?;
+        relight.packed(receivers, visibility, table.as_deref(), ctx.cancel_token())
+    })?;
+    Ok(StageValue::new(RelitReceivers::clone(&relit)))
+}
+
+/// The pre-rotated lighting table where `receivers` many read one.
+fn frame_table(
+    ctx: &StageContext,
+    relight: &Relight,
+    receivers: usize,
+) -> Result<Option<crate::engine::Memo<FrameTable>>, StageError> {
+    let (grid, environment) = (relight.grid, relight.environment);
+    Ok(if relight.uses_frame_table(receivers) {
         // Keyed on the environment's texels and the cells: rotations share it.
         const TAG: u64 = 0x7772_6c74_6162_6c65; // the table's memo, not another part's
         let key =
@@ -103,7 +118,5 @@ fn relit(ctx: &StageContext, texels: bool, environment: &str) -> Result<StageVal
         Some(ctx.memo(key, || Ok(FrameTable::build(grid, environment)))?)
     } else {
         None
-    };
-    let table = table.as_deref();
-    Ok(StageValue::new(relight.packed(receivers, visibility, table, ctx.cancel_token())?))
+    })
 }

@@ -206,3 +206,39 @@ fn the_relight_kernel_keeps_the_twins_detail_terms() {
         kernel.nodes.len()
     );
 }
+
+/// A viewport relighting on the CPU uploads the engine's relight as the frame brings it (here
+/// a pattern the kernel never writes), one on the GPU runs its kernel over it, and a relight
+/// of the wrong size is refused, naming what does not fit.
+#[test]
+fn a_cpu_viewport_uploads_the_engines_relight() {
+    use lightloom_nodes::frame::RelitSets;
+    use lightloom_nodes::triple_product::relight::RelitReceivers;
+    let gpu = GpuContext::headless().expect("a wgpu device (lavapipe on machines without a GPU)");
+    let mut data = surfaces(80, glam::DMat3::IDENTITY);
+    let receivers = data.vertices.frames.len() / 2;
+    let pattern = lightloom_nodes::triple_product::packing::rgb9e5([1.0, 2.0, 3.0]);
+    let relit = |receivers: usize| RelitReceivers {
+        products: Arc::new(vec![pattern; receivers * 80]),
+        irradiance: Arc::new(vec![[4.0, 5.0, 6.0, 0.0]; receivers]),
+        details: Arc::default(),
+    };
+    data.relit = Some(RelitSets { vertices: keyed(7, StageValue::new(relit(receivers))), texels: None });
+    let products = |pass: &WaveletPass| -> Vec<u32> {
+        bytemuck::cast_slice(&read(&gpu, &pass.receivers.as_ref().unwrap().vertices.products)).to_vec()
+    };
+    let mut cpu = kernel_pass(&gpu);
+    cpu.set_relight_on(RelightOn::Cpu);
+    cpu.prepare(&gpu, &data).unwrap();
+    assert!(products(&cpu).iter().all(|p| *p == pattern), "the CPU viewport uploads the engine's products");
+    let irradiance: Vec<[f32; 4]> =
+        bytemuck::cast_slice(&read(&gpu, &cpu.receivers.as_ref().unwrap().vertices.irradiance)).to_vec();
+    assert!(irradiance.iter().all(|e| *e == [4.0, 5.0, 6.0, 0.0]));
+    let mut gpu_pass = kernel_pass(&gpu);
+    gpu_pass.prepare(&gpu, &data).unwrap();
+    assert!(products(&gpu_pass).iter().any(|p| *p != pattern), "the GPU viewport runs its kernel");
+    data.relit = Some(RelitSets { vertices: keyed(8, StageValue::new(relit(receivers - 1))), texels: None });
+    data.rotation = glam::DMat3::from_rotation_y(0.5);
+    let error = cpu.prepare(&gpu, &data).unwrap_err().to_string();
+    assert!(error.contains("relit products"), "{error}");
+}

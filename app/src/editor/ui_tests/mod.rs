@@ -14,6 +14,7 @@ mod bake;
 mod blockers;
 mod fitted_spheres;
 mod normal_maps;
+mod wavelet;
 
 fn state_dir() -> PathBuf {
     document::test_state_dir()

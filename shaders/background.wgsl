@@ -26,7 +26,7 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     let far = globals.inv_view_proj * vec4<f32>(in.ndc, 1.0, 1.0);
     let dir = normalize(far.xyz / far.w - globals.camera_pos.xyz);
     var env = textureSample(environment, environment_sampler, dir).rgb;
-    if (globals.flags.y < 0.5) {
+    if (globals.background == 0u) {
         env = vec3<f32>(0.0);
     }
     return vec4<f32>(fog_background(env, dir), 1.0);

@@ -6,9 +6,9 @@
 struct Globals {
     view_proj: mat4x4<f32>,
     inv_view_proj: mat4x4<f32>,
-    camera_pos: vec4<f32>,
-    // y: draw background (0/1); x, z, w unused
-    flags: vec4<f32>,
+    camera_pos: vec3<f32>,
+    // 1 when the background is drawn
+    background: u32,
 };
 
 @group(0) @binding(0) var<uniform> globals: Globals;

@@ -310,7 +310,7 @@ fn fog_background(env: vec3<f32>, dir: vec3<f32>) -> vec3<f32> {
         return env;
     }
     let viewer = globals.camera_pos.xyz;
-    var out = env * fog.environment.rgb + fog_environment_glow(dir) * globals.flags.y;
+    var out = env * fog.environment.rgb + fog_environment_glow(dir) * f32(globals.background);
     var toward_viewer: array<f32, 8>;
     for (var i = 0; i < i32(fog.counts.x); i = i + 1) {
         toward_viewer[i] = light_profile(i, light_direction(i, viewer));

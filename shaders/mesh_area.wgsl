@@ -10,8 +10,8 @@
 #import lightloom::fog::fog
 
 struct AreaLights {
-    // Diffuse albedo (rgb) of each material, indexed by the vertex's material.
-    albedo: array<vec4<f32>, 8>,
+    // Diffuse albedo of each material, indexed by the vertex's material.
+    albedo: array<vec3<f32>, 8>,
 };
 
 @group(2) @binding(0) var<uniform> area: AreaLights;

@@ -10,12 +10,12 @@
 #import lightloom::fog::fog_shade
 
 struct Irradiance {
-    // x: SH bands (0 = no environment)
-    bands: vec4<u32>,
-    // Diffuse albedo (rgb) of each material, indexed by the vertex's material.
-    albedo: array<vec4<f32>, 8>,
-    // Irradiance SH coefficients E_lm (rgb), index l*(l+1)+m, at most 5 bands.
-    coeffs: array<vec4<f32>, 25>,
+    // SH bands (0 = no environment)
+    bands: u32,
+    // Diffuse albedo of each material, indexed by the vertex's material.
+    albedo: array<vec3<f32>, 8>,
+    // Irradiance SH coefficients E_lm, index l*(l+1)+m, at most 5 bands.
+    coeffs: array<vec3<f32>, 25>,
 };
 
 @group(2) @binding(0) var<uniform> sh: Irradiance;
@@ -64,7 +64,7 @@ fn shade(in: VertexOut, front: bool) -> vec4<f32> {
     let n = select(-1.0, 1.0, front) * normalize(in.normal);
     var ndf: SurfaceNdf;
     surface_ndf(&ndf, in.material, in.uv, n, in.tangent);
-    let bands = i32(sh.bands.x);
+    let bands = i32(sh.bands);
     var irradiance = vec3<f32>(0.0);
     if (bands > 0) {
         irradiance = max(sh_irradiance(&ndf, bands), vec3<f32>(0.0));

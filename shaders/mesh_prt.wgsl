@@ -12,17 +12,27 @@
 #import lightloom::normal_map::{SurfaceNdf, surface_ndf, ndf_vertex_diffuse_scale, ndf_open_fraction, ndf_vertex_glossy}
 #import lightloom::fog::fog_shade
 
+struct PrtMaterial {
+    albedo: vec3<f32>,
+    // 1 with a glossy lobe.
+    glossy: u32,
+    // The lobe's weight.
+    weight: vec3<f32>,
+    // Per-band lobe factors f_l, l at [l / 4][l % 4].
+    factors: array<vec4<f32>, 3>,
+};
+
 struct PrtParams {
-    // x: diffuse bands (<= 12), y: transfer floats per vertex, z: incident floats per vertex,
-    // w: bands of the incident radiance R (0 when none is bound; <= 12)
-    counts: vec4<u32>,
-    // Per material: diffuse albedo; glossy lobe weight (rgb, w = 1 when glossy); per-band
-    // lobe factors f_l, four per vector (material m: lobe[3m .. 3m + 2]).
-    albedo: array<vec4<f32>, 8>,
-    specular: array<vec4<f32>, 8>,
-    lobe: array<vec4<f32>, 24>,
-    // Lighting L_k (rgb), index l*(l+1)+m.
-    light: array<vec4<f32>, 144>,
+    // Diffuse bands (<= 12).
+    diffuse_bands: u32,
+    // Floats per vertex of the transfer and of the incident radiance.
+    transfer_stride: u32,
+    incident_stride: u32,
+    // Bands of the incident radiance R (0 when none is bound; <= 12).
+    incident_bands: u32,
+    materials: array<PrtMaterial, 8>,
+    // Lighting L_k, index l*(l+1)+m.
+    light: array<vec3<f32>, 144>,
 };
 
 @group(2) @binding(0) var<uniform> prt: PrtParams;
@@ -41,7 +51,7 @@ fn glossy_sum(r: vec3<f32>, bands: i32, ib: u32, material: u32) -> vec3<f32> {
     var walk = sh_walk(r, bands);
     while (sh_walk_next(&walk)) {
         let l = walk.l;
-        let f = prt.lobe[3u * material + u32(l / 4)][l % 4];
+        let f = prt.materials[material].factors[l / 4][l % 4];
         let base = l * (l + 1);
         sum = sum + f * walk.cos_y * incident_rgb(ib, base + walk.m);
         if (walk.m > 0) {
@@ -53,23 +63,23 @@ fn glossy_sum(r: vec3<f32>, bands: i32, ib: u32, material: u32) -> vec3<f32> {
 
 fn light_vertex(v: MeshVertex, index: u32, common_out: VertexOut) -> VertexOut {
     var out = common_out;
-    let bands = i32(prt.counts.x);
+    let bands = i32(prt.diffuse_bands);
     let coeffs = u32(bands * bands);
     var diffuse = vec3<f32>(0.0);
-    let tb = index * prt.counts.y;
+    let tb = index * prt.transfer_stride;
     for (var k = 0u; k < coeffs; k = k + 1u) {
-        diffuse = diffuse + prt.light[k].rgb * transfer[tb + k];
+        diffuse = diffuse + prt.light[k] * transfer[tb + k];
     }
     let m = v.material;
-    out.albedo = prt.albedo[m].rgb * v.color;
+    out.albedo = prt.materials[m].albedo * v.color;
     out.diffuse = out.albedo * max(diffuse, vec3<f32>(0.0)) / PI;
     out.open = ndf_open_fraction(diffuse, normalize(v.normal));
-    if (prt.counts.w > 0u && prt.specular[m].w > 0.0) {
+    if (prt.incident_bands > 0u && prt.materials[m].glossy != 0u) {
         let n = normalize(v.normal);
         let view = normalize(globals.camera_pos.xyz - v.position);
         let r = reflect(-view, n);
-        let glossy = glossy_sum(r, i32(prt.counts.w), index * prt.counts.z, m);
-        out.glossy = prt.specular[m].rgb * max(glossy, vec3<f32>(0.0)) * max(dot(n, r), 0.0);
+        let glossy = glossy_sum(r, i32(prt.incident_bands), index * prt.incident_stride, m);
+        out.glossy = prt.materials[m].weight * max(glossy, vec3<f32>(0.0)) * max(dot(n, r), 0.0);
     }
     return out;
 }
@@ -79,7 +89,7 @@ fn shade(in: VertexOut, front: bool) -> vec4<f32> {
     var ndf: SurfaceNdf;
     surface_ndf(&ndf, in.material, in.uv, n, in.tangent);
     var glossy = in.glossy;
-    if (prt.counts.w > 0u && prt.specular[in.material].w > 0.0) {
+    if (prt.incident_bands > 0u && prt.materials[in.material].glossy != 0u) {
         let view = normalize(globals.camera_pos.xyz - in.world);
         glossy = ndf_vertex_glossy(&ndf, n, view, in.material, in.open, glossy);
     }

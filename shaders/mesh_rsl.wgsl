@@ -12,15 +12,24 @@
 #import lightloom::normal_map::{SurfaceNdf, surface_ndf, ndf_vertex_diffuse_scale, ndf_open_fraction, ndf_vertex_glossy}
 #import lightloom::fog::fog_shade
 
+// Where a material's tables start and how they are sliced.
+struct RslLayout {
+    // Its first float in `tables` (aligned so that an array of layouts fits a uniform).
+    @align(16) first: u32,
+    // 0 no lobe, 1 isotropic, 2 anisotropic.
+    view_grid: u32,
+    // theta_0 slices, or view slices per side.
+    slices: u32,
+};
+
 struct RslParams {
-    // x: lights, y: table texels per side
-    counts: vec4<u32>,
+    lights: u32,
+    // Texels per side of every table.
+    table_size: u32,
     // Per material: diffuse albedo; specular colour.
-    albedo: array<vec4<f32>, 8>,
-    specular: array<vec4<f32>, 8>,
-    // Per material: x first float in `tables`, y view grid (0 none, 1 isotropic, 2 anisotropic),
-    // z slices (theta_0 values, or view slices per side).
-    layouts: array<vec4<u32>, 8>,
+    albedo: array<vec3<f32>, 8>,
+    specular: array<vec3<f32>, 8>,
+    layouts: array<RslLayout, 8>,
 };
 
 @group(2) @binding(0) var<uniform> rp: RslParams;
@@ -43,7 +52,7 @@ fn to_plane(d: vec3<f32>) -> vec2<f32> {
 
 // The SAT at fractional corner coordinates (bilinear; exact for piecewise-constant texels).
 fn sat_at(base: u32, x: f32, y: f32) -> f32 {
-    let n = rp.counts.y;
+    let n = rp.table_size;
     let nf = f32(n);
     let cx = clamp(x, 0.0, nf);
     let cy = clamp(y, 0.0, nf);
@@ -62,7 +71,7 @@ fn sat_at(base: u32, x: f32, y: f32) -> f32 {
 // Mean over the square of half-edge `half_edge` centred on `p`, clipped to the table but divided by
 // its full area.
 fn square_mean(base: u32, p: vec2<f32>, half_edge: f32) -> f32 {
-    let n = f32(rp.counts.y);
+    let n = f32(rp.table_size);
     let lo = (p - vec2<f32>(half_edge) + 1.0) * 0.5 * n;
     let hi = (p + vec2<f32>(half_edge) + 1.0) * 0.5 * n;
     let area = (hi.x - lo.x) * (hi.y - lo.y);
@@ -74,18 +83,18 @@ fn square_mean(base: u32, p: vec2<f32>, half_edge: f32) -> f32 {
 }
 
 fn table_base(m: u32, slice: u32) -> u32 {
-    let n = rp.counts.y + 1u;
-    return rp.layouts[m].x + (1u + slice) * n * n;
+    let n = rp.table_size + 1u;
+    return rp.layouts[m].first + (1u + slice) * n * n;
 }
 
 // Mean of lobe * cos over the square for view `wo` (local frame).
 fn lobe_mean(m: u32, c: vec3<f32>, half_edge: f32, wo: vec3<f32>) -> f32 {
     let grid = rp.layouts[m];
-    if (grid.y == 0u || wo.z <= 0.0) {
+    if (grid.view_grid == 0u || wo.z <= 0.0) {
         return 0.0;
     }
-    if (grid.y == 1u) {
-        let slices = grid.z;
+    if (grid.view_grid == 1u) {
+        let slices = grid.slices;
         let phi = atan2(wo.y, wo.x);
         let s = sin(phi);
         let k = cos(phi);
@@ -98,7 +107,7 @@ fn lobe_mean(m: u32, c: vec3<f32>, half_edge: f32, wo: vec3<f32>) -> f32 {
         let b = square_mean(table_base(m, j + 1u), p, half_edge);
         return mix(a, b, f);
     }
-    let size = grid.z;
+    let size = grid.slices;
     let p = to_plane(c);
     let v = to_plane(wo);
     let last = f32(size - 1u);
@@ -122,7 +131,7 @@ fn light_vertex(v: MeshVertex, index: u32, common_out: VertexOut) -> VertexOut {
     let b = cross(n, t);
     let view = normalize(globals.camera_pos.xyz - v.position);
     let wo = vec3<f32>(dot(view, t), dot(view, b), dot(view, n));
-    let count = rp.counts.x;
+    let count = rp.lights;
     var diffuse = vec3<f32>(0.0);
     var glossy = vec3<f32>(0.0);
     for (var i = 0u; i < count; i = i + 1u) {
@@ -134,7 +143,7 @@ fn light_vertex(v: MeshVertex, index: u32, common_out: VertexOut) -> VertexOut {
         let energy = lights[2u * i + 1u].rgb * d.w * vis;
         let c = vec3<f32>(dot(d.xyz, t), dot(d.xyz, b), dot(d.xyz, n));
         let half_edge = sqrt(d.w * 0.5) * 0.5;
-        diffuse = diffuse + energy * square_mean(rp.layouts[m].x, to_plane(c), half_edge);
+        diffuse = diffuse + energy * square_mean(rp.layouts[m].first, to_plane(c), half_edge);
         glossy = glossy + energy * lobe_mean(m, c, half_edge, wo);
     }
     out.diffuse = out.albedo * diffuse;

@@ -19,16 +19,28 @@
 #import lightloom::normal_map::{SurfaceNdf, surface_ndf, ndf_vertex_diffuse_scale, ndf_open_fraction, ndf_vertex_glossy}
 #import lightloom::fog::fog_shade
 
+struct WaveletMaterial {
+    albedo: vec3<f32>,
+    // 1 with a specular lobe.
+    glossy: u32,
+    specular: vec3<f32>,
+    // Where its fine lobe table starts in fine_specular.
+    fine_offset: u32,
+};
+
 struct WaveletParams {
-    // x: cells, y: floats per material's specular table, z: theta steps, w: phi steps
-    counts: vec4<u32>,
-    // Per material: diffuse albedo; specular colour (w = 1 when it has a specular lobe).
-    albedo: array<vec4<f32>, 8>,
-    specular: array<vec4<f32>, 8>,
-    // x: 1 when per-texel data is bound, y: texels per side, z: detail nodes kept per receiver
-    texels: vec4<u32>,
-    // Per material: where its fine lobe table starts in fine_specular.
-    fine_offsets: array<vec4<u32>, 2>,
+    cells: u32,
+    // Floats of one material's specular table.
+    specular_stride: u32,
+    theta_steps: u32,
+    phi_steps: u32,
+    // 1 when per-texel data is bound.
+    texels_bound: u32,
+    // Texels per side.
+    texel_size: u32,
+    // Detail nodes kept per receiver.
+    details_kept: u32,
+    materials: array<WaveletMaterial, 8>,
 };
 
 @group(2) @binding(0) var<uniform> wp: WaveletParams;
@@ -72,9 +84,9 @@ struct TableRows {
 };
 
 fn table_rows(wo: vec3<f32>, m: u32) -> TableRows {
-    let cells = wp.counts.x;
-    let theta_steps = wp.counts.z;
-    let phi_steps = wp.counts.w;
+    let cells = wp.cells;
+    let theta_steps = wp.theta_steps;
+    let phi_steps = wp.phi_steps;
     let theta_max = PI / 2.0 - 1e-3;
     let theta = min(acos(clamp(wo.z, 0.0, 1.0)), theta_max);
     let ft = theta / theta_max * f32(theta_steps - 1u);
@@ -86,7 +98,7 @@ fn table_rows(wo: vec3<f32>, m: u32) -> TableRows {
     let fp = phi / (2.0 * PI) * f32(phi_steps);
     let j = min(u32(floor(fp)), phi_steps - 1u);
     let j1 = (j + 1u) % phi_steps;
-    let table = m * wp.counts.y;
+    let table = m * wp.specular_stride;
     var rows: TableRows;
     rows.rows.x = table + (i * phi_steps + j) * cells;
     rows.rows.y = table + (i * phi_steps + j1) * cells;
@@ -96,7 +108,7 @@ fn table_rows(wo: vec3<f32>, m: u32) -> TableRows {
     rows.fj = fp - f32(j);
     rows.cells = specular_ranges[(m * (theta_steps - 1u) + i) * phi_steps + j];
     let stride = 20u * cells;
-    let fine = wp.fine_offsets[m / 4u][m % 4u];
+    let fine = wp.materials[m].fine_offset;
     rows.fine = fine + stride * vec4<u32>(i * phi_steps + j, i * phi_steps + j1, (i + 1u) * phi_steps + j,
         (i + 1u) * phi_steps + j1);
     return rows;
@@ -143,20 +155,20 @@ fn light_vertex(v: MeshVertex, index: u32, common_out: VertexOut) -> VertexOut {
     var out = common_out;
     let m = v.material;
     out.layer = vertex_layers[index];
-    out.albedo = wp.albedo[m].rgb * v.color;
-    let cells = wp.counts.x;
+    out.albedo = wp.materials[m].albedo * v.color;
+    let cells = wp.cells;
     let base = index * cells;
     out.diffuse = out.albedo * irradiance[index].rgb;
     out.open = ndf_open_fraction(PI * irradiance[index].rgb, normalize(v.normal));
     let wo = local_view(v.position, v.normal, v.tangent.xyz);
-    if (wp.specular[m].w > 0.0 && wo.z > 0.0) {
+    if (wp.materials[m].glossy != 0u && wo.z > 0.0) {
         let rows = table_rows(wo, m);
         var glossy = vec3<f32>(0.0);
         for (var k = rows.cells.x; k < rows.cells.x + rows.cells.y; k = k + 1u) {
             let c = specular_cells[k];
             glossy = glossy + rgb9e5(products[base + c]) * specular_at(rows, c);
         }
-        let kept = wp.texels.z;
+        let kept = wp.details_kept;
         for (var j = 0u; j < kept; j = j + 1u) {
             let at = (index * kept + j) * 5u;
             let w0 = vertex_details[at];
@@ -166,7 +178,7 @@ fn light_vertex(v: MeshVertex, index: u32, common_out: VertexOut) -> VertexOut {
             glossy = glossy + detail_glossy(w0, vertex_details[at + 1u], vertex_details[at + 2u],
                 vertex_details[at + 3u], vertex_details[at + 4u], rows);
         }
-        out.glossy = wp.specular[m].rgb * glossy;
+        out.glossy = wp.materials[m].specular * glossy;
     }
     return out;
 }
@@ -177,8 +189,8 @@ fn shade(in: VertexOut, front: bool) -> vec4<f32> {
     surface_ndf(&ndf, in.material, in.uv, n, in.tangent);
     let diffuse_scale = ndf_vertex_diffuse_scale(&ndf, n);
     let view = normalize(globals.camera_pos.xyz - in.world);
-    let glossy = wp.specular[in.material].w > 0.0 && dot(view, n) > 0.0;
-    if (wp.texels.x == 0u || in.layer < 0) {
+    let glossy = wp.materials[in.material].glossy != 0u && dot(view, n) > 0.0;
+    if (wp.texels_bound == 0u || in.layer < 0) {
         var specular = in.glossy;
         if (glossy) {
             specular = ndf_vertex_glossy(&ndf, n, view, in.material, in.open, specular);
@@ -189,8 +201,8 @@ fn shade(in: VertexOut, front: bool) -> vec4<f32> {
     let m = in.material;
     // The four texels around the pixel (texel centres at (x + 0.5) / size), clamped at the
     // layer's edges.
-    let size = wp.texels.y;
-    let cells = wp.counts.x;
+    let size = wp.texel_size;
+    let cells = wp.cells;
     let f = clamp(in.uv * f32(size) - 0.5, vec2<f32>(0.0), vec2<f32>(f32(size - 1u)));
     let x0 = u32(floor(f.x));
     let y0 = u32(floor(f.y));
@@ -208,7 +220,7 @@ fn shade(in: VertexOut, front: bool) -> vec4<f32> {
     let diffuse = in.albedo * e;
     var specular = vec3<f32>(0.0);
     let wo = local_view(in.world, in.normal, in.tangent.xyz);
-    if (wp.specular[m].w > 0.0 && wo.z > 0.0) {
+    if (wp.materials[m].glossy != 0u && wo.z > 0.0) {
         let rows = table_rows(wo, m);
         let t00 = s00 * cells;
         let t01 = s01 * cells;
@@ -220,7 +232,7 @@ fn shade(in: VertexOut, front: bool) -> vec4<f32> {
             let bottom = mix(rgb9e5(texel_products[t10 + c]), rgb9e5(texel_products[t11 + c]), w.x);
             specular = specular + mix(top, bottom, w.y) * specular_at(rows, c);
         }
-        let kept = wp.texels.z;
+        let kept = wp.details_kept;
         var slots = array<u32, 4>(s00, s01, s10, s11);
         var weights = array<f32, 4>((1.0 - w.x) * (1.0 - w.y), w.x * (1.0 - w.y), (1.0 - w.x) * w.y, w.x * w.y);
         for (var t = 0u; t < 4u; t = t + 1u) {
@@ -236,7 +248,7 @@ fn shade(in: VertexOut, front: bool) -> vec4<f32> {
             }
             specular = specular + weights[t] * sum;
         }
-        specular = wp.specular[m].rgb * specular;
+        specular = wp.materials[m].specular * specular;
     }
     if (glossy) {
         specular = ndf_vertex_glossy(&ndf, n, view, m, ndf_open_fraction(PI * e, n), specular);

@@ -1,8 +1,10 @@
 // Tone mapping: linear HDR radiance -> display (the target format applies the sRGB curve).
 
 struct ToneParams {
-    // x: exposure scale 2^EV, y: operator (0 ACES, 1 Reinhard, 2 linear clamp)
-    params: vec4<f32>,
+    // 2^EV
+    exposure_scale: f32,
+    // 0 ACES, 1 Reinhard, 2 linear clamp
+    curve: u32,
 };
 
 @group(0) @binding(0) var hdr: texture_2d<f32>;
@@ -21,11 +23,11 @@ fn aces(x: vec3<f32>) -> vec3<f32> {
 
 @fragment
 fn fs_main(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
-    let x = textureLoad(hdr, vec2<i32>(pos.xy), 0).rgb * tone.params.x;
+    let x = textureLoad(hdr, vec2<i32>(pos.xy), 0).rgb * tone.exposure_scale;
     var y: vec3<f32>;
-    if (tone.params.y < 0.5) {
+    if (tone.curve == 0u) {
         y = aces(x);
-    } else if (tone.params.y < 1.5) {
+    } else if (tone.curve == 1u) {
         y = x / (1.0 + x);
     } else {
         y = clamp(x, vec3<f32>(0.0), vec3<f32>(1.0));

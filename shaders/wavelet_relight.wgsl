@@ -13,12 +13,17 @@
 // details written as half floats.
 
 struct RelightParams {
-    // Rows of R^-1.
-    inverse_rotation: array<vec4<f32>, 3>,
-    // x: receivers, y: cells, z: samples per cell, w: environment face size
-    counts: vec4<u32>,
-    // x: receivers per row of workgroups, y: detail nodes kept per receiver
-    dispatch: vec4<u32>,
+    // R^-1.
+    inverse_rotation: mat3x3<f32>,
+    receivers: u32,
+    cells: u32,
+    samples_per_cell: u32,
+    // Texels per side of the environment's faces.
+    face_size: u32,
+    // Receivers per row of workgroups.
+    row_width: u32,
+    // Detail nodes kept per receiver.
+    details_kept: u32,
 };
 
 @group(0) @binding(0) var<uniform> params: RelightParams;
@@ -108,7 +113,7 @@ fn half_bits(x: f32) -> u32 {
 }
 
 fn environment_texel(face: u32, x: u32, y: u32) -> vec3<f32> {
-    let size = params.counts.w;
+    let size = params.face_size;
     return environment[(face * size + y) * size + x].xyz;
 }
 
@@ -151,7 +156,7 @@ fn sample_environment(d: vec3<f32>) -> vec3<f32> {
             sc = -d.x;
         }
     }
-    let size = params.counts.w;
+    let size = params.face_size;
     let last = f32(size - 1u);
     let uv = 0.5 * (vec2<f32>(sc, tc) / ma + 1.0);
     let f = clamp(uv * f32(size) - 0.5, vec2<f32>(0.0), vec2<f32>(last));
@@ -184,8 +189,8 @@ fn pack_rgb9e5(rgb: vec3<f32>) -> u32 {
 
 @compute @workgroup_size(64)
 fn relight(@builtin(global_invocation_id) id: vec3<u32>) {
-    let i = id.y * params.dispatch.x + id.x;
-    if (id.x >= params.dispatch.x || i >= params.counts.x) {
+    let i = id.y * params.row_width + id.x;
+    if (id.x >= params.row_width || i >= params.receivers) {
         return;
     }
     let t = frames[2u * i].xyz;
@@ -193,13 +198,13 @@ fn relight(@builtin(global_invocation_id) id: vec3<u32>) {
     let b = cross(n, t);
     // The columns of R^-1 M.
     let r = params.inverse_rotation;
-    let rt = vec3<f32>(dot(r[0].xyz, t), dot(r[1].xyz, t), dot(r[2].xyz, t));
-    let rb = vec3<f32>(dot(r[0].xyz, b), dot(r[1].xyz, b), dot(r[2].xyz, b));
-    let rn = vec3<f32>(dot(r[0].xyz, n), dot(r[1].xyz, n), dot(r[2].xyz, n));
-    let cells = params.counts.y;
-    let per_cell = params.counts.z;
+    let rt = r * t;
+    let rb = r * b;
+    let rn = r * n;
+    let cells = params.cells;
+    let per_cell = params.samples_per_cell;
     // Details need 16 samples per cell (nodes/src/triple_product.rs SUBLEVELS = 2).
-    let kept = select(0u, min(params.dispatch.y, MAX_DETAILS), per_cell == 16u);
+    let kept = select(0u, min(params.details_kept, MAX_DETAILS), per_cell == 16u);
     for (var j = 0u; j < kept; j = j + 1u) {
         kept_scores[j] = 0.0;
         kept_nodes[j] = NO_NODE;

@@ -26,8 +26,7 @@ const WORKGROUP: u32 = 64;
 const VISIBILITY_STRIDE: usize = 1 + MAX_BLOCKER_BANDS * MAX_BLOCKER_BANDS;
 
 /// `shexp.wgsl` `ShexpParams`.
-#[repr(C)]
-#[derive(Clone, Copy, Default, bytemuck::Pod, bytemuck::Zeroable)]
+#[derive(Clone, Copy, Default, encase::ShaderType)]
 pub(crate) struct ShexpParams {
     pub(crate) receivers: u32,
     pub(crate) bands_b: u32,
@@ -258,7 +257,9 @@ impl GpuBlockedProduct {
             device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents, usage })
         };
         use wgpu::BufferUsages as U;
-        let uniform = init("shexp params", bytemuck::bytes_of(&params), U::UNIFORM);
+        let mut laid_out = encase::UniformBuffer::new(Vec::<u8>::new());
+        laid_out.write(&params).map_err(|e| RenderError::Invalid(format!("the blocker kernel's parameters: {e}")))?;
+        let uniform = init("shexp params", &laid_out.into_inner(), U::UNIFORM);
         let receiver_buffer = init("shexp receivers", bytemuck::cast_slice(&receivers), U::STORAGE);
         let word_buffer = init("shexp words", bytemuck::cast_slice(&words), U::STORAGE);
         let vector_buffer = init("shexp vectors", bytemuck::cast_slice(&packed), U::STORAGE | U::COPY_SRC);

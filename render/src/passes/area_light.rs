@@ -3,7 +3,7 @@
 //! drew the surfaces ([`AreaLightFrame`]).
 
 use super::geometry::GeometryBuffers;
-use super::{Draw, Pass, PassSetup, entry, stage_value, storage_buffer, uniform_buffer, vec4};
+use super::{Draw, Pass, PassSetup, entry, stage_value, storage_buffer, uniform_buffer, vec3s, write_uniform};
 use crate::shaders::Shader;
 use crate::{GpuContext, RenderError};
 use lightloom_nodes::engine::Key;
@@ -13,10 +13,9 @@ use lightloom_nodes::kinds::output::area::{AreaHighlights, AreaIrradiance};
 pub(crate) const SHADER: Shader = Shader::mesh("mesh_area", "AREA");
 
 /// `mesh_area.wgsl` `AreaLights`.
-#[repr(C)]
-#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+#[derive(encase::ShaderType)]
 pub(crate) struct AreaLightParams {
-    pub(crate) albedo: [[f32; 4]; MAX_MATERIALS],
+    pub(crate) albedo: [glam::Vec3; MAX_MATERIALS],
 }
 
 pub(crate) struct AreaLightPass {
@@ -84,11 +83,7 @@ impl Pass for AreaLightPass {
             });
             self.bound = Some((keys, bind_group));
         }
-        let mut params: AreaLightParams = bytemuck::Zeroable::zeroed();
-        for (dst, albedo) in params.albedo.iter_mut().zip(&data.albedo) {
-            *dst = vec4(*albedo, 1.0);
-        }
-        gpu.queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
+        write_uniform(&gpu.queue, &self.params, &AreaLightParams { albedo: vec3s(&data.albedo) });
         Ok(())
     }
 }

@@ -1,17 +1,16 @@
 //! Group 0 of every scene pass: the camera (`common.wgsl` `Globals`).
 
-use super::{entry, uniform_buffer};
+use super::{entry, uniform_buffer, write_uniform};
 use crate::GpuContext;
 use glam::{Mat4, Vec3};
 
-#[repr(C)]
-#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+#[derive(encase::ShaderType)]
 pub(crate) struct Globals {
-    pub view_proj: [[f32; 4]; 4],
-    pub inv_view_proj: [[f32; 4]; 4],
-    pub camera_pos: [f32; 4],
-    /// y: 1 when the background is drawn.
-    pub flags: [f32; 4],
+    pub view_proj: glam::Mat4,
+    pub inv_view_proj: glam::Mat4,
+    pub camera_pos: glam::Vec3,
+    /// 1 when the background is drawn.
+    pub background: u32,
 }
 
 pub(crate) struct CameraBinding {
@@ -37,11 +36,11 @@ impl CameraBinding {
 
     pub fn write(&self, gpu: &GpuContext, view_proj: Mat4, position: Vec3, background: bool) {
         let globals = Globals {
-            view_proj: view_proj.to_cols_array_2d(),
-            inv_view_proj: view_proj.inverse().to_cols_array_2d(),
-            camera_pos: position.extend(1.0).to_array(),
-            flags: [0.0, if background { 1.0 } else { 0.0 }, 0.0, 0.0],
+            view_proj,
+            inv_view_proj: view_proj.inverse(),
+            camera_pos: position,
+            background: u32::from(background),
         };
-        gpu.queue.write_buffer(&self.buffer, 0, bytemuck::bytes_of(&globals));
+        write_uniform(&gpu.queue, &self.buffer, &globals);
     }
 }

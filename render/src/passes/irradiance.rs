@@ -2,7 +2,7 @@
 //! 2.20); the coefficients arrive convolved ([`IrradianceSurfaces`]).
 
 use super::geometry::GeometryBuffers;
-use super::{Draw, Pass, PassSetup, entry, uniform_buffer, vec4};
+use super::{Draw, Pass, PassSetup, entry, uniform_buffer, vec3s, write_uniform};
 use crate::shaders::Shader;
 use crate::{GpuContext, RenderError};
 use lightloom_nodes::frame::{IRRADIANCE_BANDS, IrradianceSurfaces, MAX_MATERIALS};
@@ -10,13 +10,12 @@ use lightloom_nodes::frame::{IRRADIANCE_BANDS, IrradianceSurfaces, MAX_MATERIALS
 pub(crate) const SHADER: Shader = Shader::mesh("mesh_irradiance", "IRRADIANCE");
 
 /// `mesh_irradiance.wgsl` `Irradiance`.
-#[repr(C)]
-#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+#[derive(encase::ShaderType)]
 pub(crate) struct IrradianceParams {
-    /// x: SH bands (0 without an environment).
-    pub(crate) bands: [u32; 4],
-    pub(crate) albedo: [[f32; 4]; MAX_MATERIALS],
-    pub(crate) coeffs: [[f32; 4]; IRRADIANCE_BANDS * IRRADIANCE_BANDS],
+    /// SH bands (0 without an environment).
+    pub(crate) bands: u32,
+    pub(crate) albedo: [glam::Vec3; MAX_MATERIALS],
+    pub(crate) coeffs: [glam::Vec3; IRRADIANCE_BANDS * IRRADIANCE_BANDS],
 }
 
 pub(crate) struct IrradiancePass {
@@ -52,18 +51,10 @@ impl Pass for IrradiancePass {
     }
 
     fn prepare(&mut self, gpu: &GpuContext, data: &IrradianceSurfaces) -> Result<(), RenderError> {
-        let mut params: IrradianceParams = bytemuck::Zeroable::zeroed();
-        for (dst, albedo) in params.albedo.iter_mut().zip(&data.albedo) {
-            *dst = vec4(*albedo, 1.0);
-        }
-        if let Some(irradiance) = &data.irradiance {
-            let bands = irradiance.bands.min(IRRADIANCE_BANDS);
-            params.bands[0] = bands as u32;
-            for (dst, src) in params.coeffs.iter_mut().zip(&irradiance.coeffs[..bands * bands]) {
-                *dst = vec4(*src, 0.0);
-            }
-        }
-        gpu.queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
+        let bands = data.irradiance.as_ref().map_or(0, |e| e.bands.min(IRRADIANCE_BANDS));
+        let coeffs = data.irradiance.as_ref().map_or(&[][..], |e| &e.coeffs[..bands * bands]);
+        let params = IrradianceParams { bands: bands as u32, albedo: vec3s(&data.albedo), coeffs: vec3s(coeffs) };
+        write_uniform(&gpu.queue, &self.params, &params);
         Ok(())
     }
 }

@@ -2,7 +2,7 @@
 //! scene pass. They are shaded in the same fragment as each surface because they depend on its
 //! normal and material (eqs. 3.27–3.29), so this pass binds data and draws nothing itself.
 
-use super::{entry, stage_value, uniform_buffer, upload_table_layers, upload_tables, vec4};
+use super::{entry, pod_uniform_buffer, stage_value, upload_table_layers, upload_tables, vec4};
 use crate::{GpuContext, RenderError};
 use lightloom_nodes::engine::Key;
 use lightloom_nodes::frame::{MAX_LIGHTS, MAX_MATERIALS, MediumFrame};
@@ -59,7 +59,7 @@ impl MediumPass {
                 entry::texture(3, wgpu::TextureViewDimension::D2Array, false),
             ],
         });
-        let params = uniform_buffer::<FogParams>(&gpu.device, "fog");
+        let params = pod_uniform_buffer::<FogParams>(&gpu.device, "fog");
         let views = [
             upload_tables(gpu, "f-tables", 1, &[0.0]),
             upload_tables(gpu, "g-tables", 1, &[0.0]),

@@ -309,13 +309,34 @@ pub(crate) mod entry {
     }
 }
 
-pub(crate) fn uniform_buffer<T>(device: &wgpu::Device, label: &str) -> wgpu::Buffer {
+/// A uniform buffer for `T`, laid out as WGSL lays it out (`encase`).
+pub(crate) fn uniform_buffer<T: encase::ShaderType>(device: &wgpu::Device, label: &str) -> wgpu::Buffer {
+    sized_uniform_buffer(device, label, T::min_size().get())
+}
+
+/// A uniform buffer for a `#[repr(C)]` `T` whose layout a test checks against its WGSL.
+pub(crate) fn pod_uniform_buffer<T: bytemuck::Pod>(device: &wgpu::Device, label: &str) -> wgpu::Buffer {
+    sized_uniform_buffer(device, label, std::mem::size_of::<T>() as u64)
+}
+
+fn sized_uniform_buffer(device: &wgpu::Device, label: &str, size: u64) -> wgpu::Buffer {
     device.create_buffer(&wgpu::BufferDescriptor {
         label: Some(label),
-        size: std::mem::size_of::<T>() as u64,
+        size,
         usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
         mapped_at_creation: false,
     })
+}
+
+/// Writes `value` into `buffer` laid out as WGSL lays out `T`.
+pub(crate) fn write_uniform<T: encase::ShaderType + encase::internal::WriteInto>(
+    queue: &wgpu::Queue,
+    buffer: &wgpu::Buffer,
+    value: &T,
+) {
+    let mut bytes = encase::UniformBuffer::new(Vec::<u8>::new());
+    bytes.write(value).expect("a Vec grows to any uniform");
+    queue.write_buffer(buffer, 0, &bytes.into_inner());
 }
 
 pub(crate) fn linear_sampler(device: &wgpu::Device, label: &str) -> wgpu::Sampler {
@@ -410,6 +431,11 @@ pub(crate) fn to_rgba_f16(pixels: &[[f32; 3]]) -> Vec<half::f16> {
     pixels.iter().flat_map(|p| [p[0], p[1], p[2], 1.0]).map(|v| half::f16::from_f32(v.clamp(0.0, 65000.0))).collect()
 }
 
+/// The first `N` of `values` as `vec3`s, zeros after them (a uniform's per-material array).
+pub(crate) fn vec3s<const N: usize>(values: &[[f64; 3]]) -> [glam::Vec3; N] {
+    std::array::from_fn(|i| values.get(i).map_or(glam::Vec3::ZERO, |v| glam::DVec3::from(*v).as_vec3()))
+}
+
 /// `rgb` as a vec4 with `w`.
 pub(crate) fn vec4(rgb: [f64; 3], w: f32) -> [f32; 4] {
     [rgb[0] as f32, rgb[1] as f32, rgb[2] as f32, w]
@@ -462,7 +488,18 @@ mod layout_tests {
         let modules: Vec<naga::Module> =
             SCENE_SHADERS.into_iter().chain([tonemap::SHADER]).map(|s| validate(s, true)).collect();
         // Each uniform struct, in the shader that declares it, against the Rust struct its pass
-        // writes with bytemuck: the same size and every member at the same offset.
+        // writes. `encase` lays a Rust struct out by WGSL's rules from its field types: the
+        // same size and the same members in order. A `#[repr(C)]` one written with bytemuck:
+        // the same size and every member at the same offset.
+        macro_rules! layout {
+            ($module:expr, $wgsl:literal, $rust:ty, [$($field:ident),+ $(,)?]) => {{
+                let (span, members) = wgsl_struct($module, $wgsl);
+                <$rust as encase::ShaderType>::assert_uniform_compat();
+                assert_eq!(u64::from(span), <$rust as encase::ShaderType>::min_size().get(), "{} size", $wgsl);
+                let names: Vec<String> = members.into_iter().map(|(name, _)| name).collect();
+                assert_eq!(names, [$(stringify!($field)),+], "{} members", $wgsl);
+            }};
+        }
         macro_rules! check {
             ($module:expr, $wgsl:literal, $rust:ty, [$($field:ident),+ $(,)?]) => {{
                 let (span, members) = wgsl_struct($module, $wgsl);
@@ -472,8 +509,8 @@ mod layout_tests {
             }};
         }
         let [irr, prt, wavelet, _background, rsl, area, tone] = [0, 1, 2, 3, 4, 5, 6].map(|i| &modules[i]);
-        check!(irr, "Globals", camera::Globals, [view_proj, inv_view_proj, camera_pos, flags]);
-        check!(irr, "Irradiance", irradiance::IrradianceParams, [bands, albedo, coeffs]);
+        layout!(irr, "Globals", camera::Globals, [view_proj, inv_view_proj, camera_pos, background]);
+        layout!(irr, "Irradiance", irradiance::IrradianceParams, [bands, albedo, coeffs]);
         check!(
             irr,
             "Fog",
@@ -499,17 +536,35 @@ mod layout_tests {
             [materials, flags, irradiance, vmf_levels, highlight_radiance, highlight_factors, highlight_weights]
         );
         validate(sun::SHADER, false);
-        check!(prt, "PrtParams", prt::PrtParams, [counts, albedo, specular, lobe, light]);
-        check!(wavelet, "WaveletParams", wavelet::WaveletParams, [counts, albedo, specular, texels, fine_offsets]);
+        layout!(
+            prt,
+            "PrtParams",
+            prt::PrtParams,
+            [diffuse_bands, transfer_stride, incident_stride, incident_bands, materials, light]
+        );
+        layout!(prt, "PrtMaterial", prt::PrtMaterial, [albedo, glossy, weight, factors]);
+        layout!(
+            wavelet,
+            "WaveletParams",
+            wavelet::WaveletParams,
+            [cells, specular_stride, theta_steps, phi_steps, texels_bound, texel_size, details_kept, materials]
+        );
+        layout!(wavelet, "WaveletMaterial", wavelet::WaveletMaterial, [albedo, glossy, specular, fine_offset]);
         // The relight kernel is a compute shader on its own.
         let relight = validate(wavelet::RELIGHT_SHADER, false);
-        check!(&relight, "RelightParams", wavelet::RelightParams, [inverse_rotation, counts, dispatch]);
-        check!(rsl, "RslParams", rsl::RslParams, [counts, albedo, specular, layouts]);
-        check!(area, "AreaLights", area_light::AreaLightParams, [albedo]);
-        check!(tone, "ToneParams", tonemap::ToneParams, [params]);
+        layout!(
+            &relight,
+            "RelightParams",
+            wavelet::RelightParams,
+            [inverse_rotation, receivers, cells, samples_per_cell, face_size, row_width, details_kept]
+        );
+        layout!(rsl, "RslParams", rsl::RslParams, [lights, table_size, albedo, specular, layouts]);
+        layout!(rsl, "RslLayout", rsl::RslLayout, [first, view_grid, slices]);
+        layout!(area, "AreaLights", area_light::AreaLightParams, [albedo]);
+        layout!(tone, "ToneParams", tonemap::ToneParams, [exposure_scale, curve]);
         // The blocker kernel is a compute shader importing common.wgsl alone.
         let shexp = validate(crate::shexp::SHADER, false);
-        check!(
+        layout!(
             &shexp,
             "ShexpParams",
             crate::shexp::ShexpParams,

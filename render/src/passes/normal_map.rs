@@ -4,7 +4,7 @@
 //! anisotropically (the moments are linear in the texels), and its vMF lobes as one texture;
 //! draws nothing itself.
 
-use super::{entry, stage_value, uniform_buffer, vec4};
+use super::{entry, pod_uniform_buffer, stage_value, vec4};
 use crate::{GpuContext, RenderError};
 use lightloom_nodes::frame::{HIGHLIGHT_BANDS, MAX_MATERIALS, NormalMapFrame};
 use lightloom_nodes::kinds::brdf_normal_map::NormalFilter;
@@ -54,7 +54,7 @@ impl NormalMapPass {
                 entry::texture(4, wgpu::TextureViewDimension::D2, false),
             ],
         });
-        let params = uniform_buffer::<NormalParams>(&gpu.device, "normal maps");
+        let params = pod_uniform_buffer::<NormalParams>(&gpu.device, "normal maps");
         let sampler = gpu.device.create_sampler(&wgpu::SamplerDescriptor {
             label: Some("normal maps"),
             address_mode_u: wgpu::AddressMode::Repeat,

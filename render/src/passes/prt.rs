@@ -2,7 +2,7 @@
 //! vertex (`nodes/src/prt.rs`).
 
 use super::geometry::GeometryBuffers;
-use super::{Draw, Pass, PassSetup, entry, stage_value, storage_buffer, uniform_buffer, vec4};
+use super::{Draw, Pass, PassSetup, entry, stage_value, storage_buffer, uniform_buffer, vec3s, write_uniform};
 use crate::shaders::Shader;
 use crate::{GpuContext, RenderError};
 use lightloom_nodes::engine::Key;
@@ -14,14 +14,31 @@ pub(crate) const SHADER: Shader = Shader::mesh("mesh_prt", "PRT");
 pub const MAX_PRT_BANDS: usize = 12;
 
 /// `mesh_prt.wgsl` `PrtParams`.
-#[repr(C)]
-#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+#[derive(encase::ShaderType)]
 pub(crate) struct PrtParams {
-    pub(crate) counts: [u32; 4],
-    pub(crate) albedo: [[f32; 4]; MAX_MATERIALS],
-    pub(crate) specular: [[f32; 4]; MAX_MATERIALS],
-    pub(crate) lobe: [[f32; 4]; 3 * MAX_MATERIALS],
-    pub(crate) light: [[f32; 4]; MAX_PRT_BANDS * MAX_PRT_BANDS],
+    /// Bands of the diffuse transfer read (at most [`MAX_PRT_BANDS`]).
+    pub(crate) diffuse_bands: u32,
+    /// Floats per vertex of the transfer and of the incident radiance.
+    pub(crate) transfer_stride: u32,
+    pub(crate) incident_stride: u32,
+    /// Bands of the incident radiance `R` (0 when none is bound).
+    pub(crate) incident_bands: u32,
+    pub(crate) materials: [PrtMaterial; MAX_MATERIALS],
+    /// The lighting `L_k`, index `l(l+1)+m`.
+    pub(crate) light: [glam::Vec3; MAX_PRT_BANDS * MAX_PRT_BANDS],
+}
+
+/// `mesh_prt.wgsl` `PrtMaterial`.
+#[derive(Clone, Copy, Default, encase::ShaderType)]
+pub(crate) struct PrtMaterial {
+    pub(crate) albedo: glam::Vec3,
+    /// 1 with a glossy lobe.
+    pub(crate) glossy: u32,
+    /// The lobe's weight.
+    pub(crate) weight: glam::Vec3,
+    /// Its per-band factors `f_l`, `l` at `[l / 4][l % 4]` (a uniform array's elements are 16
+    /// bytes apart).
+    pub(crate) factors: [glam::Vec4; 3],
 }
 
 pub(crate) struct PrtPass {
@@ -93,26 +110,29 @@ impl Pass for PrtPass {
         }
         let n = t.bands * t.bands;
         let bands = t.bands.min(MAX_PRT_BANDS);
-        let mut params: PrtParams = bytemuck::Zeroable::zeroed();
         let glossy_bands = if r.coeffs.is_empty() { 0 } else { r.bands.min(MAX_PRT_BANDS) };
-        params.counts = [bands as u32, n as u32, (r.bands * r.bands * 3) as u32, glossy_bands as u32];
-        for (dst, albedo) in params.albedo.iter_mut().zip(&data.albedo) {
-            *dst = vec4(*albedo, 1.0);
-        }
-        for (i, lobe) in data.glossy.iter().enumerate().take(MAX_MATERIALS) {
-            if let Some(lobe) = lobe {
-                params.specular[i] = vec4(lobe.weight, 1.0);
+        let albedo: [glam::Vec3; MAX_MATERIALS] = vec3s(&data.albedo);
+        let materials = std::array::from_fn(|i| {
+            let mut material = PrtMaterial { albedo: albedo[i], ..Default::default() };
+            if let Some(Some(lobe)) = data.glossy.get(i) {
+                material.glossy = 1;
+                material.weight = glam::DVec3::from(lobe.weight).as_vec3();
                 for (l, f) in lobe.factors.iter().enumerate().take(MAX_PRT_BANDS) {
-                    params.lobe[3 * i + l / 4][l % 4] = *f as f32;
+                    material.factors[l / 4][l % 4] = *f as f32;
                 }
             }
-        }
-        if let Some(light) = &data.light {
-            for (dst, src) in params.light.iter_mut().zip(&light.coeffs).take(bands * bands) {
-                *dst = vec4(*src, 0.0);
-            }
-        }
-        gpu.queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
+            material
+        });
+        let light = data.light.as_ref().map_or(&[][..], |l| &l.coeffs[..(bands * bands).min(l.coeffs.len())]);
+        let params = PrtParams {
+            diffuse_bands: bands as u32,
+            transfer_stride: n as u32,
+            incident_stride: (r.bands * r.bands * 3) as u32,
+            incident_bands: glossy_bands as u32,
+            materials,
+            light: vec3s(light),
+        };
+        write_uniform(&gpu.queue, &self.params, &params);
         Ok(())
     }
 }

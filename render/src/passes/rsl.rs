@@ -3,7 +3,7 @@
 //! over its square (summed-area tables).
 
 use super::geometry::GeometryBuffers;
-use super::{Draw, Pass, PassSetup, entry, stage_value, storage_buffer, uniform_buffer, vec4};
+use super::{Draw, Pass, PassSetup, entry, stage_value, storage_buffer, uniform_buffer, vec3s, write_uniform};
 use crate::shaders::Shader;
 use crate::{GpuContext, RenderError};
 use lightloom_nodes::engine::Key;
@@ -13,13 +13,27 @@ use lightloom_nodes::rsl::shade::LightVisibility;
 pub(crate) const SHADER: Shader = Shader::mesh("mesh_rsl", "RSL");
 
 /// `mesh_rsl.wgsl` `RslParams`.
-#[repr(C)]
-#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+#[derive(encase::ShaderType)]
 pub(crate) struct RslParams {
-    pub(crate) counts: [u32; 4],
-    pub(crate) albedo: [[f32; 4]; MAX_MATERIALS],
-    pub(crate) specular: [[f32; 4]; MAX_MATERIALS],
-    pub(crate) layouts: [[u32; 4]; MAX_MATERIALS],
+    pub(crate) lights: u32,
+    /// Texels per side of every table.
+    pub(crate) table_size: u32,
+    pub(crate) albedo: [glam::Vec3; MAX_MATERIALS],
+    pub(crate) specular: [glam::Vec3; MAX_MATERIALS],
+    pub(crate) layouts: [RslLayout; MAX_MATERIALS],
+}
+
+/// `mesh_rsl.wgsl` `RslLayout`: where a material's tables start and how they are sliced.
+#[derive(Clone, Copy, Default, encase::ShaderType)]
+pub(crate) struct RslLayout {
+    /// Its first float in the tables (16-byte aligned: a uniform array's elements are 16
+    /// bytes apart).
+    #[shader(align(16))]
+    pub(crate) first: u32,
+    /// 0 no lobe, 1 isotropic, 2 anisotropic.
+    pub(crate) view_grid: u32,
+    /// θ₀ slices, or view slices per side.
+    pub(crate) slices: u32,
 }
 
 struct Bound {
@@ -100,18 +114,21 @@ impl Pass for RslPass {
             self.bound = None;
             self.bound = Some(self.upload(gpu, data)?);
         }
-        let mut params: RslParams = bytemuck::Zeroable::zeroed();
-        params.counts = [data.lights.len() as u32, data.table_size as u32, 0, 0];
-        for (dst, albedo) in params.albedo.iter_mut().zip(&data.albedo) {
-            *dst = vec4(*albedo, 1.0);
-        }
-        for (dst, specular) in params.specular.iter_mut().zip(&data.specular) {
-            *dst = vec4(*specular, 1.0);
-        }
-        for (dst, layout) in params.layouts.iter_mut().zip(&data.layouts) {
-            *dst = *layout;
-        }
-        gpu.queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
+        let layouts = std::array::from_fn(|m| {
+            data.layouts.get(m).map_or_else(RslLayout::default, |l| RslLayout {
+                first: l[0],
+                view_grid: l[1],
+                slices: l[2],
+            })
+        });
+        let params = RslParams {
+            lights: data.lights.len() as u32,
+            table_size: data.table_size as u32,
+            albedo: vec3s(&data.albedo),
+            specular: vec3s(&data.specular),
+            layouts,
+        };
+        write_uniform(&gpu.queue, &self.params, &params);
         Ok(())
     }
 }

@@ -5,7 +5,7 @@
 //! draws nothing into the scene itself.
 
 use super::geometry::GeometryBuffers;
-use super::{entry, uniform_buffer};
+use super::{entry, pod_uniform_buffer};
 use crate::GpuContext;
 use crate::shaders::Shader;
 use glam::{Mat4, Vec3};
@@ -98,9 +98,9 @@ impl SunPass {
                 },
             ],
         });
-        let params = uniform_buffer::<SunParams>(device, "sun");
+        let params = pod_uniform_buffer::<SunParams>(device, "sun");
         gpu.queue.write_buffer(&params, 0, bytemuck::bytes_of(&<SunParams as bytemuck::Zeroable>::zeroed()));
-        let matrices = uniform_buffer::<[[[f32; 4]; 4]; MAX_DIRECTIONS]>(device, "sun-depth");
+        let matrices = pod_uniform_buffer::<[[[f32; 4]; 4]; MAX_DIRECTIONS]>(device, "sun-depth");
         let shadow_maps = Self::shadow_maps(device, 1, 1);
         let bind_group = Self::bind(device, &layout, &params, &shadow_maps);
         let depth_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {

@@ -1,6 +1,6 @@
 //! Tone mapping: the HDR target through exposure and a display curve into the LDR target.
 
-use super::{LDR_FORMAT, entry, pipeline, uniform_buffer};
+use super::{LDR_FORMAT, entry, pipeline, uniform_buffer, write_uniform};
 use crate::GpuContext;
 use crate::shaders::Shader;
 use lightloom_nodes::kinds::output::Tonemap;
@@ -8,11 +8,12 @@ use lightloom_nodes::kinds::output::Tonemap;
 pub(crate) const SHADER: Shader = Shader::file("tonemap", crate::shaders::source!("tonemap.wgsl"));
 
 /// `tonemap.wgsl` `ToneParams`.
-#[repr(C)]
-#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+#[derive(encase::ShaderType)]
 pub(crate) struct ToneParams {
-    /// x: exposure scale `2^EV`; y: curve (0 ACES, 1 Reinhard, 2 linear clamp).
-    pub(crate) params: [f32; 4],
+    /// `2^EV`.
+    pub(crate) exposure_scale: f32,
+    /// 0 ACES, 1 Reinhard, 2 linear clamp.
+    pub(crate) curve: u32,
 }
 
 pub(crate) struct TonemapPass {
@@ -63,12 +64,12 @@ impl TonemapPass {
         tonemap: Tonemap,
     ) {
         let curve = match tonemap {
-            Tonemap::Aces => 0.0,
-            Tonemap::Reinhard => 1.0,
-            Tonemap::Linear => 2.0,
+            Tonemap::Aces => 0,
+            Tonemap::Reinhard => 1,
+            Tonemap::Linear => 2,
         };
-        let params = ToneParams { params: [2f32.powf(exposure as f32), curve, 0.0, 0.0] };
-        gpu.queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
+        let params = ToneParams { exposure_scale: 2f32.powf(exposure as f32), curve };
+        write_uniform(&gpu.queue, &self.params, &params);
         let mut encoder = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("tonemap") });
         {
             let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {

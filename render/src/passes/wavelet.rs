@@ -7,7 +7,7 @@
 //! camera moves rebuild nothing.
 
 use super::geometry::GeometryBuffers;
-use super::{Draw, Pass, PassSetup, entry, stage_value, storage_buffer, uniform_buffer, vec4};
+use super::{Draw, Pass, PassSetup, entry, stage_value, storage_buffer, uniform_buffer, vec3s, write_uniform};
 use crate::shaders::Shader;
 use crate::{GpuContext, RenderError};
 use lightloom_nodes::cubemap::CubeMap;
@@ -24,24 +24,46 @@ pub(crate) const RELIGHT_SHADER: Shader =
 const WORKGROUP: u32 = 64;
 
 /// `mesh_wavelet.wgsl` `WaveletParams`.
-#[repr(C)]
-#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+#[derive(encase::ShaderType)]
 pub(crate) struct WaveletParams {
-    pub(crate) counts: [u32; 4],
-    pub(crate) albedo: [[f32; 4]; MAX_MATERIALS],
-    pub(crate) specular: [[f32; 4]; MAX_MATERIALS],
-    pub(crate) texels: [u32; 4],
-    /// Per material: where its fine lobe table starts.
-    pub(crate) fine_offsets: [[u32; 4]; MAX_MATERIALS / 4],
+    pub(crate) cells: u32,
+    /// Floats of one material's specular table.
+    pub(crate) specular_stride: u32,
+    pub(crate) theta_steps: u32,
+    pub(crate) phi_steps: u32,
+    /// 1 when per-texel data is bound.
+    pub(crate) texels_bound: u32,
+    pub(crate) texel_size: u32,
+    /// Detail nodes kept per receiver.
+    pub(crate) details_kept: u32,
+    pub(crate) materials: [WaveletMaterial; MAX_MATERIALS],
+}
+
+/// `mesh_wavelet.wgsl` `WaveletMaterial`.
+#[derive(Clone, Copy, Default, encase::ShaderType)]
+pub(crate) struct WaveletMaterial {
+    pub(crate) albedo: glam::Vec3,
+    /// 1 with a specular lobe.
+    pub(crate) glossy: u32,
+    pub(crate) specular: glam::Vec3,
+    /// Where its fine lobe table starts.
+    pub(crate) fine_offset: u32,
 }
 
 /// `wavelet_relight.wgsl` `RelightParams`.
-#[repr(C)]
-#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+#[derive(encase::ShaderType)]
 pub(crate) struct RelightParams {
-    pub(crate) inverse_rotation: [[f32; 4]; 3],
-    pub(crate) counts: [u32; 4],
-    pub(crate) dispatch: [u32; 4],
+    /// `R⁻¹`.
+    pub(crate) inverse_rotation: glam::Mat3,
+    pub(crate) receivers: u32,
+    pub(crate) cells: u32,
+    pub(crate) samples_per_cell: u32,
+    /// Texels per side of the environment's faces.
+    pub(crate) face_size: u32,
+    /// Receivers per row of workgroups.
+    pub(crate) row_width: u32,
+    /// Detail nodes kept per receiver.
+    pub(crate) details_kept: u32,
 }
 
 /// One receiver set on the GPU (the vertices, or the texel slots): the kernel's inputs and
@@ -379,11 +401,15 @@ impl WaveletPass {
             let groups = count.div_ceil(WORKGROUP).max(1);
             let columns = groups.min(max_columns);
             let params = RelightParams {
-                inverse_rotation: data.inverse_rotation().map(|r| [r[0], r[1], r[2], 0.0]),
-                counts: [*count, data.cells as u32, samples_per_cell, size as u32],
-                dispatch: [columns * WORKGROUP, data.details.kept as u32, 0, 0],
+                inverse_rotation: data.rotation.transpose().as_mat3(),
+                receivers: *count,
+                cells: data.cells as u32,
+                samples_per_cell,
+                face_size: size as u32,
+                row_width: columns * WORKGROUP,
+                details_kept: data.details.kept as u32,
             };
-            gpu.queue.write_buffer(&set.params, 0, bytemuck::bytes_of(&params));
+            write_uniform(&gpu.queue, &set.params, &params);
             dispatches.push((group, columns, groups.div_ceil(columns)));
         }
         let mut encoder =
@@ -481,21 +507,27 @@ impl Pass for WaveletPass {
             self.relit = Some(state);
         }
         let cells = data.cells as u32;
-        let mut params: WaveletParams = bytemuck::Zeroable::zeroed();
-        params.counts =
-            [cells, WaveletSurfaces::specular_stride(data.cells) as u32, THETA_STEPS as u32, PHI_STEPS as u32];
-        for (dst, albedo) in params.albedo.iter_mut().zip(&data.albedo) {
-            *dst = vec4(*albedo, 1.0);
-        }
-        for (dst, specular) in params.specular.iter_mut().zip(&data.specular) {
-            *dst = specular.map_or([0.0; 4], |s| vec4(s, 1.0));
-        }
-        params.texels =
-            [receivers.texel_size.is_some() as u32, receivers.texel_size.unwrap_or(0), data.details.kept as u32, 0];
-        for (m, offset) in data.fine_specular_offsets.iter().enumerate().take(MAX_MATERIALS) {
-            params.fine_offsets[m / 4][m % 4] = *offset;
-        }
-        gpu.queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
+        let albedo: [glam::Vec3; MAX_MATERIALS] = vec3s(&data.albedo);
+        let materials = std::array::from_fn(|m| {
+            let specular = data.specular.get(m).copied().flatten();
+            WaveletMaterial {
+                albedo: albedo[m],
+                glossy: u32::from(specular.is_some()),
+                specular: specular.map_or(glam::Vec3::ZERO, |s| glam::DVec3::from(s).as_vec3()),
+                fine_offset: data.fine_specular_offsets.get(m).copied().unwrap_or(0),
+            }
+        });
+        let params = WaveletParams {
+            cells,
+            specular_stride: WaveletSurfaces::specular_stride(data.cells) as u32,
+            theta_steps: THETA_STEPS as u32,
+            phi_steps: PHI_STEPS as u32,
+            texels_bound: u32::from(receivers.texel_size.is_some()),
+            texel_size: receivers.texel_size.unwrap_or(0),
+            details_kept: data.details.kept as u32,
+            materials,
+        };
+        write_uniform(&gpu.queue, &self.params, &params);
         Ok(())
     }
 }

@@ -257,9 +257,7 @@ impl GpuBlockedProduct {
             device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents, usage })
         };
         use wgpu::BufferUsages as U;
-        let mut laid_out = encase::UniformBuffer::new(Vec::<u8>::new());
-        laid_out.write(&params).map_err(|e| RenderError::Invalid(format!("the blocker kernel's parameters: {e}")))?;
-        let uniform = init("shexp params", &laid_out.into_inner(), U::UNIFORM);
+        let uniform = init("shexp params", &crate::passes::uniform_bytes(&params), U::UNIFORM);
         let receiver_buffer = init("shexp receivers", bytemuck::cast_slice(&receivers), U::STORAGE);
         let word_buffer = init("shexp words", bytemuck::cast_slice(&words), U::STORAGE);
         let vector_buffer = init("shexp vectors", bytemuck::cast_slice(&packed), U::STORAGE | U::COPY_SRC);

@@ -389,10 +389,7 @@ impl ModeFrame for Wavelet {
 /// too: the kernel relights every set in one dispatch, and the failure is reported).
 fn relit(g: &Gather, texels: bool) -> Option<RelitSets> {
     use crate::kinds::output::relight::stage_name;
-    let done = |texels: bool| {
-        let r = g.evaluation.get(g.output, stage_name(texels, g.separate_sun))?;
-        r.value.as_ref().ok().map(|v| Keyed { key: r.key, value: v.clone() })
-    };
+    let done = |texels: bool| g.keyed(g.output, stage_name(texels, g.separate_sun)).ok();
     let texels = match texels {
         true => Some(done(true)?),
         false => None,

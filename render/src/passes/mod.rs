@@ -334,9 +334,14 @@ pub(crate) fn write_uniform<T: encase::ShaderType + encase::internal::WriteInto>
     buffer: &wgpu::Buffer,
     value: &T,
 ) {
+    queue.write_buffer(buffer, 0, &uniform_bytes(value));
+}
+
+/// `value` laid out as WGSL lays out `T` in a uniform.
+pub(crate) fn uniform_bytes<T: encase::ShaderType + encase::internal::WriteInto>(value: &T) -> Vec<u8> {
     let mut bytes = encase::UniformBuffer::new(Vec::<u8>::new());
     bytes.write(value).expect("a Vec grows to any uniform");
-    queue.write_buffer(buffer, 0, &bytes.into_inner());
+    bytes.into_inner()
 }
 
 pub(crate) fn linear_sampler(device: &wgpu::Device, label: &str) -> wgpu::Sampler {

@@ -132,3 +132,15 @@ fn sh_basis(n: vec3<f32>, bands: i32) -> array<f32, MAX_COEFFS> {
     }
     return y;
 }
+
+// A material's specular lobe (nodes/src/frame `SpecularLobe`, nodes/src/brdf.rs `Lobe`):
+// `model` 0 none, 1 Phong, 2 Blinn-Phong, 3 GGX, 4 Ward; `sharpness` the exponent (the Phong
+// models) or the alpha along the tangent, `alpha_y` the alpha along the bitangent;
+// `reflectance` the Fresnel term at normal incidence; `colour` what it reflects.
+struct SpecularLobe {
+    model: u32,
+    sharpness: f32,
+    reflectance: f32,
+    alpha_y: f32,
+    colour: vec3<f32>,
+};

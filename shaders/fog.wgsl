@@ -6,30 +6,48 @@
 
 #define_import_path lightloom::fog
 
-#import lightloom::common::{PI, globals, sh_walk, sh_walk_next}
+#import lightloom::common::{PI, SpecularLobe, globals, sh_walk, sh_walk_next}
 #import lightloom::normal_map::{SurfaceNdf, ndf_mapped, ndf_direct_diffuse, ndf_widened_lobe}
 #import lightloom::sun::sun_direct
 
+// A point light as the fog and surfaces shade it.
+struct FogLight {
+    position: vec3<f32>,
+    // 1 when it has an angular profile (nodes/src/light.rs `AngularProfile`), else isotropic.
+    profiled: u32,
+    intensity: vec3<f32>,
+    // The profile's axis and its phi = 0 direction.
+    axis: vec3<f32>,
+    x_axis: vec3<f32>,
+};
+
+// A material's Phong-equivalent lobe (eq. 3.28): weight per channel and exponent (0: none).
+struct SurfaceLobe {
+    weight: vec3<f32>,
+    exponent: f32,
+};
+
 struct Fog {
-    // rgb: beta per channel (1/m); w: 1 when a medium is linked.
-    beta: vec4<f32>,
-    // Phase polynomial weights W_0..W_2 (eq. 3.18, normalised); w: how many.
-    phase: vec4<f32>,
-    // x: point light count; y: G ladder layers; z: ladder layers per octave of exponent;
-    // w: 1 when surfaces get the scattered environment's irradiance here (wavelet modes).
-    counts: vec4<f32>,
-    // rgb: the environment's attenuation e^{-beta D} (eq. 3.37); w: bands of the next field.
-    environment: vec4<f32>,
+    // beta per channel (1/m); `linked` is 1 when a medium is linked.
+    beta: vec3<f32>,
+    linked: u32,
+    // Phase polynomial weights W_0..W_2 (eq. 3.18, normalised), and how many there are.
+    phase: vec3<f32>,
+    phase_terms: u32,
+    light_count: u32,
+    // The G ladder's layers, and its layers per octave of exponent.
+    g_layers: u32,
+    g_layers_per_octave: f32,
+    // 1 when surfaces get the scattered environment's irradiance here (wavelet modes).
+    scatter_onto_surfaces: u32,
+    // The environment's attenuation e^{-beta D} (eq. 3.37), and the bands of the next field.
+    attenuation: vec3<f32>,
+    scattered_bands: u32,
     // SH coefficients of the light the fog scatters from the environment (eq. 3.35).
-    environment_scattered: array<vec4<f32>, 64>,
-    // Per material: Phong-equivalent lobe weight (rgb) and exponent (w; 0 = no lobe).
-    specular: array<vec4<f32>, 8>,
-    light_position: array<vec4<f32>, 8>,
-    light_intensity: array<vec4<f32>, 8>,
-    // Per light: its angular profile's axis (xyz; w: 1 when it has a profile, else isotropic)
-    // and the profile's phi = 0 direction (nodes/src/light.rs `AngularProfile`).
-    light_axis: array<vec4<f32>, 8>,
-    light_x: array<vec4<f32>, 8>,
+    environment_scattered: array<vec3<f32>, 64>,
+    // Per material.
+    lobes: array<SurfaceLobe, 8>,
+    lights: array<FogLight, 8>,
 };
 
 @group(1) @binding(0) var<uniform> fog: Fog;
@@ -41,11 +59,11 @@ struct Fog {
 // Light `i`'s angular profile towards the unit vector `dir` leaving it (1 when isotropic),
 // bilinear in theta and phi as nodes/src/light.rs `AngularProfile::toward` reads it.
 fn light_profile(i: i32, dir: vec3<f32>) -> f32 {
-    if (fog.light_axis[i].w < 0.5) {
+    if (fog.lights[i].profiled == 0u) {
         return 1.0;
     }
-    let z = fog.light_axis[i].xyz;
-    let x = fog.light_x[i].xyz;
+    let z = fog.lights[i].axis;
+    let x = fog.lights[i].x_axis;
     let y = cross(z, x);
     let dims = textureDimensions(light_profiles);
     let cols = i32(dims.x);
@@ -70,7 +88,7 @@ fn light_profile(i: i32, dir: vec3<f32>) -> f32 {
 
 // The unit vector from light `i` to `p` (nearly zero when `p` is at the light).
 fn light_direction(i: i32, p: vec3<f32>) -> vec3<f32> {
-    let d = p - fog.light_position[i].xyz;
+    let d = p - fog.lights[i].position;
     return d / max(length(d), 1e-4);
 }
 
@@ -132,7 +150,7 @@ fn fog_airlight(beta: f32, d_sv: f32, d_vp: f32, gamma_in: f32, i0: f32) -> f32 
     }
     let v_near = gamma / 2.0;
     let scale = beta * beta * i0 / (2.0 * PI * t_sv * s);
-    let terms = i32(fog.phase.w);
+    let terms = i32(fog.phase_terms);
     var table_ok = v_far - v_near >= 0.05;
     var sum = 0.0;
     if (table_ok) {
@@ -166,8 +184,8 @@ fn fog_airlight(beta: f32, d_sv: f32, d_vp: f32, gamma_in: f32, i0: f32) -> f32 
 // (PhongGTables::lookup).
 fn fog_g(exponent: f32, t_sp: f32, theta_s: f32) -> f32 {
     let n = max(exponent, 1.0);
-    let last = fog.counts.y - 1.0;
-    let steps = fog.counts.z;
+    let last = f32(fog.g_layers) - 1.0;
+    let steps = fog.g_layers_per_octave;
     let position = min(steps * log2(n), last);
     let lower = floor(position);
     let upper = min(lower + 1.0, last);
@@ -182,7 +200,7 @@ fn fog_g(exponent: f32, t_sp: f32, theta_s: f32) -> f32 {
 // or A_l (irradiance, Sun 2008 eq. 2.24; bands above 4 are negligible), summed as the shared
 // basis walk (common.wgsl) goes.
 fn fog_environment_sum(dir: vec3<f32>, irradiance: bool) -> vec3<f32> {
-    var bands = i32(fog.environment.w);
+    var bands = i32(fog.scattered_bands);
     if (irradiance) {
         bands = min(bands, 5);
     }
@@ -195,9 +213,9 @@ fn fog_environment_sum(dir: vec3<f32>, irradiance: bool) -> vec3<f32> {
             w = select(select(select(select(-PI / 24.0, 0.0, l == 3), PI / 4.0, l == 2), 2.0 * PI / 3.0, l == 1), PI, l == 0);
         }
         let base = l * (l + 1);
-        sum = sum + w * walk.cos_y * fog.environment_scattered[base + walk.m].rgb;
+        sum = sum + w * walk.cos_y * fog.environment_scattered[base + walk.m];
         if (walk.m > 0) {
-            sum = sum + w * walk.sin_y * fog.environment_scattered[base - walk.m].rgb;
+            sum = sum + w * walk.sin_y * fog.environment_scattered[base - walk.m];
         }
     }
     return max(sum, vec3<f32>(0.0));
@@ -221,28 +239,28 @@ fn fog_environment_glow_irradiance(n: vec3<f32>) -> vec3<f32> {
 // (the glow per unit length is about constant along the ray, so the path's share of the
 // infinite ray's glow is 1 - e^{-beta d}).
 fn fog_shade(lit_in: vec3<f32>, p: vec3<f32>, n: vec3<f32>, tangent: vec3<f32>, kd: vec3<f32>, material: u32, ndf: ptr<function, SurfaceNdf>) -> vec3<f32> {
-    let fogged = fog.beta.w > 0.5;
+    let fogged = fog.linked != 0u;
     let viewer = globals.camera_pos.xyz;
     let d_vp = length(viewer - p);
     let view = (p - viewer) / max(d_vp, 1e-6);
-    let lobe = fog.specular[material];
-    let exponent = max(lobe.w, 1.0);
+    let lobe = fog.lobes[material];
+    let exponent = max(lobe.exponent, 1.0);
     let mirror = reflect(view, n);
-    let ks = lobe.rgb * (exponent + 2.0) / (2.0 * PI) * max(dot(mirror, n), 0.0);
-    let glossy = lobe.w > 0.0 && max(ks.r, max(ks.g, ks.b)) > 0.0;
+    let ks = lobe.weight * (exponent + 2.0) / (2.0 * PI) * max(dot(mirror, n), 0.0);
+    let glossy = lobe.exponent > 0.0 && max(ks.r, max(ks.g, ks.b)) > 0.0;
     // The environment's sun, when lit apart from the mode's transport (sun.wgsl).
     var lit = lit_in + sun_direct(p, n, tangent, -view, kd, material, ndf);
     var glow = vec3<f32>(0.0);
     if (fogged) {
         glow = fog_environment_glow(view);
-        if (fog.counts.w > 0.5) {
-            lit = lit * fog.environment.rgb + kd * fog_environment_glow_irradiance(n);
+        if (fog.scatter_onto_surfaces != 0u) {
+            lit = lit * fog.attenuation + kd * fog_environment_glow_irradiance(n);
         }
     }
     // Each light's profile towards this point and towards the viewer, once for all channels.
     var toward_point: array<f32, 8>;
     var toward_viewer: array<f32, 8>;
-    for (var i = 0; i < i32(fog.counts.x); i = i + 1) {
+    for (var i = 0; i < i32(fog.light_count); i = i + 1) {
         toward_point[i] = light_profile(i, light_direction(i, p));
         toward_viewer[i] = light_profile(i, light_direction(i, viewer));
     }
@@ -251,12 +269,12 @@ fn fog_shade(lit_in: vec3<f32>, p: vec3<f32>, n: vec3<f32>, tangent: vec3<f32>, 
         let beta = select(0.0, fog.beta[c], fogged);
         var surface = lit[c];
         var air = 0.0;
-        for (var i = 0; i < i32(fog.counts.x); i = i + 1) {
-            let to_light = fog.light_position[i].xyz - p;
+        for (var i = 0; i < i32(fog.light_count); i = i + 1) {
+            let to_light = fog.lights[i].position - p;
             let d_sp = max(length(to_light), 1e-4);
             // A profiled light: its intensity towards this point lights the surface; its airlight
             // (eq. 3.16 holds for isotropic lights) takes its intensity towards the viewer.
-            let i0 = fog.light_intensity[i][c] * toward_point[i];
+            let i0 = fog.lights[i].intensity[c] * toward_point[i];
             let cos_s = dot(to_light / d_sp, n);
             let t_sp = beta * d_sp;
             let direct = exp(-t_sp) / (d_sp * d_sp);
@@ -274,10 +292,11 @@ fn fog_shade(lit_in: vec3<f32>, p: vec3<f32>, n: vec3<f32>, tangent: vec3<f32>, 
                     var sum = 0.0;
                     for (var j = 0; j < (*ndf).count; j = j + 1) {
                         let mu = (*ndf).lobes[j].xyz;
-                        let widened = ndf_widened_lobe(vec4<f32>(1.0, exponent, 1.0, 0.0), (*ndf).kappas[j]);
-                        let s = widened[0].y;
+                        let phong = SpecularLobe(1u, exponent, 1.0, 0.0, vec3<f32>(1.0));
+                        let widened = ndf_widened_lobe(phong, (*ndf).kappas[j]);
+                        let s = widened.lobe.sharpness;
                         let mirror_j = reflect(view, mu);
-                        sum = sum + (*ndf).lobes[j].w * widened[1].w * (s + 2.0) * max(dot(mirror_j, mu), 0.0)
+                        sum = sum + (*ndf).lobes[j].w * widened.factor * (s + 2.0) * max(dot(mirror_j, mu), 0.0)
                             * pow(max(dot(to_light / d_sp, mirror_j), 0.0), s);
                     }
                     specular = direct * sum / ((exponent + 2.0) * max(dot(mirror, n), 1e-4));
@@ -289,10 +308,10 @@ fn fog_shade(lit_in: vec3<f32>, p: vec3<f32>, n: vec3<f32>, tangent: vec3<f32>, 
                     let theta_m = acos(clamp(cos_m, -1.0, 1.0));
                     specular = specular + beta * beta * fog_g(exponent, t_sp, theta_m) / (2.0 * PI * t_sp);
                 }
-                let to_source = fog.light_position[i].xyz - viewer;
+                let to_source = fog.lights[i].position - viewer;
                 let d_sv = max(length(to_source), 1e-4);
                 let gamma = fog_angle(view, to_source / d_sv);
-                let i_air = fog.light_intensity[i][c] * toward_viewer[i];
+                let i_air = fog.lights[i].intensity[c] * toward_viewer[i];
                 air = air + fog_airlight(beta, d_sv, d_vp, gamma, i_air);
             }
             surface = surface + i0 * (kd[c] * reflected + ks[c] * specular);
@@ -306,23 +325,23 @@ fn fog_shade(lit_in: vec3<f32>, p: vec3<f32>, n: vec3<f32>, tangent: vec3<f32>, 
 // The background seen through fog (eq. 3.36): the environment attenuated (eq. 3.37) plus its
 // glow (eq. 3.35, hidden with the background), plus the lights' glows.
 fn fog_background(env: vec3<f32>, dir: vec3<f32>) -> vec3<f32> {
-    if (fog.beta.w < 0.5) {
+    if (fog.linked == 0u) {
         return env;
     }
     let viewer = globals.camera_pos.xyz;
-    var out = env * fog.environment.rgb + fog_environment_glow(dir) * f32(globals.background);
+    var out = env * fog.attenuation + fog_environment_glow(dir) * f32(globals.background);
     var toward_viewer: array<f32, 8>;
-    for (var i = 0; i < i32(fog.counts.x); i = i + 1) {
+    for (var i = 0; i < i32(fog.light_count); i = i + 1) {
         toward_viewer[i] = light_profile(i, light_direction(i, viewer));
     }
     for (var c = 0; c < 3; c = c + 1) {
         var air = 0.0;
-        for (var i = 0; i < i32(fog.counts.x); i = i + 1) {
-            let to_source = fog.light_position[i].xyz - viewer;
+        for (var i = 0; i < i32(fog.light_count); i = i + 1) {
+            let to_source = fog.lights[i].position - viewer;
             let d_sv = max(length(to_source), 1e-4);
             let gamma = fog_angle(dir, to_source / d_sv);
             // A profiled light glows as bright as it shines back at the viewer.
-            let i0 = fog.light_intensity[i][c] * toward_viewer[i];
+            let i0 = fog.lights[i].intensity[c] * toward_viewer[i];
             air = air + fog_airlight(fog.beta[c], d_sv, -1.0, gamma, i0);
         }
         out[c] = out[c] + air;

@@ -29,8 +29,8 @@ fn light_vertex(v: MeshVertex, index: u32, common_out: VertexOut) -> VertexOut {
 
 fn shade(in: VertexOut, front: bool) -> vec4<f32> {
     var radiance = in.diffuse;
-    if (fog.beta.w > 0.5) {
-        radiance = radiance * exp(-fog.beta.rgb * length(globals.camera_pos.xyz - in.world));
+    if (fog.linked != 0u) {
+        radiance = radiance * exp(-fog.beta * length(globals.camera_pos.xyz - in.world));
     }
     return vec4<f32>(radiance, 0.0);
 }

@@ -7,7 +7,7 @@
 
 #define_import_path lightloom::normal_map
 
-#import lightloom::common::{frame_tangent, sh_walk, sh_walk_next}
+#import lightloom::common::{SpecularLobe, frame_tangent, sh_walk, sh_walk_next}
 
 // Whether pixels shade through normal maps at all: each pipeline is composed with it set
 // (render/src/shaders.rs), false for frames without a mapped material.
@@ -22,24 +22,51 @@ const NDF_MAX_KAPPA: f32 = 1.0e6;
 // Lobes of normals at least this concentrated (within about 0.2°) are a single normal.
 const NDF_SINGLE_NORMAL: f32 = 1.0e5;
 
+// A material's normal map.
+struct NormalMapMaterial {
+    // 0 no map, 1 SH NDF, 2 vMF mixture, 3 Toksvig, 4 averaged normals.
+    filter_kind: u32,
+    // Repeats per unit of UV.
+    tiling: f32,
+    // How many vMF levels were fitted.
+    fitted_levels: u32,
+    // Its texture layer.
+    layer: u32,
+};
+
+// One fitted vMF level of a material's map: its first lobe, its texels across and down, and
+// the map texels per texel side.
+struct VmfLevel {
+    first: u32,
+    width: u32,
+    height: u32,
+    texel_span: u32,
+};
+
+// A material's equivalent Phong lobe for the per-vertex environment highlight.
+struct HighlightLobe {
+    weight: vec3<f32>,
+    glossy: u32,
+};
+
 struct NormalMaps {
-    // Per material: x: filter (0 no map, 1 SH NDF, 2 vMF mixture, 3 Toksvig, 4 averaged
-    // normals); y: repeats per unit of UV; z: fitted vMF levels; w: texture layer.
-    materials: array<vec4<f32>, 8>,
-    // x: 1 when the mode's per-vertex diffuse light is scaled per pixel by `irradiance`
-    // filtered over unfiltered; yzw unused.
-    flags: vec4<f32>,
-    // E_lm to band 2 (rgb) of the light the mode's diffuse transport carries.
-    irradiance: array<vec4<f32>, 9>,
-    // Per material and vMF level (material * 12 + level): first lobe, texels across and down,
-    // map texels per texel side.
-    vmf_levels: array<vec4<u32>, 96>,
-    // When flags.y is 1: L_lm (rgb) to band 7 of the unshadowed light the mode's per-vertex
-    // environment highlight carries; per material its equivalent Phong lobe's factors f_l
-    // (four per vector, material m: [2m, 2m + 1]) and weight (rgb; w 1 when glossy).
-    highlight_radiance: array<vec4<f32>, 64>,
+    materials: array<NormalMapMaterial, 8>,
+    // 1 when the mode's per-vertex diffuse light is scaled per pixel by `irradiance` filtered
+    // over unfiltered.
+    scale_vertex_diffuse: u32,
+    // 1 when the mode's per-vertex environment highlight is corrected per pixel (the fields
+    // `highlight_*`).
+    vertex_highlights: u32,
+    // E_lm to band 2 of the light the mode's diffuse transport carries.
+    irradiance: array<vec3<f32>, 9>,
+    // Per material and vMF level (material * 12 + level).
+    vmf_levels: array<VmfLevel, 96>,
+    // L_lm to band 7 of the unshadowed light the mode's per-vertex environment highlight
+    // carries; per material its equivalent Phong lobe's factors f_l (four per vector, material
+    // m: [2m, 2m + 1]) and weight.
+    highlight_radiance: array<vec3<f32>, 64>,
     highlight_factors: array<vec4<f32>, 16>,
-    highlight_weights: array<vec4<f32>, 8>,
+    highlight_lobes: array<HighlightLobe, 8>,
 };
 
 const NDF_HIGHLIGHT_BANDS: i32 = 8;
@@ -109,15 +136,15 @@ fn ndf_set_flat(ndf: ptr<function, SurfaceNdf>, n: vec3<f32>) {
 // `ndf` (lobes under 0.1% of the pixel's NDF are dropped).
 fn ndf_add_level(ndf: ptr<function, SurfaceNdf>, m: u32, level: i32, uv: vec2<f32>, map_size: vec2<f32>, frame: mat3x3<f32>, share: f32) {
     let info = normal_maps.vmf_levels[i32(m) * NDF_LEVELS + level];
-    let size = vec2<i32>(i32(info.y), i32(info.z));
-    let at = fract(uv) * map_size / f32(info.w) - 0.5;
+    let size = vec2<i32>(i32(info.width), i32(info.height));
+    let at = fract(uv) * map_size / f32(info.texel_span) - 0.5;
     let corner = vec2<i32>(floor(at));
     let f = at - floor(at);
     for (var k = 0; k < 4; k = k + 1) {
         let offset = vec2<i32>(k & 1, k >> 1u);
         let texel = ((corner + offset) % size + size) % size;
         let bilinear = select(1.0 - f.x, f.x, offset.x == 1) * select(1.0 - f.y, f.y, offset.y == 1);
-        let first = info.x + u32(texel.y * size.x + texel.x) * 6u;
+        let first = info.first + u32(texel.y * size.x + texel.x) * 6u;
         for (var j = 0u; j < 6u; j = j + 1u) {
             let lobe = ndf_lobe_at(first + j);
             let weight = lobe.w * bilinear * share;
@@ -178,15 +205,15 @@ fn ndf_insert_lobe(ndf: ptr<function, SurfaceNdf>, mu: vec3<f32>, weight: f32, k
 // the UV's screen derivatives (the maps are then read only where a material has one).
 fn surface_ndf(ndf: ptr<function, SurfaceNdf>, m: u32, uv_in: vec2<f32>, n: vec3<f32>, tangent: vec4<f32>) {
     let settings = normal_maps.materials[m];
-    let uv = uv_in * settings.y;
+    let uv = uv_in * settings.tiling;
     let du = dpdx(uv);
     let dv = dpdy(uv);
-    let method = i32(settings.x + 0.5);
+    let method = i32(settings.filter_kind);
     ndf_set_flat(ndf, n);
     if (!NORMAL_MAPS || method == 0) {
         return;
     }
-    let layer = i32(settings.w);
+    let layer = i32(settings.layer);
     let a = textureSampleGrad(normal_moments_a, normal_sampler, uv, layer, du, dv);
     let b = textureSampleGrad(normal_moments_b, normal_sampler, uv, layer, du, dv);
     let t = frame_tangent(n, tangent.xyz);
@@ -203,7 +230,7 @@ fn surface_ndf(ndf: ptr<function, SurfaceNdf>, m: u32, uv_in: vec2<f32>, n: vec3
     (*ndf).second = frame * second_t * transpose(frame);
     (*ndf).kappa = ndf_kappa(length(a.xyz));
     (*ndf).kappas[0] = (*ndf).kappa;
-    let levels = i32(settings.z);
+    let levels = i32(settings.fitted_levels);
     if (method != 2 || levels == 0) {
         return;
     }
@@ -287,26 +314,29 @@ fn ndf_direct_diffuse(ndf: ptr<function, SurfaceNdf>, l: vec3<f32>) -> f32 {
     return mu * cdf + sigma * exp(-0.5 * t * t) * 0.39894228;
 }
 
-// A specular lobe (sun.wgsl's encoding: x model, y exponent or alpha_x, z f0, w alpha_y) seen
-// through a vMF lobe of normals of concentration kappa, and (w of the second) the factor its
+// A specular lobe seen through a vMF lobe of normals of concentration kappa, and the factor its
 // values take (nodes Lobe::widened).
-fn ndf_widened_lobe(lobe: vec4<f32>, kappa: f32) -> array<vec4<f32>, 2> {
-    var out = array<vec4<f32>, 2>(lobe, vec4<f32>(1.0));
+struct WidenedLobe {
+    lobe: SpecularLobe,
+    factor: f32,
+};
+
+fn ndf_widened_lobe(lobe: SpecularLobe, kappa: f32) -> WidenedLobe {
+    var out = WidenedLobe(lobe, 1.0);
     if (kappa >= NDF_MAX_KAPPA) {
         return out;
     }
     let k = max(kappa, 1e-9);
-    let model = i32(lobe.x + 0.5);
-    if (model == 1 || model == 2) {
-        let seen = select(k, k / 4.0, model == 1);
-        let c = select(8.0, 2.0, model == 1);
-        let s = lobe.y;
+    if (lobe.model == 1u || lobe.model == 2u) {
+        let seen = select(k, k / 4.0, lobe.model == 1u);
+        let c = select(8.0, 2.0, lobe.model == 1u);
+        let s = lobe.sharpness;
         let w = seen * s / (seen + s);
-        out[0].y = w;
-        out[1].w = (s + c) * (w + 1.0) / ((s + 1.0) * (w + c));
-    } else if (model == 3 || model == 4) {
-        out[0].y = sqrt(lobe.y * lobe.y + 2.0 / k);
-        out[0].w = sqrt(lobe.w * lobe.w + 2.0 / k);
+        out.lobe.sharpness = w;
+        out.factor = (s + c) * (w + 1.0) / ((s + 1.0) * (w + c));
+    } else if (lobe.model == 3u || lobe.model == 4u) {
+        out.lobe.sharpness = sqrt(lobe.sharpness * lobe.sharpness + 2.0 / k);
+        out.lobe.alpha_y = sqrt(lobe.alpha_y * lobe.alpha_y + 2.0 / k);
     }
     return out;
 }
@@ -314,7 +344,7 @@ fn ndf_widened_lobe(lobe: vec4<f32>, kappa: f32) -> array<vec4<f32>, 2> {
 // The per-pixel factor on a mode's per-vertex diffuse light: the transported light's irradiance
 // averaged over the NDF over the same at the geometric normal `n` (1 without a map).
 fn ndf_vertex_diffuse_scale(ndf: ptr<function, SurfaceNdf>, n: vec3<f32>) -> vec3<f32> {
-    if (!ndf_mapped(ndf) || normal_maps.flags.x < 0.5) {
+    if (!ndf_mapped(ndf) || normal_maps.scale_vertex_diffuse == 0u) {
         return vec3<f32>(1.0);
     }
     let filtered_basis = ndf_sh9(ndf);
@@ -322,8 +352,8 @@ fn ndf_vertex_diffuse_scale(ndf: ptr<function, SurfaceNdf>, n: vec3<f32>) -> vec
     var filtered = vec3<f32>(0.0);
     var unfiltered = vec3<f32>(0.0);
     for (var k = 0; k < 9; k = k + 1) {
-        filtered = filtered + normal_maps.irradiance[k].rgb * filtered_basis[k];
-        unfiltered = unfiltered + normal_maps.irradiance[k].rgb * flat_basis[k];
+        filtered = filtered + normal_maps.irradiance[k] * filtered_basis[k];
+        unfiltered = unfiltered + normal_maps.irradiance[k] * flat_basis[k];
     }
     let floor_value = 1e-4 * max(normal_maps.irradiance[0].r, max(normal_maps.irradiance[0].g, normal_maps.irradiance[0].b));
     return select(vec3<f32>(1.0), max(filtered, vec3<f32>(0.0)) / max(unfiltered, vec3<f32>(floor_value)), unfiltered > vec3<f32>(floor_value));
@@ -333,13 +363,13 @@ fn ndf_vertex_diffuse_scale(ndf: ptr<function, SurfaceNdf>, n: vec3<f32>) -> vec
 // unshadowed irradiance at its unit normal `n`, per channel in [0, 1] (1 where that is dark,
 // and without maps).
 fn ndf_open_fraction(e: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
-    if (!NORMAL_MAPS || normal_maps.flags.y < 0.5) {
+    if (!NORMAL_MAPS || normal_maps.vertex_highlights == 0u) {
         return vec3<f32>(1.0);
     }
     let basis = ndf_sh9_about(n, 1.0, 1.0);
     var open = vec3<f32>(0.0);
     for (var k = 0; k < 9; k = k + 1) {
-        open = open + normal_maps.irradiance[k].rgb * basis[k];
+        open = open + normal_maps.irradiance[k] * basis[k];
     }
     let floor_value = 1e-4 * max(normal_maps.irradiance[0].r, max(normal_maps.irradiance[0].g, normal_maps.irradiance[0].b));
     return select(vec3<f32>(1.0), clamp(e / max(open, vec3<f32>(floor_value)), vec3<f32>(0.0), vec3<f32>(1.0)), open > vec3<f32>(floor_value));
@@ -355,9 +385,9 @@ fn ndf_highlight_sum(r: vec3<f32>, m: u32, kappa: f32) -> vec3<f32> {
         let l = walk.l;
         let f = normal_maps.highlight_factors[2u * m + u32(l / 4)][l % 4] * exp(-2.0 * f32(l * (l + 1)) / kappa);
         let base = l * (l + 1);
-        sum = sum + f * walk.cos_y * normal_maps.highlight_radiance[base + walk.m].rgb;
+        sum = sum + f * walk.cos_y * normal_maps.highlight_radiance[base + walk.m];
         if (walk.m > 0) {
-            sum = sum + f * walk.sin_y * normal_maps.highlight_radiance[base - walk.m].rgb;
+            sum = sum + f * walk.sin_y * normal_maps.highlight_radiance[base - walk.m];
         }
     }
     return sum;
@@ -370,8 +400,8 @@ fn ndf_highlight_sum(r: vec3<f32>, m: u32, kappa: f32) -> vec3<f32> {
 // light it turns in is added, material m's glossy weight times `open` (ndf_open_fraction at the
 // vertices) times the difference. Never negative; `glossy` itself without a map or for a flat one.
 fn ndf_vertex_glossy(ndf: ptr<function, SurfaceNdf>, n: vec3<f32>, view: vec3<f32>, m: u32, open: vec3<f32>, glossy: vec3<f32>) -> vec3<f32> {
-    let weight = normal_maps.highlight_weights[m];
-    if (!ndf_mapped(ndf) || normal_maps.flags.y < 0.5 || weight.w == 0.0) {
+    let weight = normal_maps.highlight_lobes[m];
+    if (!ndf_mapped(ndf) || normal_maps.vertex_highlights == 0u || weight.glossy == 0u) {
         return glossy;
     }
     let r = reflect(-view, n);
@@ -384,5 +414,5 @@ fn ndf_vertex_glossy(ndf: ptr<function, SurfaceNdf>, n: vec3<f32>, view: vec3<f3
     }
     mapped = max(mapped, vec3<f32>(0.0));
     let kept = select(vec3<f32>(1.0), min(mapped / unmapped, vec3<f32>(1.0)), unmapped > vec3<f32>(1e-12));
-    return max(glossy, vec3<f32>(0.0)) * kept + weight.rgb * open * max(mapped - unmapped, vec3<f32>(0.0));
+    return max(glossy, vec3<f32>(0.0)) * kept + weight.weight * open * max(mapped - unmapped, vec3<f32>(0.0));
 }

@@ -4,7 +4,7 @@
 
 #define_import_path lightloom::sun
 
-#import lightloom::common::frame_tangent
+#import lightloom::common::{SpecularLobe, frame_tangent}
 #import lightloom::normal_map::{NDF_SINGLE_NORMAL, SurfaceNdf, ndf_mapped, ndf_direct_diffuse, ndf_widened_lobe}
 
 const MAX_SUN_DIRECTIONS: i32 = 32;
@@ -12,24 +12,24 @@ const SUN_MATERIALS: i32 = 8;
 const SUN_PI: f32 = 3.14159265358979;
 
 struct Sun {
-    // rgb: radiance x solid angle / direction count (irradiance at normal incidence per
-    // direction); w: direction count (0: no separate sun).
-    irradiance: vec4<f32>,
-    // x: normal offset against self-shadowing (world units); y: how many of the last directions
-    // lie evenly on the disc's rim (nodes/src/sun.rs `rim_directions`; 0: none); zw unused.
-    offset: vec4<f32>,
-    // xyz: the disc's axis; w: cos of its angular radius.
-    axis: vec4<f32>,
-    // xyz: unit vector towards the sun.
-    directions: array<vec4<f32>, MAX_SUN_DIRECTIONS>,
+    // Radiance x solid angle / direction count: irradiance at normal incidence per direction.
+    irradiance: vec3<f32>,
+    // 0: no separate sun.
+    direction_count: u32,
+    // Offset along the normal against self-shadowing (world units).
+    normal_offset: f32,
+    // How many of the last directions lie evenly on the disc's rim (nodes/src/sun.rs
+    // `rim_directions`; 0: none).
+    rim_directions: u32,
+    // The disc's axis, and the cosine of its angular radius.
+    axis: vec3<f32>,
+    cos_radius: f32,
+    // Unit vectors towards the sun.
+    directions: array<vec3<f32>, MAX_SUN_DIRECTIONS>,
     // World to each shadow map's clip space (orthographic, depth in [0, 1]).
     view_proj: array<mat4x4<f32>, MAX_SUN_DIRECTIONS>,
-    // Per material, its specular lobe (nodes/src/brdf.rs `Lobe`): x: model (0 none, 1 Phong,
-    // 2 Blinn-Phong, 3 GGX, 4 Ward); y: exponent or alpha along the tangent; z: f0; w: alpha
-    // along the bitangent.
-    lobes: array<vec4<f32>, SUN_MATERIALS>,
-    // Per material: the lobe's colour (rgb).
-    lobe_colours: array<vec4<f32>, SUN_MATERIALS>,
+    // Per material, its specular lobe.
+    lobes: array<SpecularLobe, SUN_MATERIALS>,
 };
 
 @group(3) @binding(0) var<uniform> sun: Sun;
@@ -60,43 +60,45 @@ fn sun_lobe(m: u32, n: vec3<f32>, tangent: vec3<f32>, wi: vec3<f32>, wo: vec3<f3
     return sun_lobe_of(sun.lobes[m], n, tangent, wi, wo);
 }
 
-// A lobe given as `Sun.lobes` encodes it.
-fn sun_lobe_of(lobe: vec4<f32>, n: vec3<f32>, tangent: vec3<f32>, wi: vec3<f32>, wo: vec3<f32>) -> f32 {
+// A lobe as `Sun.lobes` holds it.
+fn sun_lobe_of(lobe: SpecularLobe, n: vec3<f32>, tangent: vec3<f32>, wi: vec3<f32>, wo: vec3<f32>) -> f32 {
     let cos_i = dot(n, wi);
     let cos_o = dot(n, wo);
     if (cos_i <= 0.0 || cos_o <= 0.0) {
         return 0.0;
     }
-    let model = i32(lobe.x + 0.5);
-    if (model == 1) {
+    let model = lobe.model;
+    let f0 = lobe.reflectance;
+    let exponent = lobe.sharpness;
+    if (model == 1u) {
         let c = max(dot(wi, reflect(-wo, n)), 0.0);
-        return lobe.z * (lobe.y + 2.0) / (2.0 * SUN_PI) * pow(c, lobe.y);
+        return f0 * (exponent + 2.0) / (2.0 * SUN_PI) * pow(c, exponent);
     }
     let h_world = normalize(wi + wo);
-    if (model == 2) {
-        return lobe.z * (lobe.y + 8.0) / (8.0 * SUN_PI) * pow(max(dot(n, h_world), 0.0), lobe.y);
+    if (model == 2u) {
+        return f0 * (exponent + 8.0) / (8.0 * SUN_PI) * pow(max(dot(n, h_world), 0.0), exponent);
     }
     // The local frame [t, n x t, n] (as the reference and the wavelet tables take it).
     let t = frame_tangent(n, tangent);
     let b = cross(n, t);
     let h = vec3<f32>(dot(h_world, t), dot(h_world, b), dot(h_world, n));
-    let ax = lobe.y;
-    let ay = lobe.w;
+    let ax = lobe.sharpness;
+    let ay = lobe.alpha_y;
     if (h.z <= 0.0) {
         return 0.0;
     }
-    if (model == 3) {
+    if (model == 3u) {
         let s = (h.x / ax) * (h.x / ax) + (h.y / ay) * (h.y / ay) + h.z * h.z;
         let d = 1.0 / (SUN_PI * ax * ay * s * s);
         let li = vec3<f32>(dot(wi, t), dot(wi, b), cos_i);
         let lo = vec3<f32>(dot(wo, t), dot(wo, b), cos_o);
         let g = 1.0 / (1.0 + sun_ggx_lambda(li, ax, ay) + sun_ggx_lambda(lo, ax, ay));
-        let f = lobe.z + (1.0 - lobe.z) * pow(1.0 - clamp(dot(wi, h_world), 0.0, 1.0), 5.0);
+        let f = f0 + (1.0 - f0) * pow(1.0 - clamp(dot(wi, h_world), 0.0, 1.0), 5.0);
         return f * d * g / (4.0 * cos_i * cos_o);
     }
-    if (model == 4) {
+    if (model == 4u) {
         let e = ((h.x / ax) * (h.x / ax) + (h.y / ay) * (h.y / ay)) / (h.z * h.z);
-        return lobe.z * exp(-e) / (4.0 * SUN_PI * ax * ay * sqrt(cos_i * cos_o));
+        return f0 * exp(-e) / (4.0 * SUN_PI * ax * ay * sqrt(cos_i * cos_o));
     }
     return 0.0;
 }
@@ -104,16 +106,15 @@ fn sun_lobe_of(lobe: vec4<f32>, n: vec3<f32>, tangent: vec3<f32>, wi: vec3<f32>,
 // The angular variance (per axis, about the normal) of the half vectors a lobe reflects through:
 // 1/s for Blinn-Phong's exponent s, a quarter of Phong's mirror-space 1/s, α²/2 for GGX and
 // Ward (along the sharper axis).
-fn sun_lobe_variance(lobe: vec4<f32>) -> f32 {
-    let model = i32(lobe.x + 0.5);
-    if (model == 1) {
-        return 0.25 / max(lobe.y, 1e-6);
+fn sun_lobe_variance(lobe: SpecularLobe) -> f32 {
+    if (lobe.model == 1u) {
+        return 0.25 / max(lobe.sharpness, 1e-6);
     }
-    if (model == 2) {
-        return 1.0 / max(lobe.y, 1e-6);
+    if (lobe.model == 2u) {
+        return 1.0 / max(lobe.sharpness, 1e-6);
     }
-    if (model == 3 || model == 4) {
-        let a = min(lobe.y, lobe.w);
+    if (lobe.model == 3u || lobe.model == 4u) {
+        let a = min(lobe.sharpness, lobe.alpha_y);
         return 0.5 * a * a;
     }
     return 0.0;
@@ -125,7 +126,7 @@ fn sun_lobe_variance(lobe: vec4<f32>) -> f32 {
 fn sun_ndf_lobe(ndf: ptr<function, SurfaceNdf>, j: i32, m: u32, kappa: f32, tangent: vec3<f32>, d: vec3<f32>, wo: vec3<f32>) -> f32 {
     let mu = (*ndf).lobes[j].xyz;
     let widened = ndf_widened_lobe(sun.lobes[m], kappa);
-    return (*ndf).lobes[j].w * widened[1].w * sun_lobe_of(widened[0], mu, tangent, d, wo) * max(dot(mu, d), 0.0);
+    return (*ndf).lobes[j].w * widened.factor * sun_lobe_of(widened.lobe, mu, tangent, d, wo) * max(dot(mu, d), 0.0);
 }
 
 // Light reflected towards `wo` (unit, to the viewer) at `p` (normal `n`, tangent `tangent`)
@@ -134,19 +135,19 @@ fn sun_ndf_lobe(ndf: ptr<function, SurfaceNdf>, j: i32, m: u32, kappa: f32, tang
 // Through a normal map (`ndf`, normal_map.wgsl), Lambert over the NDF and the lobe per lobe of
 // normals, widened.
 fn sun_direct(p: vec3<f32>, n: vec3<f32>, tangent: vec3<f32>, wo: vec3<f32>, kd: vec3<f32>, m: u32, ndf: ptr<function, SurfaceNdf>) -> vec3<f32> {
-    let count = i32(sun.irradiance.w);
+    let count = i32(sun.direction_count);
     if (count == 0) {
         return vec3<f32>(0.0);
     }
-    let shifted = vec4<f32>(p + n * sun.offset.x, 1.0);
-    let colour = sun.lobe_colours[m].rgb;
+    let shifted = vec4<f32>(p + n * sun.normal_offset, 1.0);
+    let colour = sun.lobes[m].colour;
     // Phong, Blinn-Phong and Ward are weighted by f0; GGX's Schlick term is not zero at f0 = 0.
-    let model = i32(sun.lobes[m].x + 0.5);
-    let glossy = model > 0 && (model == 3 || sun.lobes[m].z > 0.0) && max(colour.r, max(colour.g, colour.b)) > 0.0;
+    let model = sun.lobes[m].model;
+    let glossy = model > 0u && (model == 3u || sun.lobes[m].reflectance > 0.0) && max(colour.r, max(colour.g, colour.b)) > 0.0;
     // The rim directions first: where they all agree (all wholly lit or all wholly shadowed),
     // the disc does up to the segment between two of them, and the other maps need not be read
     // (outside penumbrae, nearly everywhere). Without rim directions every direction is read.
-    var probes = i32(sun.offset.y);
+    var probes = i32(sun.rim_directions);
     if (probes == 0) {
         probes = count;
     }
@@ -160,15 +161,15 @@ fn sun_direct(p: vec3<f32>, n: vec3<f32>, tangent: vec3<f32>, wo: vec3<f32>, kd:
     let lit = probe_sum == f32(probes);
     // A wholly lit disc wholly above the horizon: the cap's mean cosine is exact,
     // (n . axis)(1 + cos r)/2, and only a lobe needs the directions.
-    let cos_axis = dot(n, sun.axis.xyz);
-    let cos_r = sun.axis.w;
+    let cos_axis = dot(n, sun.axis);
+    let cos_r = sun.cos_radius;
     let above = cos_axis * cos_axis >= 1.0 - cos_r * cos_r && cos_axis > 0.0;
     if (lit && above && !glossy) {
         var cosine = cos_axis;
         if (ndf_mapped(ndf)) {
-            cosine = ndf_direct_diffuse(ndf, sun.axis.xyz);
+            cosine = ndf_direct_diffuse(ndf, sun.axis);
         }
-        return kd * (cosine * (1.0 + cos_r) * 0.5 * f32(count)) * sun.irradiance.rgb;
+        return kd * (cosine * (1.0 + cos_r) * 0.5 * f32(count)) * sun.irradiance;
     }
     // Through a normal map, wholly lit: the diffuse light by the cap's closed form, and each lobe
     // of normals whose highlight spreads well past the disc (its normals' variance 1/κ and the
@@ -183,22 +184,22 @@ fn sun_direct(p: vec3<f32>, n: vec3<f32>, tangent: vec3<f32>, wo: vec3<f32>, kd:
             let kappa = (*ndf).kappas[j];
             if (kappa < NDF_SINGLE_NORMAL && 1.0 / kappa + own > r2 * 0.25) {
                 let wide = 1.0 / (1.0 / kappa + r2 / 16.0);
-                lobes = lobes + f32(count) * sun_ndf_lobe(ndf, j, m, wide, tangent, sun.axis.xyz, wo);
+                lobes = lobes + f32(count) * sun_ndf_lobe(ndf, j, m, wide, tangent, sun.axis, wo);
             } else {
                 for (var k = 0; k < count; k = k + 1) {
-                    let d = sun.directions[k].xyz;
+                    let d = sun.directions[k];
                     if (dot(n, d) > 0.0) {
                         lobes = lobes + sun_ndf_lobe(ndf, j, m, kappa, tangent, d, wo);
                     }
                 }
             }
         }
-        let diffuse = kd * (ndf_direct_diffuse(ndf, sun.axis.xyz) * (1.0 + cos_r) * 0.5 * f32(count));
-        return (diffuse + colour * lobes) * sun.irradiance.rgb;
+        let diffuse = kd * (ndf_direct_diffuse(ndf, sun.axis) * (1.0 + cos_r) * 0.5 * f32(count));
+        return (diffuse + colour * lobes) * sun.irradiance;
     }
     var sum = vec3<f32>(0.0);
     for (var k = 0; k < count; k = k + 1) {
-        let d = sun.directions[k].xyz;
+        let d = sun.directions[k];
         let cos_i = dot(n, d);
         if (cos_i <= 0.0) {
             continue;
@@ -222,5 +223,5 @@ fn sun_direct(p: vec3<f32>, n: vec3<f32>, tangent: vec3<f32>, wo: vec3<f32>, kd:
         }
         sum = sum + visible * reflected;
     }
-    return sum * sun.irradiance.rgb;
+    return sum * sun.irradiance;
 }

@@ -7,6 +7,25 @@ use std::f64::consts::PI;
 
 // Stage value types this module owns (see `engine::value`).
 crate::stage_type!(MeshSet, "meshes", |v| v.approx_bytes());
+crate::stage_type!(VertexFrames, "vertex tangent frames", |v| v.tangents.len() * 16);
+
+/// Per vertex of every mesh of a set, in order: the normal-map frame's unit tangent
+/// ([`vertex_tangents`]) and, as `w`, the bitangent's sign ([`vertex_bitangent_signs`]).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct VertexFrames {
+    pub tangents: Vec<[f32; 4]>,
+}
+
+impl VertexFrames {
+    pub fn of(set: &MeshSet) -> Self {
+        let mut tangents = Vec::with_capacity(set.meshes.iter().map(|m| m.positions.len()).sum());
+        for mesh in &set.meshes {
+            let signs = vertex_bitangent_signs(mesh);
+            tangents.extend(vertex_tangents(mesh).iter().zip(signs).map(|([x, y, z], w)| [*x, *y, *z, w]));
+        }
+        Self { tangents }
+    }
+}
 
 /// An indexed triangle mesh in world space (counter-clockwise front faces).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

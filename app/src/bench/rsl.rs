@@ -283,7 +283,8 @@ fn rsl_frame(
     sat: lightloom_nodes::rsl::brdf_sat::BrdfSat,
 ) -> Result<FrameInputs> {
     let keyed = |key: u128, value: StageValue| Keyed { key, value: Arc::new(value) };
-    let geometry = Geometry { meshes: keyed(1, StageValue::new(receiver.clone())), mesh_materials: vec![0, 0] };
+    let geometry =
+        Geometry::of_meshes(keyed(1, StageValue::new(receiver.clone())), vec![0, 0]).map_err(|e| anyhow!(e))?;
     let surfaces = lightloom_nodes::frame::RslSurfaces::new(
         lights,
         2,
@@ -293,7 +294,7 @@ fn rsl_frame(
         &geometry,
     )
     .map_err(|e| anyhow!(e))?;
-    let materials = vec![FrameMaterial { node: "bench".into(), material, normal: None }];
+    let materials = vec![FrameMaterial::new("bench", material, None)];
     let frame = FrameInputs {
         geometry,
         ray_scene: None,

@@ -50,8 +50,9 @@ pub(super) fn synthetic_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()
         f0: 0.3,
         ..Default::default()
     };
-    let materials = vec![FrameMaterial { node: "bench".into(), material: material.clone(), normal: None }];
-    let geometry = Geometry { meshes: keyed(1, StageValue::new(meshes.clone())), mesh_materials: vec![0] };
+    let materials = vec![FrameMaterial::new("bench", material.clone(), None)];
+    let geometry =
+        Geometry::of_meshes(keyed(1, StageValue::new(meshes.clone())), vec![0]).map_err(|e| anyhow::anyhow!(e))?;
     let frame_with = |mode: Mode, surfaces: Surfaces| FrameInputs {
         geometry: geometry.clone(),
         ray_scene: None,

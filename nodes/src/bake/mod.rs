@@ -63,7 +63,7 @@ pub fn bake_request(graph: &Graph, output: &str) -> Request {
         Mode::ShPrt | Mode::ShAdaptive => stages.push(StageRef::new(output, "bake_texel_blocked")),
         Mode::WaveletVertex | Mode::WaveletPixel => stages.push(StageRef::new(
             output,
-            if crate::kinds::output::separates_sun(graph, output) {
+            if crate::kinds::output::separates_sun(graph, output, mode) {
                 "bake_texel_residual_products"
             } else {
                 "bake_texel_products"

@@ -303,47 +303,58 @@ pub enum PortType {
 }
 
 impl PortType {
-    /// The stages every producer of this type provides (what consumers may read).
-    pub fn provided_stages(self) -> &'static [&'static str] {
-        match self {
-            PortType::Environment => &[
-                "source",
-                "radiance",
-                "radiance_scale",
-                "rotation",
-                "rotated_radiance",
-                "sh",
-                "haar",
-                "sun",
-                "residual_sh",
-            ],
-            PortType::Material => &[
-                "material",
-                "sh_lobe",
-                "local_table",
-                "rsl_tables",
-                "normal_map",
-                "ndf_moments",
-                "vmf_lobes",
-                "normal_settings",
-            ],
-            PortType::Scene => &[
-                "geometry",
-                "receivers",
-                "adjacency",
-                "ray_scene",
-                "texel_receivers",
-                "transport_sh",
-                "transport_local",
-                "transport_texels",
-                "rsl_self_visibility",
-                "rsl_occluders",
-            ],
-            PortType::Medium => &["medium", "f_tables", "g_tables"],
-            PortType::Lights => &["lights"],
-            PortType::AreaLight => &["texture", "source", "placement", "face", "light"],
-            PortType::Blockers => &["spheres"],
-            PortType::SquareLights => &["square_lights", "turned_lights", "world_lights"],
+    /// The stages a kind offering this type must provide: every stage some kind in `kinds`
+    /// reads through an input of this type. The contract is what consumers read, so it grows
+    /// with them; [`check_port_contracts`] holds every producer to it.
+    pub fn read_stages(self, kinds: &[NodeKindSpec]) -> std::collections::BTreeSet<&'static str> {
+        let mut read = std::collections::BTreeSet::new();
+        for kind in kinds {
+            for stage in &kind.stages {
+                for (port, upstream) in stage.inputs {
+                    if kind.input(port).is_some_and(|p| p.ty == self) {
+                        read.insert(*upstream);
+                    }
+                }
+            }
+        }
+        read
+    }
+}
+
+/// Every kind offering an output of some type provides every stage a kind reads through an input
+/// of that type ([`PortType::read_stages`]); the first gap, named, otherwise.
+pub fn check_port_contracts(kinds: &[NodeKindSpec]) -> Result<(), String> {
+    for kind in kinds {
+        for out in &kind.outputs {
+            for stage in out.ty.read_stages(kinds) {
+                if kind.stage(stage).is_none() {
+                    return Err(format!(
+                        "{} offers {} at `{}` but has no stage {stage}, which its readers read",
+                        kind.name, out.ty, out.name
+                    ));
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Parameters and stages a technique adds to every kind whose outputs offer `on`: the scene or
+/// material work it needs, kept beside the technique instead of in those kinds (the registry
+/// applies them).
+#[derive(Clone, Debug)]
+pub struct StageExtension {
+    pub on: PortType,
+    pub params: Vec<ParamSpec>,
+    pub stages: Vec<StageSpec>,
+}
+
+impl StageExtension {
+    /// Adds the parameters and stages to each kind of `kinds` that offers [`Self::on`].
+    pub fn apply(&self, kinds: &mut [NodeKindSpec]) {
+        for kind in kinds.iter_mut().filter(|k| k.outputs.iter().any(|o| o.ty == self.on)) {
+            kind.params.extend(self.params.iter().cloned());
+            kind.stages.extend(self.stages.iter().cloned());
         }
     }
 }

@@ -1,6 +1,28 @@
 //! Point lights and the participating medium in a frame (Sun 2008 ch. 3).
 
+use super::gather::{Gather, MaterialParts};
+use super::modes::Linked;
+use super::parts::{Assembled, FramePart};
 use super::*;
+
+/// The participating medium linked to the Output (read after the environment, whose light it
+/// carries through the fog).
+pub(super) struct Medium;
+
+impl FramePart for Medium {
+    fn port(&self) -> &'static str {
+        "medium"
+    }
+
+    fn stages(&self, node: &str, _: &Linked) -> Vec<StageRef> {
+        ["medium", "f_tables", "g_tables"].map(|s| StageRef::new(node, s)).to_vec()
+    }
+
+    fn gather(&self, g: &Gather, node: &str, _: &MaterialParts, frame: &mut Assembled) -> Result<(), String> {
+        frame.fog = Some(fog_frame(g, node, frame.sh.as_ref())?);
+        Ok(())
+    }
+}
 
 /// Point lights and the participating medium (Sun 2008 ch. 3), shaded with every surface.
 #[derive(Clone, Debug, Default)]
@@ -45,12 +67,8 @@ pub struct FogFrame {
 }
 
 /// The medium linked to the Output as one frame's [`FogFrame`].
-pub(super) fn fog_frame(
-    keyed: &dyn Fn(&str, &str) -> Result<Keyed, String>,
-    node: &str,
-    sh: Option<&Keyed>,
-    mode: Mode,
-) -> Result<FogFrame, String> {
+fn fog_frame(g: &Gather, node: &str, sh: Option<&Keyed>) -> Result<FogFrame, String> {
+    let keyed = |node: &str, stage: &str| g.keyed(node, stage);
     let m: crate::kinds::fog::Medium = typed(&keyed(node, "medium")?, "medium")?;
     let phase = m.phase_function().ok_or_else(|| format!("{node}: the phase polynomial is invalid"))?;
     let f_tables = keyed(node, "f_tables")?;
@@ -74,6 +92,6 @@ pub(super) fn fog_frame(
         f_tables,
         g_tables: keyed(node, "g_tables")?,
         environment,
-        scatter_onto_surfaces: mode.is_wavelet(),
+        scatter_onto_surfaces: g.mode.is_wavelet(),
     })
 }

@@ -8,7 +8,7 @@ use crate::brdf::Material;
 use crate::engine::spec::ParamValue;
 use crate::engine::{Evaluation, Graph, Request, StageRef};
 use crate::engine::{Key, StageValue};
-use crate::kinds::output::{Mode, OutputSettings, View, separates_sun};
+use crate::kinds::output::{Mode, OutputSettings, View, output_mode_and_view, separates_sun};
 use crate::light::PointLight;
 use crate::sh::ShRgb;
 use crate::single_scattering::FoggedEnvironment;
@@ -76,6 +76,9 @@ pub struct SunFrame {
     /// Unit vectors towards the disc, spreading it evenly: each stands for
     /// `solid_angle / directions.len()` of it.
     pub directions: Vec<[f32; 3]>,
+    /// How many of the last directions lie evenly on the disc's rim
+    /// ([`crate::sun::rim_directions`]).
+    pub rim_directions: usize,
 }
 
 impl SunFrame {
@@ -86,6 +89,7 @@ impl SunFrame {
             axis: glam::DVec3::from(sun.direction).as_vec3().to_array(),
             cos_radius: sun.radius.cos(),
             directions: sun.disc_directions(crate::sun::DISC_SAMPLES).iter().map(|d| d.as_vec3().to_array()).collect(),
+            rim_directions: crate::sun::rim_directions(crate::sun::DISC_SAMPLES),
         }
     }
 }
@@ -95,11 +99,22 @@ impl SunFrame {
 pub struct Geometry {
     /// A [`crate::mesh::MeshSet`].
     pub meshes: Keyed,
+    /// Its [`crate::mesh::VertexFrames`].
+    pub frames: Keyed,
     /// Per mesh: its index in the frame's materials.
     pub mesh_materials: Vec<u32>,
 }
 
 impl Geometry {
+    /// The geometry of a [`crate::mesh::MeshSet`] outside an evaluation (benchmarks and
+    /// tests), its tangent frames computed here and keyed by the meshes' key.
+    pub fn of_meshes(meshes: Keyed, mesh_materials: Vec<u32>) -> Result<Self, String> {
+        let set = meshes.value.expect::<crate::mesh::MeshSet>().map_err(|e| e.to_string())?;
+        let frames = crate::mesh::VertexFrames::of(set);
+        let frames = Keyed { key: meshes.key.rotate_left(1) ^ 0x7a6e, value: Arc::new(StageValue::new(frames)) };
+        Ok(Self { meshes, frames, mesh_materials })
+    }
+
     pub fn vertex_count(&self) -> usize {
         self.meshes.value.get::<crate::mesh::MeshSet>().map_or(0, |m| m.meshes.iter().map(|m| m.positions.len()).sum())
     }
@@ -121,14 +136,35 @@ pub struct FrameMaterial {
     pub material: Material,
     /// Its normal map, once loaded.
     pub normal: Option<NormalDetail>,
+    /// Its specular lobe, as the sun is shaded with it per pixel.
+    pub lobe: SpecularLobe,
+}
+
+impl FrameMaterial {
+    pub fn new(node: impl Into<String>, material: Material, normal: Option<NormalDetail>) -> Self {
+        let brdf = crate::brdf::Brdf::from_material(&material);
+        let lobe = SpecularLobe { lobe: brdf.lobe, f0: brdf.f0, colour: brdf.specular.to_array() };
+        Self { node: node.into(), material, normal, lobe }
+    }
+}
+
+/// A material's specular lobe ([`crate::brdf::Brdf`]'s): its distribution, Fresnel at normal
+/// incidence, and colour.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SpecularLobe {
+    pub lobe: crate::brdf::Lobe,
+    pub f0: f64,
+    pub colour: [f64; 3],
 }
 
 mod area_lights;
+mod environment;
 mod gather;
 mod lobe_limits;
 mod medium;
 mod modes;
 mod normal_maps;
+mod parts;
 mod prt;
 mod request;
 mod rsl;

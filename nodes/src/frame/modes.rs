@@ -7,10 +7,12 @@
 use super::gather::{Gather, MaterialParts};
 use super::*;
 
-/// The nodes linked to an Output that the modes read, and whether its environment's sun is
-/// lit apart from the transport.
+/// The Output's mode and view (its parameters parsed once) and the nodes linked to it that the
+/// modes read, and whether its environment's sun is lit apart from the transport.
 pub(super) struct Linked<'a> {
     pub output: &'a str,
+    pub mode: Mode,
+    pub view: View,
     pub scene: Option<String>,
     pub environment: Option<String>,
     pub square_lights: Option<String>,
@@ -20,12 +22,15 @@ pub(super) struct Linked<'a> {
 impl<'a> Linked<'a> {
     pub fn new(graph: &Graph, output: &'a str) -> Self {
         let upstream = |port: &str| graph.upstream(output, port).map(|n| n.id.clone());
+        let (mode, view) = graph.node(output).map_or((Mode::ShIrradiance, View::Approximation), output_mode_and_view);
         Self {
             output,
+            mode,
+            view,
             scene: upstream("scene"),
             environment: upstream("environment"),
             square_lights: upstream("square_lights"),
-            separate_sun: separates_sun(graph, output),
+            separate_sun: separates_sun(graph, output, mode),
         }
     }
 }

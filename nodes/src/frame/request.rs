@@ -5,32 +5,26 @@ use super::*;
 /// The stages a frame of `mode` reads from the Output node `output` and what feeds it: what
 /// every mode reads, then what the mode's part asks for ([`ModeFrame::stages`]).
 pub fn mode_stages(graph: &Graph, output: &str, mode: Mode) -> Vec<StageRef> {
+    stages_of(graph, &Linked::new(graph, output), mode)
+}
+
+/// [`mode_stages`] of the Output `linked` describes: its settings, each linked input's part
+/// ([`parts::FramePart::stages`]), each material and what the mode reads of it, then the mode's
+/// own stages.
+pub(super) fn stages_of(graph: &Graph, linked: &Linked, mode: Mode) -> Vec<StageRef> {
     let frame = modes::of(mode);
-    let linked = Linked::new(graph, output);
+    let output = linked.output;
     let mut stages = vec![StageRef::new(output, "settings")];
-    if let Some(scene) = &linked.scene {
-        stages.push(StageRef::new(scene, "geometry"));
-    }
-    if let Some(env) = &linked.environment {
-        stages.push(StageRef::new(env, "sh"));
-        stages.push(StageRef::new(env, "rotated_radiance"));
+    for part in parts::PARTS {
+        if let Some(node) = graph.upstream(output, part.port()) {
+            stages.extend(part.stages(&node.id, linked));
+        }
     }
     for material in graph.upstream_all(output, "material") {
         stages.push(StageRef::new(&material.id, "material"));
         stages.extend(frame.material_stages().iter().map(|s| StageRef::new(&material.id, *s)));
     }
-    if let Some(medium) = graph.upstream(output, "medium") {
-        stages.extend(["medium", "f_tables", "g_tables"].map(|s| StageRef::new(&medium.id, s)));
-    }
-    if let Some(lights) = graph.upstream(output, "lights") {
-        stages.push(StageRef::new(&lights.id, "lights"));
-    }
-    if linked.separate_sun
-        && let Some(env) = &linked.environment
-    {
-        stages.extend(["sun", "residual_sh", "rotation"].map(|s| StageRef::new(env, s)));
-    }
-    stages.extend(frame.stages(&linked));
+    stages.extend(frame.stages(linked));
     stages
 }
 
@@ -54,10 +48,12 @@ pub fn frame_request(graph: &Graph, output: &str, picking: bool) -> Request {
 /// gets an unshadowed tier, so a frame is ready before its transport is. The reference and
 /// error views (and `picking`) add the scene's BVH.
 pub fn frame_request_for(graph: &Graph, output: &str, needs: FrameNeeds) -> Request {
-    let picking = needs.picking;
-    let Some(node) = graph.node(output) else { return Request::default() };
-    let (mode, view) = crate::kinds::output::output_mode_and_view(node);
-    let mut first = mode_stages(graph, output, Mode::ShIrradiance);
+    if graph.node(output).is_none() {
+        return Request::default();
+    }
+    let linked = Linked::new(graph, output);
+    let (mode, view) = (linked.mode, linked.view);
+    let mut first = stages_of(graph, &linked, Mode::ShIrradiance);
     // Normal maps load with the first frame; their vMF lobes (seconds to fit) come last.
     let (normal_maps, normal_lobes): (Vec<StageRef>, Vec<StageRef>) = graph
         .upstream_all(output, "material")
@@ -65,30 +61,26 @@ pub fn frame_request_for(graph: &Graph, output: &str, needs: FrameNeeds) -> Requ
         .flat_map(|m| normal_map_stages(graph, &m.id))
         .partition(|s| s.stage != "vmf_lobes");
     first.extend(normal_maps);
-    if (picking || view != View::Approximation)
-        && let Some(scene) = graph.upstream(output, "scene")
-    {
-        first.push(StageRef::new(&scene.id, "ray_scene"));
-        // The reference traces the blocker spheres whatever the mode.
-        if let Some(blockers) = graph.upstream(output, "blockers") {
-            first.push(StageRef::new(&blockers.id, "spheres"));
+    // The reference traces the scene (and the blocker spheres) whatever the mode.
+    if (needs.picking || view != View::Approximation) && linked.scene.is_some() {
+        for part in parts::PARTS {
+            if let Some(node) = graph.upstream(output, part.port()) {
+                first.extend(part.reference_stages(&node.id));
+            }
         }
     }
     let request = if mode == Mode::ShAdaptive {
         // The PSNR against the full product comes after the frame.
         Request::new(format!("output `{output}`: unshadowed preview"), first)
-            .then(format!("output `{output}`: mode {mode}"), mode_stages(graph, output, mode))
+            .then(format!("output `{output}`: mode {mode}"), stages_of(graph, &linked, mode))
             .then(
                 format!("output `{output}`: error of mode {mode}"),
-                vec![StageRef::new(
-                    output,
-                    crate::kinds::output::adaptive::stage_names(separates_sun(graph, output)).1,
-                )],
+                vec![StageRef::new(output, crate::kinds::output::adaptive::stage_names(linked.separate_sun).1)],
             )
     } else if mode.is_shadowed() {
-        let mut stages = mode_stages(graph, output, mode);
+        let mut stages = stages_of(graph, &linked, mode);
         if needs.relight_on_cpu {
-            stages.extend(modes::of(mode).cpu_relight_stages(&Linked::new(graph, output)));
+            stages.extend(modes::of(mode).cpu_relight_stages(&linked));
         }
         Request::new(format!("output `{output}`: unshadowed preview"), first)
             .then(format!("output `{output}`: mode {mode}"), stages)

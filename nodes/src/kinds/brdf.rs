@@ -100,15 +100,6 @@ pub fn spec() -> NodeKindSpec {
                 persist: None,
                 compute: local_table,
             },
-            StageSpec {
-                name: "rsl_tables",
-                version: 1,
-                params: &[],
-                stages: &["material"],
-                inputs: &[],
-                persist: None,
-                compute: rsl_tables,
-            },
         ]
         .into_iter()
         .chain(super::brdf_normal_map::stages())
@@ -147,14 +138,6 @@ fn local_table(ctx: &StageContext) -> Result<StageValue, StageError> {
     let grid = crate::triple_product::CellGrid::for_coefficients(320).map_err(StageError::Internal)?;
     let brdf = crate::brdf::Brdf::from_material(m);
     Ok(StageValue::new(crate::triple_product::tabulate_brdf(&brdf, grid, ctx.cancel_token())?))
-}
-
-/// Summed-area tables of `ρ cos θ` over the equal-area plane for the `rsl` mode (Xu et al.
-/// §4.2): 3D for isotropic lobes, 4D for anisotropic ones. Rebuilt on a BRDF edit only.
-fn rsl_tables(ctx: &StageContext) -> Result<StageValue, StageError> {
-    let m = ctx.stage::<Material>("material")?;
-    let brdf = crate::brdf::Brdf::from_material(m);
-    Ok(StageValue::new(crate::rsl::brdf_sat::BrdfSat::build(&brdf, ctx.cancel_token())?))
 }
 
 fn material(ctx: &StageContext) -> Result<StageValue, StageError> {

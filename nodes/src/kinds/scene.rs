@@ -173,14 +173,6 @@ pub fn spec() -> NodeKindSpec {
                 doc: "Texels per side of the visibility textures of objects that ask for one.",
             },
             ParamSpec {
-                name: "occluder_resolution",
-                label: "Occluder field resolution",
-                unit: "px",
-                kind: ParamKind::Choice { options: &["8", "16", "32"], default: "8", labels: &[] },
-                doc: "Square-light mode: cube texels per face on each of the 16 shells around every object where \
-                      its shadow on others is sampled (the paper uses 32; each step up is 4x the rays).",
-            },
-            ParamSpec {
                 name: "transport_bands",
                 label: "Transport SH bands",
                 unit: "",
@@ -252,6 +244,15 @@ pub fn spec() -> NodeKindSpec {
                 compute: adjacency,
             },
             StageSpec {
+                name: "vertex_frames",
+                version: 1,
+                params: &[],
+                stages: &["geometry"],
+                inputs: &[],
+                persist: None,
+                compute: vertex_frames,
+            },
+            StageSpec {
                 name: "ray_scene",
                 version: 1,
                 params: &[],
@@ -286,24 +287,6 @@ pub fn spec() -> NodeKindSpec {
                 inputs: &[],
                 persist: Some(Codec::of::<Vec<crate::transport::ObjectTransport>>()),
                 compute: transport_objects,
-            },
-            StageSpec {
-                name: "rsl_self_visibility",
-                version: 1,
-                params: &["objects", "tessellation"],
-                stages: &[],
-                inputs: &[],
-                persist: None,
-                compute: rsl_self_visibility,
-            },
-            StageSpec {
-                name: "rsl_occluders",
-                version: 1,
-                params: &["objects", "tessellation", "occluder_resolution"],
-                stages: &[],
-                inputs: &[],
-                persist: None,
-                compute: rsl_occluders,
             },
             StageSpec {
                 name: "transport_haar",
@@ -389,6 +372,11 @@ fn adjacency(ctx: &StageContext) -> Result<StageValue, StageError> {
     )))
 }
 
+/// Every vertex's normal-map tangent frame, as the viewport draws it.
+fn vertex_frames(ctx: &StageContext) -> Result<StageValue, StageError> {
+    Ok(StageValue::new(crate::mesh::VertexFrames::of(ctx.stage::<MeshSet>("geometry")?)))
+}
+
 fn ray_scene(ctx: &StageContext) -> Result<StageValue, StageError> {
     let meshes = ctx.stage::<crate::mesh::MeshSet>("geometry")?;
     Ok(StageValue::new(RayScene::build(meshes)))
@@ -459,79 +447,11 @@ fn object_shape_key(ctx: &StageContext, object: &SceneObject, suffix: &str) -> R
     Ok(bytes)
 }
 
-/// Per-object self-visibility distance tables for the `rsl` mode (Xu et al. §4.3.1, Eq. 10),
-/// in each object's object space and memoised on its shape: moving, turning or recolouring an
-/// object casts no ray (the report counts the memo hits).
-fn rsl_self_visibility(ctx: &StageContext) -> Result<StageValue, StageError> {
-    let ParamValue::Objects(objects) = ctx.value("objects")? else {
-        return Err(StageError::Internal("objects".into()));
-    };
-    let size = crate::rsl::vdt::VDT_SIZE;
-    let tables = per_object_memo(ctx, objects, &format!("svdf v1 {size}"), |object, meshes, progress| {
-        let scene = RayScene::build(meshes);
-        let receivers = Receivers::from_meshes(meshes);
-        check_ray_budget(receivers.len(), size * size, "tessellation")?;
-        let bytes = (receivers.len() * size * size) as u64;
-        if bytes > crate::limits::MAX_RSL_TABLE_BYTES {
-            return Err(StageError::Failed(format!(
-                "object `{}`: its self-visibility tables would take {} MiB ({} vertices × {} KiB); the limit is {} \
-                 MiB: lower tessellation",
-                object.name,
-                bytes >> 20,
-                receivers.len(),
-                size * size / 1024,
-                crate::limits::MAX_RSL_TABLE_BYTES >> 20
-            )));
-        }
-        crate::rsl::vdt::Svdf::compute(&scene, &receivers, size, ctx.cancel_token(), progress)
-    })?;
-    let out: Vec<_> = objects
-        .iter()
-        .zip(tables)
-        .map(|(object, svdf)| crate::rsl::vdt::ObjectSvdf {
-            name: object.name.clone(),
-            world_from_object: object.transform().to_cols_array(),
-            svdf,
-        })
-        .collect();
-    Ok(StageValue::new(out))
-}
-
-/// Per-object occluder fields for the `rsl` mode (Xu et al. §4.3.2, Eq. 11): how each object
-/// shadows the others, in its object space and memoised on its shape, so moves cast no ray.
-fn rsl_occluders(ctx: &StageContext) -> Result<StageValue, StageError> {
-    let ParamValue::Objects(objects) = ctx.value("objects")? else {
-        return Err(StageError::Internal("objects".into()));
-    };
-    let face: usize =
-        ctx.choice("occluder_resolution")?.parse().map_err(|_| StageError::Internal("resolution".into()))?;
-    let table = crate::rsl::vdt::VDT_SIZE;
-    // Alone, an object shadows nothing else.
-    if objects.len() < 2 {
-        return Ok(StageValue::new(Vec::<crate::rsl::ovdf::ObjectOvdf>::new()));
-    }
-    let fields = per_object_memo(ctx, objects, &format!("ovdf v1 {face} {table}"), |_, meshes, progress| {
-        check_ray_budget(crate::rsl::ovdf::SHELLS * 6 * face * face, table * table, "occluder_resolution")?;
-        let bounds = crate::rsl::ovdf::bounding_sphere(meshes);
-        crate::rsl::ovdf::Ovdf::compute(&RayScene::build(meshes), bounds, face, table, ctx.cancel_token(), progress)
-    })?;
-    let out: Vec<_> = objects
-        .iter()
-        .zip(fields)
-        .map(|(object, ovdf)| crate::rsl::ovdf::ObjectOvdf {
-            name: object.name.clone(),
-            world_from_object: object.transform().to_cols_array(),
-            ovdf,
-        })
-        .collect();
-    Ok(StageValue::new(out))
-}
-
 /// Per object, a value computed from its object-space meshes and memoised on its shape, the
 /// tessellation and `suffix` (what else the value depends on), so moving, turning or
 /// recolouring an object recomputes nothing (the report counts the memo hits). Progress spans
 /// the objects.
-fn per_object_memo<T: crate::engine::Persisted + Clone>(
+pub(super) fn per_object_memo<T: crate::engine::Persisted + Clone>(
     ctx: &StageContext,
     objects: &[SceneObject],
     suffix: &str,

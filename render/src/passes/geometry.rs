@@ -37,24 +37,31 @@ impl GeometryBuffers {
     /// Re-uploads `geometry` into `slot` when its meshes or material assignment changed.
     pub fn prepare(slot: &mut Option<Self>, gpu: &GpuContext, geometry: &Geometry) -> Result<(), RenderError> {
         let assignment = geometry.mesh_materials.iter().fold(0u128, |h, m| h.rotate_left(3) ^ (*m as u128 + 1));
-        let key = geometry.meshes.key ^ assignment.rotate_left(17);
+        let key = geometry.meshes.key ^ assignment.rotate_left(17) ^ geometry.frames.key.rotate_left(41);
         if slot.as_ref().is_some_and(|m| m.key == key) {
             return Ok(());
         }
         let set = stage_value::<lightloom_nodes::mesh::MeshSet>(&geometry.meshes)?;
+        let frames = &stage_value::<lightloom_nodes::mesh::VertexFrames>(&geometry.frames)?.tangents;
+        let vertex_count: usize = set.meshes.iter().map(|m| m.positions.len()).sum();
+        if frames.len() != vertex_count {
+            return Err(RenderError::Invalid(format!(
+                "the scene's tangent frames cover {} of its {vertex_count} vertices",
+                frames.len()
+            )));
+        }
+        let mut frames = frames.iter();
         let mut vertices = Vec::new();
         let mut indices = Vec::new();
         for (m, mesh) in set.meshes.iter().enumerate() {
             let base = vertices.len() as u32;
-            let tangents = lightloom_nodes::mesh::vertex_tangents(mesh);
-            let signs = lightloom_nodes::mesh::vertex_bitangent_signs(mesh);
             let material = geometry.mesh_materials.get(m).copied().unwrap_or(0);
             for i in 0..mesh.positions.len() {
                 vertices.push(Vertex {
                     position: mesh.positions[i],
                     normal: mesh.normals[i],
                     color: mesh.base_color,
-                    tangent: [tangents[i][0], tangents[i][1], tangents[i][2], signs[i]],
+                    tangent: *frames.next().expect("one frame per vertex, checked above"),
                     uv: mesh.uvs.get(i).copied().unwrap_or([0.0; 2]),
                     material,
                 });

@@ -2,8 +2,9 @@
 //! scene pass. They are shaded in the same fragment as each surface because they depend on its
 //! normal and material (eqs. 3.27–3.29), so this pass binds data and draws nothing itself.
 
-use super::{entry, pod_uniform_buffer, stage_value, upload_table_layers, upload_tables, vec4};
+use super::{entry, stage_value, uniform_buffer, upload_table_layers, upload_tables, write_uniform};
 use crate::{GpuContext, RenderError};
+use glam::{DVec3, Vec3};
 use lightloom_nodes::engine::Key;
 use lightloom_nodes::frame::{MAX_LIGHTS, MAX_MATERIALS, MediumFrame};
 use lightloom_nodes::light::{PROFILE_PHI, PROFILE_THETA};
@@ -11,29 +12,69 @@ use lightloom_nodes::single_scattering::{
     FTable, MAX_ENVIRONMENT_FOG_BANDS, PHONG_STEPS_PER_OCTAVE, PhongGTables, Table2,
 };
 
+/// `fog.wgsl` `FogLight`.
+#[derive(Clone, Copy, Default, encase::ShaderType)]
+pub(crate) struct FogLight {
+    pub(crate) position: Vec3,
+    /// 1 when it has an angular profile.
+    pub(crate) profiled: u32,
+    pub(crate) intensity: Vec3,
+    /// The profile's axis and its `φ = 0` direction.
+    pub(crate) axis: Vec3,
+    pub(crate) x_axis: Vec3,
+}
+
+/// `fog.wgsl` `SurfaceLobe`: a material's Phong-equivalent lobe (exponent 0: none).
+#[derive(Clone, Copy, Default, encase::ShaderType)]
+pub(crate) struct SurfaceLobe {
+    pub(crate) weight: Vec3,
+    pub(crate) exponent: f32,
+}
+
 /// `fog.wgsl` `Fog`.
-#[repr(C)]
-#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+#[derive(encase::ShaderType)]
 pub(crate) struct FogParams {
-    /// rgb: β per channel (1/m); w: 1 when a medium is linked.
-    pub(crate) beta: [f32; 4],
-    /// Phase polynomial weights `W_0..W_2`; w: how many.
-    pub(crate) phase: [f32; 4],
-    /// x: point light count; y: `G_n` ladder layers; z: layers per octave of exponent; w: 1
-    /// when the shader adds the scattered environment's irradiance to surfaces.
-    pub(crate) counts: [f32; 4],
-    /// rgb: the environment's attenuation `e^{-βD}`; w: bands of `environment_scattered`.
-    pub(crate) environment: [f32; 4],
+    /// β per channel (1/m).
+    pub(crate) beta: Vec3,
+    /// 1 when a medium is linked.
+    pub(crate) linked: u32,
+    /// Phase polynomial weights `W_0..W_2`, and how many there are.
+    pub(crate) phase: Vec3,
+    pub(crate) phase_terms: u32,
+    pub(crate) light_count: u32,
+    /// The `G_n` ladder's layers, and its layers per octave of exponent.
+    pub(crate) g_layers: u32,
+    pub(crate) g_layers_per_octave: f32,
+    /// 1 when the shader adds the scattered environment's irradiance to surfaces.
+    pub(crate) scatter_onto_surfaces: u32,
+    /// The environment's attenuation `e^{-βD}`, and the bands of `environment_scattered`.
+    pub(crate) attenuation: Vec3,
+    pub(crate) scattered_bands: u32,
     /// SH coefficients of the light fog scatters from the environment (eq. 3.35).
-    pub(crate) environment_scattered: [[f32; 4]; MAX_ENVIRONMENT_FOG_BANDS * MAX_ENVIRONMENT_FOG_BANDS],
-    /// Per material: Phong-equivalent lobe weight (rgb) and exponent (w; 0 = no lobe).
-    pub(crate) specular: [[f32; 4]; MAX_MATERIALS],
-    pub(crate) light_position: [[f32; 4]; MAX_LIGHTS],
-    pub(crate) light_intensity: [[f32; 4]; MAX_LIGHTS],
-    /// Per light: its profile's axis (xyz) and whether it has one (w: 1; 0 is isotropic).
-    pub(crate) light_axis: [[f32; 4]; MAX_LIGHTS],
-    /// Per light: its profile's `φ = 0` direction.
-    pub(crate) light_x: [[f32; 4]; MAX_LIGHTS],
+    pub(crate) environment_scattered: [Vec3; MAX_ENVIRONMENT_FOG_BANDS * MAX_ENVIRONMENT_FOG_BANDS],
+    /// Per material.
+    pub(crate) lobes: [SurfaceLobe; MAX_MATERIALS],
+    pub(crate) lights: [FogLight; MAX_LIGHTS],
+}
+
+impl Default for FogParams {
+    fn default() -> Self {
+        Self {
+            beta: Vec3::ZERO,
+            linked: 0,
+            phase: Vec3::ZERO,
+            phase_terms: 0,
+            light_count: 0,
+            g_layers: 0,
+            g_layers_per_octave: 0.0,
+            scatter_onto_surfaces: 0,
+            attenuation: Vec3::ONE,
+            scattered_bands: 0,
+            environment_scattered: [Vec3::ZERO; MAX_ENVIRONMENT_FOG_BANDS * MAX_ENVIRONMENT_FOG_BANDS],
+            lobes: [SurfaceLobe::default(); MAX_MATERIALS],
+            lights: [FogLight::default(); MAX_LIGHTS],
+        }
+    }
 }
 
 pub(crate) struct MediumPass {
@@ -59,7 +100,7 @@ impl MediumPass {
                 entry::texture(3, wgpu::TextureViewDimension::D2Array, false),
             ],
         });
-        let params = pod_uniform_buffer::<FogParams>(&gpu.device, "fog");
+        let params = uniform_buffer::<FogParams>(&gpu.device, "fog");
         let views = [
             upload_tables(gpu, "f-tables", 1, &[0.0]),
             upload_tables(gpu, "g-tables", 1, &[0.0]),
@@ -120,42 +161,37 @@ impl MediumPass {
 
     /// Uniforms every frame, tables when their stages change.
     pub fn prepare(&mut self, gpu: &GpuContext, medium: &MediumFrame) -> Result<(), RenderError> {
-        let mut params: FogParams = bytemuck::Zeroable::zeroed();
-        params.environment = [1.0, 1.0, 1.0, 0.0];
-        params.counts[0] = medium.lights.len().min(MAX_LIGHTS) as f32;
-        for (i, l) in medium.lights.iter().take(MAX_LIGHTS).enumerate() {
-            params.light_position[i] = vec4(l.position, 1.0);
-            params.light_intensity[i] = vec4(l.intensity, 0.0);
+        let v3 = |v: [f64; 3]| DVec3::from(v).as_vec3();
+        let mut params = FogParams { light_count: medium.lights.len().min(MAX_LIGHTS) as u32, ..FogParams::default() };
+        for (slot, l) in params.lights.iter_mut().zip(&medium.lights) {
+            *slot = FogLight { position: v3(l.position), intensity: v3(l.intensity), ..FogLight::default() };
             if let Some(p) = &l.profile {
-                params.light_axis[i] = vec4(p.frame.z_axis.to_array(), 1.0);
-                params.light_x[i] = vec4(p.frame.x_axis.to_array(), 0.0);
+                (slot.profiled, slot.axis, slot.x_axis) = (1, p.frame.z_axis.as_vec3(), p.frame.x_axis.as_vec3());
             }
         }
         self.upload_profiles(gpu, medium);
         let mut rebind = false;
-        for (slot, lobe) in params.specular.iter_mut().zip(&medium.surface_lobes) {
+        for (slot, lobe) in params.lobes.iter_mut().zip(&medium.surface_lobes) {
             if let Some((weight, exponent)) = lobe {
-                *slot = vec4(*weight, *exponent as f32);
+                *slot = SurfaceLobe { weight: v3(*weight), exponent: *exponent as f32 };
             }
         }
         if let Some(fog) = &medium.fog {
             if let Some(environment) = &fog.environment {
-                let bands = environment.fog.scattered.len() as f32;
-                params.environment = vec4(environment.fog.attenuation, bands);
+                params.attenuation = v3(environment.fog.attenuation);
+                params.scattered_bands = environment.fog.scattered.len() as u32;
                 for (dst, src) in params.environment_scattered.iter_mut().zip(&environment.scattered.coeffs) {
-                    *dst = vec4(*src, 0.0);
+                    *dst = v3(*src);
                 }
-                params.counts[3] = f32::from(u8::from(fog.scatter_onto_surfaces));
+                params.scatter_onto_surfaces = u32::from(fog.scatter_onto_surfaces);
             }
-            params.beta = vec4(fog.beta, 1.0);
-            for (k, w) in fog.phase.iter().take(3).enumerate() {
-                params.phase[k] = *w as f32;
-            }
-            params.phase[3] = fog.phase.len().min(3) as f32;
+            (params.beta, params.linked) = (v3(fog.beta), 1);
+            params.phase = Vec3::from_array(std::array::from_fn(|k| fog.phase.get(k).map_or(0.0, |w| *w as f32)));
+            params.phase_terms = fog.phase.len().min(3) as u32;
             let f = stage_value::<Vec<FTable>>(&fog.f_tables)?;
             let g = stage_value::<PhongGTables>(&fog.g_tables)?;
-            params.counts[1] = g.tables.len() as f32;
-            params.counts[2] = PHONG_STEPS_PER_OCTAVE as f32;
+            params.g_layers = g.tables.len() as u32;
+            params.g_layers_per_octave = PHONG_STEPS_PER_OCTAVE as f32;
             let key = fog.f_tables.key ^ fog.g_tables.key.rotate_left(7);
             if self.tables != Some(key) {
                 let layers = |tables: &mut dyn Iterator<Item = &Table2>| {
@@ -174,7 +210,7 @@ impl MediumPass {
         if rebind {
             self.bind_group = Self::bind(gpu, &self.layout, &self.params, &self.views);
         }
-        gpu.queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
+        write_uniform(&gpu.queue, &self.params, &params);
         Ok(())
     }
 }

@@ -4,8 +4,9 @@
 //! anisotropically (the moments are linear in the texels), and its vMF lobes as one texture;
 //! draws nothing itself.
 
-use super::{entry, pod_uniform_buffer, stage_value, vec4};
+use super::{entry, stage_value, uniform_buffer, write_uniform};
 use crate::{GpuContext, RenderError};
+use glam::{DVec3, Vec3, Vec4};
 use lightloom_nodes::frame::{HIGHLIGHT_BANDS, MAX_MATERIALS, NormalMapFrame};
 use lightloom_nodes::kinds::brdf_normal_map::NormalFilter;
 use lightloom_nodes::normal_filtering::{MomentPyramid, VMF_LOBES, VmfPyramid};
@@ -18,17 +19,61 @@ const LOBE_ROW: usize = 4096;
 /// Per material, its moment pyramid's stage key and its vMF lobes' (none without a map).
 type PyramidKeys = Option<(u128, Option<u128>)>;
 
+/// `normal_map.wgsl` `NormalMapMaterial`.
+#[derive(Clone, Copy, Default, encase::ShaderType)]
+pub(crate) struct NormalMapMaterial {
+    /// 0 no map, 1 SH NDF, 2 vMF mixture, 3 Toksvig, 4 averaged normals.
+    pub(crate) filter_kind: u32,
+    /// Repeats per unit of UV.
+    pub(crate) tiling: f32,
+    pub(crate) fitted_levels: u32,
+    pub(crate) layer: u32,
+}
+
+/// `normal_map.wgsl` `VmfLevel`.
+#[derive(Clone, Copy, Default, encase::ShaderType)]
+pub(crate) struct VmfLevel {
+    pub(crate) first: u32,
+    pub(crate) width: u32,
+    pub(crate) height: u32,
+    /// Map texels per texel side.
+    pub(crate) texel_span: u32,
+}
+
+/// `normal_map.wgsl` `HighlightLobe`.
+#[derive(Clone, Copy, Default, encase::ShaderType)]
+pub(crate) struct HighlightLobe {
+    pub(crate) weight: Vec3,
+    pub(crate) glossy: u32,
+}
+
 /// `normal_map.wgsl` `NormalMaps`.
-#[repr(C)]
-#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+#[derive(encase::ShaderType)]
 pub(crate) struct NormalParams {
-    pub(crate) materials: [[f32; 4]; MAX_MATERIALS],
-    pub(crate) flags: [f32; 4],
-    pub(crate) irradiance: [[f32; 4]; 9],
-    pub(crate) vmf_levels: [[u32; 4]; MAX_MATERIALS * LEVELS],
-    pub(crate) highlight_radiance: [[f32; 4]; HIGHLIGHT_BANDS * HIGHLIGHT_BANDS],
-    pub(crate) highlight_factors: [[f32; 4]; 2 * MAX_MATERIALS],
-    pub(crate) highlight_weights: [[f32; 4]; MAX_MATERIALS],
+    pub(crate) materials: [NormalMapMaterial; MAX_MATERIALS],
+    pub(crate) scale_vertex_diffuse: u32,
+    pub(crate) vertex_highlights: u32,
+    pub(crate) irradiance: [Vec3; 9],
+    pub(crate) vmf_levels: [VmfLevel; MAX_MATERIALS * LEVELS],
+    pub(crate) highlight_radiance: [Vec3; HIGHLIGHT_BANDS * HIGHLIGHT_BANDS],
+    /// Four factors per vector, material `m` at `[2m, 2m + 1]`.
+    pub(crate) highlight_factors: [Vec4; 2 * MAX_MATERIALS],
+    pub(crate) highlight_lobes: [HighlightLobe; MAX_MATERIALS],
+}
+
+impl Default for NormalParams {
+    fn default() -> Self {
+        Self {
+            materials: [NormalMapMaterial::default(); MAX_MATERIALS],
+            scale_vertex_diffuse: 0,
+            vertex_highlights: 0,
+            irradiance: [Vec3::ZERO; 9],
+            vmf_levels: [VmfLevel::default(); MAX_MATERIALS * LEVELS],
+            highlight_radiance: [Vec3::ZERO; HIGHLIGHT_BANDS * HIGHLIGHT_BANDS],
+            highlight_factors: [Vec4::ZERO; 2 * MAX_MATERIALS],
+            highlight_lobes: [HighlightLobe::default(); MAX_MATERIALS],
+        }
+    }
 }
 
 pub(crate) struct NormalMapPass {
@@ -54,7 +99,7 @@ impl NormalMapPass {
                 entry::texture(4, wgpu::TextureViewDimension::D2, false),
             ],
         });
-        let params = pod_uniform_buffer::<NormalParams>(&gpu.device, "normal maps");
+        let params = uniform_buffer::<NormalParams>(&gpu.device, "normal maps");
         let sampler = gpu.device.create_sampler(&wgpu::SamplerDescriptor {
             label: Some("normal maps"),
             address_mode_u: wgpu::AddressMode::Repeat,
@@ -215,41 +260,43 @@ impl NormalMapPass {
             self.bind_group = Self::bind(gpu, &self.layout, &self.params, &self.sampler, &pyramids, size, &lobes);
             self.uploaded = Some(keys);
         }
-        let mut params: NormalParams = bytemuck::Zeroable::zeroed();
+        let v3 = |v: &[f64; 3]| DVec3::from(*v).as_vec3();
+        let mut params = NormalParams::default();
         for (m, (slot, detail)) in self.slots.iter().zip(&frame.materials).enumerate() {
             let (Some((layer, levels)), Some(detail)) = (slot, detail) else { continue };
-            let filter = match detail.settings.filter {
-                NormalFilter::Sh => 1.0,
-                NormalFilter::Vmf => 2.0,
-                NormalFilter::Toksvig => 3.0,
-                NormalFilter::None => 4.0,
+            let filter_kind = match detail.settings.filter {
+                NormalFilter::Sh => 1,
+                NormalFilter::Vmf => 2,
+                NormalFilter::Toksvig => 3,
+                NormalFilter::None => 4,
             };
-            let fitted = if detail.lobes.is_some() { levels.len() } else { 0 };
-            params.materials[m] = [filter, detail.settings.tiling as f32, fitted as f32, *layer as f32];
-            for (k, level) in levels.iter().enumerate() {
-                params.vmf_levels[m * LEVELS + k] = *level;
+            let fitted_levels = if detail.lobes.is_some() { levels.len() as u32 } else { 0 };
+            let tiling = detail.settings.tiling as f32;
+            params.materials[m] = NormalMapMaterial { filter_kind, tiling, fitted_levels, layer: *layer };
+            for (k, &[first, width, height, texel_span]) in levels.iter().enumerate() {
+                params.vmf_levels[m * LEVELS + k] = VmfLevel { first, width, height, texel_span };
             }
         }
         if let Some(e) = &frame.vertex_diffuse_scale {
-            params.flags[0] = 1.0;
+            params.scale_vertex_diffuse = 1;
             for (dst, src) in params.irradiance.iter_mut().zip(&e.coeffs) {
-                *dst = vec4(*src, 0.0);
+                *dst = v3(src);
             }
         }
         if let Some(highlight) = &frame.vertex_highlight {
-            params.flags[1] = 1.0;
+            params.vertex_highlights = 1;
             for (dst, src) in params.highlight_radiance.iter_mut().zip(&highlight.radiance.coeffs) {
-                *dst = vec4(*src, 0.0);
+                *dst = v3(src);
             }
             for (m, lobe) in highlight.lobes.iter().enumerate().take(MAX_MATERIALS) {
                 let Some(lobe) = lobe else { continue };
-                params.highlight_weights[m] = vec4(lobe.weight, 1.0);
+                params.highlight_lobes[m] = HighlightLobe { weight: v3(&lobe.weight), glossy: 1 };
                 for (l, f) in lobe.factors.iter().enumerate().take(HIGHLIGHT_BANDS) {
                     params.highlight_factors[2 * m + l / 4][l % 4] = *f as f32;
                 }
             }
         }
-        gpu.queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
+        write_uniform(&gpu.queue, &self.params, &params);
         Ok(())
     }
 }

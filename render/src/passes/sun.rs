@@ -5,13 +5,13 @@
 //! draws nothing into the scene itself.
 
 use super::geometry::GeometryBuffers;
-use super::{entry, pod_uniform_buffer};
+use super::{entry, uniform_buffer, write_uniform};
 use crate::GpuContext;
 use crate::shaders::Shader;
 use glam::{Mat4, Vec3};
-use lightloom_nodes::brdf::{Brdf, Lobe};
+use lightloom_nodes::brdf::Lobe;
 use lightloom_nodes::engine::Key;
-use lightloom_nodes::frame::{FrameMaterial, MAX_MATERIALS, SunFrame};
+use lightloom_nodes::frame::{FrameMaterial, MAX_MATERIALS, SpecularLobe, SunFrame};
 
 /// `sun.wgsl` `MAX_SUN_DIRECTIONS`.
 pub(crate) const MAX_DIRECTIONS: usize = 32;
@@ -25,37 +25,58 @@ const NORMAL_OFFSET_TEXELS: f32 = 1.5;
 
 pub(crate) const SHADER: Shader = Shader::file("sun-depth", crate::shaders::source!("sun_depth.wgsl"));
 
-/// `sun.wgsl` `Sun`.
-#[repr(C)]
-#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
-pub(crate) struct SunParams {
-    /// rgb: radiance × solid angle ÷ direction count; w: direction count.
-    pub(crate) irradiance: [f32; 4],
-    /// x: normal offset (world units); y: how many of the last directions lie on the rim.
-    pub(crate) offset: [f32; 4],
-    /// xyz: the disc's axis; w: cos of its angular radius.
-    pub(crate) axis: [f32; 4],
-    pub(crate) directions: [[f32; 4]; MAX_DIRECTIONS],
-    pub(crate) view_proj: [[[f32; 4]; 4]; MAX_DIRECTIONS],
-    /// Per material, its specular lobe (`Brdf::lobe`): x: model (0 none, 1 Phong, 2 Blinn-Phong,
-    /// 3 GGX, 4 Ward); y: exponent or α along the tangent; z: f0; w: α along the bitangent.
-    pub(crate) lobes: [[f32; 4]; MAX_MATERIALS],
-    /// Per material: the lobe's colour (rgb).
-    pub(crate) lobe_colours: [[f32; 4]; MAX_MATERIALS],
+/// `common.wgsl` `SpecularLobe`: a material's lobe ([`FrameMaterial::lobe`]).
+#[derive(Clone, Copy, Default, encase::ShaderType)]
+pub(crate) struct LobeParams {
+    /// 0 none, 1 Phong, 2 Blinn-Phong, 3 GGX, 4 Ward.
+    pub(crate) model: u32,
+    /// The exponent (the Phong models) or α along the tangent.
+    pub(crate) sharpness: f32,
+    /// Fresnel at normal incidence.
+    pub(crate) reflectance: f32,
+    /// α along the bitangent.
+    pub(crate) alpha_y: f32,
+    pub(crate) colour: Vec3,
 }
 
-/// A material's lobe as `sun.wgsl` `sun_lobe` reads it, `[model, exponent or α_x, f0, α_y]`,
-/// and its colour.
-fn packed_lobe(material: &FrameMaterial) -> ([f32; 4], [f32; 4]) {
-    let brdf = Brdf::from_material(&material.material);
-    let (model, x, y) = match brdf.lobe {
-        Lobe::None => (0.0, 0.0, 0.0),
-        Lobe::Phong { exponent } => (1.0, exponent, 0.0),
-        Lobe::BlinnPhong { exponent } => (2.0, exponent, 0.0),
-        Lobe::Ggx { alpha_x, alpha_y } => (3.0, alpha_x, alpha_y),
-        Lobe::Ward { alpha_x, alpha_y } => (4.0, alpha_x, alpha_y),
-    };
-    ([model, x as f32, brdf.f0 as f32, y as f32], super::vec4(brdf.specular.to_array(), 0.0))
+impl LobeParams {
+    fn of(material: &FrameMaterial) -> Self {
+        let SpecularLobe { lobe, f0, colour } = material.lobe;
+        let (model, sharpness, alpha_y) = match lobe {
+            Lobe::None => (0, 0.0, 0.0),
+            Lobe::Phong { exponent } => (1, exponent, 0.0),
+            Lobe::BlinnPhong { exponent } => (2, exponent, 0.0),
+            Lobe::Ggx { alpha_x, alpha_y } => (3, alpha_x, alpha_y),
+            Lobe::Ward { alpha_x, alpha_y } => (4, alpha_x, alpha_y),
+        };
+        Self {
+            model,
+            sharpness: sharpness as f32,
+            reflectance: f0 as f32,
+            alpha_y: alpha_y as f32,
+            colour: glam::DVec3::from(colour).as_vec3(),
+        }
+    }
+}
+
+/// `sun.wgsl` `Sun`.
+#[derive(Clone, Default, encase::ShaderType)]
+pub(crate) struct SunParams {
+    /// Radiance × solid angle ÷ direction count.
+    pub(crate) irradiance: Vec3,
+    /// 0 without a separate sun.
+    pub(crate) direction_count: u32,
+    /// Offset along the normal against self-shadowing (world units).
+    pub(crate) normal_offset: f32,
+    /// How many of the last directions lie on the rim.
+    pub(crate) rim_directions: u32,
+    /// The disc's axis and the cosine of its angular radius.
+    pub(crate) axis: Vec3,
+    pub(crate) cos_radius: f32,
+    pub(crate) directions: [Vec3; MAX_DIRECTIONS],
+    pub(crate) view_proj: [Mat4; MAX_DIRECTIONS],
+    /// Per material.
+    pub(crate) lobes: [LobeParams; MAX_MATERIALS],
 }
 
 pub(crate) struct SunPass {
@@ -98,9 +119,9 @@ impl SunPass {
                 },
             ],
         });
-        let params = pod_uniform_buffer::<SunParams>(device, "sun");
-        gpu.queue.write_buffer(&params, 0, bytemuck::bytes_of(&<SunParams as bytemuck::Zeroable>::zeroed()));
-        let matrices = pod_uniform_buffer::<[[[f32; 4]; 4]; MAX_DIRECTIONS]>(device, "sun-depth");
+        let params = uniform_buffer::<SunParams>(device, "sun");
+        write_uniform(&gpu.queue, &params, &SunParams::default());
+        let matrices = uniform_buffer::<[Mat4; MAX_DIRECTIONS]>(device, "sun-depth");
         let shadow_maps = Self::shadow_maps(device, 1, 1);
         let bind_group = Self::bind(device, &layout, &params, &shadow_maps);
         let depth_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
@@ -122,7 +143,7 @@ impl SunPass {
             depth_pipeline,
             shadow_maps,
             drawn: None,
-            written: bytemuck::Zeroable::zeroed(),
+            written: SunParams::default(),
         }
     }
 
@@ -214,8 +235,8 @@ impl SunPass {
     ) {
         let (Some(sun), Some(geometry)) = (sun, geometry) else {
             if self.drawn.take().is_some() {
-                self.written = bytemuck::Zeroable::zeroed();
-                gpu.queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&self.written));
+                self.written = SunParams::default();
+                write_uniform(&gpu.queue, &self.params, &self.written);
             }
             return;
         };
@@ -223,28 +244,31 @@ impl SunPass {
         let (lo, hi) = (Vec3::from(geometry.bounds.0), Vec3::from(geometry.bounds.1));
         let centre = (lo + hi) * 0.5;
         let radius = ((hi - lo).length() * 0.5).max(1e-3);
-        let mut params = <SunParams as bytemuck::Zeroable>::zeroed();
         let share = sun.solid_angle / directions.len().max(1) as f64;
-        params.irradiance = super::vec4(sun.radiance.map(|l| l * share), directions.len() as f32);
-        params.offset[0] = NORMAL_OFFSET_TEXELS * 2.0 * radius / SHADOW_MAP_SIZE as f32;
-        params.offset[1] = lightloom_nodes::sun::rim_directions(directions.len()) as f32;
-        params.axis = [sun.axis[0], sun.axis[1], sun.axis[2], sun.cos_radius as f32];
+        let mut params = SunParams {
+            irradiance: glam::DVec3::from(sun.radiance.map(|l| l * share)).as_vec3(),
+            direction_count: directions.len() as u32,
+            normal_offset: NORMAL_OFFSET_TEXELS * 2.0 * radius / SHADOW_MAP_SIZE as f32,
+            rim_directions: sun.rim_directions.min(directions.len()) as u32,
+            axis: Vec3::from(sun.axis),
+            cos_radius: sun.cos_radius as f32,
+            ..SunParams::default()
+        };
         for (k, d) in directions.iter().enumerate() {
-            let d = Vec3::from(*d);
-            params.directions[k] = [d.x, d.y, d.z, 0.0];
-            params.view_proj[k] = light_view_proj(d, centre, radius).to_cols_array_2d();
+            params.directions[k] = Vec3::from(*d);
+            params.view_proj[k] = light_view_proj(params.directions[k], centre, radius);
         }
-        for (k, material) in materials.iter().take(MAX_MATERIALS).enumerate() {
-            (params.lobes[k], params.lobe_colours[k]) = packed_lobe(material);
+        for (slot, material) in params.lobes.iter_mut().zip(materials) {
+            *slot = LobeParams::of(material);
         }
         // The radiance changes without the disc moving (exposure, tint, intensity): the uniforms
         // are written every frame, the maps only when the disc or the geometry changed.
-        gpu.queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
+        write_uniform(&gpu.queue, &self.params, &params);
         self.written = params;
         if self.drawn.as_ref().is_some_and(|(d, key)| *d == directions && *key == geometry.key()) {
             return;
         }
-        gpu.queue.write_buffer(&self.matrices, 0, bytemuck::bytes_of(&params.view_proj));
+        write_uniform(&gpu.queue, &self.matrices, &self.written.view_proj);
         let layers = directions.len().max(1) as u32;
         if self.shadow_maps.depth_or_array_layers() != layers || self.shadow_maps.width() != SHADOW_MAP_SIZE {
             self.shadow_maps = Self::shadow_maps(&gpu.device, SHADOW_MAP_SIZE, layers);
@@ -302,7 +326,7 @@ mod tests {
         let gpu = GpuContext::headless().expect("a wgpu device (lavapipe on machines without a GPU)");
         let meshes = lightloom_nodes::mesh::MeshSet { meshes: vec![lightloom_nodes::mesh::sphere(1.0, 8)] };
         let geometry =
-            Geometry { meshes: Keyed { key: 1, value: Arc::new(StageValue::new(meshes)) }, mesh_materials: vec![0] };
+            Geometry::of_meshes(Keyed { key: 1, value: Arc::new(StageValue::new(meshes)) }, vec![0]).unwrap();
         let mut buffers = None;
         GeometryBuffers::prepare(&mut buffers, &gpu, &geometry).unwrap();
         let disc = lightloom_nodes::sun::Sun { direction: [0.3, 0.8, -0.2], radius: 0.02, radiance: [100.0; 3] };
@@ -312,9 +336,9 @@ mod tests {
         let drawn = pass.drawn.clone();
         let brighter = lightloom_nodes::sun::Sun { radiance: [200.0; 3], ..disc };
         pass.prepare(&gpu, Some(&SunFrame::new(&brighter)), &[], buffers.as_ref());
-        assert_eq!(pass.written.irradiance[0], 2.0 * before[0], "the radiance reaches the uniforms");
+        assert_eq!(pass.written.irradiance.x, 2.0 * before.x, "the radiance reaches the uniforms");
         assert_eq!(pass.drawn, drawn, "the maps are not redrawn for a brightness change");
         pass.prepare(&gpu, None, &[], buffers.as_ref());
-        assert_eq!(pass.written.irradiance[3], 0.0, "no sun, no directions");
+        assert_eq!(pass.written.direction_count, 0, "no sun, no directions");
     }
 }

@@ -93,6 +93,7 @@ const SKY_ALL: &[&str] =
     &["sky.source", "sky.radiance", "sky.sh_unrotated", "sky.rotated_radiance", "sky.sh", "sky.haar"];
 const SCENE_ALL: &[&str] = &[
     "scene.geometry",
+    "scene.vertex_frames",
     "scene.receivers",
     "scene.adjacency",
     "scene.ray_scene",
@@ -401,7 +402,7 @@ fn each_parameter_recomputes_exactly_its_stages() {
     graph.set_param("scene", "tessellation", Int(12)).unwrap();
     let first = engine.evaluate(&graph, &CancelToken::default(), None);
     assert!(first.report.failed().is_empty(), "{:?}", first.report.failed());
-    assert_eq!(first.report.computed().len(), 64);
+    assert_eq!(first.report.computed().len(), 65);
     let again = engine.evaluate(&graph, &CancelToken::default(), None);
     assert!(ran(&again.report).is_empty(), "an unchanged graph recomputed {:?}", ran(&again.report));
     for (node, param, value, expected) in table {
@@ -641,6 +642,7 @@ fn each_mode_and_view_evaluates_exactly_the_stages_it_reads() {
     const UNSHADOWED: &[&str] = &[
         "output.settings",
         "scene.geometry",
+        "scene.vertex_frames",
         "sky.source",
         "sky.radiance",
         "sky.sh_unrotated",
@@ -719,7 +721,7 @@ fn each_mode_and_view_evaluates_exactly_the_stages_it_reads() {
         for s in eval.report.stages.iter().filter(|s| s.status == StageStatus::NotNeeded) {
             assert!(s.reasons[0].contains(&format!("mode {mode}")), "{}.{}: {:?}", s.node, s.stage, s.reasons);
         }
-        assert_eq!(eval.report.stages.len(), 64, "every stage is reported");
+        assert_eq!(eval.report.stages.len(), 65, "every stage is reported");
     }
 }
 

@@ -51,7 +51,13 @@ fn moving_and_turning_objects_casts_no_ray_and_rebuilds_no_table() {
     let moved = evaluate_frame(&engine, &graph);
     assert_eq!(
         ran(&moved.report),
-        set(&["scene.geometry", "scene.rsl_self_visibility", "scene.rsl_occluders", "output.rsl_visibility"]),
+        set(&[
+            "scene.geometry",
+            "scene.vertex_frames",
+            "scene.rsl_self_visibility",
+            "scene.rsl_occluders",
+            "output.rsl_visibility"
+        ]),
         "a move reruns the per-frame visibility and re-reads the per-object tables"
     );
     for stage in ["rsl_self_visibility", "rsl_occluders"] {

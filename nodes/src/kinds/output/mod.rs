@@ -355,10 +355,8 @@ pub fn see_from(graph: &mut Graph, eye: [f64; 3]) {
 /// The wavelet and adaptive-SH settings matter only in their modes (the inspector hides them
 /// elsewhere).
 fn relevant_to_mode(value: &dyn Fn(&str) -> Option<ParamValue>, name: &str) -> bool {
-    let mode = match value("mode") {
-        Some(ParamValue::Choice(c)) => c.parse().unwrap_or(Mode::ShIrradiance),
-        _ => return true,
-    };
+    let Some(mode) = value("mode") else { return true };
+    let mode = mode_of(Some(&mode));
     match name {
         HIGHLIGHT_EYE => false,
         "wavelet_terms" | "wavelet_details" => mode.is_wavelet(),
@@ -582,9 +580,17 @@ pub fn find_output<'g>(graph: &'g Graph, name: Option<&str>) -> Result<&'g crate
 
 /// The Output's mode and view as set in the graph.
 pub fn output_mode_and_view(node: &GraphNode) -> (Mode, View) {
-    let choice = |name: &str| match node.params.get(name) {
-        Some(ParamValue::Choice(c)) => c.clone(),
-        _ => String::new(),
+    let view = match node.params.get("view") {
+        Some(ParamValue::Choice(c)) => c.parse().unwrap_or(View::Approximation),
+        _ => View::Approximation,
     };
-    (choice("mode").parse().unwrap_or(Mode::ShIrradiance), choice("view").parse().unwrap_or(View::Approximation))
+    (mode_of(node.params.get("mode")), view)
+}
+
+/// The mode a `mode` parameter value names (`sh_irradiance` for none or another value).
+fn mode_of(value: Option<&ParamValue>) -> Mode {
+    match value {
+        Some(ParamValue::Choice(c)) => c.parse().unwrap_or(Mode::ShIrradiance),
+        _ => Mode::ShIrradiance,
+    }
 }

@@ -2,7 +2,7 @@
 //! ([`crate::sun`]): the parameter, the decision, and the transport's inputs over the sky
 //! without its sun. The viewport shadows the disc (`render/src/passes/sun.rs`).
 
-use super::{Mode, incident_from, output_mode_and_view, wavelet_grid};
+use super::{Mode, incident_from, wavelet_grid};
 use crate::engine::spec::{ParamKind, ParamSpec, ParamValue};
 use crate::engine::{Graph, StageContext, StageError, StageValue};
 
@@ -10,14 +10,13 @@ use crate::engine::{Graph, StageContext, StageError, StageValue};
 /// transport ([`crate::sun`]).
 pub const SUN: &str = "sun";
 
-/// Whether the Output lights the environment's sun separately: it asks for it, its mode can
+/// Whether the Output lights the environment's sun separately: it asks for it, its `mode` can
 /// (the SH and wavelet modes; their unshadowed preview does too), an
 /// environment is linked, and neither a medium nor blocker spheres are (their transport of
 /// the sun is not shadow-mapped).
-pub fn separates_sun(graph: &Graph, output: &str) -> bool {
+pub fn separates_sun(graph: &Graph, output: &str, mode: Mode) -> bool {
     let Some(node) = graph.node(output) else { return false };
     let asked = !matches!(node.params.get(SUN), Some(ParamValue::Choice(c)) if c == "in_environment");
-    let (mode, _) = output_mode_and_view(node);
     let linked = |port: &str| graph.upstream(output, port).is_some();
     asked
         && matches!(

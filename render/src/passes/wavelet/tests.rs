@@ -53,8 +53,8 @@ fn surfaces_of(
         environment: keyed(3, StageValue::new(prefiltered(&environment, grid))),
         rotation,
     };
-    let geometry = Geometry { meshes: keyed(4, StageValue::new(meshes)), mesh_materials: vec![0] };
-    let materials = [FrameMaterial { node: "m".into(), material, normal: None }];
+    let geometry = Geometry::of_meshes(keyed(4, StageValue::new(meshes)), vec![0]).unwrap();
+    let materials = [FrameMaterial::new("m", material, None)];
     WaveletSurfaces::new(lighting, &[keyed(5, StageValue::new(table))], None, None, &geometry, &materials, details)
         .unwrap()
 }

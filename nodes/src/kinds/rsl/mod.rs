@@ -8,6 +8,8 @@ use crate::engine::spec::{
 use crate::engine::{StageContext, StageError, StageValue};
 use crate::preview::{self, Preview};
 
+pub mod receivers;
+
 pub fn spec() -> NodeKindSpec {
     NodeKindSpec {
         name: "RslDecomposer",

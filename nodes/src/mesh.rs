@@ -20,8 +20,9 @@ impl VertexFrames {
     pub fn of(set: &MeshSet) -> Self {
         let mut tangents = Vec::with_capacity(set.meshes.iter().map(|m| m.positions.len()).sum());
         for mesh in &set.meshes {
-            let signs = vertex_bitangent_signs(mesh);
-            tangents.extend(vertex_tangents(mesh).iter().zip(signs).map(|([x, y, z], w)| [*x, *y, *z, w]));
+            let frames = vertex_tangents(mesh);
+            let signs = bitangent_signs_with(mesh, || frames.clone());
+            tangents.extend(frames.iter().zip(signs).map(|([x, y, z], w)| [*x, *y, *z, w]));
         }
         Self { tangents }
     }
@@ -199,6 +200,11 @@ fn uv_gradients(mesh: &Mesh, pick: impl Fn(DVec3, DVec3) -> DVec3) -> Vec<DVec3>
 /// (up in the image, towards decreasing v) points, is `sign · n × t`. Authored signs where the
 /// mesh has them, else the side `-∂p/∂v` lies on (so mirrored UV islands get −1), else +1.
 pub fn vertex_bitangent_signs(mesh: &Mesh) -> Vec<f32> {
+    bitangent_signs_with(mesh, || vertex_tangents(mesh))
+}
+
+/// [`vertex_bitangent_signs`], with the mesh's [`vertex_tangents`] from `tangents` if needed.
+fn bitangent_signs_with(mesh: &Mesh, tangents: impl FnOnce() -> Vec<[f32; 3]>) -> Vec<f32> {
     if mesh.bitangent_signs.len() == mesh.positions.len() {
         return mesh.bitangent_signs.iter().map(|s| if *s < 0.0 { -1.0 } else { 1.0 }).collect();
     }
@@ -206,7 +212,7 @@ pub fn vertex_bitangent_signs(mesh: &Mesh) -> Vec<f32> {
         return vec![1.0; mesh.positions.len()];
     }
     let dp_dv = uv_gradients(mesh, |_, dp_dv| dp_dv);
-    vertex_tangents(mesh)
+    tangents()
         .iter()
         .zip(&mesh.normals)
         .zip(&dp_dv)

@@ -281,7 +281,8 @@ fn kind_name(kind: &ParamKind) -> &'static str {
     }
 }
 
-/// What flows along a link. Each type is a contract: the stages an output of that type offers.
+/// What flows along a link. Each type is a contract, derived from its readers: the stages an
+/// output of that type must offer ([`PortType::read_stages`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
 pub enum PortType {
     /// Distant lighting: radiance cube map, SH and wavelet projections.

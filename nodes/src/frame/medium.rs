@@ -19,6 +19,11 @@ impl FramePart for Medium {
     }
 
     fn gather(&self, g: &Gather, node: &str, _: &MaterialParts, frame: &mut Assembled) -> Result<(), String> {
+        if frame.sh.is_none() && g.upstream("environment").is_some() {
+            return Err(
+                "the medium was gathered before the environment whose light it carries (frame::parts::PARTS)".into()
+            );
+        }
         frame.fog = Some(fog_frame(g, node, frame.sh.as_ref())?);
         Ok(())
     }

@@ -83,13 +83,15 @@ pub struct SunFrame {
 
 impl SunFrame {
     pub fn new(sun: &crate::sun::Sun) -> Self {
+        let directions: Vec<[f32; 3]> =
+            sun.disc_directions(crate::sun::DISC_SAMPLES).iter().map(|d| d.as_vec3().to_array()).collect();
         Self {
             radiance: sun.radiance,
             solid_angle: sun.solid_angle(),
             axis: glam::DVec3::from(sun.direction).as_vec3().to_array(),
             cos_radius: sun.radius.cos(),
-            directions: sun.disc_directions(crate::sun::DISC_SAMPLES).iter().map(|d| d.as_vec3().to_array()).collect(),
-            rim_directions: crate::sun::rim_directions(crate::sun::DISC_SAMPLES),
+            rim_directions: crate::sun::rim_directions(directions.len()),
+            directions,
         }
     }
 }
@@ -107,7 +109,8 @@ pub struct Geometry {
 
 impl Geometry {
     /// The geometry of a [`crate::mesh::MeshSet`] outside an evaluation (benchmarks and
-    /// tests), its tangent frames computed here and keyed by the meshes' key.
+    /// tests), its tangent frames computed here. Their key is made from the meshes' (an
+    /// evaluation keys them as the scene's `vertex_frames` stage instead).
     pub fn of_meshes(meshes: Keyed, mesh_materials: Vec<u32>) -> Result<Self, String> {
         let set = meshes.value.expect::<crate::mesh::MeshSet>().map_err(|e| e.to_string())?;
         let frames = crate::mesh::VertexFrames::of(set);
@@ -136,8 +139,8 @@ pub struct FrameMaterial {
     pub material: Material,
     /// Its normal map, once loaded.
     pub normal: Option<NormalDetail>,
-    /// Its specular lobe, as the sun is shaded with it per pixel.
-    pub lobe: SpecularLobe,
+    /// Its specular lobe, as the sun is shaded with it per pixel ([`Self::lobe`]).
+    lobe: SpecularLobe,
 }
 
 impl FrameMaterial {
@@ -145,6 +148,11 @@ impl FrameMaterial {
         let brdf = crate::brdf::Brdf::from_material(&material);
         let lobe = SpecularLobe { lobe: brdf.lobe, f0: brdf.f0, colour: brdf.specular.to_array() };
         Self { node: node.into(), material, normal, lobe }
+    }
+
+    /// Its specular lobe (the material's [`crate::brdf::Brdf`]'s).
+    pub fn lobe(&self) -> SpecularLobe {
+        self.lobe
     }
 }
 

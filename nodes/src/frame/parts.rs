@@ -1,9 +1,10 @@
 //! Each input of the Output that a frame draws in every mode, as one value ([`FramePart`]):
 //! the port it reads, the stages a frame reads of the node linked there, and its share of the
 //! frame. [`mode_stages`](super::mode_stages), the frame request and the gather run over
-//! [`PARTS`] and branch on no port, so a new kind of input is its part, its field of the frame
-//! and one line in [`PARTS`]. The materials are not a part: every mode reads them its own way
-//! ([`super::ModeFrame::material_stages`]).
+//! [`PARTS`], so a new kind of input is its part, its field of the frame and one line in
+//! [`PARTS`]. Three inputs are not parts: the materials (every mode reads them its own way,
+//! [`super::ModeFrame::material_stages`]), and the area lights, which join in later request
+//! tiers of their own.
 
 use super::gather::{Gather, MaterialParts};
 use super::modes::Linked;
@@ -50,7 +51,8 @@ pub(super) trait FramePart: Sync {
     fn gather(&self, g: &Gather, node: &str, parts: &MaterialParts, frame: &mut Assembled) -> Result<(), String>;
 }
 
-/// Every part, in gather order.
+/// Every part, in gather order: a part reads what the parts before it gathered (the medium
+/// carries the environment's light, so it comes after it).
 pub(super) const PARTS: &[&dyn FramePart] =
     &[&Scene, &super::environment::Environment, &super::medium::Medium, &Lights, &Blockers, &SquareLights];
 
@@ -174,6 +176,24 @@ mod tests {
     /// The default project with a node of every kind the Output reads linked to it, in `mode`
     /// and `view`.
     fn everything_linked(mode: Mode, view: View) -> crate::engine::Graph {
+        everything_linked_project(mode, view).graph(Path::new("p.ron")).unwrap()
+    }
+
+    fn node(id: &str, kind: &str) -> ProjectNode {
+        ProjectNode {
+            id: id.into(),
+            kind: kind.into(),
+            label: String::new(),
+            position: [0.0; 2],
+            params: BTreeMap::new(),
+        }
+    }
+
+    fn link(from: (&str, &str), to: (&str, &str)) -> ProjectLink {
+        ProjectLink { from: (from.0.into(), from.1.into()), to: (to.0.into(), to.1.into()) }
+    }
+
+    fn everything_linked_project(mode: Mode, view: View) -> crate::project::Project {
         let mut project = default_project();
         for (id, kind, from, to) in [
             ("fog", "FogMedium", "medium", "medium"),
@@ -182,28 +202,63 @@ mod tests {
             ("spheres", "BlockerSpheres", "blockers", "blockers"),
             ("panel", "AreaLightPainter", "area_light", "area_lights"),
         ] {
-            project.nodes.push(ProjectNode {
-                id: id.into(),
-                kind: kind.into(),
-                label: String::new(),
-                position: [0.0; 2],
-                params: BTreeMap::new(),
-            });
-            project.links.push(ProjectLink { from: (id.into(), from.into()), to: ("output".into(), to.into()) });
+            project.nodes.push(node(id, kind));
+            project.links.push(link((id, from), ("output", to)));
         }
-        project
-            .links
-            .push(ProjectLink { from: ("sky".into(), "environment".into()), to: ("rsl".into(), "environment".into()) });
+        project.links.push(link(("sky", "environment"), ("rsl", "environment")));
+        // A normal map fitted to vMF lobes, so a frame reads every normal-map stage.
+        let material = project.nodes.iter_mut().find(|n| n.id == "material").unwrap();
+        material.params.insert("normal_map".into(), ParamValue::Path("dimples.png".into()));
+        material.params.insert("normal_filter".into(), ParamValue::Choice("vmf".into()));
         let output = project.nodes.iter_mut().find(|n| n.id == "output").unwrap();
         output.params.insert("mode".into(), ParamValue::Choice(mode.as_str().into()));
         output.params.insert("view".into(), ParamValue::Choice(view.as_str().into()));
-        project.graph(Path::new("p.ron")).unwrap()
+        project
     }
 
-    /// Whatever is linked, in every mode and view, a frame requests only stages its nodes have,
-    /// and reads every linked input's part.
+    /// What a frame does not draw as linked is said, each once: blocker spheres outside the SH
+    /// modes that shadow with them, square lights outside `rsl`, lights past the limit (dropped),
+    /// area lights beside blockers.
     #[test]
-    fn a_frame_requests_only_stages_its_nodes_have() {
+    fn the_frame_names_the_inputs_it_does_not_draw() {
+        use crate::engine::{CancelToken, Engine, Request};
+        let mut project = everything_linked_project(Mode::ShIrradiance, View::Approximation);
+        // A chain of lights past the limit.
+        for i in 1..=super::MAX_LIGHTS {
+            let (id, before) = (format!("lamp{i}"), if i == 1 { "lamp".to_string() } else { format!("lamp{}", i - 1) });
+            project.nodes.push(node(&id, "PointLight"));
+            project.links.push(link((&id, "lights"), (&before, "lights")));
+        }
+        let graph = project.graph(Path::new("p.ron")).unwrap();
+        // The unshadowed tier alone: the area lights' transport is not needed to gather.
+        let first = super::frame_request(&graph, "output", false).tiers.swap_remove(0);
+        let evaluation = Engine::in_memory().evaluate_request(
+            &graph,
+            &Request::new(first.label, first.stages),
+            &CancelToken::default(),
+            None,
+            &|_, _| {},
+        );
+        let frame = super::FrameInputs::gather(&evaluation, &graph, "output").unwrap();
+        assert_eq!(frame.medium.lights.len(), super::MAX_LIGHTS);
+        let said = |what: &str| frame.ignored_inputs.iter().filter(|n| n.contains(what)).count();
+        assert_eq!(said("shadow the SH modes sh_prt and sh_adaptive only"), 1, "{:?}", frame.ignored_inputs);
+        assert_eq!(said("are drawn by the rsl mode only"), 1, "{:?}", frame.ignored_inputs);
+        assert_eq!(
+            said(&format!("{} point lights are linked", super::MAX_LIGHTS + 1)),
+            1,
+            "{:?}",
+            frame.ignored_inputs
+        );
+        assert_eq!(said("cast no blocker-sphere shadows"), 1, "{:?}", frame.ignored_inputs);
+        assert_eq!(frame.ignored_inputs.len(), 4, "{:?}", frame.ignored_inputs);
+    }
+
+    /// Whatever is linked, in every mode and view, a frame requests only stages its nodes have
+    /// and every other kind offering the same port type has too (the frame's share of each
+    /// port's contract), and reads every linked input's part.
+    #[test]
+    fn a_frame_requests_only_stages_every_producer_has() {
         for &mode in Mode::ALL {
             for &view in View::ALL {
                 let graph = everything_linked(mode, view);
@@ -219,11 +274,29 @@ mod tests {
                         node.kind.name,
                         s.stage
                     );
+                    for port in &node.kind.outputs {
+                        let producers =
+                            crate::kinds::registry().iter().filter(|k| k.outputs.iter().any(|o| o.ty == port.ty));
+                        for other in producers {
+                            assert!(
+                                other.stage(&s.stage).is_some(),
+                                "{mode} {view}: a frame reads {} of a {}, and {} offers one without it",
+                                s.stage,
+                                port.ty,
+                                other.name
+                            );
+                        }
+                    }
                 }
                 let read = |node: &str, stage: &str| stages.iter().any(|s| s.node == node && s.stage == stage);
-                for (node, stage) in
-                    [("fog", "f_tables"), ("lamp", "lights"), ("scene", "ray_scene"), ("spheres", "spheres")]
-                {
+                for (node, stage) in [
+                    ("fog", "f_tables"),
+                    ("lamp", "lights"),
+                    ("scene", "ray_scene"),
+                    ("scene", "vertex_frames"),
+                    ("spheres", "spheres"),
+                    ("material", "vmf_lobes"),
+                ] {
                     assert!(read(node, stage), "{mode} {view}: {node}.{stage} is not requested");
                 }
                 assert_eq!(read("rsl", "world_lights"), mode == Mode::Rsl, "{mode} {view}");

@@ -85,7 +85,9 @@ mod tests {
                     assert!(kind.input(port).is_some(), "{}.{}: no input {port}", kind.name, stage.name);
                 }
             }
+            let mut names = std::collections::HashSet::new();
             for p in &kind.params {
+                assert!(names.insert(p.name), "{}: duplicate parameter {}", kind.name, p.name);
                 assert!(p.check(&p.default_value()).is_ok(), "{}.{} default is invalid", kind.name, p.name);
                 if let crate::engine::spec::ParamKind::Choice { options, labels, .. } = &p.kind {
                     assert!(

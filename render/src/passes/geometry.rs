@@ -14,7 +14,7 @@ pub(crate) struct Vertex {
     normal: [f32; 3],
     color: [f32; 3],
     /// The local frame's tangent (as the transport stages use it) and, in w, the sign of the
-    /// normal map's bitangent `w · n × t` ([`lightloom_nodes::mesh::vertex_bitangent_signs`]).
+    /// normal map's bitangent `w · n × t` ([`lightloom_nodes::mesh::VertexFrames`]).
     tangent: [f32; 4],
     uv: [f32; 2],
     /// Index into the frame's materials.

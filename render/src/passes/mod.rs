@@ -449,8 +449,78 @@ mod layout_tests {
     use super::*;
     use wgpu::naga;
 
-    /// The WGSL struct `name`: its size and `(member, offset)` list.
-    fn wgsl_struct(module: &naga::Module, name: &str) -> (u32, Vec<(String, u32)>) {
+    /// The WGSL type a Rust uniform field is written as (by encase's rules).
+    trait Wgsl {
+        fn wgsl() -> String;
+    }
+
+    macro_rules! wgsl {
+        ($($rust:ty => $wgsl:expr),+ $(,)?) => {$(
+            impl Wgsl for $rust {
+                fn wgsl() -> String {
+                    $wgsl.to_string()
+                }
+            }
+        )+};
+    }
+
+    wgsl! {
+        u32 => "u32",
+        f32 => "f32",
+        glam::Vec3 => "vec3<f32>",
+        glam::Vec4 => "vec4<f32>",
+        glam::Mat3 => "mat3x3<f32>",
+        glam::Mat4 => "mat4x4<f32>",
+        medium::FogLight => "FogLight",
+        medium::SurfaceLobe => "SurfaceLobe",
+        sun::SpecularLobe => "SpecularLobe",
+        normal_map::NormalMapMaterial => "NormalMapMaterial",
+        normal_map::VmfLevel => "VmfLevel",
+        normal_map::HighlightLobe => "HighlightLobe",
+        prt::PrtMaterial => "PrtMaterial",
+        wavelet::WaveletMaterial => "WaveletMaterial",
+        rsl::RslLayout => "RslLayout",
+    }
+
+    impl<T: Wgsl, const N: usize> Wgsl for [T; N] {
+        fn wgsl() -> String {
+            format!("array<{}, {N}>", T::wgsl())
+        }
+    }
+
+    /// The WGSL type of the field `field` picks (its type inferred).
+    fn field_type<S, T: Wgsl>(_field: fn(&S) -> &T) -> String {
+        T::wgsl()
+    }
+
+    /// A naga type written as WGSL (a struct by its own name, without naga_oil's module suffix).
+    fn naga_type(module: &naga::Module, ty: naga::Handle<naga::Type>) -> String {
+        let scalar = |s: naga::Scalar| match (s.kind, s.width) {
+            (naga::ScalarKind::Uint, 4) => "u32".to_string(),
+            (naga::ScalarKind::Sint, 4) => "i32".to_string(),
+            (naga::ScalarKind::Float, 4) => "f32".to_string(),
+            other => format!("{other:?}"),
+        };
+        let t = &module.types[ty];
+        match &t.inner {
+            naga::TypeInner::Scalar(s) => scalar(*s),
+            naga::TypeInner::Vector { size, scalar: s } => format!("vec{}<{}>", *size as u8, scalar(*s)),
+            naga::TypeInner::Matrix { columns, rows, scalar: s } => {
+                format!("mat{}x{}<{}>", *columns as u8, *rows as u8, scalar(*s))
+            }
+            naga::TypeInner::Array { base, size: naga::ArraySize::Constant(n), .. } => {
+                format!("array<{}, {n}>", naga_type(module, *base))
+            }
+            naga::TypeInner::Struct { .. } => {
+                let name = t.name.clone().unwrap_or_default();
+                name.split("X_naga_oil_mod_X").next().unwrap_or_default().to_string()
+            }
+            other => format!("{other:?}"),
+        }
+    }
+
+    /// The WGSL struct `name`: its size and `(member, type)` list.
+    fn wgsl_struct(module: &naga::Module, name: &str) -> (u32, Vec<(String, String)>) {
         // A struct of an imported module carries the module's name after its own.
         let named = |t: &naga::Type| {
             t.name
@@ -460,7 +530,8 @@ mod layout_tests {
         let ty = module.types.iter().find(|(_, t)| named(t)).map(|(_, t)| t);
         match ty.map(|t| &t.inner) {
             Some(naga::TypeInner::Struct { members, span }) => {
-                (*span, members.iter().map(|m| (m.name.clone().unwrap_or_default(), m.offset)).collect())
+                let members = members.iter().map(|m| (m.name.clone().unwrap_or_default(), naga_type(module, m.ty)));
+                (*span, members.collect())
             }
             _ => panic!("no struct {name} in the shader"),
         }
@@ -483,14 +554,14 @@ mod layout_tests {
             SCENE_SHADERS.into_iter().chain([tonemap::SHADER]).map(|s| validate(s, true)).collect();
         // Each uniform struct, in the shader that declares it, against the Rust struct its pass
         // writes. `encase` lays a Rust struct out by WGSL's rules from its field types: the
-        // same size and the same members in order.
+        // same size and the same members in order, each of the same type.
         macro_rules! layout {
             ($module:expr, $wgsl:literal, $rust:ty, [$($field:ident),+ $(,)?]) => {{
                 let (span, members) = wgsl_struct($module, $wgsl);
                 <$rust as encase::ShaderType>::assert_uniform_compat();
                 assert_eq!(u64::from(span), <$rust as encase::ShaderType>::min_size().get(), "{} size", $wgsl);
-                let names: Vec<String> = members.into_iter().map(|(name, _)| name).collect();
-                assert_eq!(names, [$(stringify!($field)),+], "{} members", $wgsl);
+                let rust = [$((stringify!($field).to_string(), field_type(|s: &$rust| &s.$field))),+];
+                assert_eq!(members, rust, "{} members and their types", $wgsl);
             }};
         }
         let [irr, prt, wavelet, _background, rsl, area, tone] = [0, 1, 2, 3, 4, 5, 6].map(|i| &modules[i]);
@@ -534,7 +605,7 @@ mod layout_tests {
                 lobes
             ]
         );
-        layout!(irr, "SpecularLobe", sun::LobeParams, [model, sharpness, reflectance, alpha_y, colour]);
+        layout!(irr, "SpecularLobe", sun::SpecularLobe, [model, sharpness, reflectance, alpha_y, colour]);
         layout!(
             irr,
             "NormalMaps",

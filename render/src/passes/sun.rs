@@ -11,10 +11,12 @@ use crate::shaders::Shader;
 use glam::{Mat4, Vec3};
 use lightloom_nodes::brdf::Lobe;
 use lightloom_nodes::engine::Key;
-use lightloom_nodes::frame::{FrameMaterial, MAX_MATERIALS, SpecularLobe, SunFrame};
+use lightloom_nodes::frame::{FrameMaterial, MAX_MATERIALS, SunFrame};
 
 /// `sun.wgsl` `MAX_SUN_DIRECTIONS`.
 pub(crate) const MAX_DIRECTIONS: usize = 32;
+// Every direction of a disc is drawn (the rim ones are the last).
+const _: () = assert!(lightloom_nodes::sun::DISC_SAMPLES <= MAX_DIRECTIONS);
 /// Texels per side of each shadow map.
 pub(crate) const SHADOW_MAP_SIZE: u32 = 1024;
 const SHADOW_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth16Unorm;
@@ -27,7 +29,7 @@ pub(crate) const SHADER: Shader = Shader::file("sun-depth", crate::shaders::sour
 
 /// `common.wgsl` `SpecularLobe`: a material's lobe ([`FrameMaterial::lobe`]).
 #[derive(Clone, Copy, Default, encase::ShaderType)]
-pub(crate) struct LobeParams {
+pub(crate) struct SpecularLobe {
     /// 0 none, 1 Phong, 2 Blinn-Phong, 3 GGX, 4 Ward.
     pub(crate) model: u32,
     /// The exponent (the Phong models) or α along the tangent.
@@ -39,9 +41,9 @@ pub(crate) struct LobeParams {
     pub(crate) colour: Vec3,
 }
 
-impl LobeParams {
+impl SpecularLobe {
     fn of(material: &FrameMaterial) -> Self {
-        let SpecularLobe { lobe, f0, colour } = material.lobe;
+        let lightloom_nodes::frame::SpecularLobe { lobe, f0, colour } = material.lobe();
         let (model, sharpness, alpha_y) = match lobe {
             Lobe::None => (0, 0.0, 0.0),
             Lobe::Phong { exponent } => (1, exponent, 0.0),
@@ -76,7 +78,7 @@ pub(crate) struct SunParams {
     pub(crate) directions: [Vec3; MAX_DIRECTIONS],
     pub(crate) view_proj: [Mat4; MAX_DIRECTIONS],
     /// Per material.
-    pub(crate) lobes: [LobeParams; MAX_MATERIALS],
+    pub(crate) lobes: [SpecularLobe; MAX_MATERIALS],
 }
 
 pub(crate) struct SunPass {
@@ -249,7 +251,7 @@ impl SunPass {
             irradiance: glam::DVec3::from(sun.radiance.map(|l| l * share)).as_vec3(),
             direction_count: directions.len() as u32,
             normal_offset: NORMAL_OFFSET_TEXELS * 2.0 * radius / SHADOW_MAP_SIZE as f32,
-            rim_directions: sun.rim_directions.min(directions.len()) as u32,
+            rim_directions: sun.rim_directions as u32,
             axis: Vec3::from(sun.axis),
             cos_radius: sun.cos_radius as f32,
             ..SunParams::default()
@@ -259,7 +261,7 @@ impl SunPass {
             params.view_proj[k] = light_view_proj(params.directions[k], centre, radius);
         }
         for (slot, material) in params.lobes.iter_mut().zip(materials) {
-            *slot = LobeParams::of(material);
+            *slot = SpecularLobe::of(material);
         }
         // The radiance changes without the disc moving (exposure, tint, intensity): the uniforms
         // are written every frame, the maps only when the disc or the geometry changed.

@@ -355,8 +355,8 @@ pub fn see_from(graph: &mut Graph, eye: [f64; 3]) {
 /// The wavelet and adaptive-SH settings matter only in their modes (the inspector hides them
 /// elsewhere).
 fn relevant_to_mode(value: &dyn Fn(&str) -> Option<ParamValue>, name: &str) -> bool {
-    let Some(mode) = value("mode") else { return true };
-    let mode = mode_of(Some(&mode));
+    let mode @ Some(ParamValue::Choice(_)) = value("mode") else { return true };
+    let mode = mode_of(mode.as_ref());
     match name {
         HIGHLIGHT_EYE => false,
         "wavelet_terms" | "wavelet_details" => mode.is_wavelet(),

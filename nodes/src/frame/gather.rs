@@ -118,10 +118,16 @@ impl FrameInputs {
         let materials = parts.materials;
         // Area lights join once their transport is traced (a later request tier).
         let light_nodes = graph.upstream_all(output, "area_lights");
-        let vertices = geometry.vertex_count();
         let keyed = |node: &str, stage: &str| g.keyed(node, stage);
-        let area_lights =
-            area_lights::area_light_frame(evaluation, &light_nodes, output, &keyed, &materials, vertices)?;
+        let area_lights = area_lights::area_light_frame(
+            evaluation,
+            &light_nodes,
+            output,
+            &keyed,
+            &materials,
+            &geometry,
+            Some(&scene),
+        )?;
         let mut ignored_inputs = std::mem::take(&mut frame.ignored);
         ignored_inputs.extend(unmatched_note(&materials, &frame.unmatched));
         let shadowed = !matches!(g.mode, Mode::ShIrradiance);

@@ -181,7 +181,7 @@ mod wavelet;
 use gather::{Gather, MaterialParts};
 use modes::{Linked, ModeFrame, SurfaceInputs};
 
-pub use area_lights::AreaLightFrame;
+pub use area_lights::{AreaLightFrame, AreaTexels};
 pub use medium::{FogFrame, MediumFrame};
 pub use normal_maps::{HIGHLIGHT_BANDS, NormalDetail, NormalMapFrame, VertexHighlight, normal_map_stages};
 pub use prt::{IrradianceSurfaces, PrtSurfaces, incident_sh};

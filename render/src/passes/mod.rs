@@ -649,7 +649,7 @@ mod layout_tests {
         );
         layout!(rsl, "RslParams", rsl::RslParams, [lights, table_size, albedo, specular, layouts]);
         layout!(rsl, "RslLayout", rsl::RslLayout, [first, view_grid, slices]);
-        layout!(area, "AreaLights", area_light::AreaLightParams, [albedo]);
+        layout!(area, "AreaLights", area_light::AreaLightParams, [albedo, texels_bound, texel_size]);
         layout!(tone, "ToneParams", tonemap::ToneParams, [exposure_scale, curve]);
         // The blocker kernel is a compute shader importing common.wgsl alone.
         let shexp = validate(crate::shexp::SHADER, false);

@@ -215,6 +215,8 @@ fn area_lights_light_the_floor_like_direct_integration() {
             "area.light",
             "output.area_transport",
             "output.area_irradiance",
+            "output.area_texel_transport",
+            "output.area_texel_irradiance",
             "output.area_highlights"
         ])
     );

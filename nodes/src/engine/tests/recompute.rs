@@ -30,6 +30,13 @@ fn with_bake(expected: &[&str]) -> BTreeSet<String> {
             out.insert(bake_stage.to_string());
         }
     }
+    // The area lights per texel follow their vertices' stages, and the texels.
+    if out.contains("output.area_transport") || out.contains("scene.texel_receivers") {
+        out.insert("output.area_texel_transport".to_string());
+    }
+    if out.contains("output.area_irradiance") || out.contains("output.area_texel_transport") {
+        out.insert("output.area_texel_irradiance".to_string());
+    }
     // The residual sky's texel products follow the whole sky's (the sun's split follows the
     // radiance the whole sky's prefiltered environment does).
     if out.contains("output.bake_texel_products") {
@@ -109,6 +116,8 @@ const SCENE_ALL: &[&str] = &[
     "output.blocked_transport",
     "output.area_transport",
     "output.area_irradiance",
+    "output.area_texel_transport",
+    "output.area_texel_irradiance",
     "output.area_highlights",
     "output.adaptive_incident",
     "output.adaptive_error",
@@ -402,7 +411,7 @@ fn each_parameter_recomputes_exactly_its_stages() {
     graph.set_param("scene", "tessellation", Int(12)).unwrap();
     let first = engine.evaluate(&graph, &CancelToken::default(), None);
     assert!(first.report.failed().is_empty(), "{:?}", first.report.failed());
-    assert_eq!(first.report.computed().len(), 65);
+    assert_eq!(first.report.computed().len(), 67);
     let again = engine.evaluate(&graph, &CancelToken::default(), None);
     assert!(ran(&again.report).is_empty(), "an unchanged graph recomputed {:?}", ran(&again.report));
     for (node, param, value, expected) in table {
@@ -721,7 +730,7 @@ fn each_mode_and_view_evaluates_exactly_the_stages_it_reads() {
         for s in eval.report.stages.iter().filter(|s| s.status == StageStatus::NotNeeded) {
             assert!(s.reasons[0].contains(&format!("mode {mode}")), "{}.{}: {:?}", s.node, s.stage, s.reasons);
         }
-        assert_eq!(eval.report.stages.len(), 65, "every stage is reported");
+        assert_eq!(eval.report.stages.len(), 67, "every stage is reported");
     }
 }
 

@@ -7,6 +7,9 @@
 //!   above the lights, a ceiling, casts no shadow). Lights with equal faces share it; it is
 //!   memoised per face on the geometry and that plane, so painting, moving a light within it
 //!   or adding a light with a face already traced casts no ray.
+//! - `area_texel_transport` and `area_texel_irradiance`: the same at the texels of meshes with a
+//!   visibility texture, so their shadows are resolved per texel, not per vertex (a floor's
+//!   vertices are often too far apart for a shadow).
 //! - `area_irradiance`: `E = Σ_ℓ scale_ℓ Σ_k L_k^{(ℓ)} T_k` per vertex (Eq. 4.36). Each light's
 //!   unscaled sum is memoised on the light's coefficients, placement and face, so an edit of one
 //!   light reruns only its own, and intensity or tint only rescales. Below it, each source
@@ -123,6 +126,29 @@ pub fn stages() -> Vec<StageSpec> {
             compute: area_irradiance,
         },
         StageSpec {
+            name: "area_texel_transport",
+            version: 1,
+            params: &[],
+            stages: &[],
+            inputs: &[
+                ("scene", "texel_receivers"),
+                ("scene", "ray_scene"),
+                ("area_lights", "face"),
+                ("area_lights", "placement"),
+            ],
+            persist: Some(crate::engine::Codec::of::<AreaTransport>()),
+            compute: area_texel_transport,
+        },
+        StageSpec {
+            name: "area_texel_irradiance",
+            version: 1,
+            params: &[],
+            stages: &["area_texel_transport"],
+            inputs: &[("scene", "texel_receivers"), ("area_lights", "light")],
+            persist: None,
+            compute: area_texel_irradiance,
+        },
+        StageSpec {
             name: "area_highlights",
             version: 1,
             params: &["highlight_eye"],
@@ -223,6 +249,20 @@ pub(super) fn transport_of(
         cells * 4 / 1024
     ));
     Ok(out)
+}
+
+/// The top-face transports of the texels of meshes with a visibility texture: their shadows
+/// resolved per texel instead of per vertex (empty without such a mesh).
+fn area_texel_transport(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let texels = ctx.required_input::<crate::transport::TexelReceivers>("scene", "texel_receivers")?;
+    Ok(StageValue::new(transport_of(ctx, &texels.receivers, "the scene's visibility texture size")?))
+}
+
+/// [`area_irradiance`] at the texels of meshes with a visibility texture.
+fn area_texel_irradiance(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let texels = ctx.required_input::<crate::transport::TexelReceivers>("scene", "texel_receivers")?;
+    let transports = ctx.stage::<AreaTransport>("area_texel_transport")?;
+    Ok(StageValue::new(irradiance_of(ctx, &texels.receivers, transports)?))
 }
 
 fn area_irradiance(ctx: &StageContext) -> Result<StageValue, StageError> {

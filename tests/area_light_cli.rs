@@ -155,3 +155,51 @@ fn a_shadow_on_a_coarse_floor_follows_the_reference_per_texel() {
     assert!(texels < 0.06 + noise, "per texel: {texels}");
     assert!(vertices > 2.0 * texels, "per vertex: {vertices} against {texels} per texel");
 }
+
+/// Relative RMSE of `ours` against `truth` over the pixels `ours` draws a surface in (the
+/// panel itself, which Mitsuba draws, is not a surface here).
+fn relative_rmse_over_surfaces(ours: &image::Rgb32FImage, truth: &image::Rgb32FImage) -> f64 {
+    let (mut squared, mut sum, mut count) = (0.0, 0.0, 0usize);
+    for (a, b) in ours.pixels().zip(truth.pixels()) {
+        if a.0.iter().sum::<f32>() > 0.0 {
+            for c in 0..3 {
+                squared += f64::from(a.0[c] - b.0[c]).powi(2);
+                sum += f64::from(b.0[c]);
+            }
+            count += 3;
+        }
+    }
+    assert!(count > 3 * 30_000, "only {} surface pixels", count / 3);
+    (squared / count as f64).sqrt() / (sum / count as f64)
+}
+
+/// Against Mitsuba 3 (tests/projects/mitsuba/area_sphere_floor, made by
+/// tools/mitsuba/area_light.py at 4096 samples): the painted panel's light and the sphere's
+/// shadow on the wide floor, shaded per texel there, within 6%; per vertex on the same floor,
+/// far off.
+#[test]
+fn the_area_light_matches_mitsuba_on_a_wide_floor() {
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/projects/mitsuba/area_sphere_floor");
+    let truth = image::open(scene.join("mitsuba.exr")).unwrap().into_rgb32f();
+    let dir = std::env::temp_dir().join(format!("lightloom-area-mitsuba-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let render = |project: &Path, name: &str| {
+        let exr = dir.join(name);
+        let mut command = lightloom();
+        command.args(["render", project.to_str().unwrap(), "-o", exr.to_str().unwrap()]);
+        command.args(["--width", "320", "--height", "180", "--no-disk-cache", "-q"]);
+        let out = command.output().unwrap();
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        image::open(&exr).unwrap().into_rgb32f()
+    };
+    let texels = relative_rmse_over_surfaces(&render(&scene.join("project.ron"), "texels.exr"), &truth);
+    // The same floor without its visibility texture.
+    let text = std::fs::read_to_string(scene.join("project.ron")).unwrap();
+    assert!(text.contains(", visibility_texture: true"));
+    std::fs::write(dir.join("project.ron"), text.replace(", visibility_texture: true", "")).unwrap();
+    std::fs::copy(scene.join("panel.png"), dir.join("panel.png")).unwrap();
+    let vertices = relative_rmse_over_surfaces(&render(&dir.join("project.ron"), "vertices.exr"), &truth);
+    eprintln!("relative RMSE against Mitsuba: per texel {texels:.4}, per vertex {vertices:.4}");
+    assert!(texels < 0.06, "per texel: {texels}");
+    assert!(vertices > 3.0 * texels, "per vertex: {vertices} against {texels} per texel");
+}

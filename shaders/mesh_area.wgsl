@@ -31,6 +31,7 @@ struct AreaLights {
 fn light_vertex(v: MeshVertex, index: u32, common_out: VertexOut) -> VertexOut {
     var out = common_out;
     let kd = area.albedo[v.material].rgb * v.color / PI;
+    // Lambert's factor (the albedo over pi), which the per-texel irradiance multiplies.
     out.albedo = kd;
     out.diffuse = kd * irradiance[index].rgb;
     out.glossy = highlight[index].rgb;

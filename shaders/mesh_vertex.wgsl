@@ -19,6 +19,6 @@ struct VertexOut {
     @location(7) glossy: vec3<f32>,
     // How open the vertex is to the light it was lit by (normal_map.wgsl ndf_open_fraction).
     @location(8) open: vec3<f32>,
-    // The vertex's mesh's texel layer (wavelet_pixel), or -1.
+    // The vertex's mesh's texel layer (wavelet_pixel, area lights on textured meshes), or -1.
     @location(9) @interpolate(flat) layer: i32,
 };

@@ -43,7 +43,9 @@ fn accuracy(project: &Path, sets: &[&str]) -> (f64, f64) {
 
 /// Per setting, the error against the reference: the defaults (2% of the texture, 30% of each
 /// top face) within 12%; keeping everything no worse than the defaults by more than the
-/// noise; and a face of 2 (missing the light's grazing reach) clearly worse than 4.
+/// noise; and a face of 2, whose Haar products miss the light's grazing reach, no worse than 4
+/// by more than the noise either, since the part of the light beyond the face is added in
+/// closed form (it was 1.5× worse before).
 #[test]
 fn painted_area_light_matches_the_monte_carlo_reference() {
     let dir = std::env::temp_dir().join(format!("lightloom-area-{}", std::process::id()));
@@ -56,7 +58,7 @@ fn painted_area_light_matches_the_monte_carlo_reference() {
     assert!(noise < 0.05, "the reference is too noisy to judge: {noise}");
     assert!(defaults < 0.12, "defaults: {defaults}");
     assert!(full < defaults + noise, "keeping everything: {full} against {defaults}");
-    assert!(narrow > 1.5 * defaults, "face 2: {narrow} against {defaults} at face 4");
+    assert!(narrow < defaults + noise, "face 2: {narrow} against {defaults} at face 4");
 }
 
 /// Sun 2008 §4.9 through the binary: the panel over a glossy (Phong) floor, sphere and box, its
@@ -100,7 +102,7 @@ fn sphere_on_a_floor(dir: &Path, texture: bool) -> PathBuf {
         (id: "scene", kind: "Scene", params: {{
             "objects": Objects([
                 (name: "floor", shape: Plane(size: 20.0){floor_texture}),
-                (name: "sphere", shape: Sphere(radius: 0.6), translation: (0.0, 0.6, 0.0)),
+                (name: "sphere", shape: Sphere(radius: 0.6), translation: (0.7, 0.6, -0.3)),
             ]),
             "tessellation": Int(64),
             "visibility_texture_size": Choice("256"),
@@ -143,7 +145,8 @@ fn accuracy_at_tessellation(project: &Path) -> (f64, f64) {
 }
 
 /// Per texel on a visibility-textured floor, the area light's shadow and falloff follow the
-/// reference within 6% (plus its noise); per vertex on the same floor it is over twice as far.
+/// reference within 5% once its noise is taken out; per vertex on the same floor it is over
+/// twice as far.
 #[test]
 fn a_shadow_on_a_coarse_floor_follows_the_reference_per_texel() {
     let dir = std::env::temp_dir().join(format!("lightloom-area-floor-{}", std::process::id()));
@@ -152,16 +155,17 @@ fn a_shadow_on_a_coarse_floor_follows_the_reference_per_texel() {
     let (vertices, _) = accuracy_at_tessellation(&sphere_on_a_floor(&dir, false));
     eprintln!("relative RMSE: per texel {texels:.4}, per vertex {vertices:.4}; noise {noise:.4}");
     assert!(noise < 0.05, "the reference is too noisy to judge: {noise}");
-    assert!(texels < 0.06 + noise, "per texel: {texels}");
+    let bias = (texels * texels - noise * noise).max(0.0).sqrt();
+    assert!(bias < 0.05, "per texel: {texels} with the reference's noise {noise}");
     assert!(vertices > 2.0 * texels, "per vertex: {vertices} against {texels} per texel");
 }
 
-/// Relative RMSE of `ours` against `truth` over the pixels `ours` draws a surface in (the
-/// panel itself, which Mitsuba draws, is not a surface here).
-fn relative_rmse_over_surfaces(ours: &image::Rgb32FImage, truth: &image::Rgb32FImage) -> f64 {
+/// Relative RMSE of `ours` against `truth` over the pixels either lights (the camera does not
+/// see the panel; beyond the floor both are black).
+fn relative_rmse_over_surfaces(ours: &image::Rgb32FImage, truth: &image::Rgb32FImage, least: usize) -> f64 {
     let (mut squared, mut sum, mut count) = (0.0, 0.0, 0usize);
     for (a, b) in ours.pixels().zip(truth.pixels()) {
-        if a.0.iter().sum::<f32>() > 0.0 {
+        if a.0.iter().chain(&b.0).sum::<f32>() > 0.0 {
             for c in 0..3 {
                 squared += f64::from(a.0[c] - b.0[c]).powi(2);
                 sum += f64::from(b.0[c]);
@@ -169,37 +173,45 @@ fn relative_rmse_over_surfaces(ours: &image::Rgb32FImage, truth: &image::Rgb32FI
             count += 3;
         }
     }
-    assert!(count > 3 * 30_000, "only {} surface pixels", count / 3);
+    assert!(count > 3 * least, "only {} surface pixels", count / 3);
     (squared / count as f64).sqrt() / (sum / count as f64)
 }
 
 /// Against Mitsuba 3 (tests/projects/mitsuba/area_sphere_floor, made by
-/// tools/mitsuba/area_light.py at 4096 samples): the painted panel's light and the sphere's
-/// shadow on the wide floor, shaded per texel there, within 6%; per vertex on the same floor,
-/// far off.
+/// tools/mitsuba/area_light.py at 4096 samples): the painted panel's light and the shadow of
+/// the sphere (off the panel's axis, so a flipped or transposed texel layout would misplace
+/// it) on the wide floor, shaded per texel there, within 6%; per vertex on the same floor, far
+/// off. From the "far" camera, the floor 5–10 m away, beyond the reach of the light's top face
+/// (lit there only by the part beyond the face), within 6% too.
 #[test]
 fn the_area_light_matches_mitsuba_on_a_wide_floor() {
     let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/projects/mitsuba/area_sphere_floor");
     let truth = image::open(scene.join("mitsuba.exr")).unwrap().into_rgb32f();
     let dir = std::env::temp_dir().join(format!("lightloom-area-mitsuba-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
-    let render = |project: &Path, name: &str| {
+    let render = |project: &Path, name: &str, camera: &str| {
         let exr = dir.join(name);
         let mut command = lightloom();
-        command.args(["render", project.to_str().unwrap(), "-o", exr.to_str().unwrap()]);
+        command.args(["render", project.to_str().unwrap(), "-o", exr.to_str().unwrap(), "--camera", camera]);
         command.args(["--width", "320", "--height", "180", "--no-disk-cache", "-q"]);
         let out = command.output().unwrap();
         assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
         image::open(&exr).unwrap().into_rgb32f()
     };
-    let texels = relative_rmse_over_surfaces(&render(&scene.join("project.ron"), "texels.exr"), &truth);
+    let texels = relative_rmse_over_surfaces(&render(&scene.join("project.ron"), "texels.exr", "main"), &truth, 30_000);
+    let far_truth = image::open(scene.join("mitsuba_far.exr")).unwrap().into_rgb32f();
+    let far = relative_rmse_over_surfaces(&render(&scene.join("project.ron"), "far.exr", "far"), &far_truth, 20_000);
     // The same floor without its visibility texture.
     let text = std::fs::read_to_string(scene.join("project.ron")).unwrap();
     assert!(text.contains(", visibility_texture: true"));
     std::fs::write(dir.join("project.ron"), text.replace(", visibility_texture: true", "")).unwrap();
     std::fs::copy(scene.join("panel.png"), dir.join("panel.png")).unwrap();
-    let vertices = relative_rmse_over_surfaces(&render(&dir.join("project.ron"), "vertices.exr"), &truth);
-    eprintln!("relative RMSE against Mitsuba: per texel {texels:.4}, per vertex {vertices:.4}");
+    let vertices =
+        relative_rmse_over_surfaces(&render(&dir.join("project.ron"), "vertices.exr", "main"), &truth, 30_000);
+    eprintln!(
+        "relative RMSE against Mitsuba: per texel {texels:.4}, per vertex {vertices:.4}; beyond the face {far:.4}"
+    );
     assert!(texels < 0.06, "per texel: {texels}");
+    assert!(far < 0.06, "beyond the top face: {far}");
     assert!(vertices > 3.0 * texels, "per vertex: {vertices} against {texels} per texel");
 }

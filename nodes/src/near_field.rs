@@ -22,6 +22,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
+pub mod beyond_face;
 mod couplings;
 mod targets;
 

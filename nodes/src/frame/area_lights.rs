@@ -143,7 +143,7 @@ pub(super) fn area_light_frame(
     keyed: &dyn Fn(&str, &str) -> Result<Keyed, String>,
     materials: &[FrameMaterial],
     geometry: &Geometry,
-    scene: Option<&str>,
+    scene: &str,
 ) -> Result<Option<AreaLightFrame>, String> {
     let vertices = geometry.vertex_count();
     match evaluation.get(output, "area_irradiance") {
@@ -163,7 +163,7 @@ pub(super) fn area_light_frame(
             let mut frame =
                 AreaLightFrame::new(keyed(output, "area_irradiance")?, highlights, emitters, materials, vertices)?;
             // Per texel once traced (a later request tier), where any mesh has a texture.
-            if let (Some(r), Some(scene)) = (evaluation.get(output, "area_texel_irradiance"), scene)
+            if let Some(r) = evaluation.get(output, "area_texel_irradiance")
                 && r.value.is_ok()
             {
                 let texels = keyed(scene, "texel_receivers")?;

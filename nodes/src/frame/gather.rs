@@ -119,15 +119,8 @@ impl FrameInputs {
         // Area lights join once their transport is traced (a later request tier).
         let light_nodes = graph.upstream_all(output, "area_lights");
         let keyed = |node: &str, stage: &str| g.keyed(node, stage);
-        let area_lights = area_lights::area_light_frame(
-            evaluation,
-            &light_nodes,
-            output,
-            &keyed,
-            &materials,
-            &geometry,
-            Some(&scene),
-        )?;
+        let area_lights =
+            area_lights::area_light_frame(evaluation, &light_nodes, output, &keyed, &materials, &geometry, &scene)?;
         let mut ignored_inputs = std::mem::take(&mut frame.ignored);
         ignored_inputs.extend(unmatched_note(&materials, &frame.unmatched));
         let shadowed = !matches!(g.mode, Mode::ShIrradiance);

@@ -99,11 +99,12 @@ pub fn frame_request_for(graph: &Graph, output: &str, needs: FrameNeeds) -> Requ
         // Highlights follow the view: the diffuse light shows first.
         request
             .then(format!("output `{output}`: area lights"), vec![StageRef::new(output, "area_irradiance")])
+            .then(format!("output `{output}`: area-light highlights"), vec![StageRef::new(output, "area_highlights")])
+            // Meanwhile textured meshes show the per-vertex light.
             .then(format!("output `{output}`: area lights per texel"), {
                 let mut stages = vec![StageRef::new(output, "area_texel_irradiance")];
                 stages.extend(linked.scene.as_ref().map(|scene| StageRef::new(scene, "texel_receivers")));
                 stages
             })
-            .then(format!("output `{output}`: area-light highlights"), vec![StageRef::new(output, "area_highlights")])
     }
 }

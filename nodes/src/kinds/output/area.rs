@@ -6,11 +6,15 @@
 //!   transport in 2D Haar (one ray per cell, ending at the highest light's plane: what lies
 //!   above the lights, a ceiling, casts no shadow). Lights with equal faces share it; it is
 //!   memoised per face on the geometry and that plane, so painting, moving a light within it
-//!   or adding a light with a face already traced casts no ray.
+//!   or adding a light with a face already traced casts no ray. Beside the faces, each light's
+//!   part beyond its face ([`crate::near_field::beyond_face`]: closed-form cells, one ray per
+//!   quadrant of the light), memoised on the geometry, the face and the light's placement, so a
+//!   move re-traces only those rays.
 //! - `area_texel_transport` and `area_texel_irradiance`: the same at the texels of meshes with a
 //!   visibility texture, so their shadows are resolved per texel, not per vertex (a floor's
 //!   vertices are often too far apart for a shadow).
-//! - `area_irradiance`: `E = Σ_ℓ scale_ℓ Σ_k L_k^{(ℓ)} T_k` per vertex (Eq. 4.36). Each light's
+//! - `area_irradiance`: `E = Σ_ℓ scale_ℓ (Σ_k L_k^{(ℓ)} T_k + Σ_c F̄_c^{(ℓ)} R_c)` per vertex
+//!   (Eq. 4.36, plus the cells beyond the face). Each light's
 //!   unscaled sum is memoised on the light's coefficients, placement and face, so an edit of one
 //!   light reruns only its own, and intensity or tint only rescales. Below it, each source
 //!   coefficient's response ([`crate::near_field::responses`]) is memoised on the placement, the
@@ -20,9 +24,10 @@
 use crate::engine::spec::{PortSpec, PortType, StageSpec};
 use crate::engine::{Key, StageContext, StageError, StageValue};
 use crate::kinds::area_light::AreaLight;
+use crate::near_field::beyond_face::{self, BeyondFace, VISIBILITY, beyond_face, cell_means};
 use crate::near_field::{
-    FaceTransport, FaceVisibility, TargetKeep, TopFace, face_visibility, irradiance, response_batch, responses, shade,
-    visible_transport,
+    FaceTransport, FaceVisibility, LightPlacement, TargetKeep, TopFace, face_visibility, irradiance, response_batch,
+    responses, shade, visible_transport,
 };
 use crate::raycast::RayScene;
 use crate::transport::Receivers;
@@ -32,11 +37,13 @@ use std::sync::Arc;
 
 crate::stage_type!(Arc<FaceTransport>, "top-face transport", encoding = 1, |v| v.coefficients.len() * 4 + 32);
 crate::stage_type!(Arc<FaceVisibility>, "top-face visibility", encoding = 1, |v| v.bits.len() * 8 + 32);
-crate::stage_type!(AreaTransport, "area-light transport", encoding = 2, |v| v
+crate::stage_type!(AreaTransport, "area-light transport", encoding = 3, |v| v
     .faces
     .iter()
     .map(|f| f.transport.coefficients.len() * 4 + f.visibility.bits.len() * 8 + 64)
+    .chain(v.beyond.iter().map(|b| b.responses.responses.len() * 4 + 64))
     .sum());
+crate::stage_type!(Arc<BeyondFace>, "light beyond the top face", encoding = 1, |v| v.responses.len() * 4 + 16);
 crate::stage_type!(
     AreaHighlights,
     "area-light highlights",
@@ -63,6 +70,16 @@ const TRANSPORT_CHUNK: usize = 512;
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct AreaTransport {
     pub faces: Vec<SharedTransport>,
+    /// Per linked light, its responses beyond its face ([`crate::near_field::beyond_face`]).
+    pub beyond: Vec<LightBeyond>,
+}
+
+/// One light's cells seen beyond its top face, by its placement and face.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct LightBeyond {
+    pub placement: LightPlacement,
+    pub face: TopFace,
+    pub responses: Arc<BeyondFace>,
 }
 
 /// One face's transport and the key it is memoised under (what the lights' sums depend on),
@@ -104,7 +121,7 @@ pub fn stages() -> Vec<StageSpec> {
     vec![
         StageSpec {
             name: "area_transport",
-            version: 3,
+            version: 4,
             params: &[],
             stages: &[],
             inputs: &[
@@ -118,7 +135,7 @@ pub fn stages() -> Vec<StageSpec> {
         },
         StageSpec {
             name: "area_irradiance",
-            version: 2,
+            version: 3,
             params: &[],
             stages: &["area_transport"],
             inputs: &[("scene", "receivers"), ("area_lights", "light")],
@@ -127,7 +144,7 @@ pub fn stages() -> Vec<StageSpec> {
         },
         StageSpec {
             name: "area_texel_transport",
-            version: 1,
+            version: 2,
             params: &[],
             stages: &[],
             inputs: &[
@@ -136,12 +153,13 @@ pub fn stages() -> Vec<StageSpec> {
                 ("area_lights", "face"),
                 ("area_lights", "placement"),
             ],
-            persist: Some(crate::engine::Codec::of::<AreaTransport>()),
+            // 4 KiB per texel: kept in memory, not written to the disk cache.
+            persist: None,
             compute: area_texel_transport,
         },
         StageSpec {
             name: "area_texel_irradiance",
-            version: 1,
+            version: 2,
             params: &[],
             stages: &["area_texel_transport"],
             inputs: &[("scene", "texel_receivers"), ("area_lights", "light")],
@@ -201,8 +219,26 @@ pub(super) fn transport_of(
         .iter()
         .map(|(_, p)| p.height)
         .fold(f64::NEG_INFINITY, f64::max);
+    // Each light's placement beside its face: its part beyond the face is traced apart.
+    let faces_of = ctx.inputs_all::<TopFace>("area_lights", "face")?;
+    let lights: Vec<(LightPlacement, TopFace)> = ctx
+        .inputs_all::<LightPlacement>("area_lights", "placement")?
+        .into_iter()
+        .filter_map(|(node, placement)| faces_of.iter().find(|(n, _)| *n == node).map(|(_, face)| (*placement, **face)))
+        .collect();
     let cells: usize = faces.iter().map(|f| f.order * f.order).sum();
-    crate::kinds::scene::check_ray_budget(receivers.len(), cells, density)?;
+    crate::kinds::scene::check_ray_budget(receivers.len(), cells + lights.len() * VISIBILITY * VISIBILITY, density)?;
+    let bytes = (receivers.len() * (cells * 4 + lights.len() * beyond_face::CELLS * beyond_face::CELLS * 4)) as u64;
+    if bytes > crate::limits::MAX_AREA_TRANSPORT_BYTES {
+        return Err(StageError::Failed(format!(
+            "the area lights' transport would take {} MiB ({} receivers × {cells} top-face cells and {} light(s)); the \
+             limit is {} MiB: lower {density}",
+            bytes >> 20,
+            receivers.len(),
+            lights.len(),
+            crate::limits::MAX_AREA_TRANSPORT_BYTES >> 20
+        )));
+    }
     // What every face's transport depends on besides the face: the receivers and the triangles.
     let mut geometry = xxhash_rust::xxh3::Xxh3::new();
     geometry.update(b"area transport v1");
@@ -240,6 +276,45 @@ pub(super) fn transport_of(
             Ok(Arc::new(FaceTransport { face: *face, coefficients }))
         })?;
         out.faces.push(SharedTransport { key, transport: (*transport).clone(), visibility });
+    }
+    for (placement, face) in &lights {
+        if out.beyond.iter().any(|b| b.placement == *placement && b.face == *face) {
+            continue;
+        }
+        let key = xxhash_rust::xxh3::xxh3_128(
+            &[
+                geometry.as_slice(),
+                &face_bytes(face),
+                b"beyond the face v1",
+                &postcard::to_allocvec(placement).map_err(|e| StageError::Internal(e.to_string()))?,
+            ]
+            .concat(),
+        );
+        let responses = ctx.memo(key, || {
+            let mut responses = Vec::with_capacity(receivers.len() * beyond_face::CELLS * beyond_face::CELLS);
+            for start in (0..receivers.len()).step_by(TRANSPORT_CHUNK * 8) {
+                ctx.check_cancel()?;
+                let end = (start + TRANSPORT_CHUNK * 8).min(receivers.len());
+                let part = beyond_face(
+                    face,
+                    placement,
+                    &points[start..end],
+                    &normals[start..end],
+                    &origins[start..end],
+                    |origin, target| {
+                        let to = target - origin;
+                        let reach = to.length() * (1.0 - 1e-4);
+                        !scene.occluded(origin.as_vec3a(), (to / to.length()).as_vec3a(), reach as f32)
+                    },
+                );
+                responses.extend(part.responses);
+            }
+            Ok(Arc::new(BeyondFace { responses }))
+        })?;
+        out.beyond.push(LightBeyond { placement: *placement, face: *face, responses: (*responses).clone() });
+    }
+    if receivers.is_empty() {
+        return Ok(out);
     }
     ctx.inform(format!(
         "{} top face(s) of {} cells traced for {} receivers ({} KB each)",
@@ -281,7 +356,12 @@ pub(super) fn irradiance_of(
     let mut total = vec![[0.0f64; 3]; receivers.len()];
     for (_, light) in ctx.inputs_all::<AreaLight>("area_lights", "light")? {
         let shared = face_of(transports, light)?;
-        add_light(ctx, light, shared, &points, &mut total)?;
+        let beyond = transports
+            .beyond
+            .iter()
+            .find(|b| b.placement == light.placement && b.face == light.face)
+            .map(|b| b.responses.as_ref());
+        add_light(ctx, light, shared, beyond, &points, &mut total)?;
     }
     // Truncated products ring slightly below zero near a light's footprint; irradiance cannot.
     let irradiance = total.into_iter().map(|c| c.map(|v| v.max(0.0) as f32)).collect();
@@ -296,18 +376,20 @@ fn face_of<'a>(transports: &'a AreaTransport, light: &AreaLight) -> Result<&'a S
         .ok_or_else(|| StageError::Internal("no transport for a light's top face".into()))
 }
 
-/// Adds `scale · Σ_k L_k T_k` of one light through `shared`'s transport to `total`; the
-/// unscaled sum is memoised on the light's coefficients, placement, shading and the transport.
+/// Adds `scale · Σ_k L_k T_k` of one light through `shared`'s transport to `total`, and its
+/// light `beyond` the face; the unscaled sum is memoised on the light's coefficients,
+/// placement, shading and the transport (what `beyond` depends on too).
 fn add_light(
     ctx: &StageContext,
     light: &AreaLight,
     shared: &SharedTransport,
+    beyond: Option<&BeyondFace>,
     points: &[DVec3],
     total: &mut [[f64; 3]],
 ) -> Result<(), StageError> {
     let described = (&light.source, &light.placement, &light.shading());
     let mut key = xxhash_rust::xxh3::Xxh3::new();
-    key.update(b"area irradiance v1");
+    key.update(b"area irradiance v2");
     key.update(&shared.key.to_le_bytes());
     key.update(&postcard::to_allocvec(&described).map_err(|e| StageError::Internal(e.to_string()))?);
     let unscaled = ctx.memo(key.digest128(), || {
@@ -317,6 +399,14 @@ fn add_light(
                 irradiance(&light.source, &light.placement, &shared.transport, points, light.shading())
             }
             _ => shade_by_responses(ctx, light, shared, points)?,
+        };
+        let e = match beyond {
+            Some(beyond) => e
+                .iter()
+                .zip(beyond.irradiance(&cell_means(&light.source)))
+                .map(|(a, b)| [a[0] + b[0], a[1] + b[1], a[2] + b[2]])
+                .collect(),
+            None => e,
         };
         Ok(UnscaledIrradiance(e.into_iter().map(|c| c.map(|v| v as f32)).collect()))
     })?;
@@ -402,7 +492,7 @@ fn area_highlights(ctx: &StageContext) -> Result<StageValue, StageError> {
             Ok(Arc::new(FaceTransport { face: visibility.face, coefficients }))
         })?;
         let glossy = SharedTransport { key, transport: (*transport).clone(), visibility: diffuse.visibility.clone() };
-        add_light(ctx, light, &glossy, &points, &mut total)?;
+        add_light(ctx, light, &glossy, None, &points, &mut total)?;
     }
     let radiance = total
         .iter()

@@ -265,3 +265,94 @@ fn glossy_sample_figures(
     println!("  {:<32} {:>16.1} {:>12.1}", "the view rests elsewhere", median(stages), median(frames));
     Ok(())
 }
+
+/// The engine sample (the 2CylinderEngine glTF, ~94k vertices, glossy GGX, a floor with a
+/// visibility texture) with a painted panel linked as a user would, CPU stage times only (the
+/// viewport's draw apart), each beside its goal: linking the light the first time (the engine's
+/// own stages already evaluated), a stroke, a move in the light's plane, an intensity change,
+/// and the view resting somewhere new (the highlights).
+pub fn area_engine_figures(args: &BenchArgs) -> Result<()> {
+    use crate::project_commands::{evaluate, output_request};
+    use lightloom_nodes::project::{Project, ProjectLink, ProjectNode};
+    let path = crate::samples::project("engine")?;
+    let (mut project, _) = Project::load(&path).map_err(|e| anyhow!("{e}"))?;
+    let area = Project::load(&crate::samples::project("area_light")?).map_err(|e| anyhow!("{e}"))?.0;
+    let mut panel =
+        area.nodes.iter().find(|n| n.id == "panel").cloned().ok_or_else(|| anyhow!("the area sample's panel"))?;
+    panel.params.insert("position".into(), ParamValue::Vec3([0.1, 1.2, 0.0]));
+    panel.params.insert("width".into(), ParamValue::Float(1.0));
+    panel.params.insert("depth".into(), ParamValue::Float(0.6));
+    project.nodes.push(ProjectNode { position: [0.0, 600.0], ..panel });
+    let unlinked = project.graph(&path).map_err(|e| anyhow!("{e:?}"))?;
+    project
+        .links
+        .push(ProjectLink { from: ("panel".into(), "area_light".into()), to: ("output".into(), "area_lights".into()) });
+    let mut graph = project.graph(&path).map_err(|e| anyhow!("{e:?}"))?;
+    let engine = Arc::new(Engine::in_memory());
+    // CPU stage time of an evaluation: its total, and the area stages' own.
+    type Timed = (f64, Vec<(String, f64)>);
+    let run = |graph: &Graph| -> Result<Timed> {
+        let start = Instant::now();
+        let evaluation = evaluate(engine.clone(), graph, output_request(graph, "output", true), true);
+        let total = start.elapsed().as_secs_f64() * 1e3;
+        if let Some(failed) = evaluation.report.stages.iter().find(|s| s.error.is_some()) {
+            return Err(anyhow!("{}.{}: {:?}", failed.node, failed.stage, failed.error));
+        }
+        let area = evaluation
+            .report
+            .stages
+            .iter()
+            .filter(|s| s.stage.starts_with("area_") && s.ms > 0.5)
+            .map(|s| (s.stage.to_string(), s.ms))
+            .collect();
+        Ok((total, area))
+    };
+    let (warm, _) = run(&unlinked)?;
+    let vertices = {
+        let evaluation = evaluate(engine.clone(), &unlinked, output_request(&unlinked, "output", true), true);
+        let frame =
+            lightloom_nodes::frame::FrameInputs::gather(&evaluation, &unlinked, "output").map_err(|e| anyhow!(e))?;
+        frame.geometry.vertex_count()
+    };
+    println!("\narea light on the engine sample ({vertices} vertices; the sample alone took {:.1} s):", warm / 1e3);
+    let show = |label: &str, goal: &str, (total, area): Timed| {
+        let parts: Vec<String> = area.iter().map(|(s, ms)| format!("{s} {ms:.0}")).collect();
+        println!("  {label:<32} {total:>10.0} ms (goal {goal}): {}", parts.join(", "));
+    };
+    show("link the light (first time)", "< 10 s", run(&graph)?);
+    let ParamValue::Paint(paint) =
+        graph.node("panel").and_then(|n| n.params.get("paint")).cloned().ok_or_else(|| anyhow!("paint"))?
+    else {
+        return Err(anyhow!("paint"));
+    };
+    let mut results: Vec<(&str, &str, Vec<Timed>)> =
+        vec![("a stroke", "< 100 ms", vec![]), ("move in its plane", "< 300 ms", vec![]), ("intensity", "", vec![])];
+    results.push(("the view rests elsewhere", "not from scratch", vec![]));
+    let eye = project.camera(None).map_err(|e| anyhow!(e))?.position;
+    for k in 0..args.frames.max(1) {
+        let mut ops = paint.clone();
+        ops.push(PaintOp::Stroke {
+            points: (0..20).map(|i| [0.2 + 0.03 * i as f64, 0.5 + 0.02 * k as f64]).collect(),
+            radius: 0.06,
+            hardness: 0.5,
+            colour: [1.0, 0.4, 0.2],
+            intensity: 5.0,
+            blend: Blend::Mix,
+        });
+        graph.set_param("panel", "paint", ParamValue::Paint(ops))?;
+        results[0].2.push(run(&graph)?);
+        graph.set_param("panel", "position", ParamValue::Vec3([0.1 + 0.05 * (k + 1) as f64, 1.2, 0.0]))?;
+        results[1].2.push(run(&graph)?);
+        graph.set_param("panel", "intensity", ParamValue::Float(4.0 + (k + 1) as f64))?;
+        results[2].2.push(run(&graph)?);
+        let turned = [eye[0] + 0.2 * (k + 1) as f64, eye[1], eye[2]];
+        graph.set_param("output", lightloom_nodes::kinds::output::HIGHLIGHT_EYE, ParamValue::Vec3(turned))?;
+        results[3].2.push(run(&graph)?);
+    }
+    for (label, goal, mut runs) in results {
+        runs.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let median = runs.swap_remove(runs.len() / 2);
+        show(label, if goal.is_empty() { "-" } else { goal }, median);
+    }
+    Ok(())
+}

@@ -18,8 +18,8 @@ pub struct BenchArgs {
     /// Frames timed per figure (the median is printed).
     #[arg(long, default_value_t = 5)]
     pub frames: usize,
-    /// Only these sections (rays, default, fog, rsl, blockers, adaptive, area, normal_maps,
-    /// synthetic; all when empty).
+    /// Only these sections (rays, default, fog, rsl, blockers, adaptive, area, area_engine,
+    /// normal_maps, synthetic; all when empty).
     #[arg(long, value_delimiter = ',')]
     pub only: Vec<String>,
     /// Also write the rays section's mesh and rays into this folder, for

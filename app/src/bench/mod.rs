@@ -68,6 +68,9 @@ pub fn run(args: &BenchArgs) -> Result<()> {
         area::area_light_figures();
         area::area_sample_figures(args, &gpu)?;
     }
+    if wanted("area_engine") {
+        area::area_engine_figures(args)?;
+    }
     if wanted("normal_maps") {
         normal_maps::normal_map_figures(args, &gpu)?;
     }

@@ -63,7 +63,12 @@ pub struct Evaluator {
     /// The user cancelled: do not resubmit until the next edit.
     pub cancelled_revision: Option<u64>,
     pending_graph: Option<Graph>,
+    /// The latest finished tier, until the evaluation has run long enough to show it.
+    held: Option<(usize, Evaluation)>,
 }
+
+/// How long an evaluation runs before its finished tiers are shown.
+const PARTIAL_AFTER: std::time::Duration = std::time::Duration::from_millis(150);
 
 impl Evaluator {
     pub fn new(engine: Arc<Engine>) -> Self {
@@ -76,6 +81,7 @@ impl Evaluator {
             status: HashMap::new(),
             cancelled_revision: None,
             pending_graph: None,
+            held: None,
         }
     }
 
@@ -90,6 +96,7 @@ impl Evaluator {
         self.cancelled_revision = None;
         self.progress = Some(Progress { started: Instant::now(), total: 0, done: 0, running: Vec::new() });
         self.pending_graph = Some(graph);
+        self.held = None;
     }
 
     pub fn is_running(&self) -> bool {
@@ -135,9 +142,15 @@ impl Evaluator {
                     EvalEvent::TierReady { .. } | EvalEvent::Finished => {}
                 }
             }
-            // A finished tier (an unshadowed preview while transport computes) is shown at once.
-            if let Some((_, partial)) = job.take_partial()
+            // A finished tier (an unshadowed preview while transport computes) is shown once
+            // the evaluation has run for PARTIAL_AFTER: a quick edit (a stroke) goes straight to
+            // its final frame instead of flashing its preview tiers first.
+            if let Some(partial) = job.take_partial() {
+                self.held = Some(partial);
+            }
+            if progress.started.elapsed() >= PARTIAL_AFTER
                 && let Some(graph) = self.pending_graph.clone()
+                && let Some((_, partial)) = self.held.take()
             {
                 let partial = Arc::new(partial);
                 self.last = Some((partial.clone(), graph));
@@ -146,6 +159,7 @@ impl Evaluator {
         }
         let evaluation = self.scheduler.poll()?;
         self.progress = None;
+        self.held = None;
         let graph = self.pending_graph.take()?;
         let cancelled = evaluation.report.stages.iter().any(|s| s.status == StageStatus::Cancelled);
         for n in &graph.nodes {

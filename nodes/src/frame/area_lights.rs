@@ -134,8 +134,9 @@ impl AreaLightFrame {
     }
 }
 
-/// The linked lights as one frame's [`AreaLightFrame`], once `area_irradiance` is evaluated.
-/// A failed light is reported with its stage; the frame draws without area lights.
+/// The linked lights as one frame's [`AreaLightFrame`], once `area_irradiance` is evaluated, or
+/// unshadowed from `area_preview` while it is not. A failed light is reported with its stage;
+/// the frame draws without area lights.
 pub(super) fn area_light_frame(
     evaluation: &crate::engine::Evaluation,
     lights: &[&crate::engine::GraphNode],
@@ -146,33 +147,29 @@ pub(super) fn area_light_frame(
     scene: &str,
 ) -> Result<Option<AreaLightFrame>, String> {
     let vertices = geometry.vertex_count();
-    match evaluation.get(output, "area_irradiance") {
-        Some(r) if r.value.is_ok() && !lights.is_empty() => {
-            let mut emitters = Vec::new();
-            for node in lights {
-                let light = keyed(&node.id, "light")?;
-                let light = light.value.expect::<AreaLight>().map_err(|e| e.to_string())?;
-                emitters.push(light.emitter.clone());
-            }
-            // Highlights as last evaluated, for the Output's `highlight_eye` (the editor
-            // recomputes them once its camera rests).
-            let highlights = match evaluation.get(output, "area_highlights") {
-                Some(r) if r.value.is_ok() => Some(keyed(output, "area_highlights")?),
-                _ => None,
-            };
-            let mut frame =
-                AreaLightFrame::new(keyed(output, "area_irradiance")?, highlights, emitters, materials, vertices)?;
-            // Per texel once traced (a later request tier), where any mesh has a texture.
-            if let Some(r) = evaluation.get(output, "area_texel_irradiance")
-                && r.value.is_ok()
-            {
-                let texels = keyed(scene, "texel_receivers")?;
-                frame.texels = AreaTexels::new(&keyed(output, "area_texel_irradiance")?, &texels, geometry)?;
-            }
-            Ok(Some(frame))
-        }
-        _ => Ok(None),
+    let ready = |stage: &str| evaluation.get(output, stage).is_some_and(|r| r.value.is_ok());
+    let irradiance = match (ready("area_irradiance"), ready("area_preview")) {
+        _ if lights.is_empty() => return Ok(None),
+        (true, _) => "area_irradiance",
+        (false, true) => "area_preview",
+        (false, false) => return Ok(None),
+    };
+    let mut emitters = Vec::new();
+    for node in lights {
+        let light = keyed(&node.id, "light")?;
+        let light = light.value.expect::<AreaLight>().map_err(|e| e.to_string())?;
+        emitters.push(light.emitter.clone());
     }
+    // Highlights as last evaluated, for the Output's `highlight_eye` (the editor recomputes
+    // them once its camera rests).
+    let highlights = if ready("area_highlights") { Some(keyed(output, "area_highlights")?) } else { None };
+    let mut frame = AreaLightFrame::new(keyed(output, irradiance)?, highlights, emitters, materials, vertices)?;
+    // Per texel once traced (a later request tier), where any mesh has a texture.
+    if ready("area_texel_irradiance") {
+        let texels = keyed(scene, "texel_receivers")?;
+        frame.texels = AreaTexels::new(&keyed(output, "area_texel_irradiance")?, &texels, geometry)?;
+    }
+    Ok(Some(frame))
 }
 
 #[cfg(test)]

@@ -96,8 +96,10 @@ pub fn frame_request_for(graph: &Graph, output: &str, needs: FrameNeeds) -> Requ
     if graph.upstream_all(output, "area_lights").is_empty() {
         request
     } else {
-        // Highlights follow the view: the diffuse light shows first.
+        // An unshadowed preview (closed form, no ray) shows while the transport is traced;
+        // highlights follow the view: the diffuse light shows first.
         request
+            .then(format!("output `{output}`: area lights, unshadowed"), vec![StageRef::new(output, "area_preview")])
             .then(format!("output `{output}`: area lights"), vec![StageRef::new(output, "area_irradiance")])
             .then(format!("output `{output}`: area-light highlights"), vec![StageRef::new(output, "area_highlights")])
             // Meanwhile textured meshes show the per-vertex light.

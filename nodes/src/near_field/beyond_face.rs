@@ -224,6 +224,13 @@ pub fn beyond_face(
     BeyondFace { responses }
 }
 
+/// The whole light's unshadowed irradiance per unit radiance of each cell (a face of size 0,
+/// every ray clear): closed form, no ray, what a viewport shows while the shadows are traced.
+pub fn unshadowed(placement: &LightPlacement, points: &[DVec3], normals: &[DVec3]) -> BeyondFace {
+    let none = TopFace { order: 0, size: 0.0 };
+    beyond_face(&none, placement, points, normals, points, |_, _| true)
+}
+
 /// The mean radiance of each of the light's `CELLS × CELLS` cells, from its kept Haar
 /// coefficients (the texture the face's products see), row `z` then column `x`.
 pub fn cell_means(source: &LightSource) -> Vec<[f64; 3]> {
@@ -315,8 +322,19 @@ mod tests {
     /// where the face alone sees nothing.
     #[test]
     fn the_face_and_beyond_it_add_up_to_the_whole_light() {
+        face_and_beyond_against_quadrature(1.0, 0.03);
+    }
+
+    /// The same light 0.3 m over the floor, closer than a sixth of its size: under it the face
+    /// holds only its middle, and most of it lies beyond the face.
+    #[test]
+    fn a_light_close_to_the_floor_adds_up_too() {
+        face_and_beyond_against_quadrature(0.3, 0.03);
+    }
+
+    fn face_and_beyond_against_quadrature(height: f64, tolerance: f64) {
         let order = 32;
-        let light = LightPlacement::centred(1.0, [0.0, 0.0], [2.0, 2.0]);
+        let light = LightPlacement::centred(height, [0.0, 0.0], [2.0, 2.0]);
         let texture: Vec<[f64; 3]> = (0..order * order)
             .map(|k| {
                 let (u, v) = ((k % order) as f64 / order as f64, (k / order) as f64 / order as f64);
@@ -334,13 +352,13 @@ mod tests {
         for (k, &x) in points.iter().enumerate() {
             let truth = quadrature(&light, &texture, order, (x, DVec3::Y), 400);
             let offset = x.x - 1.0;
-            if offset > 2.0 {
+            if offset > 2.0 * height {
                 assert!(inside[k][0].abs() < 1e-9, "the face reaches {offset} m beyond the light's edge");
             }
             for c in 0..3 {
                 let total = inside[k][c] + beyond[k][c];
                 assert!(
-                    (total - truth[c]).abs() <= 0.03 * truth[c],
+                    (total - truth[c]).abs() <= tolerance * truth[c],
                     "at x = {}: face {} + beyond {} = {total}, quadrature {}",
                     x.x,
                     inside[k][c],
@@ -348,6 +366,18 @@ mod tests {
                     truth[c]
                 );
             }
+        }
+    }
+
+    /// Unshadowed, the whole light (every cell, no face) is Lambert's formula of its rectangle.
+    #[test]
+    fn unshadowed_is_the_whole_rectangle() {
+        let light = LightPlacement::centred(1.5, [0.3, 0.0], [1.2, 0.8]);
+        let corners = Rect { x: [-0.3, 0.9], z: [-0.4, 0.4] }.corners(1.5);
+        for (x, n) in [(DVec3::ZERO, DVec3::Y), (DVec3::new(2.0, 0.5, 1.0), DVec3::new(-0.6, 0.8, 0.0))] {
+            let e = unshadowed(&light, &[x], &[n]).irradiance(&vec![[1.0; 3]; CELLS * CELLS])[0][0];
+            let truth = polygon_irradiance(x, n, &corners);
+            assert!((e - truth).abs() < 1e-3 * truth, "{e} against {truth}");
         }
     }
 

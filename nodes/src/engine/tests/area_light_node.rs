@@ -205,7 +205,7 @@ fn area_lights_light_the_floor_like_direct_integration() {
     assert_eq!(&under_roof.irradiance[..receivers.len()], &e[..], "the ceiling changes nothing below the light");
     assert!(under_roof.irradiance[receivers.len()..].iter().all(|c| *c == [0.0; 3]));
 
-    // A move reruns only the placement and the propagation.
+    // A move reruns only the placement, the unshadowed preview and the propagation.
     graph.set_param("area", "position", ParamValue::Vec3([0.5, 2.0, 0.0])).unwrap();
     let moved = evaluate_frame(&engine, &graph);
     let reran: BTreeSet<String> = ran(&moved.report);
@@ -214,6 +214,7 @@ fn area_lights_light_the_floor_like_direct_integration() {
         set(&[
             "area.placement",
             "area.light",
+            "output.area_preview",
             "output.area_transport",
             "output.area_irradiance",
             "output.area_texel_transport",
@@ -276,6 +277,52 @@ fn area_lights_light_the_floor_like_direct_integration() {
     let fresh = evaluate_frame(&Engine::in_memory(), &two_lights);
     let scratch = value_of::<AreaIrradiance>(&fresh, "output", "area_irradiance").irradiance;
     assert!(scratch.iter().zip(&both).all(|(a, b)| a.map(f32::to_bits) == b.map(f32::to_bits)));
+}
+
+/// The unshadowed preview (closed form, no ray) comes in a tier before the traced transport,
+/// the frame draws it until then, and it is the traced light without its shadows: within 3% of
+/// it on floor vertices the ball cannot shadow, and far above it under the ball.
+#[test]
+fn the_unshadowed_preview_comes_first_and_agrees_where_nothing_shadows() {
+    use crate::kinds::output::area::AreaIrradiance;
+    let engine = Engine::in_memory();
+    let graph = lit_floor_graph(1);
+    let request = crate::frame::frame_request(&graph, "output", false);
+    let tier_of = |stage: &str| request.tiers.iter().position(|t| t.stages.iter().any(|s| s.stage == stage)).unwrap();
+    assert!(tier_of("area_preview") < tier_of("area_irradiance"));
+    assert!(tier_of("area_preview") > 0, "the mode's own frame comes first");
+    let first = evaluate_frame(&engine, &graph);
+    let receivers = value_of::<crate::transport::Receivers>(&first, "scene", "receivers");
+    let preview = value_of::<AreaIrradiance>(&first, "output", "area_preview").irradiance;
+    let traced = value_of::<AreaIrradiance>(&first, "output", "area_irradiance").irradiance;
+    let floor = receivers.mesh_offsets[1];
+    let (mut err2, mut ref2) = (0.0, 0.0);
+    for i in 0..floor {
+        let (x, _) = receivers.point(i);
+        if x.x.abs().max(x.z.abs()) > 1.5 {
+            err2 += f64::from(preview[i][0] - traced[i][0]).powi(2);
+            ref2 += f64::from(traced[i][0]).powi(2);
+        }
+    }
+    assert!(ref2 > 0.0 && (err2 / ref2).sqrt() < 0.03, "unshadowed floor: {:.4}", (err2 / ref2).sqrt());
+    let under = (0..floor)
+        .min_by(|&a, &b| {
+            let d = |i: usize| (receivers.point(i).0 - DVec3::new(0.15, 0.0, 0.0)).length();
+            d(a).total_cmp(&d(b))
+        })
+        .unwrap();
+    assert!(preview[under][0] > 10.0 * traced[under][0].max(1e-6));
+    // A frame gathered from the tiers up to the preview draws the preview.
+    let partial = engine.evaluate_request(
+        &graph,
+        &crate::engine::Request { tiers: request.tiers[..=tier_of("area_preview")].to_vec() },
+        &CancelToken::default(),
+        None,
+        &|_, _| {},
+    );
+    let frame = crate::frame::FrameInputs::gather(&partial, &graph, "output").unwrap();
+    let area = frame.area_lights.expect("the preview is drawn");
+    assert_eq!(area.irradiance.value.expect::<AreaIrradiance>().unwrap().irradiance, preview);
 }
 
 /// Radiance a glossy floor point `x` reflects toward `eye` from the light of

@@ -13,6 +13,8 @@
 //! - `area_texel_transport` and `area_texel_irradiance`: the same at the texels of meshes with a
 //!   visibility texture, so their shadows are resolved per texel, not per vertex (a floor's
 //!   vertices are often too far apart for a shadow).
+//! - `area_preview`: every light unshadowed, in closed form and without a ray, what the
+//!   viewport shows while `area_transport` traces.
 //! - `area_irradiance`: `E = Σ_ℓ scale_ℓ (Σ_k L_k^{(ℓ)} T_k + Σ_c F̄_c^{(ℓ)} R_c)` per vertex
 //!   (Eq. 4.36, plus the cells beyond the face). Each light's
 //!   unscaled sum is memoised on the light's coefficients, placement and face, so an edit of one
@@ -141,6 +143,15 @@ pub fn stages() -> Vec<StageSpec> {
             inputs: &[("scene", "receivers"), ("area_lights", "light")],
             persist: None,
             compute: area_irradiance,
+        },
+        StageSpec {
+            name: "area_preview",
+            version: 1,
+            params: &[],
+            stages: &[],
+            inputs: &[("scene", "receivers"), ("area_lights", "light")],
+            persist: None,
+            compute: area_preview,
         },
         StageSpec {
             name: "area_texel_transport",
@@ -338,6 +349,34 @@ fn area_texel_irradiance(ctx: &StageContext) -> Result<StageValue, StageError> {
     let texels = ctx.required_input::<crate::transport::TexelReceivers>("scene", "texel_receivers")?;
     let transports = ctx.stage::<AreaTransport>("area_texel_transport")?;
     Ok(StageValue::new(irradiance_of(ctx, &texels.receivers, transports)?))
+}
+
+/// Every linked light's unshadowed irradiance per vertex in closed form, no ray
+/// ([`crate::near_field::beyond_face::unshadowed`]): shown while the transport is traced. The
+/// cells' responses are memoised on the receivers and the placement, so a stroke re-weights them.
+fn area_preview(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let receivers = ctx.required_input::<Receivers>("scene", "receivers")?;
+    let (points, normals): (Vec<DVec3>, Vec<DVec3>) = (0..receivers.len()).map(|i| receivers.point(i)).unzip();
+    let mut geometry = xxhash_rust::xxh3::Xxh3::new();
+    geometry.update(b"area preview v1");
+    geometry.update(bytemuck::cast_slice(&receivers.positions));
+    geometry.update(bytemuck::cast_slice(&receivers.normals));
+    let mut total = vec![[0.0f64; 3]; receivers.len()];
+    for (_, light) in ctx.inputs_all::<AreaLight>("area_lights", "light")? {
+        let mut key = geometry.clone();
+        key.update(&postcard::to_allocvec(&light.placement).map_err(|e| StageError::Internal(e.to_string()))?);
+        let responses = ctx.memo(key.digest128(), || {
+            ctx.check_cancel()?;
+            Ok(Arc::new(beyond_face::unshadowed(&light.placement, &points, &normals)))
+        })?;
+        for (sum, e) in total.iter_mut().zip(responses.irradiance(&cell_means(&light.source))) {
+            for c in 0..3 {
+                sum[c] += light.scale[c] * e[c];
+            }
+        }
+    }
+    let irradiance = total.into_iter().map(|c| c.map(|v| v.max(0.0) as f32)).collect();
+    Ok(StageValue::new(AreaIrradiance { irradiance }))
 }
 
 fn area_irradiance(ctx: &StageContext) -> Result<StageValue, StageError> {

@@ -2,8 +2,9 @@
 //! ([`GizmoSpec::Light`]) drawn where it is (filled when it lights the output, hollow when it
 //! is not linked; a spot with a line along its aim), every blocker sphere as its outline, and every
 //! painted area light as its rectangle with a centre handle and four edge handles. A click
-//! selects the node; a drag moves the light, the sphere or the area light in the view plane, and
-//! an edge handle resizes the area light about its centre (one undo step per drag).
+//! selects the node; a drag moves the light or the sphere in the view plane and the area light in
+//! its own level plane (with Shift, up and down only), and an edge handle resizes the area light
+//! about its centre (one undo step per drag).
 
 use super::*;
 use lightloom_nodes::engine::spec::GizmoSpec;
@@ -440,13 +441,18 @@ impl EditorApp {
             return true;
         }
         let camera = self.viewport_camera(rect);
-        let moved = camera
-            .drag_point(
-                glam::DVec3::from(gizmo.position),
-                (f64::from(delta.x), f64::from(delta.y)),
-                f64::from(rect.height()),
-            )
-            .to_array();
+        let drag = (f64::from(delta.x), f64::from(delta.y));
+        let from = glam::DVec3::from(gizmo.position);
+        let moved = match gizmo.target {
+            // An area light slides in its own level plane; with Shift it rises or falls only.
+            GizmoTarget::AreaLight { .. } if ui.input(|i| i.modifiers.shift) => {
+                let lifted = camera.drag_point(from, drag, f64::from(rect.height()));
+                glam::DVec3::new(from.x, lifted.y, from.z)
+            }
+            GizmoTarget::AreaLight { .. } => camera.drag_point_level(from, drag, f64::from(rect.height())),
+            _ => camera.drag_point(from, drag, f64::from(rect.height())),
+        }
+        .to_array();
         let change = match (id.sphere, id.edge) {
             (_, Some(edge)) => {
                 // The edge follows the pointer in the view plane; its distance from the centre

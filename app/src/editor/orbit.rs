@@ -90,6 +90,25 @@ impl OrbitCamera {
         p + (right * dx - up * dy) * world_per_pixel
     }
 
+    /// Moves world point `p` within the level plane through it (its height kept) so that its
+    /// image follows a drag of `(dx, dy)` pixels: to where the ray through the dragged image
+    /// meets that plane. Where the plane is seen nearly edge-on, or the ray meets it behind the
+    /// camera or past 100 camera distances, the view-plane move with the height kept instead.
+    pub fn drag_point_level(&self, p: DVec3, delta: (f64, f64), height: f64) -> DVec3 {
+        let dragged = self.drag_point(p, delta, height);
+        let level = DVec3::new(dragged.x, p.y, dragged.z);
+        let eye = self.position();
+        let ray = (dragged - eye).normalize_or_zero();
+        if ray.y.abs() < 0.05 {
+            return level;
+        }
+        let t = (p.y - eye.y) / ray.y;
+        if t <= 0.0 || t > 100.0 * self.distance.max(1.0) {
+            return level;
+        }
+        eye + ray * t
+    }
+
     /// Turns by a drag of `(dx, dy)` pixels (a full viewport height ≈ half a turn).
     pub fn orbit(&mut self, (dx, dy): (f64, f64), viewport_height: f64) {
         let speed = std::f64::consts::PI / viewport_height.max(1.0);

@@ -76,7 +76,8 @@ fn painting_on_the_canvas_adds_one_undoable_stroke() {
 }
 
 /// The light is drawn in the viewport as its rectangle with a centre handle; dragging the
-/// handle moves it (one undo step).
+/// handle moves it in its level plane under the pointer (one undo step), and a Shift-drag
+/// raises it.
 #[test]
 fn the_area_light_shows_in_the_viewport_and_drags() {
     let mut harness = default_harness();
@@ -104,7 +105,41 @@ fn the_area_light_shows_in_the_viewport_and_drags() {
         (position[0] - 0.5).abs() > 0.1 || (position[2] - 0.5).abs() > 0.1,
         "the drag moves the light: {position:?}"
     );
+    assert_eq!(position[1], 1.5, "a drag keeps the light's height");
+    // The handle stays under the pointer: the light moved in its level plane.
+    let camera = harness.state().viewport_camera(rect);
+    let now = gizmos::screen_pos(&camera, rect, position).unwrap();
+    assert!(
+        now.distance(at + egui::vec2(80.0, 0.0)) < 6.0,
+        "the handle is at {now:?}, the pointer at {:?}",
+        at + egui::vec2(80.0, 0.0)
+    );
     assert_eq!(harness.state().doc.undo_label(), Some(format!("Set {added}.position").as_str()));
+    // With Shift, a drag up raises it and moves it nowhere else.
+    let shifted = |pos, pressed| egui::Event::PointerButton {
+        pos,
+        button: egui::PointerButton::Primary,
+        pressed,
+        modifiers: egui::Modifiers::SHIFT,
+    };
+    harness.hover_at(now);
+    harness.step();
+    harness.event(egui::Event::ModifiersChanged(egui::Modifiers::SHIFT));
+    harness.event(shifted(now, true));
+    harness.step();
+    for i in 1..=6 {
+        harness.hover_at(now - egui::vec2(0.0, 10.0 * i as f32));
+        harness.step();
+    }
+    harness.event(shifted(now - egui::vec2(0.0, 60.0), false));
+    harness.event(egui::Event::ModifiersChanged(egui::Modifiers::NONE));
+    harness.run_steps(2);
+    let raised = match edits::node(&harness.state().doc.project, &added).and_then(|n| n.params.get("position")) {
+        Some(ParamValue::Vec3(p)) => *p,
+        other => panic!("position: {other:?}"),
+    };
+    assert!(raised[1] > 1.6, "a Shift-drag up raises the light: {raised:?}");
+    assert_eq!((raised[0], raised[2]), (position[0], position[2]), "and moves it nowhere else");
 }
 
 /// Linked to the Output, the light brightens the viewport once its transport is traced; an

@@ -148,6 +148,20 @@ pub fn area_light_figures() {
     );
 }
 
+/// `paint` with the `k`th timed stroke added: a warm line of 20 points across the light.
+fn with_stroke(paint: &[PaintOp], k: usize) -> Vec<PaintOp> {
+    let mut ops = paint.to_vec();
+    ops.push(PaintOp::Stroke {
+        points: (0..20).map(|i| [0.2 + 0.03 * i as f64, 0.5 + 0.02 * k as f64]).collect(),
+        radius: 0.06,
+        hardness: 0.5,
+        colour: [1.0, 0.4, 0.2],
+        intensity: 5.0,
+        blend: Blend::Mix,
+    });
+    ops
+}
+
 /// The area-light sample (`projects/samples/area_light.ron`) at a tessellation of about 40k
 /// vertices, through the engine as the editor runs it: the first evaluation (the top-face
 /// transport), then a stroke, a move, a resize and an intensity change, each as CPU stage time
@@ -180,18 +194,7 @@ pub fn area_sample_figures(args: &BenchArgs, gpu: &GpuContext) -> Result<()> {
     let edits: Vec<(&str, Edit)> = vec![
         (
             "a stroke",
-            Box::new(move |g, k| {
-                let mut ops = paint.clone();
-                ops.push(PaintOp::Stroke {
-                    points: (0..20).map(|i| [0.2 + 0.03 * i as f64, 0.5 + 0.02 * k as f64]).collect(),
-                    radius: 0.06,
-                    hardness: 0.5,
-                    colour: [1.0, 0.4, 0.2],
-                    intensity: 5.0,
-                    blend: Blend::Mix,
-                });
-                Ok(g.set_param("panel", "paint", ParamValue::Paint(ops))?)
-            }),
+            Box::new(move |g, k| Ok(g.set_param("panel", "paint", ParamValue::Paint(with_stroke(&paint, k)))?)),
         ),
         (
             "move the light",
@@ -330,16 +333,7 @@ pub fn area_engine_figures(args: &BenchArgs) -> Result<()> {
     results.push(("the view rests elsewhere", "not from scratch", vec![]));
     let eye = project.camera(None).map_err(|e| anyhow!(e))?.position;
     for k in 0..args.frames.max(1) {
-        let mut ops = paint.clone();
-        ops.push(PaintOp::Stroke {
-            points: (0..20).map(|i| [0.2 + 0.03 * i as f64, 0.5 + 0.02 * k as f64]).collect(),
-            radius: 0.06,
-            hardness: 0.5,
-            colour: [1.0, 0.4, 0.2],
-            intensity: 5.0,
-            blend: Blend::Mix,
-        });
-        graph.set_param("panel", "paint", ParamValue::Paint(ops))?;
+        graph.set_param("panel", "paint", ParamValue::Paint(with_stroke(&paint, k)))?;
         results[0].2.push(run(&graph)?);
         graph.set_param("panel", "position", ParamValue::Vec3([0.1 + 0.05 * (k + 1) as f64, 1.2, 0.0]))?;
         results[1].2.push(run(&graph)?);

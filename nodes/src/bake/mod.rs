@@ -69,13 +69,23 @@ pub fn bake_request(graph: &Graph, output: &str) -> Request {
                 "bake_texel_products"
             },
         )),
-        Mode::Rsl => stages.push(StageRef::new(output, "bake_texel_square_lights")),
+        Mode::Rsl => stages.push(StageRef::new(output, square_light_texels_stage(graph, output))),
         Mode::ShIrradiance => {}
     }
     if !graph.upstream_all(output, "area_lights").is_empty() {
         stages.push(StageRef::new(output, "bake_texel_area"));
     }
     Request::new(format!("bake of output `{output}` (mode {mode})"), stages)
+}
+
+/// The bake's square-light texels: of the sky without its sun when the Output lights the sun
+/// apart (the bake adds it with its own shadows), else of the whole sky.
+fn square_light_texels_stage(graph: &Graph, output: &str) -> &'static str {
+    if crate::kinds::output::separates_sun(graph, output, Mode::Rsl) {
+        "bake_texel_residual_square_lights"
+    } else {
+        "bake_texel_square_lights"
+    }
 }
 
 /// One file of a bake.
@@ -225,7 +235,10 @@ impl<'a> BakedStages<'a> {
                 Some(residual) => Some(residual),
                 None => get(evaluation, output, "bake_texel_products")?,
             },
-            texel_square_lights: get(evaluation, output, "bake_texel_square_lights")?,
+            texel_square_lights: match get(evaluation, output, "bake_texel_residual_square_lights")? {
+                Some(residual) => Some(residual),
+                None => get(evaluation, output, "bake_texel_square_lights")?,
+            },
             texel_area: get(evaluation, output, "bake_texel_area")?,
         })
     }

@@ -114,9 +114,9 @@ impl ModeFrame for Rsl {
             stages.push(StageRef::new(scene, "rsl_occluders"));
         }
         if let Some(lights) = &linked.square_lights {
-            stages.push(StageRef::new(lights, "world_lights"));
+            stages.push(StageRef::new(lights, lights_stage(linked.separate_sun)));
         }
-        stages.push(StageRef::new(linked.output, "rsl_visibility"));
+        stages.push(StageRef::new(linked.output, visibility_stage(linked.separate_sun)));
         stages
     }
 
@@ -124,10 +124,21 @@ impl ModeFrame for Rsl {
         let node = g
             .upstream("square_lights")
             .ok_or("the rsl mode needs square lights: link an RSL decomposer to the Output's square_lights input")?;
-        let lights = g.keyed(&node, "world_lights")?;
+        let lights = g.keyed(&node, lights_stage(g.separate_sun))?;
         let world = lights.value.expect::<crate::rsl::WorldLights>().map_err(|e| e.to_string())?;
-        let visibility = g.keyed(g.output, "rsl_visibility")?;
+        let visibility = g.keyed(g.output, visibility_stage(g.separate_sun))?;
         let tables: Vec<Keyed> = parts.mode_stages.iter().flatten().cloned().collect();
         Ok(Surfaces::Rsl(RslSurfaces::new(world, lights.key, visibility, &tables, inputs.fogged, inputs.geometry)?))
     }
+}
+
+/// The decomposer's lights: of the sky without its sun when the Output lights the sun apart
+/// (the sun pass draws it with its own shadows), else of the whole sky.
+fn lights_stage(separate_sun: bool) -> &'static str {
+    if separate_sun { "residual_world_lights" } else { "world_lights" }
+}
+
+/// Each vertex's visibility of the lights of [`lights_stage`].
+fn visibility_stage(separate_sun: bool) -> &'static str {
+    if separate_sun { "rsl_residual_visibility" } else { "rsl_visibility" }
 }

@@ -197,6 +197,15 @@ pub fn spec() -> NodeKindSpec {
                 compute: sh_rotated,
             },
             StageSpec {
+                name: "source_sun",
+                version: 1,
+                params: &["resolution"],
+                stages: &["source"],
+                inputs: &[],
+                persist: None,
+                compute: source_sun,
+            },
+            StageSpec {
                 name: "sun",
                 version: 1,
                 params: &[],
@@ -345,6 +354,14 @@ fn rotation(ctx: &StageContext) -> Result<StageValue, StageError> {
 /// The unrotated map's dominant light as a disc, and the sky without it ([`crate::sun`]).
 fn sun(ctx: &StageContext) -> Result<StageValue, StageError> {
     Ok(StageValue::new(crate::sun::split(ctx.stage::<CubeMap>("radiance")?)))
+}
+
+/// The sun split of the source before exposure and tint (the same texels as `sun`'s, up to
+/// that scale): what a decomposition that must not rerun on an exposure edit reads.
+fn source_sun(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let image = ctx.stage::<crate::cubemap::Equirect>("source")?;
+    let size: usize = ctx.choice("resolution")?.parse().map_err(|_| StageError::Internal("resolution".into()))?;
+    Ok(StageValue::new(crate::sun::split(&image.to_cubemap(size))))
 }
 
 fn residual_sh_unrotated(ctx: &StageContext) -> Result<StageValue, StageError> {

@@ -260,36 +260,16 @@ mod tests {
     use super::*;
     use crate::near_field::{TargetKeep, face_transport, irradiance, light_source};
 
-    /// `∫ F cos θ_x cos θ_l / r² dA` over the light by the midpoint rule on `samples²` points,
-    /// `texture` (`order²`, row `z`) piecewise constant, the receiver's back half cut off.
+    /// `∫ F cos θ_x cos θ_l / r² dA` over the light on `samples²` points, `texture` (`order²`,
+    /// row `z`) piecewise constant, nothing in the way.
     fn quadrature(
         light: &LightPlacement,
         texture: &[[f64; 3]],
         order: usize,
-        (x, normal): (DVec3, DVec3),
+        receiver: (DVec3, DVec3),
         samples: usize,
     ) -> [f64; 3] {
-        let area = light.extent[0] * light.extent[1] / (samples * samples) as f64;
-        let mut e = [0.0; 3];
-        for k in 0..samples * samples {
-            let u = [((k % samples) as f64 + 0.5) / samples as f64, ((k / samples) as f64 + 0.5) / samples as f64];
-            let p = DVec3::new(
-                light.corner[0] + u[0] * light.extent[0],
-                light.height,
-                light.corner[1] + u[1] * light.extent[1],
-            );
-            let to = p - x;
-            let r2 = to.length_squared();
-            let cos_x = to.dot(normal) / r2.sqrt();
-            if cos_x <= 0.0 || to.y <= 0.0 {
-                continue;
-            }
-            let texel = texture[((u[1] * order as f64) as usize) * order + (u[0] * order as f64) as usize];
-            for c in 0..3 {
-                e[c] += texel[c] * cos_x * (to.y / r2.sqrt()) / r2 * area;
-            }
-        }
-        e
+        crate::near_field::tests::light_integral(texture, order, light, receiver, &|_, _| true, samples, |_| 1.0)
     }
 
     /// Lambert's formula, clipped to the horizon, against quadrature over the light: under it,

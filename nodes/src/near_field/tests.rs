@@ -53,7 +53,7 @@ fn reference(
 }
 
 /// `Σ F factor(ω) V cos θ_x cos θ_l / r² dA` over `samples²` points of the light's surface.
-fn light_integral(
+pub(super) fn light_integral(
     texture: &[[f64; 3]],
     order: usize,
     light: &LightPlacement,

@@ -46,9 +46,13 @@ fn with_bake(expected: &[&str]) -> BTreeSet<String> {
     if out.contains("output.bake_texel_products") {
         out.insert("output.bake_texel_residual_products".to_string());
     }
-    // The texels' square lights are traced in the scene toward the turned lights (no tables).
+    // The texels' square lights are traced in the scene toward the turned lights (no tables),
+    // the whole sky's and the sky's without its sun.
     if out.iter().any(|s| s == "scene.ray_scene" || s.ends_with(".turned_lights")) {
         out.insert("output.bake_texel_square_lights".to_string());
+    }
+    if out.iter().any(|s| s == "scene.ray_scene" || s.ends_with(".residual_turned_lights")) {
+        out.insert("output.bake_texel_residual_square_lights".to_string());
     }
     // The environment's SH and specular cube follow the drawn environment and its SH.
     if out.iter().any(|s| s.ends_with(".rotated_radiance") || s.ends_with(".sh")) {
@@ -90,6 +94,13 @@ fn with_sun_split<'a>(expected: &[&'a str]) -> Vec<&'a str> {
         ("output.adaptive_incident", "output.adaptive_residual_incident"),
         ("output.adaptive_error", "output.adaptive_residual_error"),
         ("output.wavelet_environment", "output.wavelet_residual_environment"),
+        ("sky.source", "sky.source_sun"),
+        ("rsl.cube", "rsl.residual_cube"),
+        ("rsl.merge_sequence", "rsl.residual_merge_sequence"),
+        ("rsl.square_lights", "rsl.residual_square_lights"),
+        ("rsl.turned_lights", "rsl.residual_turned_lights"),
+        ("rsl.world_lights", "rsl.residual_world_lights"),
+        ("output.rsl_visibility", "output.rsl_residual_visibility"),
     ] {
         if expected.contains(&stage) {
             out.push(twin);
@@ -97,6 +108,10 @@ fn with_sun_split<'a>(expected: &[&'a str]) -> Vec<&'a str> {
     }
     out
 }
+
+/// What a new environment resolution reruns besides the radiance: the unexposed sun split, and
+/// the square lights of the sky without its sun fitted to it (when a decomposer is linked).
+const SOURCE_SUN_AFTER_RESOLUTION: &[&str] = &["sky.source_sun"];
 
 /// Everything a new environment source reruns (exposure and tint, read alone by
 /// `radiance_scale`, stay).
@@ -168,7 +183,12 @@ fn each_parameter_recomputes_exactly_its_stages() {
             Color([1.0, 0.9, 0.8]),
             with_environment(&[SKY_AFTER_SOURCE, &["sky.radiance_scale"]].concat()),
         ),
-        ("sky", "resolution", Choice("32".into()), with_environment(SKY_AFTER_SOURCE)),
+        (
+            "sky",
+            "resolution",
+            Choice("32".into()),
+            with_environment(&[SKY_AFTER_SOURCE, SOURCE_SUN_AFTER_RESOLUTION].concat()),
+        ),
         (
             "sky",
             "sh_bands",
@@ -416,7 +436,7 @@ fn each_parameter_recomputes_exactly_its_stages() {
     graph.set_param("scene", "tessellation", Int(12)).unwrap();
     let first = engine.evaluate(&graph, &CancelToken::default(), None);
     assert!(first.report.failed().is_empty(), "{:?}", first.report.failed());
-    assert_eq!(first.report.computed().len(), 68);
+    assert_eq!(first.report.computed().len(), 71);
     let again = engine.evaluate(&graph, &CancelToken::default(), None);
     assert!(ran(&again.report).is_empty(), "an unchanged graph recomputed {:?}", ran(&again.report));
     for (node, param, value, expected) in table {
@@ -664,8 +684,7 @@ fn each_mode_and_view_evaluates_exactly_the_stages_it_reads() {
         "sky.rotated_radiance",
         "material.material",
     ];
-    let with = |extra: &[&'static str]| -> Vec<&'static str> { [UNSHADOWED, extra].concat() };
-    // The modes that light the sun apart read its split and the residual sky's SH instead.
+    // Every mode lights the sun apart here: each reads its split and the residual sky's SH.
     const SUN_SPLIT: &[&str] = &["sky.sun", "sky.residual_sh_unrotated", "sky.residual_sh", "sky.rotation"];
     let with_sun = |extra: &[&'static str]| -> Vec<&'static str> { [UNSHADOWED, SUN_SPLIT, extra].concat() };
     let wavelet_vertex = with_sun(&[
@@ -717,7 +736,13 @@ fn each_mode_and_view_evaluates_exactly_the_stages_it_reads() {
         (
             "rsl",
             "approximation",
-            with(&["scene.rsl_self_visibility", "scene.rsl_occluders", "material.rsl_tables", "output.rsl_visibility"]),
+            // The sun lit apart: the visibility of the lights of the sky without it.
+            with_sun(&[
+                "scene.rsl_self_visibility",
+                "scene.rsl_occluders",
+                "material.rsl_tables",
+                "output.rsl_residual_visibility",
+            ]),
         ),
         ("sh_irradiance", "reference", with_sun(&["scene.ray_scene"])),
         ("sh_irradiance", "error", with_sun(&["scene.ray_scene"])),
@@ -735,7 +760,7 @@ fn each_mode_and_view_evaluates_exactly_the_stages_it_reads() {
         for s in eval.report.stages.iter().filter(|s| s.status == StageStatus::NotNeeded) {
             assert!(s.reasons[0].contains(&format!("mode {mode}")), "{}.{}: {:?}", s.node, s.stage, s.reasons);
         }
-        assert_eq!(eval.report.stages.len(), 68, "every stage is reported");
+        assert_eq!(eval.report.stages.len(), 71, "every stage is reported");
     }
 }
 

@@ -18,6 +18,8 @@ fn rsl_graph(objects: Vec<SceneObject>) -> Graph {
     graph.set_param("scene", "objects", ParamValue::Objects(objects)).unwrap();
     graph.set_param("scene", "tessellation", ParamValue::Int(8)).unwrap();
     graph.set_param("output", "mode", ParamValue::Choice("rsl".into())).unwrap();
+    // The whole sky in the square lights (the sun lit apart is tested on its own below).
+    graph.set_param("output", "sun", ParamValue::Choice("in_environment".into())).unwrap();
     graph
 }
 
@@ -176,4 +178,40 @@ fn small_environment_turns_change_shading_smoothly() {
         small_steps / peak * 100.0
     );
     assert!(big_step > 3.0 * small_steps, "changes do not shrink with the step (popping): {small_steps} vs {big_step}");
+}
+
+/// With the Output lighting the sun apart (its default), the `rsl` mode's square lights come
+/// from the sky without its sun and the frame draws the sun with its own shadows: the residual
+/// lights' power plus the sun's is the whole sky's lights' power, and none of the residual
+/// lights holds the sun's radiance.
+#[test]
+fn the_sun_lit_apart_leaves_the_square_lights_to_the_sky() {
+    let engine = Engine::in_memory();
+    let mut graph = rsl_graph(objects());
+    graph.set_param("output", "sun", ParamValue::Choice("separate".into())).unwrap();
+    let everything = engine.evaluate(&graph, &CancelToken::default(), None);
+    assert!(everything.report.failed().is_empty(), "{:?}", everything.report.failed());
+    let whole = value_of::<SquareLights>(&everything, "rsl", "square_lights");
+    let residual = value_of::<SquareLights>(&everything, "rsl", "residual_square_lights");
+    let split = value_of::<crate::sun::SunSplit>(&everything, "sky", "source_sun");
+    let sun = split.sun.expect("the default sky has a sun");
+    let power =
+        |lights: &SquareLights, c: usize| lights.lights.iter().map(|l| l.intensity[c] * l.solid_angle).sum::<f64>();
+    for c in 0..3 {
+        let (all, sky) = (power(&whole, c), power(&residual, c));
+        assert!(
+            (sky + sun.power()[c] - all).abs() < 0.03 * all,
+            "channel {c}: sky {sky} + sun {} against the whole sky's {all}",
+            sun.power()[c]
+        );
+    }
+    let brightest = |lights: &SquareLights| lights.lights.iter().map(|l| l.intensity[1]).fold(0.0, f64::max);
+    assert!(brightest(&residual) < 0.2 * brightest(&whole), "the sun is out of the square lights");
+    assert_eq!(residual.lights.len(), whole.lights.len(), "K lights either way");
+    // The frame draws the residual lights and the sun.
+    let frame_eval = evaluate_frame(&engine, &graph);
+    let frame = crate::frame::FrameInputs::gather(&frame_eval, &graph, "output").unwrap();
+    assert!(frame.sun.is_some(), "the sun is drawn apart");
+    let drawn = value_of::<WorldLights>(&frame_eval, "rsl", "residual_world_lights");
+    assert_eq!(drawn.lights.len(), residual.lights.len());
 }

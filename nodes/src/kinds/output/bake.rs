@@ -127,7 +127,16 @@ pub fn stages() -> Vec<StageSpec> {
             stages: &["bake_atlas"],
             inputs: &[("scene", "ray_scene"), ("square_lights", "turned_lights")],
             persist: None,
-            compute: bake_texel_square_lights,
+            compute: |ctx| bake_texel_square_lights(ctx, "turned_lights"),
+        },
+        StageSpec {
+            name: "bake_texel_residual_square_lights",
+            version: 1,
+            params: &[],
+            stages: &["bake_atlas"],
+            inputs: &[("scene", "ray_scene"), ("square_lights", "residual_turned_lights")],
+            persist: None,
+            compute: |ctx| bake_texel_square_lights(ctx, "residual_turned_lights"),
         },
         StageSpec {
             name: "bake_texel_area_transport",
@@ -223,12 +232,13 @@ fn bake_texel_blocked(ctx: &StageContext) -> Result<StageValue, StageError> {
     Ok(StageValue::new(super::with_blockers(ctx, transport, &atlas.receivers)?))
 }
 
-/// The square lights' lit cosine at every texel, traced ([`crate::lightmap::square_light_texels`]).
-fn bake_texel_square_lights(ctx: &StageContext) -> Result<StageValue, StageError> {
+/// The square lights' lit cosine at every texel, traced ([`crate::lightmap::square_light_texels`]);
+/// `lights`: the decomposer's whole-sky lights, or those of the sky without its sun.
+fn bake_texel_square_lights(ctx: &StageContext, lights: &str) -> Result<StageValue, StageError> {
     use crate::lightmap::square_light_texels::{RINGS, SECTORS, SquareLightTexels, trace};
     let atlas = ctx.stage::<crate::lightmap::LightmapAtlas>("bake_atlas")?;
     let scene = ctx.required_input::<crate::raycast::RayScene>("scene", "ray_scene")?;
-    let Some(lights) = ctx.input::<crate::rsl::WorldLights>("square_lights", "turned_lights")? else {
+    let Some(lights) = ctx.input::<crate::rsl::WorldLights>("square_lights", lights)? else {
         return Ok(StageValue::new(SquareLightTexels::default()));
     };
     crate::kinds::scene::check_ray_budget(

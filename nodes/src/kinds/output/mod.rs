@@ -317,7 +317,20 @@ pub fn spec() -> NodeKindSpec {
                     ("square_lights", "turned_lights"),
                 ],
                 persist: None,
-                compute: rsl_visibility,
+                compute: |ctx| rsl_visibility_of(ctx, "turned_lights"),
+            },
+            StageSpec {
+                name: "rsl_residual_visibility",
+                version: 1,
+                params: &[],
+                stages: &[],
+                inputs: &[
+                    ("scene", "rsl_self_visibility"),
+                    ("scene", "rsl_occluders"),
+                    ("square_lights", "residual_turned_lights"),
+                ],
+                persist: None,
+                compute: |ctx| rsl_visibility_of(ctx, "residual_turned_lights"),
             },
         ]
         .into_iter()
@@ -531,12 +544,13 @@ fn texel_visibility(ctx: &StageContext) -> Result<StageValue, StageError> {
 /// `V̄` per vertex and square light for the `rsl` mode (pulled only by it): the lights' world
 /// directions through each object's current pose into its self-visibility tables. Reruns on an
 /// environment rotation or an object move (O(vertices × lights) lookups), never on a camera
-/// move or a BRDF edit.
-fn rsl_visibility(ctx: &StageContext) -> Result<StageValue, StageError> {
+/// move or a BRDF edit. `lights`: the decomposer's stage (the whole sky's lights, or those of
+/// the sky without its sun).
+fn rsl_visibility_of(ctx: &StageContext, lights: &str) -> Result<StageValue, StageError> {
     let objects = ctx.required_input::<Vec<crate::rsl::vdt::ObjectSvdf>>("scene", "rsl_self_visibility")?;
     let occluders = ctx.required_input::<Vec<crate::rsl::ovdf::ObjectOvdf>>("scene", "rsl_occluders")?;
     // Without square lights there is nothing to see (drawing the mode then says what to link).
-    let Some(lights) = ctx.input::<crate::rsl::WorldLights>("square_lights", "turned_lights")? else {
+    let Some(lights) = ctx.input::<crate::rsl::WorldLights>("square_lights", lights)? else {
         return Ok(StageValue::new(crate::rsl::shade::LightVisibility::default()));
     };
     let vertices: usize = objects.iter().map(|o| o.svdf.vertices).sum();

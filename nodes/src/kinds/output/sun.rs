@@ -11,9 +11,9 @@ use crate::engine::{Graph, StageContext, StageError, StageValue};
 pub const SUN: &str = "sun";
 
 /// Whether the Output lights the environment's sun separately: it asks for it, its `mode` can
-/// (the SH and wavelet modes; their unshadowed preview does too), an
-/// environment is linked, and neither a medium nor blocker spheres are (their transport of
-/// the sun is not shadow-mapped).
+/// (the SH and wavelet modes, their unshadowed preview too, and `rsl`, whose square lights then
+/// come from the sky without its sun), an environment is linked, and neither a medium nor
+/// blocker spheres are (their transport of the sun is not shadow-mapped).
 pub fn separates_sun(graph: &Graph, output: &str, mode: Mode) -> bool {
     let Some(node) = graph.node(output) else { return false };
     let asked = !matches!(node.params.get(SUN), Some(ParamValue::Choice(c)) if c == "in_environment");
@@ -21,7 +21,7 @@ pub fn separates_sun(graph: &Graph, output: &str, mode: Mode) -> bool {
     asked
         && matches!(
             mode,
-            Mode::ShIrradiance | Mode::ShPrt | Mode::ShAdaptive | Mode::WaveletVertex | Mode::WaveletPixel
+            Mode::ShIrradiance | Mode::ShPrt | Mode::ShAdaptive | Mode::WaveletVertex | Mode::WaveletPixel | Mode::Rsl
         )
         && linked("environment")
         && !linked("medium")
@@ -47,8 +47,9 @@ pub(super) fn param() -> ParamSpec {
         },
         doc: "separate: the environment's sun (its brightest compact source) lights each pixel as a disc, \
               shadowed through shadow maps over the disc, and the mode's transport carries the sky \
-              without it, so small bright suns cast sharp, correct shadows and do not band. Applies to \
-              the SH and wavelet modes without a medium or blocker spheres linked. \
+              without it, so small bright suns cast sharp, correct shadows and do not band (in rsl, the \
+              square lights come from the sky without its sun). Applies to the SH, wavelet and rsl \
+              modes without a medium or blocker spheres linked. \
               in_environment: the transport carries the sun too.",
     }
 }

@@ -1,6 +1,8 @@
 //! RSL decomposer node: the environment as rotatable square lights (Xu et al. 2006 §4.1,
 //! `crate::rsl`). The decomposition reads the environment before exposure, tint and rotation,
-//! so those edits only rescale and turn the lights (`world_lights`, O(K)).
+//! so those edits only rescale and turn the lights (`world_lights`, O(K)). The `residual_`
+//! stages decompose the sky without its sun (the environment's `source_sun`), for an Output
+//! that lights the sun apart with its own shadows.
 
 use crate::engine::spec::{
     Availability, NodeKindSpec, ParamKind, ParamSpec, PortSpec, PortType, PreviewSpec, StageSpec,
@@ -63,7 +65,7 @@ pub fn spec() -> NodeKindSpec {
                 stages: &["cube"],
                 inputs: &[],
                 persist: None,
-                compute: rsl_merge_sequence,
+                compute: |ctx| merge_sequence_of(ctx, "cube"),
             },
             StageSpec {
                 name: "square_lights",
@@ -72,7 +74,7 @@ pub fn spec() -> NodeKindSpec {
                 stages: &["merge_sequence", "cube"],
                 inputs: &[],
                 persist: None,
-                compute: rsl_square_lights,
+                compute: |ctx| square_lights_of(ctx, "merge_sequence", "cube"),
             },
             StageSpec {
                 name: "turned_lights",
@@ -81,7 +83,7 @@ pub fn spec() -> NodeKindSpec {
                 stages: &["square_lights"],
                 inputs: &[("environment", "rotation")],
                 persist: None,
-                compute: turned_lights,
+                compute: |ctx| turned_lights_of(ctx, "square_lights"),
             },
             StageSpec {
                 name: "world_lights",
@@ -90,7 +92,52 @@ pub fn spec() -> NodeKindSpec {
                 stages: &["turned_lights"],
                 inputs: &[("environment", "radiance_scale")],
                 persist: None,
-                compute: world_lights,
+                compute: |ctx| world_lights_of(ctx, "turned_lights"),
+            },
+            StageSpec {
+                name: "residual_cube",
+                version: 1,
+                params: &["cube_resolution"],
+                stages: &[],
+                inputs: &[("environment", "source_sun")],
+                persist: None,
+                compute: rsl_residual_cube,
+            },
+            StageSpec {
+                name: "residual_merge_sequence",
+                version: 1,
+                params: &["merge_rule"],
+                stages: &["residual_cube"],
+                inputs: &[],
+                persist: None,
+                compute: |ctx| merge_sequence_of(ctx, "residual_cube"),
+            },
+            StageSpec {
+                name: "residual_square_lights",
+                version: 1,
+                params: &["light_count"],
+                stages: &["residual_merge_sequence", "residual_cube"],
+                inputs: &[],
+                persist: None,
+                compute: |ctx| square_lights_of(ctx, "residual_merge_sequence", "residual_cube"),
+            },
+            StageSpec {
+                name: "residual_turned_lights",
+                version: 1,
+                params: &[],
+                stages: &["residual_square_lights"],
+                inputs: &[("environment", "rotation")],
+                persist: None,
+                compute: |ctx| turned_lights_of(ctx, "residual_square_lights"),
+            },
+            StageSpec {
+                name: "residual_world_lights",
+                version: 1,
+                params: &[],
+                stages: &["residual_turned_lights"],
+                inputs: &[("environment", "radiance_scale")],
+                persist: None,
+                compute: |ctx| world_lights_of(ctx, "residual_turned_lights"),
             },
         ],
         previews: vec![
@@ -124,8 +171,22 @@ fn rsl_cube(ctx: &StageContext) -> Result<StageValue, StageError> {
     Ok(StageValue::new(image.to_cubemap(size)))
 }
 
-fn rsl_merge_sequence(ctx: &StageContext) -> Result<StageValue, StageError> {
-    let cube = ctx.stage::<crate::cubemap::CubeMap>("cube")?;
+/// The sky without its sun before exposure and tint, at the decomposition's resolution (the
+/// environment's split box-filtered down, or resampled where it is coarser).
+fn rsl_residual_cube(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let split = ctx.required_input::<crate::sun::SunSplit>("environment", "source_sun")?;
+    let size: usize =
+        ctx.choice("cube_resolution")?.parse().map_err(|_| StageError::Internal("cube_resolution".into()))?;
+    let residual = &split.residual;
+    Ok(StageValue::new(if residual.size >= size && residual.size.is_multiple_of(size) {
+        residual.box_downsampled(size)
+    } else {
+        crate::cubemap::CubeMap::from_fn(size, 4, |d| residual.sample(d))
+    }))
+}
+
+fn merge_sequence_of(ctx: &StageContext, cube: &str) -> Result<StageValue, StageError> {
+    let cube = ctx.stage::<crate::cubemap::CubeMap>(cube)?;
     let rule = match ctx.choice("merge_rule")? {
         "error_increase" => crate::rsl::MergeRule::ErrorIncrease,
         _ => crate::rsl::MergeRule::MergedError,
@@ -136,17 +197,17 @@ fn rsl_merge_sequence(ctx: &StageContext) -> Result<StageValue, StageError> {
 }
 
 /// A cut of the merge sequence at K: O(fits of K regions), no new decomposition.
-fn rsl_square_lights(ctx: &StageContext) -> Result<StageValue, StageError> {
-    let cube = ctx.stage::<crate::cubemap::CubeMap>("cube")?;
-    let sequence = ctx.stage::<crate::rsl::MergeSequence>("merge_sequence")?;
+fn square_lights_of(ctx: &StageContext, sequence: &str, cube: &str) -> Result<StageValue, StageError> {
+    let cube = ctx.stage::<crate::cubemap::CubeMap>(cube)?;
+    let sequence = ctx.stage::<crate::rsl::MergeSequence>(sequence)?;
     Ok(StageValue::new(sequence.cut(cube, ctx.int("light_count")? as usize)))
 }
 
 /// The lights turned into the world frame by the environment's rotation, before exposure and
 /// tint: their directions and sizes, which is all visibility reads (so exposure reruns no
 /// visibility). O(K).
-fn turned_lights(ctx: &StageContext) -> Result<StageValue, StageError> {
-    let lights = ctx.stage::<crate::rsl::SquareLights>("square_lights")?;
+fn turned_lights_of(ctx: &StageContext, lights: &str) -> Result<StageValue, StageError> {
+    let lights = ctx.stage::<crate::rsl::SquareLights>(lights)?;
     let rotation = ctx.required_input::<glam::DMat3>("environment", "rotation")?;
     Ok(StageValue::new(crate::rsl::WorldLights {
         lights: lights.transformed([1.0; 3], glam::DQuat::from_mat3(rotation)),
@@ -155,8 +216,8 @@ fn turned_lights(ctx: &StageContext) -> Result<StageValue, StageError> {
 
 /// The lights in the world frame with exposure and tint scaling their intensities: what
 /// shading and export read. O(K): no new decomposition.
-fn world_lights(ctx: &StageContext) -> Result<StageValue, StageError> {
-    let turned = ctx.stage::<crate::rsl::WorldLights>("turned_lights")?;
+fn world_lights_of(ctx: &StageContext, turned: &str) -> Result<StageValue, StageError> {
+    let turned = ctx.stage::<crate::rsl::WorldLights>(turned)?;
     let scale = ctx.required_input::<crate::kinds::environment::RadianceScale>("environment", "radiance_scale")?;
     Ok(StageValue::new(crate::rsl::WorldLights {
         lights: turned

@@ -30,8 +30,8 @@ pub const MAX_COORDINATE: f32 = 1e7;
 /// vertex, per-vertex visibility at 4 bytes per vertex and light), in bytes.
 pub const MAX_RSL_TABLE_BYTES: u64 = 1 << 30;
 
-/// Largest area-light top-face transport (receivers × top-face cells × 4 B per distinct face),
-/// checked before any ray is traced.
+/// Largest area-light transport (receivers × (top-face cells × 4 B per distinct face + 64 B per
+/// light for its part beyond the face)), checked before any ray is traced.
 pub const MAX_AREA_TRANSPORT_BYTES: u64 = 1 << 30;
 /// The high-order SH mode's per-vertex incident radiance (vertices × (level+1)² × 12 B).
 pub const MAX_INCIDENT_BYTES: u64 = 1 << 30;

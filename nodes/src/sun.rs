@@ -99,6 +99,25 @@ fn luminance(c: [f32; 3]) -> f64 {
     0.2126 * c[0] as f64 + 0.7152 * c[1] as f64 + 0.0722 * c[2] as f64
 }
 
+impl SunSplit {
+    /// The split of the map scaled per channel by `scale` (exposure and tint): the same sun and
+    /// residual, their radiance scaled.
+    pub fn scaled(&self, scale: [f64; 3]) -> Self {
+        Self {
+            sun: self.sun.map(|s| Sun { radiance: std::array::from_fn(|c| s.radiance[c] * scale[c]), ..s }),
+            residual: CubeMap {
+                size: self.residual.size,
+                texels: self
+                    .residual
+                    .texels
+                    .iter()
+                    .map(|t| std::array::from_fn(|c| (f64::from(t[c]) * scale[c]) as f32))
+                    .collect(),
+            },
+        }
+    }
+}
+
 /// Finds the brightest compact source of `map` and separates it (see the module docs).
 pub fn split(map: &CubeMap) -> SunSplit {
     let keep = || SunSplit { sun: None, residual: map.clone() };

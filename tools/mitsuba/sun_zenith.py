@@ -12,7 +12,7 @@ times the sky's irradiance) and the same sky in Mitsuba's pixel convention, then
 colour times the 0.8 default material) on an 8 m diffuse floor, lit by the `envmap` alone
 through the `direct` integrator (direct light only, as Lightloom's modes are). Writes
 mitsuba.exr (half float) and surfaces.png (white where a surface is seen) beside the project,
-which tests/relight_cli.rs compares Lightloom's renders with.
+which tests/accuracy_cli.rs compares Lightloom's renders with.
 """
 import sys
 from pathlib import Path

@@ -106,7 +106,9 @@ impl OrbitCamera {
         if t <= 0.0 || t > 100.0 * self.distance.max(1.0) {
             return level;
         }
-        eye + ray * t
+        let hit = eye + ray * t;
+        // Exactly level: the height is the light's plane, which keys its traced transport.
+        DVec3::new(hit.x, p.y, hit.z)
     }
 
     /// Turns by a drag of `(dx, dy)` pixels (a full viewport height ≈ half a turn).

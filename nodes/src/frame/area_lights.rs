@@ -148,7 +148,10 @@ pub(super) fn area_light_frame(
 ) -> Result<Option<AreaLightFrame>, String> {
     let vertices = geometry.vertex_count();
     let ready = |stage: &str| evaluation.get(output, stage).is_some_and(|r| r.value.is_ok());
-    let irradiance = match (ready("area_irradiance"), ready("area_preview")) {
+    // The preview stands in only while the traced light is still to come: a failed one is
+    // reported, and nothing unshadowed is passed off as it.
+    let pending = evaluation.get(output, "area_irradiance").is_none();
+    let irradiance = match (ready("area_irradiance"), pending && ready("area_preview")) {
         _ if lights.is_empty() => return Ok(None),
         (true, _) => "area_irradiance",
         (false, true) => "area_preview",

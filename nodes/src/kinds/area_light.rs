@@ -164,8 +164,9 @@ pub fn spec() -> NodeKindSpec {
                 "Face size",
                 "",
                 (1.0, 20.0, 4.0),
-                "Width of the receivers' top face in units of height (3–4 covers a light well; larger faces \
-                 reach grazing light but resolve shadows more coarsely).",
+                "Width of the receivers' top face in units of height: within it the light's texture and \
+                 shadows are carried exactly, beyond it in 4 × 4 cells with one shadow ray each quarter \
+                 (3–4 covers a light well; larger faces resolve shadows more coarsely).",
             ),
         ],
         stages: vec![

@@ -207,9 +207,9 @@ pub fn spec() -> NodeKindSpec {
             },
             StageSpec {
                 name: "sun",
-                version: 1,
-                params: &[],
-                stages: &["radiance"],
+                version: 2,
+                params: &["exposure", "tint"],
+                stages: &["source_sun"],
                 inputs: &[],
                 persist: None,
                 compute: sun,
@@ -352,8 +352,13 @@ fn rotation(ctx: &StageContext) -> Result<StageValue, StageError> {
 }
 
 /// The unrotated map's dominant light as a disc, and the sky without it ([`crate::sun`]).
+/// The split of the radiance: the source's split (`source_sun`) with exposure and tint applied,
+/// so the sun the Output lights apart is the very one the square lights' sky lacks.
 fn sun(ctx: &StageContext) -> Result<StageValue, StageError> {
-    Ok(StageValue::new(crate::sun::split(ctx.stage::<CubeMap>("radiance")?)))
+    let scale = 2f64.powf(ctx.float("exposure")?);
+    let tint = ctx.vec3("tint")?;
+    let split = ctx.stage::<crate::sun::SunSplit>("source_sun")?;
+    Ok(StageValue::new(split.scaled(tint.map(|t| t * scale))))
 }
 
 /// The sun split of the source before exposure and tint (the same texels as `sun`'s, up to

@@ -323,7 +323,11 @@ mod tests {
             .collect();
         let source = light_source(&texture, order, order * order);
         let face = TopFace { order, size: 4.0 };
-        let points: Vec<DVec3> = (0..33).map(|k| DVec3::new(0.25 * k as f64, 0.0, 0.3)).collect();
+        // Along x, and off the axis on both sides in z (a flip of the cells' rows would show).
+        let points: Vec<DVec3> = (0..33)
+            .map(|k| DVec3::new(0.25 * k as f64, 0.0, 0.3))
+            .chain((0..12).flat_map(|k| [-1.0, 1.0].map(|side| DVec3::new(0.5 * k as f64 - 2.0, 0.0, side * 3.0))))
+            .collect();
         let normals = vec![DVec3::Y; points.len()];
         let transport = face_transport(face, &points, &normals, 2, |_, _| true);
         let inside = irradiance(&source, &light, &transport, &points, TargetKeep::All);
@@ -339,8 +343,7 @@ mod tests {
                 let total = inside[k][c] + beyond[k][c];
                 assert!(
                     (total - truth[c]).abs() <= tolerance * truth[c],
-                    "at x = {}: face {} + beyond {} = {total}, quadrature {}",
-                    x.x,
+                    "at {x}: face {} + beyond {} = {total}, quadrature {}",
                     inside[k][c],
                     beyond[k][c],
                     truth[c]

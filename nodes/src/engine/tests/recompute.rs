@@ -685,7 +685,8 @@ fn each_mode_and_view_evaluates_exactly_the_stages_it_reads() {
         "material.material",
     ];
     // Every mode lights the sun apart here: each reads its split and the residual sky's SH.
-    const SUN_SPLIT: &[&str] = &["sky.sun", "sky.residual_sh_unrotated", "sky.residual_sh", "sky.rotation"];
+    const SUN_SPLIT: &[&str] =
+        &["sky.source_sun", "sky.sun", "sky.residual_sh_unrotated", "sky.residual_sh", "sky.rotation"];
     let with_sun = |extra: &[&'static str]| -> Vec<&'static str> { [UNSHADOWED, SUN_SPLIT, extra].concat() };
     let wavelet_vertex = with_sun(&[
         "scene.receivers",

@@ -6,7 +6,7 @@
 //!   transport in 2D Haar (one ray per cell, ending at the highest light's plane: what lies
 //!   above the lights, a ceiling, casts no shadow). Lights with equal faces share it; it is
 //!   memoised per face on the geometry and that plane, so painting, moving a light within it
-//!   or adding a light with a face already traced casts no ray. Beside the faces, each light's
+//!   or adding a light with a face already traced traces no top face again. Beside the faces, each light's
 //!   part beyond its face ([`crate::near_field::beyond_face`]: closed-form cells, one ray per
 //!   quadrant of the light), memoised on the geometry, the face and the light's placement, so a
 //!   move re-traces only those rays.

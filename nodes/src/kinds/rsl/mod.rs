@@ -142,16 +142,19 @@ pub fn spec() -> NodeKindSpec {
         ],
         previews: vec![
             PreviewSpec {
-                stages: &["cube", "square_lights"],
+                // The lights the Output draws by default (the sun lit apart): one decomposition
+                // for the first frame, not two.
+                stages: &["residual_cube", "residual_square_lights"],
                 make: |v| Some(Preview::Image(preview::square_light_regions(v[0].get()?, v[1].get()?, 192, 96))),
                 size: [128.0, 64.0],
-                caption: "regions of the square lights over the environment (its own frame, auto-exposed)",
+                caption: "regions of the square lights over the environment, its sun left to be lit apart (its \
+                          own frame, auto-exposed)",
             },
             PreviewSpec {
-                stages: &["square_lights"],
+                stages: &["residual_square_lights"],
                 make: |v| Some(Preview::Image(preview::square_lights_sphere(v[0].get()?, 96))),
                 size: [64.0, 64.0],
-                caption: "the square lights on the environment sphere (auto-exposed)",
+                caption: "the square lights on the environment sphere, its sun left to be lit apart (auto-exposed)",
             },
         ],
         gizmo: crate::engine::spec::GizmoSpec::None,

@@ -26,10 +26,17 @@ fn panel_only_project(dir: &Path) -> PathBuf {
 /// Relative RMSE over surface pixels of the unshadowed-environment mode (here: the area light
 /// alone) against the reference, and the reference's own noise.
 fn accuracy(project: &Path, sets: &[&str]) -> (f64, f64) {
+    let sets = [&["out.mode=sh_irradiance", "scene.tessellation=128"][..], sets].concat();
+    sh_irradiance_error(project, 1024, (128, 72), &sets)
+}
+
+/// `lightloom accuracy` of `project` at `samples` per pixel and `width × height` with `sets`
+/// applied: the `sh_irradiance` row's relative RMSE, and the reference's noise.
+fn sh_irradiance_error(project: &Path, samples: usize, (width, height): (u32, u32), sets: &[&str]) -> (f64, f64) {
     let mut command = lightloom();
-    command.args(["accuracy", project.to_str().unwrap(), "--json", "--samples", "1024", "--width", "128"]);
-    command.args(["--height", "72", "--bands", "2", "--wavelets", "--adaptive", "--no-disk-cache"]);
-    command.args(["--set", "out.mode=sh_irradiance", "--set", "scene.tessellation=128"]);
+    command.args(["accuracy", project.to_str().unwrap(), "--json", "--samples", &samples.to_string()]);
+    command.args(["--width", &width.to_string(), "--height", &height.to_string()]);
+    command.args(["--bands", "2", "--wavelets", "--adaptive", "--no-disk-cache"]);
     for set in sets {
         command.args(["--set", set]);
     }
@@ -133,15 +140,7 @@ fn sphere_on_a_floor(dir: &Path, texture: bool) -> PathBuf {
 /// The relative RMSE of `project` against its reference at 320 × 180 and 512 samples, and the
 /// reference's noise.
 fn accuracy_at_tessellation(project: &Path) -> (f64, f64) {
-    let mut command = lightloom();
-    command.args(["accuracy", project.to_str().unwrap(), "--json", "--samples", "512", "--width", "320"]);
-    command.args(["--height", "180", "--bands", "2", "--wavelets", "--adaptive", "--no-disk-cache"]);
-    let out = command.output().unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-    let rows = report["rows"].as_array().unwrap();
-    let row = rows.iter().find(|r| r["mode"].as_str().unwrap().starts_with("sh_irradiance")).unwrap();
-    (row["relative_rmse"].as_f64().unwrap(), report["reference_noise"]["relative_rmse"].as_f64().unwrap())
+    sh_irradiance_error(project, 512, (320, 180), &[])
 }
 
 /// Per texel on a visibility-textured floor, the area light's shadow and falloff follow the

@@ -187,7 +187,8 @@ pub fn beyond_face(
             for qj in 0..VISIBILITY {
                 for qi in 0..VISIBILITY {
                     // The quadrant's part beyond the face: its cells' responses and centroid.
-                    let mut lit = Vec::with_capacity(per_quadrant * per_quadrant);
+                    let mut lit = [(0, 0.0); (CELLS / VISIBILITY) * (CELLS / VISIBILITY)];
+                    let mut count = 0;
                     let (mut area, mut moment) = (0.0, [0.0; 2]);
                     for j in qj * per_quadrant..(qj + 1) * per_quadrant {
                         for i in qi * per_quadrant..(qi + 1) * per_quadrant {
@@ -204,15 +205,16 @@ pub fn beyond_face(
                                 moment[q] += cw[q] * whole.area() - ci[q] * inside.area();
                             }
                             area += beyond;
-                            lit.push((j * CELLS + i, e));
+                            lit[count] = (j * CELLS + i, e);
+                            count += 1;
                         }
                     }
-                    if lit.is_empty() {
+                    if count == 0 {
                         continue;
                     }
                     let target = DVec3::new(moment[0] / area, placement.height, moment[1] / area);
                     if unoccluded(origins[r], target) {
-                        for (c, e) in lit {
+                        for &(c, e) in &lit[..count] {
                             out[c] = e as f32;
                         }
                     }

@@ -116,24 +116,8 @@ fn the_area_light_shows_in_the_viewport_and_drags() {
     );
     assert_eq!(harness.state().doc.undo_label(), Some(format!("Set {added}.position").as_str()));
     // With Shift, a drag up raises it and moves it nowhere else.
-    let shifted = |pos, pressed| egui::Event::PointerButton {
-        pos,
-        button: egui::PointerButton::Primary,
-        pressed,
-        modifiers: egui::Modifiers::SHIFT,
-    };
-    harness.hover_at(now);
-    harness.step();
-    harness.event(egui::Event::ModifiersChanged(egui::Modifiers::SHIFT));
-    harness.event(shifted(now, true));
-    harness.step();
-    for i in 1..=6 {
-        harness.hover_at(now - egui::vec2(0.0, 10.0 * i as f32));
-        harness.step();
-    }
-    harness.event(shifted(now - egui::vec2(0.0, 60.0), false));
-    harness.event(egui::Event::ModifiersChanged(egui::Modifiers::NONE));
-    harness.run_steps(2);
+    let up = now - egui::vec2(0.0, 60.0);
+    pointer_drag_with(&mut harness, egui::PointerButton::Primary, now, up, egui::Modifiers::SHIFT);
     let raised = match edits::node(&harness.state().doc.project, &added).and_then(|n| n.params.get("position")) {
         Some(ParamValue::Vec3(p)) => *p,
         other => panic!("position: {other:?}"),

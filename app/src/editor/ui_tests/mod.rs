@@ -560,9 +560,21 @@ fn the_error_view_has_a_colour_scale() {
 
 /// Presses a pointer button at `from`, moves to `to` in steps and releases there.
 fn pointer_drag(harness: &mut Harness<'_, EditorApp>, button: egui::PointerButton, from: egui::Pos2, to: egui::Pos2) {
-    let press = |pos, pressed| egui::Event::PointerButton { pos, button, pressed, modifiers: egui::Modifiers::NONE };
+    pointer_drag_with(harness, button, from, to, egui::Modifiers::NONE);
+}
+
+/// [`pointer_drag`] with `modifiers` held from the press to the release.
+fn pointer_drag_with(
+    harness: &mut Harness<'_, EditorApp>,
+    button: egui::PointerButton,
+    from: egui::Pos2,
+    to: egui::Pos2,
+    modifiers: egui::Modifiers,
+) {
+    let press = |pos, pressed| egui::Event::PointerButton { pos, button, pressed, modifiers };
     harness.hover_at(from);
     harness.step();
+    harness.event(egui::Event::ModifiersChanged(modifiers));
     harness.event(press(from, true));
     harness.step();
     for i in 1..=6 {
@@ -570,6 +582,7 @@ fn pointer_drag(harness: &mut Harness<'_, EditorApp>, button: egui::PointerButto
         harness.step();
     }
     harness.event(press(to, false));
+    harness.event(egui::Event::ModifiersChanged(egui::Modifiers::NONE));
     harness.step();
     harness.step();
 }
@@ -1091,24 +1104,8 @@ fn dragging_an_object_moves_it_and_shift_turns_it() {
 
     // Shift+drag turns it about the vertical axis.
     let turn_from = gizmos::screen_pos(&camera, rect, after[sphere].translation).unwrap();
-    let press = |pos, pressed| egui::Event::PointerButton {
-        pos,
-        button: egui::PointerButton::Primary,
-        pressed,
-        modifiers: egui::Modifiers::SHIFT,
-    };
-    harness.hover_at(turn_from);
-    harness.step();
-    harness.event(egui::Event::ModifiersChanged(egui::Modifiers::SHIFT));
-    harness.event(press(turn_from, true));
-    harness.step();
-    for i in 1..=4 {
-        harness.hover_at(turn_from + egui::vec2(10.0 * i as f32, 0.0));
-        harness.step();
-    }
-    harness.event(press(turn_from + egui::vec2(40.0, 0.0), false));
-    harness.event(egui::Event::ModifiersChanged(egui::Modifiers::NONE));
-    harness.run_steps(2);
+    let turn_to = turn_from + egui::vec2(40.0, 0.0);
+    pointer_drag_with(&mut harness, egui::PointerButton::Primary, turn_from, turn_to, egui::Modifiers::SHIFT);
     let turned = objects(&harness);
     assert_eq!(turned[sphere].translation, after[sphere].translation, "a turn does not move it");
     assert!((turned[sphere].rotation_deg[1] - after[sphere].rotation_deg[1]).abs() > 5.0, "{:?}", turned[sphere]);

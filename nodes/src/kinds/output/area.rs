@@ -198,6 +198,11 @@ fn positions(receivers: &Receivers) -> Vec<DVec3> {
     receivers.positions.iter().map(|p| DVec3::from(p.map(f64::from))).collect()
 }
 
+/// Every receiver's point and unit normal.
+fn points_and_normals(receivers: &Receivers) -> (Vec<DVec3>, Vec<DVec3>) {
+    (0..receivers.len()).map(|i| receivers.point(i)).unzip()
+}
+
 fn face_bytes(face: &TopFace) -> [u8; 16] {
     let mut bytes = [0; 16];
     bytes[..8].copy_from_slice(&(face.order as u64).to_le_bytes());
@@ -218,18 +223,6 @@ pub(super) fn transport_of(
     density: &str,
 ) -> Result<AreaTransport, StageError> {
     let scene = ctx.required_input::<RayScene>("scene", "ray_scene")?;
-    let mut faces: Vec<TopFace> = Vec::new();
-    for (_, face) in ctx.inputs_all::<TopFace>("area_lights", "face")? {
-        if !faces.contains(face) {
-            faces.push(*face);
-        }
-    }
-    // Rays end at the highest light's plane (the top-face directions all point up).
-    let ceiling = ctx
-        .inputs_all::<crate::near_field::LightPlacement>("area_lights", "placement")?
-        .iter()
-        .map(|(_, p)| p.height)
-        .fold(f64::NEG_INFINITY, f64::max);
     // Each light's placement beside its face: its part beyond the face is traced apart.
     let faces_of = ctx.inputs_all::<TopFace>("area_lights", "face")?;
     let lights: Vec<(LightPlacement, TopFace)> = ctx
@@ -237,6 +230,14 @@ pub(super) fn transport_of(
         .into_iter()
         .filter_map(|(node, placement)| faces_of.iter().find(|(n, _)| *n == node).map(|(_, face)| (*placement, **face)))
         .collect();
+    let mut faces: Vec<TopFace> = Vec::new();
+    for (_, face) in &lights {
+        if !faces.contains(face) {
+            faces.push(*face);
+        }
+    }
+    // Rays end at the highest light's plane (the top-face directions all point up).
+    let ceiling = lights.iter().map(|(p, _)| p.height).fold(f64::NEG_INFINITY, f64::max);
     let cells: usize = faces.iter().map(|f| f.order * f.order).sum();
     crate::kinds::scene::check_ray_budget(receivers.len(), cells + lights.len() * VISIBILITY * VISIBILITY, density)?;
     let bytes = (receivers.len() * (cells * 4 + lights.len() * beyond_face::CELLS * beyond_face::CELLS * 4)) as u64;
@@ -258,7 +259,7 @@ pub(super) fn transport_of(
     geometry.update(&scene.fingerprint().to_le_bytes());
     geometry.update(&ceiling.to_bits().to_le_bytes());
     let geometry = geometry.digest128().to_le_bytes();
-    let (points, normals): (Vec<DVec3>, Vec<DVec3>) = (0..receivers.len()).map(|i| receivers.point(i)).unzip();
+    let (points, normals) = points_and_normals(receivers);
     // Rays leave each surface just off it; the transport itself reads only the normals.
     let origins: Vec<DVec3> =
         points.iter().zip(&normals).map(|(&p, &n)| scene.leave_surface(p, n).as_dvec3()).collect();
@@ -356,7 +357,7 @@ fn area_texel_irradiance(ctx: &StageContext) -> Result<StageValue, StageError> {
 /// cells' responses are memoised on the receivers and the placement, so a stroke re-weights them.
 fn area_preview(ctx: &StageContext) -> Result<StageValue, StageError> {
     let receivers = ctx.required_input::<Receivers>("scene", "receivers")?;
-    let (points, normals): (Vec<DVec3>, Vec<DVec3>) = (0..receivers.len()).map(|i| receivers.point(i)).unzip();
+    let (points, normals) = points_and_normals(receivers);
     let mut geometry = xxhash_rust::xxh3::Xxh3::new();
     geometry.update(b"area preview v1");
     geometry.update(bytemuck::cast_slice(&receivers.positions));

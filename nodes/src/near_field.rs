@@ -16,6 +16,12 @@
 //!   magnitude, which is L²-optimal for an orthonormal basis); the target keeps all nonzero
 //!   `L_k` (found by the breakpoint fan-out) or a fraction picked by the constant-light
 //!   prediction `L̃_k = D_{φk₁} D_{φk₂}` (Eq. 4.38), ties coarse first.
+//! - **Shading.** In the adjoint order `E = Σ_i F_i G_i`, each source coefficient's response
+//!   `G_i` kept apart so that a stroke computes only the coefficients it adds. With every
+//!   target kept, `G_i` is a sum of the face's cells under the preimage of `Ψ_i`'s boxes
+//!   ([`box_responses`], Parseval); a truncated target goes through the couplings `D_ik` over
+//!   the transport's Haar transform. The transport is stored as cells, with the box of its
+//!   nonzero ones, so a receiver the face sends nothing costs nothing.
 
 use crate::wavelet::affine::{Affine, CouplingGrid, haar_forward_2d, level_offset};
 use glam::DVec3;
@@ -23,9 +29,11 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 pub mod beyond_face;
+mod box_responses;
 mod couplings;
 mod targets;
 
+use box_responses::*;
 use couplings::*;
 pub use targets::predicted_targets;
 use targets::*;
@@ -62,23 +70,43 @@ impl TopFace {
     }
 }
 
-/// Per receiver, the transport on the top face in 2D Haar (`order²` coefficients each).
+/// Per receiver, the transport on the top face: `T̂` at each of its `order²` cells (row `k₂`
+/// at `k₂·order`). The shading with every face coefficient kept sums these cells directly
+/// ([`box_responses`]); the truncating paths take their 2D Haar transform ([`Self::haar_of`]).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct FaceTransport {
     pub face: TopFace,
-    pub coefficients: Vec<f32>,
+    pub cells: Vec<f32>,
+    /// Per receiver, the cells its transport is nonzero in: `k₁ ∈ [b₀, b₁)`, `k₂ ∈ [b₂, b₃)`
+    /// (empty for a receiver the face sends nothing: occluded, or facing away).
+    pub bounds: Vec<[u16; 4]>,
 }
 
-crate::stage_type!(FaceTransport, "top-face transport", |v| v.coefficients.len() * 4 + 32);
+crate::stage_type!(FaceTransport, "top-face transport", |v| v.cells.len() * 4 + v.bounds.len() * 8 + 32);
 
 impl FaceTransport {
+    /// The transport of receivers whose cells are `cells`, `order²` each.
+    pub fn new(face: TopFace, cells: Vec<f32>) -> Self {
+        let n = face.order;
+        let bounds = cells.par_chunks(n * n).map(|cells| nonzero_bounds(cells, n)).collect();
+        Self { face, cells, bounds }
+    }
+
     pub fn receivers(&self) -> usize {
-        self.coefficients.len() / (self.face.order * self.face.order).max(1)
+        self.cells.len() / (self.face.order * self.face.order).max(1)
     }
 
     fn of(&self, receiver: usize) -> &[f32] {
         let n = self.face.order * self.face.order;
-        &self.coefficients[receiver * n..(receiver + 1) * n]
+        &self.cells[receiver * n..(receiver + 1) * n]
+    }
+
+    /// One receiver's transport in 2D Haar, `T_k`, into `out`.
+    pub fn haar_of(&self, receiver: usize, out: &mut Vec<f32>) {
+        let mut values: Vec<f64> = self.of(receiver).iter().map(|&c| f64::from(c)).collect();
+        haar_forward_2d(&mut values, self.face.order);
+        out.clear();
+        out.extend(values.into_iter().map(|c| c as f32));
     }
 }
 
@@ -93,12 +121,12 @@ pub fn face_transport(
 ) -> FaceTransport {
     let n = face.order;
     let samples = samples.max(1);
-    let coefficients = positions
+    let unoccluded = &unoccluded;
+    let cells = positions
         .par_iter()
         .zip(normals)
         .flat_map_iter(|(&x, &normal)| {
-            let mut cells = vec![0.0; n * n];
-            for (c, cell) in cells.iter_mut().enumerate() {
+            (0..n * n).map(move |c| {
                 let mut sum = 0.0;
                 for k in 0..samples * samples {
                     let v_hat = [
@@ -110,13 +138,25 @@ pub fn face_transport(
                         sum += weight;
                     }
                 }
-                *cell = sum / (samples * samples) as f64;
-            }
-            haar_forward_2d(&mut cells, n);
-            cells.into_iter().map(|c| c as f32)
+                (sum / (samples * samples) as f64) as f32
+            })
         })
         .collect();
-    FaceTransport { face, coefficients }
+    FaceTransport::new(face, cells)
+}
+
+/// The smallest box of an `n × n` receiver's cells holding every nonzero one ([`FaceTransport::bounds`]).
+fn nonzero_bounds(cells: &[f32], n: usize) -> [u16; 4] {
+    let (mut bounds, mut any) = ([n, 0, n, 0], false);
+    for (k2, row) in cells.chunks(n).enumerate() {
+        let Some(first) = row.iter().position(|&v| v != 0.0) else {
+            continue;
+        };
+        let last = row.iter().rposition(|&v| v != 0.0).unwrap_or(first);
+        bounds = [bounds[0].min(first), bounds[1].max(last + 1), bounds[2].min(k2), k2 + 1];
+        any = true;
+    }
+    if any { bounds.map(|b| b as u16) } else { [0; 4] }
 }
 
 /// Per receiver, the top-face cells light can arrive through: above the receiver's horizon and
@@ -166,8 +206,8 @@ pub fn face_visibility(
 }
 
 /// The transport of `receivers` (indices into `visibility` and `normals`) with a per-direction
-/// factor: `T̂(v̂) = a² V(ω) factor(r, ω) max(0, ω·n) (1 + |v|²)^{−3/2}` at each cell centre, in
-/// 2D Haar (`order²` values per receiver, in order). `factor` 1 gives the irradiance transport
+/// factor: `T̂(v̂) = a² V(ω) factor(r, ω) max(0, ω·n) (1 + |v|²)^{−3/2}` at each cell centre
+/// (`order²` cells per receiver, in order). `factor` 1 gives the irradiance transport
 /// ([`face_transport`] with one sample per cell, the same bits); the specular lobe toward a
 /// viewer gives the radiance a glossy surface reflects toward it (Sun 2008 §4.9).
 pub fn visible_transport(
@@ -181,15 +221,14 @@ pub fn visible_transport(
     receivers
         .into_par_iter()
         .flat_map_iter(|r| {
-            let mut cells = vec![0.0; n * n];
-            for (c, cell) in cells.iter_mut().enumerate() {
-                if visibility.visible(r, c) {
-                    let (direction, weight) = face.weight(face.cell_centre(c), normals[r]);
-                    *cell = weight * factor(r, direction);
+            let factor = &factor;
+            (0..n * n).map(move |c| {
+                if !visibility.visible(r, c) {
+                    return 0.0;
                 }
-            }
-            haar_forward_2d(&mut cells, n);
-            cells.into_iter().map(|c| c as f32)
+                let (direction, weight) = face.weight(face.cell_centre(c), normals[r]);
+                (weight * factor(r, direction)) as f32
+            })
         })
         .collect()
 }
@@ -349,6 +388,9 @@ pub struct Propagation {
     row_sums: Vec<f64>,
     /// One receiver's responses, when [`irradiance`] sums them at once.
     responses: Vec<f64>,
+    /// One receiver's transport in 2D Haar, for the truncating paths.
+    haar: Vec<f32>,
+    boxes: BoxScratch,
     /// `L_{k₁k₂}` at `k₂·order + k₁`, valid after [`propagate_into`].
     pub light: Vec<[f64; 3]>,
 }
@@ -370,6 +412,8 @@ impl Propagation {
             kept_transport: Vec::new(),
             row_sums: Vec::new(),
             responses: Vec::new(),
+            haar: Vec::new(),
+            boxes: BoxScratch::default(),
             light: vec![[0.0; 3]; face_order * face_order],
         }
     }
@@ -489,8 +533,7 @@ pub fn irradiance(
                 with_scratch(face.order, |scratch| {
                     let mut g = std::mem::take(&mut scratch.responses);
                     g.resize(indices.len(), 0.0);
-                    let receiver = Receiver { indices: &indices, maps, order: face.order, transport: transport.of(r) };
-                    adjoint_responses(receiver, fraction, scratch, &mut g);
+                    receiver_responses(&indices, maps, transport, r, fraction, scratch, &mut g);
                     let mut e = [0.0; 3];
                     add_shading(&mut e, &source.coefficients, |j| g[j]);
                     scratch.responses = g;
@@ -509,7 +552,11 @@ pub fn irradiance(
             with_scratch(face.order, |scratch| {
                 propagate_into(source, maps, face.order, scratch);
                 largest_target_set(face.order, fraction, scratch);
-                propagated_irradiance(transport.of(r), true, scratch)
+                let mut haar = std::mem::take(&mut scratch.haar);
+                transport.haar_of(r, &mut haar);
+                let e = propagated_irradiance(&haar, true, scratch);
+                scratch.haar = haar;
+                e
             })
         })
         .collect()
@@ -520,6 +567,24 @@ pub fn irradiance(
 pub fn shade(source: &LightSource, receivers: usize, response: impl Fn(usize, usize) -> f64 + Sync) -> Vec<[f64; 3]> {
     let mut e = vec![[0.0; 3]; receivers];
     accumulate(&mut e, &source.coefficients, response);
+    e
+}
+
+/// [`shade`] from responses kept one column per coefficient (`columns[j][r]`): the same sums in
+/// the same order, the same bits, taken by blocks of receivers so that each column streams.
+pub fn shade_columns(source: &LightSource, columns: &[&[f64]], receivers: usize) -> Vec<[f64; 3]> {
+    const BLOCK: usize = 512;
+    let mut e = vec![[0.0; 3]; receivers];
+    e.par_chunks_mut(BLOCK).enumerate().for_each(|(b, block)| {
+        let (first, len) = (b * BLOCK, block.len());
+        for (column, (_, f)) in columns.iter().zip(&source.coefficients) {
+            for (e, &g) in block.iter_mut().zip(&column[first..first + len]) {
+                for c in 0..3 {
+                    e[c] += f64::from(f[c]) * g;
+                }
+            }
+        }
+    });
     e
 }
 
@@ -551,9 +616,13 @@ pub fn response_batch(receivers: usize) -> usize {
     (RESPONSE_BATCH_BYTES / (receivers.max(1) * 8)).max(1)
 }
 
+/// Receivers per task of [`responses`]: each task writes its slice of every column.
+const RESPONSE_CHUNK: usize = 256;
+
 /// Each source coefficient's share of each receiver's irradiance per unit coefficient,
 /// `G_i = Σ_{k₁} D_{i₁k₁} Σ_{k₂} D_{i₂k₂} T̃_{k₁k₂}` (`T̃` the kept transport), for `indices`
-/// `(i₁, i₂)` in the source's order (by `i₂`, then `i₁`); at `r · indices.len() + j`.
+/// `(i₁, i₂)` in the source's order (by `i₂`, then `i₁`): one column per index, one value per
+/// receiver.
 ///
 /// `E` is linear in the light for `All` and `Predicted` targets (the kept set depends on the
 /// placement alone), so a repainted light reuses the responses of the coefficients it keeps and
@@ -564,24 +633,59 @@ pub fn responses(
     transport: &FaceTransport,
     positions: &[DVec3],
     shading: impl Into<Shading>,
-) -> Option<Vec<f64>> {
+) -> Option<Vec<Vec<f64>>> {
     let Shading { keep, acc } = shading.into();
     let fraction = keep.linear_fraction()?;
     let face = transport.face;
-    let mut g = vec![0.0; positions.len() * indices.len()];
-    if indices.is_empty() {
-        return Some(g);
+    let mut columns = vec![vec![0.0; positions.len()]; indices.len()];
+    let mut tasks: Vec<Vec<&mut [f64]>> =
+        (0..positions.len().div_ceil(RESPONSE_CHUNK)).map(|_| Vec::with_capacity(indices.len())).collect();
+    for column in &mut columns {
+        for (task, piece) in tasks.iter_mut().zip(column.chunks_mut(RESPONSE_CHUNK)) {
+            task.push(piece);
+        }
     }
-    g.par_chunks_mut(indices.len()).enumerate().for_each(|(r, out)| {
-        let Some(maps) = placement.shading_maps(&face, acc, positions[r]) else {
-            return;
-        };
+    tasks.into_par_iter().enumerate().for_each(|(t, mut pieces)| {
         with_scratch(face.order, |scratch| {
-            let receiver = Receiver { indices, maps, order: face.order, transport: transport.of(r) };
-            adjoint_responses(receiver, fraction, scratch, out);
+            let mut g = std::mem::take(&mut scratch.responses);
+            g.resize(indices.len(), 0.0);
+            let first = t * RESPONSE_CHUNK;
+            for r in first..(first + RESPONSE_CHUNK).min(positions.len()) {
+                let Some(maps) = placement.shading_maps(&face, acc, positions[r]) else {
+                    continue;
+                };
+                receiver_responses(indices, maps, transport, r, fraction, scratch, &mut g);
+                for (piece, &value) in pieces.iter_mut().zip(&g) {
+                    piece[r - first] = value;
+                }
+            }
+            scratch.responses = g;
         });
     });
-    Some(g)
+    Some(columns)
+}
+
+/// Receiver `r`'s responses to `indices` under `maps`: from its cells when every face
+/// coefficient is kept ([`box_responses`]), else through the coupling coefficients over the
+/// predicted targets of `fraction` in its Haar transport ([`adjoint_responses`]).
+fn receiver_responses(
+    indices: &[(u16, u16)],
+    maps: [Affine; 2],
+    transport: &FaceTransport,
+    r: usize,
+    fraction: Option<f64>,
+    scratch: &mut Propagation,
+    out: &mut [f64],
+) {
+    let n = transport.face.order;
+    let Some(fraction) = fraction else {
+        let cells = Cells { n, values: transport.of(r), bounds: transport.bounds[r] };
+        return box_responses(indices, maps, cells, &mut scratch.boxes, out);
+    };
+    let mut haar = std::mem::take(&mut scratch.haar);
+    transport.haar_of(r, &mut haar);
+    adjoint_responses(Receiver { indices, maps, order: n, transport: &haar }, Some(fraction), scratch, out);
+    scratch.haar = haar;
 }
 
 thread_local! {

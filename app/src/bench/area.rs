@@ -129,8 +129,8 @@ pub fn area_light_figures() {
     let added: Vec<(u16, u16)> = source.coefficients.iter().map(|c| c.0).filter(|i| !old.contains(i)).collect();
     let fresh = responses(&added, &placement, &transport, &positions, target).expect("linear targets");
     let column = |r: usize, index: (u16, u16)| match old.iter().position(|&i| i == index) {
-        Some(j) => held[r * old.len() + j],
-        None => fresh[r * added.len() + added.iter().position(|&i| i == index).expect("added")],
+        Some(j) => held[j][r],
+        None => fresh[added.iter().position(|&i| i == index).expect("added")][r],
     };
     let indices: Vec<(u16, u16)> = source.coefficients.iter().map(|c| c.0).collect();
     let e = shade(&source, positions.len(), |r, j| column(r, indices[j]));

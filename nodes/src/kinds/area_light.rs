@@ -125,9 +125,11 @@ pub fn spec() -> NodeKindSpec {
                 "target_keep",
                 "Lighting detail kept",
                 "%",
-                (1.0, 100.0, 30.0),
-                "Share of each receiver's top-face coefficients shaded, picked by how a constant light would \
-                 reach it; 100% shades them all.",
+                (1.0, 100.0, 100.0),
+                "Share of each receiver's top-face coefficients shaded. 100% shades them all, exactly and \
+                 fastest (the face's cells summed under each light coefficient); below it, the coefficients \
+                 a constant light would reach most are picked, as in the thesis, at the cost of the coupling \
+                 coefficients.",
             ),
             ParamSpec {
                 name: "target_heuristic",

@@ -29,7 +29,7 @@ use crate::kinds::area_light::AreaLight;
 use crate::near_field::beyond_face::{self, BeyondFace, VISIBILITY, beyond_face, cell_means};
 use crate::near_field::{
     FaceTransport, FaceVisibility, LightPlacement, TargetKeep, TopFace, face_visibility, irradiance, response_batch,
-    responses, shade, visible_transport,
+    responses, shade_columns, visible_transport,
 };
 use crate::raycast::RayScene;
 use crate::transport::Receivers;
@@ -37,12 +37,14 @@ use glam::DVec3;
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
 
-crate::stage_type!(Arc<FaceTransport>, "top-face transport", encoding = 1, |v| v.coefficients.len() * 4 + 32);
+crate::stage_type!(Arc<FaceTransport>, "top-face transport", encoding = 2, |v| v.cells.len() * 4
+    + v.bounds.len() * 8
+    + 32);
 crate::stage_type!(Arc<FaceVisibility>, "top-face visibility", encoding = 1, |v| v.bits.len() * 8 + 32);
-crate::stage_type!(AreaTransport, "area-light transport", encoding = 3, |v| v
+crate::stage_type!(AreaTransport, "area-light transport", encoding = 4, |v| v
     .faces
     .iter()
-    .map(|f| f.transport.coefficients.len() * 4 + f.visibility.bits.len() * 8 + 64)
+    .map(|f| f.transport.cells.len() * 4 + f.transport.bounds.len() * 8 + f.visibility.bits.len() * 8 + 64)
     .chain(v.beyond.iter().map(|b| b.responses.responses.len() * 4 + 64))
     .sum());
 crate::stage_type!(Arc<BeyondFace>, "light beyond the top face", encoding = 1, |v| v.responses.len() * 4 + 16);
@@ -123,7 +125,7 @@ pub fn stages() -> Vec<StageSpec> {
     vec![
         StageSpec {
             name: "area_transport",
-            version: 4,
+            version: 5,
             params: &[],
             stages: &[],
             inputs: &[
@@ -281,11 +283,11 @@ pub(super) fn transport_of(
             Ok(Arc::new(FaceVisibility { face: *face, bits }))
         })?;
         let visibility: Arc<FaceVisibility> = (*visibility).clone();
-        let key = xxhash_rust::xxh3::xxh3_128(&[&visibility_key.to_le_bytes()[..], b"diffuse"].concat());
+        let key = xxhash_rust::xxh3::xxh3_128(&[&visibility_key.to_le_bytes()[..], b"diffuse cells"].concat());
         let transport = ctx.memo(key, || {
             ctx.check_cancel()?;
-            let coefficients = visible_transport(&visibility, 0..receivers.len(), &normals, |_, _| 1.0);
-            Ok(Arc::new(FaceTransport { face: *face, coefficients }))
+            let cells = visible_transport(&visibility, 0..receivers.len(), &normals, |_, _| 1.0);
+            Ok(Arc::new(FaceTransport::new(*face, cells)))
         })?;
         out.faces.push(SharedTransport { key, transport: (*transport).clone(), visibility });
     }
@@ -507,7 +509,7 @@ fn area_highlights(ctx: &StageContext) -> Result<StageValue, StageError> {
     // vertex's lobe.
     let lobes: Vec<String> = brdfs.iter().map(|b| format!("{:?}/{}", b.lobe, b.f0)).collect();
     let mut seen = xxhash_rust::xxh3::Xxh3::new();
-    seen.update(b"area glossy transport v1");
+    seen.update(b"area glossy transport v2");
     seen.update(bytemuck::cast_slice(&eye.to_array()));
     seen.update(&postcard::to_allocvec(&lobes).map_err(|e| StageError::Internal(e.to_string()))?);
     seen.update(bytemuck::cast_slice(&of_vertex));
@@ -519,17 +521,17 @@ fn area_highlights(ctx: &StageContext) -> Result<StageValue, StageError> {
         let key = key.digest128();
         let visibility = &diffuse.visibility;
         let transport = ctx.memo(key, || {
-            let mut coefficients = Vec::with_capacity(diffuse.transport.coefficients.len());
+            let mut cells = Vec::with_capacity(diffuse.transport.cells.len());
             for start in (0..receivers.len()).step_by(GLOSSY_CHUNK) {
                 ctx.check_cancel()?;
                 let end = (start + GLOSSY_CHUNK).min(receivers.len());
-                coefficients.extend(visible_transport(visibility, start..end, &normals, |r, w| {
+                cells.extend(visible_transport(visibility, start..end, &normals, |r, w| {
                     let (to_local, wo) = views[r];
                     brdfs[of_vertex[r] as usize].lobe_value(to_local * w, wo)
                 }));
                 ctx.progress(end as f64 / receivers.len().max(1) as f64);
             }
-            Ok(Arc::new(FaceTransport { face: visibility.face, coefficients }))
+            Ok(Arc::new(FaceTransport::new(visibility.face, cells)))
         })?;
         let glossy = SharedTransport { key, transport: (*transport).clone(), visibility: diffuse.visibility.clone() };
         add_light(ctx, light, &glossy, None, &points, &mut total)?;
@@ -581,11 +583,10 @@ fn shade_by_responses(
         let wanted: Vec<(u16, u16)> = batch.iter().map(|&at| indices[at]).collect();
         let g = responses(&wanted, &light.placement, &shared.transport, points, light.shading())
             .ok_or_else(|| StageError::Internal("responses of a light whose kept set follows it".into()))?;
-        for (j, &at) in batch.iter().enumerate() {
-            let values = (0..points.len()).map(|r| g[r * batch.len() + j]).collect();
+        for (values, &at) in g.into_iter().zip(batch) {
             columns[at] = Some(ctx.memo(key_of(indices[at]), || Ok(Response(values)))?);
         }
     }
     let columns: Vec<&[f64]> = columns.iter().map(|c| c.as_ref().map_or(&[][..], |c| c.0.as_slice())).collect();
-    Ok(shade(&light.source, points.len(), |r, j| columns[j][r]))
+    Ok(shade_columns(&light.source, &columns, points.len()))
 }

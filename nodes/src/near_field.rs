@@ -70,43 +70,105 @@ impl TopFace {
     }
 }
 
-/// Per receiver, the transport on the top face: `T̂` at each of its `order²` cells (row `k₂`
-/// at `k₂·order`). The shading with every face coefficient kept sums these cells directly
-/// ([`box_responses`]); the truncating paths take their 2D Haar transform ([`Self::haar_of`]).
+/// Per receiver, the transport on the top face: `T̂` at each of its `order²` cells, kept as
+/// the box of its nonzero cells (row `k₂` after row). The shading with every face coefficient
+/// kept sums these cells directly ([`box_responses`]); the truncating paths take their 2D Haar
+/// transform ([`Self::haar_of`]). A receiver the face sends nothing (occluded, or facing away)
+/// holds no cell and costs nothing to shade.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct FaceTransport {
     pub face: TopFace,
+    /// Every receiver's box of cells, one receiver after another.
     pub cells: Vec<f32>,
-    /// Per receiver, the cells its transport is nonzero in: `k₁ ∈ [b₀, b₁)`, `k₂ ∈ [b₂, b₃)`
-    /// (empty for a receiver the face sends nothing: occluded, or facing away).
+    /// Where each receiver's box starts in `cells` (one more than the receivers: the end).
+    pub offsets: Vec<u64>,
+    /// Per receiver, its box: `k₁ ∈ [b₀, b₁)`, `k₂ ∈ [b₂, b₃)` (empty for no nonzero cell).
     pub bounds: Vec<[u16; 4]>,
 }
 
-crate::stage_type!(FaceTransport, "top-face transport", |v| v.cells.len() * 4 + v.bounds.len() * 8 + 32);
+crate::stage_type!(FaceTransport, "top-face transport", |v| v.cells.len() * 4 + v.bounds.len() * 16 + 32);
+
+/// Receivers per task when transports are built.
+const TRANSPORT_TASK: usize = 256;
 
 impl FaceTransport {
-    /// The transport of receivers whose cells are `cells`, `order²` each.
-    pub fn new(face: TopFace, cells: Vec<f32>) -> Self {
-        let n = face.order;
-        let bounds = cells.par_chunks(n * n).map(|cells| nonzero_bounds(cells, n)).collect();
-        Self { face, cells, bounds }
+    /// A transport of no receiver yet.
+    pub fn empty(face: TopFace) -> Self {
+        Self { face, cells: Vec::new(), offsets: vec![0], bounds: Vec::new() }
+    }
+
+    /// The transport of receivers whose whole faces are `cells`, `order²` each.
+    pub fn new(face: TopFace, cells: &[f32]) -> Self {
+        let n2 = face.order * face.order;
+        Self::gather(face, cells.len() / n2.max(1), |r, out| out.copy_from_slice(&cells[r * n2..(r + 1) * n2]))
+    }
+
+    /// The transport of `receivers` receivers, each face's `order²` cells written by
+    /// `fill(receiver, cells)` (in parallel, in tasks of consecutive receivers).
+    fn gather(face: TopFace, receivers: usize, fill: impl Fn(usize, &mut [f32]) + Sync) -> Self {
+        let n2 = face.order * face.order;
+        let parts: Vec<Self> = (0..receivers.div_ceil(TRANSPORT_TASK))
+            .into_par_iter()
+            .map(|task| {
+                let mut part = Self::empty(face);
+                let mut cells = vec![0.0; n2];
+                for r in task * TRANSPORT_TASK..((task + 1) * TRANSPORT_TASK).min(receivers) {
+                    fill(r, &mut cells);
+                    part.push(&cells);
+                }
+                part
+            })
+            .collect();
+        let mut out = Self::empty(face);
+        for part in parts {
+            out.append(part);
+        }
+        out
+    }
+
+    /// Adds a receiver whose whole face is `cells`.
+    fn push(&mut self, cells: &[f32]) {
+        let n = self.face.order;
+        let bounds = nonzero_bounds(cells, n);
+        let [lo1, hi1, lo2, hi2] = bounds.map(usize::from);
+        for k2 in lo2..hi2 {
+            self.cells.extend_from_slice(&cells[k2 * n + lo1..k2 * n + hi1]);
+        }
+        self.bounds.push(bounds);
+        self.offsets.push(self.cells.len() as u64);
+    }
+
+    /// Adds `other`'s receivers after these.
+    pub fn append(&mut self, other: Self) {
+        let base = self.offsets.last().copied().unwrap_or(0);
+        self.cells.extend(other.cells);
+        self.offsets.extend(other.offsets[1..].iter().map(|o| o + base));
+        self.bounds.extend(other.bounds);
     }
 
     pub fn receivers(&self) -> usize {
-        self.cells.len() / (self.face.order * self.face.order).max(1)
+        self.bounds.len()
     }
 
-    fn of(&self, receiver: usize) -> &[f32] {
-        let n = self.face.order * self.face.order;
-        &self.cells[receiver * n..(receiver + 1) * n]
+    /// One receiver's box of cells.
+    fn cells_of(&self, receiver: usize) -> Cells<'_> {
+        let (from, to) = (self.offsets[receiver] as usize, self.offsets[receiver + 1] as usize);
+        Cells { n: self.face.order, values: &self.cells[from..to], bounds: self.bounds[receiver] }
     }
 
     /// One receiver's transport in 2D Haar, `T_k`, into `out`.
     pub fn haar_of(&self, receiver: usize, out: &mut Vec<f32>) {
-        let mut values: Vec<f64> = self.of(receiver).iter().map(|&c| f64::from(c)).collect();
-        haar_forward_2d(&mut values, self.face.order);
+        let Cells { n, values, bounds } = self.cells_of(receiver);
+        let [lo1, hi1, lo2, hi2] = bounds.map(usize::from);
+        let mut full = vec![0.0; n * n];
+        for (k2, row) in (lo2..hi2).zip(values.chunks_exact((hi1 - lo1).max(1))) {
+            for (cell, &v) in full[k2 * n + lo1..k2 * n + hi1].iter_mut().zip(row) {
+                *cell = f64::from(v);
+            }
+        }
+        haar_forward_2d(&mut full, n);
         out.clear();
-        out.extend(values.into_iter().map(|c| c as f32));
+        out.extend(full.into_iter().map(|c| c as f32));
     }
 }
 
@@ -121,28 +183,23 @@ pub fn face_transport(
 ) -> FaceTransport {
     let n = face.order;
     let samples = samples.max(1);
-    let unoccluded = &unoccluded;
-    let cells = positions
-        .par_iter()
-        .zip(normals)
-        .flat_map_iter(|(&x, &normal)| {
-            (0..n * n).map(move |c| {
-                let mut sum = 0.0;
-                for k in 0..samples * samples {
-                    let v_hat = [
-                        ((c % n) as f64 + ((k % samples) as f64 + 0.5) / samples as f64) / n as f64,
-                        ((c / n) as f64 + ((k / samples) as f64 + 0.5) / samples as f64) / n as f64,
-                    ];
-                    let (direction, weight) = face.weight(v_hat, normal);
-                    if weight > 0.0 && unoccluded(x, direction) {
-                        sum += weight;
-                    }
+    FaceTransport::gather(face, positions.len(), |r, cells| {
+        let (x, normal) = (positions[r], normals[r]);
+        for (c, cell) in cells.iter_mut().enumerate() {
+            let mut sum = 0.0;
+            for k in 0..samples * samples {
+                let v_hat = [
+                    ((c % n) as f64 + ((k % samples) as f64 + 0.5) / samples as f64) / n as f64,
+                    ((c / n) as f64 + ((k / samples) as f64 + 0.5) / samples as f64) / n as f64,
+                ];
+                let (direction, weight) = face.weight(v_hat, normal);
+                if weight > 0.0 && unoccluded(x, direction) {
+                    sum += weight;
                 }
-                (sum / (samples * samples) as f64) as f32
-            })
-        })
-        .collect();
-    FaceTransport::new(face, cells)
+            }
+            *cell = (sum / (samples * samples) as f64) as f32;
+        }
+    })
 }
 
 /// The smallest box of an `n × n` receiver's cells holding every nonzero one ([`FaceTransport::bounds`]).
@@ -207,7 +264,7 @@ pub fn face_visibility(
 
 /// The transport of `receivers` (indices into `visibility` and `normals`) with a per-direction
 /// factor: `T̂(v̂) = a² V(ω) factor(r, ω) max(0, ω·n) (1 + |v|²)^{−3/2}` at each cell centre
-/// (`order²` cells per receiver, in order). `factor` 1 gives the irradiance transport
+/// (`order²` cells per receiver, kept as [`FaceTransport`] keeps them). `factor` 1 gives the irradiance transport
 /// ([`face_transport`] with one sample per cell, the same bits); the specular lobe toward a
 /// viewer gives the radiance a glossy surface reflects toward it (Sun 2008 §4.9).
 pub fn visible_transport(
@@ -215,22 +272,19 @@ pub fn visible_transport(
     receivers: std::ops::Range<usize>,
     normals: &[DVec3],
     factor: impl Fn(usize, DVec3) -> f64 + Sync,
-) -> Vec<f32> {
+) -> FaceTransport {
     let face = visibility.face;
-    let n = face.order;
-    receivers
-        .into_par_iter()
-        .flat_map_iter(|r| {
-            let factor = &factor;
-            (0..n * n).map(move |c| {
-                if !visibility.visible(r, c) {
-                    return 0.0;
-                }
+    FaceTransport::gather(face, receivers.len(), |j, cells| {
+        let r = receivers.start + j;
+        for (c, cell) in cells.iter_mut().enumerate() {
+            *cell = if visibility.visible(r, c) {
                 let (direction, weight) = face.weight(face.cell_centre(c), normals[r]);
                 (weight * factor(r, direction)) as f32
-            })
-        })
-        .collect()
+            } else {
+                0.0
+            };
+        }
+    })
 }
 
 /// A light texture's kept Haar coefficients: `((i₁, i₂), rgb)`, the union of each channel's
@@ -637,7 +691,7 @@ pub fn responses(
     let Shading { keep, acc } = shading.into();
     let fraction = keep.linear_fraction()?;
     let face = transport.face;
-    let mut columns = vec![vec![0.0; positions.len()]; indices.len()];
+    let mut columns: Vec<Vec<f64>> = indices.iter().map(|_| vec![0.0; positions.len()]).collect();
     let mut tasks: Vec<Vec<&mut [f64]>> =
         (0..positions.len().div_ceil(RESPONSE_CHUNK)).map(|_| Vec::with_capacity(indices.len())).collect();
     for column in &mut columns {
@@ -651,6 +705,11 @@ pub fn responses(
             g.resize(indices.len(), 0.0);
             let first = t * RESPONSE_CHUNK;
             for r in first..(first + RESPONSE_CHUNK).min(positions.len()) {
+                // A receiver the face sends nothing responds with zeros, as the columns hold.
+                let [lo1, hi1, lo2, hi2] = transport.bounds[r];
+                if hi1 <= lo1 || hi2 <= lo2 {
+                    continue;
+                }
                 let Some(maps) = placement.shading_maps(&face, acc, positions[r]) else {
                     continue;
                 };
@@ -679,8 +738,7 @@ fn receiver_responses(
 ) {
     let n = transport.face.order;
     let Some(fraction) = fraction else {
-        let cells = Cells { n, values: transport.of(r), bounds: transport.bounds[r] };
-        return box_responses(indices, maps, cells, &mut scratch.boxes, out);
+        return box_responses(indices, maps, transport.cells_of(r), &mut scratch.boxes, out);
     };
     let mut haar = std::mem::take(&mut scratch.haar);
     transport.haar_of(r, &mut haar);

@@ -163,9 +163,59 @@ fn face_square(face: &TopFace, placement: &LightPlacement, point: DVec3) -> Rect
     Rect { x: [point.x - half, point.x + half], z: [point.z - half, point.z + half] }
 }
 
+/// Lambert's term of one edge `a → b` (unit directions from the receiver): `θ (Γ̂ · n)`.
+fn edge_term(a: DVec3, b: DVec3, normal: DVec3) -> f64 {
+    let cross = a.cross(b);
+    let length = cross.length();
+    if length < 1e-15 {
+        return 0.0;
+    }
+    length.atan2(a.dot(b)) * cross.dot(normal) / length
+}
+
+/// [`rect_irradiance`] of every one of the light's cells (row `z`, then column `x`). Where the
+/// whole light lies above the receiver's horizon and near enough for the polygon form, the
+/// cells share their edges: Lambert's sum over the grid's 40 edges, each once, instead of 64.
+fn cell_irradiances(point: DVec3, normal: DVec3, placement: &LightPlacement) -> [f64; CELLS * CELLS] {
+    let mut out = [0.0; CELLS * CELLS];
+    let [x0, z0] = placement.corner;
+    let [w, d] = placement.extent;
+    let n = CELLS as f64;
+    let grid: [[DVec3; CELLS + 1]; CELLS + 1] = std::array::from_fn(|a| {
+        std::array::from_fn(|b| DVec3::new(x0 + w * a as f64 / n, placement.height, z0 + d * b as f64 / n) - point)
+    });
+    let diagonal2 = (w * w + d * d) / (n * n);
+    let near =
+        grid.iter().flatten().any(|p| p.length_squared() <= POINT_FORM_DISTANCE * POINT_FORM_DISTANCE * diagonal2);
+    let above = grid.iter().flatten().all(|p| normal.dot(*p) > 0.0);
+    if !(near && above) {
+        for j in 0..CELLS {
+            for i in 0..CELLS {
+                out[j * CELLS + i] = rect_irradiance(point, normal, &cell(placement, CELLS, i, j), placement.height);
+            }
+        }
+        return out;
+    }
+    let unit = grid.map(|row| row.map(|p| p.normalize()));
+    // Edges along x (a → a+1 at b) and along z (b → b+1 at a).
+    let along_x: [[f64; CELLS + 1]; CELLS] =
+        std::array::from_fn(|a| std::array::from_fn(|b| edge_term(unit[a][b], unit[a + 1][b], normal)));
+    let along_z: [[f64; CELLS]; CELLS + 1] =
+        std::array::from_fn(|a| std::array::from_fn(|b| edge_term(unit[a][b], unit[a][b + 1], normal)));
+    for j in 0..CELLS {
+        for i in 0..CELLS {
+            // The cell's corners in [`Rect::corners`]' order: (i, j), (i+1, j), (i+1, j+1), (i, j+1).
+            let sum = along_x[i][j] + along_z[i + 1][j] - along_x[i][j + 1] - along_z[i][j];
+            out[j * CELLS + i] = 0.5 * sum.abs();
+        }
+    }
+    out
+}
+
 /// The responses of each receiver (`points`, unit `normals`, rays leaving from `origins`) to
 /// the light's cells beyond its top face; `unoccluded(origin, target)` says whether the segment
-/// between them is clear. A receiver on or above the light's plane receives nothing.
+/// between them is clear. A receiver on or above the light's plane receives nothing, and one
+/// whose face holds the whole light costs no more than that.
 pub fn beyond_face(
     face: &TopFace,
     placement: &LightPlacement,
@@ -175,6 +225,10 @@ pub fn beyond_face(
     unoccluded: impl Fn(DVec3, DVec3) -> bool + Sync,
 ) -> BeyondFace {
     let per_quadrant = CELLS / VISIBILITY;
+    let light = Rect {
+        x: [placement.corner[0], placement.corner[0] + placement.extent[0]],
+        z: [placement.corner[1], placement.corner[1] + placement.extent[1]],
+    };
     let responses = (0..points.len())
         .into_par_iter()
         .flat_map_iter(|r| {
@@ -184,6 +238,10 @@ pub fn beyond_face(
                 return out;
             }
             let square = face_square(face, placement, point);
+            if light.intersect(&square) == light {
+                return out;
+            }
+            let whole_irradiance = cell_irradiances(point, normal, placement);
             for qj in 0..VISIBILITY {
                 for qi in 0..VISIBILITY {
                     // The quadrant's part beyond the face: its cells' responses and centroid.
@@ -194,10 +252,13 @@ pub fn beyond_face(
                         for i in qi * per_quadrant..(qi + 1) * per_quadrant {
                             let whole = cell(placement, CELLS, i, j);
                             let inside = whole.intersect(&square);
-                            let e = rect_irradiance(point, normal, &whole, placement.height)
-                                - rect_irradiance(point, normal, &inside, placement.height);
                             let beyond = whole.area() - inside.area();
-                            if beyond <= 1e-12 * whole.area() || e <= 0.0 {
+                            if beyond <= 1e-12 * whole.area() {
+                                continue;
+                            }
+                            let e = whole_irradiance[j * CELLS + i]
+                                - rect_irradiance(point, normal, &inside, placement.height);
+                            if e <= 0.0 {
                                 continue;
                             }
                             let (cw, ci) = (whole.centre(), inside.centre());

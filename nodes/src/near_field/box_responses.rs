@@ -82,13 +82,21 @@ fn axis_weights(i: usize, map: CellMap, n: usize, out: &mut Vec<f64>) -> Option<
     let start = out.len();
     out.resize(start + last - first, 0.0);
     let weights = &mut out[start..];
-    let mut piece = |a: f64, b: f64, height: f64| {
-        for k in (a as usize).min(n - 1)..ceil(b).min(n) {
-            let covered = b.min((k + 1) as f64) - a.max(k as f64);
-            if covered > 0.0 {
-                weights[k - first] += height * covered;
-            }
+    // One piece `[a, b)` of height `h`: its first and last cells partly, those between whole.
+    let mut piece = |a: f64, b: f64, h: f64| {
+        if b <= a {
+            return;
         }
+        let (ka, kb) = ((a as usize).min(n - 1), (ceil(b) - 1).max(a as usize).min(n - 1));
+        if ka == kb {
+            weights[ka - first] += h * (b - a);
+            return;
+        }
+        weights[ka - first] += h * ((ka + 1) as f64 - a);
+        for w in &mut weights[ka + 1 - first..kb - first] {
+            *w += h;
+        }
+        weights[kb - first] += h * (b - kb as f64);
     };
     if i == 0 {
         piece(v0, v2, 1.0 / nf);
@@ -100,8 +108,8 @@ fn axis_weights(i: usize, map: CellMap, n: usize, out: &mut Vec<f64>) -> Option<
     Some((first, last - first))
 }
 
-/// One receiver's top-face transport: its `n × n` cells (row `k₂` at `k₂·n`) and the box
-/// holding the nonzero ones (`k₁ ∈ [b₀, b₁)`, `k₂ ∈ [b₂, b₃)`).
+/// One receiver's top-face transport on a face of `n × n` cells: the box holding its nonzero
+/// cells (`k₁ ∈ [b₀, b₁)`, `k₂ ∈ [b₂, b₃)`) and the box's cells, row `k₂` after row.
 #[derive(Clone, Copy)]
 pub(super) struct Cells<'a> {
     pub(super) n: usize,
@@ -179,7 +187,8 @@ pub(super) fn box_responses(
         sums.resize(hi - lo, 0.0);
         for k2 in from2..to2 {
             let w = row[k2 - first2];
-            for (h, &t) in sums.iter_mut().zip(&values[k2 * n + lo..k2 * n + hi]) {
+            let cells_row = &values[(k2 - lo2) * (hi1 - lo1)..];
+            for (h, &t) in sums.iter_mut().zip(&cells_row[lo - lo1..hi - lo1]) {
                 *h += w * f64::from(t);
             }
         }

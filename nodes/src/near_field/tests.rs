@@ -589,16 +589,15 @@ fn highlights_match_direct_integration() {
                     (to_local, to_local * (eye - x).normalize())
                 })
                 .collect();
-            let cells = visible_transport(&visibility, 0..origins.len(), &scene.normals, |r, w| {
+            let transport = visible_transport(&visibility, 0..origins.len(), &scene.normals, |r, w| {
                 brdf.lobe_value(views[r].0 * w, views[r].1)
             });
-            let transport = FaceTransport::new(face, cells);
             let radiance = irradiance(&source, &light, &transport, &scene.positions, TargetKeep::All);
             errors.push(relative_l2(&radiance, &truth));
             if order == 32 {
                 // Factor 1: the diffuse transport, bit for bit.
                 let diffuse = visible_transport(&visibility, 0..origins.len(), &scene.normals, |_, _| 1.0);
-                assert_eq!(diffuse, face_transport(face, &origins, &scene.normals, 1, &visible).cells);
+                assert_eq!(diffuse, face_transport(face, &origins, &scene.normals, 1, &visible));
             }
         }
         eprintln!("{model}: highlight relative L2 at orders 32 and 64: {errors:?}");
@@ -643,7 +642,7 @@ fn box_responses_equal_the_coupling_sum() {
                 if inside { rng.random_range(0.0..1.0) } else { 0.0 }
             })
             .collect();
-        let transport = FaceTransport::new(TopFace { order: n, size: 4.0 }, cells);
+        let transport = FaceTransport::new(TopFace { order: n, size: 4.0 }, &cells);
         let mut haar = Vec::new();
         transport.haar_of(0, &mut haar);
         let mut scratch = Propagation::new(n);
@@ -655,11 +654,10 @@ fn box_responses_equal_the_coupling_sum() {
             &mut coupled,
         );
         let mut boxed = vec![f64::NAN; indices.len()];
-        let cells = Cells { n, values: &transport.cells, bounds: transport.bounds[0] };
-        box_responses(&indices, maps, cells, &mut scratch_boxes, &mut boxed);
+        box_responses(&indices, maps, transport.cells_of(0), &mut scratch_boxes, &mut boxed);
         // The coupling path reads the cells' Haar transform rounded to f32: errors of the order
         // of the rounding of the transport's integral.
-        let total = transport.cells.iter().map(|&c| f64::from(c)).sum::<f64>() / (n * n) as f64;
+        let total = cells.iter().map(|&c| f64::from(c)).sum::<f64>() / (n * n) as f64;
         let scale = coupled.iter().map(|g| g.abs()).fold(total, f64::max);
         for (j, (b, c)) in boxed.iter().zip(&coupled).enumerate() {
             assert!((b - c).abs() <= 2e-6 * scale, "case {case}, coefficient {:?}: {b} against {c}", indices[j]);

@@ -38,13 +38,13 @@ use serde::{Deserialize, Serialize};
 use std::sync::Arc;
 
 crate::stage_type!(Arc<FaceTransport>, "top-face transport", encoding = 2, |v| v.cells.len() * 4
-    + v.bounds.len() * 8
+    + v.bounds.len() * 16
     + 32);
 crate::stage_type!(Arc<FaceVisibility>, "top-face visibility", encoding = 1, |v| v.bits.len() * 8 + 32);
 crate::stage_type!(AreaTransport, "area-light transport", encoding = 4, |v| v
     .faces
     .iter()
-    .map(|f| f.transport.cells.len() * 4 + f.transport.bounds.len() * 8 + f.visibility.bits.len() * 8 + 64)
+    .map(|f| f.transport.cells.len() * 4 + f.transport.bounds.len() * 16 + f.visibility.bits.len() * 8 + 64)
     .chain(v.beyond.iter().map(|b| b.responses.responses.len() * 4 + 64))
     .sum());
 crate::stage_type!(Arc<BeyondFace>, "light beyond the top face", encoding = 1, |v| v.responses.len() * 4 + 16);
@@ -286,8 +286,7 @@ pub(super) fn transport_of(
         let key = xxhash_rust::xxh3::xxh3_128(&[&visibility_key.to_le_bytes()[..], b"diffuse cells"].concat());
         let transport = ctx.memo(key, || {
             ctx.check_cancel()?;
-            let cells = visible_transport(&visibility, 0..receivers.len(), &normals, |_, _| 1.0);
-            Ok(Arc::new(FaceTransport::new(*face, cells)))
+            Ok(Arc::new(visible_transport(&visibility, 0..receivers.len(), &normals, |_, _| 1.0)))
         })?;
         out.faces.push(SharedTransport { key, transport: (*transport).clone(), visibility });
     }
@@ -521,17 +520,17 @@ fn area_highlights(ctx: &StageContext) -> Result<StageValue, StageError> {
         let key = key.digest128();
         let visibility = &diffuse.visibility;
         let transport = ctx.memo(key, || {
-            let mut cells = Vec::with_capacity(diffuse.transport.cells.len());
+            let mut glossy = FaceTransport::empty(visibility.face);
             for start in (0..receivers.len()).step_by(GLOSSY_CHUNK) {
                 ctx.check_cancel()?;
                 let end = (start + GLOSSY_CHUNK).min(receivers.len());
-                cells.extend(visible_transport(visibility, start..end, &normals, |r, w| {
+                glossy.append(visible_transport(visibility, start..end, &normals, |r, w| {
                     let (to_local, wo) = views[r];
                     brdfs[of_vertex[r] as usize].lobe_value(to_local * w, wo)
                 }));
                 ctx.progress(end as f64 / receivers.len().max(1) as f64);
             }
-            Ok(Arc::new(FaceTransport::new(visibility.face, cells)))
+            Ok(Arc::new(glossy))
         })?;
         let glossy = SharedTransport { key, transport: (*transport).clone(), visibility: diffuse.visibility.clone() };
         add_light(ctx, light, &glossy, None, &points, &mut total)?;

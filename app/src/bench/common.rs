@@ -19,7 +19,7 @@ pub struct BenchArgs {
     #[arg(long, default_value_t = 5)]
     pub frames: usize,
     /// Only these sections (rays, default, fog, rsl, blockers, adaptive, area, area_engine,
-    /// normal_maps, synthetic; all when empty).
+    /// rsl_engine, normal_maps, synthetic; all when empty).
     #[arg(long, value_delimiter = ',')]
     pub only: Vec<String>,
     /// Also write the rays section's mesh and rays into this folder, for

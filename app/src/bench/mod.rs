@@ -71,6 +71,9 @@ pub fn run(args: &BenchArgs) -> Result<()> {
     if wanted("area_engine") {
         area::area_engine_figures(args)?;
     }
+    if wanted("rsl_engine") {
+        rsl::rsl_engine_figures()?;
+    }
     if wanted("normal_maps") {
         normal_maps::normal_map_figures(args, &gpu)?;
     }

@@ -450,7 +450,8 @@ fn object_shape_key(ctx: &StageContext, object: &SceneObject, suffix: &str) -> R
 /// Per object, a value computed from its object-space meshes and memoised on its shape, the
 /// tessellation and `suffix` (what else the value depends on), so moving, turning or
 /// recolouring an object recomputes nothing (the report counts the memo hits). Progress spans
-/// the objects.
+/// the objects still to compute, each its share of their vertices, so that the time left
+/// estimated from it holds when a small object (a floor) comes before a large model.
 pub(super) fn per_object_memo<T: crate::engine::Persisted + Clone>(
     ctx: &StageContext,
     objects: &[SceneObject],
@@ -458,17 +459,33 @@ pub(super) fn per_object_memo<T: crate::engine::Persisted + Clone>(
     compute: impl Fn(&SceneObject, &MeshSet, &(dyn Fn(f64) + Sync)) -> Result<T, StageError>,
 ) -> Result<Vec<T>, StageError> {
     let tessellation = ctx.int("tessellation")? as usize;
+    let mut pending = Vec::with_capacity(objects.len());
+    for object in objects {
+        let key = xxhash_rust::xxh3::xxh3_128(&object_shape_key(ctx, object, &format!("{suffix} {tessellation}"))?);
+        pending.push(match ctx.memo_cached::<T>(key) {
+            Some(value) => (key, Err(value)),
+            None => (key, Ok(object.object_meshes(tessellation, ctx.project_dir()).map_err(StageError::Failed)?)),
+        });
+    }
+    let weight = |meshes: &Vec<crate::mesh::Mesh>| meshes.iter().map(|m| m.positions.len()).sum::<usize>() as f64 + 1.0;
+    let total: f64 = pending.iter().filter_map(|(_, p)| p.as_ref().ok()).map(weight).sum::<f64>().max(1.0);
+    let mut done = 0.0;
     let mut out = Vec::with_capacity(objects.len());
-    for (done, object) in objects.iter().enumerate() {
-        let bytes = object_shape_key(ctx, object, &format!("{suffix} {tessellation}"))?;
-        let value = ctx.memo(xxhash_rust::xxh3::xxh3_128(&bytes), || {
-            let meshes =
-                MeshSet { meshes: object.object_meshes(tessellation, ctx.project_dir()).map_err(StageError::Failed)? };
-            let base = done as f64 / objects.len() as f64;
-            compute(object, &meshes, &|f| ctx.progress(base + f / objects.len() as f64))
-        })?;
+    for (object, (key, pending)) in objects.iter().zip(pending) {
+        let value = match pending {
+            Err(cached) => cached,
+            Ok(meshes) => {
+                let share = weight(&meshes) / total;
+                let value = ctx.memo(key, || {
+                    let meshes = MeshSet { meshes };
+                    compute(object, &meshes, &|f| ctx.progress(done + f * share))
+                })?;
+                done += share;
+                ctx.progress(done);
+                value
+            }
+        };
         out.push((*value).clone());
-        ctx.progress((done + 1) as f64 / objects.len() as f64);
     }
     Ok(out)
 }

@@ -323,6 +323,12 @@ pub fn area_engine_figures(args: &BenchArgs) -> Result<()> {
         println!("  {label:<32} {total:>10.0} ms (goal {goal}): {}", parts.join(", "));
     };
     show("link the light (first time)", "< 10 s", run(&graph)?);
+    // What the light's transports hold (the glossy one per view alike).
+    let evaluation = evaluate(engine.clone(), &graph, output_request(&graph, "output", true), true);
+    for stage in ["area_transport", "area_texel_transport"] {
+        let bytes = evaluation.value("output", stage).map_err(|e| anyhow!("{e:?}"))?.approx_bytes();
+        println!("  {stage:<32} {:>10.1} MiB", bytes as f64 / (1 << 20) as f64);
+    }
     let ParamValue::Paint(paint) =
         graph.node("panel").and_then(|n| n.params.get("paint")).cloned().ok_or_else(|| anyhow!("paint"))?
     else {

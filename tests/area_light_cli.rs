@@ -95,7 +95,8 @@ fn glossy_highlights_match_the_monte_carlo_reference() {
 }
 
 /// A 2 × 2 m textured panel 2.5 m up over a sphere (r 0.6) on a 20 m floor, without an
-/// environment: the floor's vertices (0.31 m apart at tessellation 64) cannot hold the
+/// environment: the floor's vertices (1.25 m apart: a plane takes a quarter of the tessellation's
+/// segments, 16 at 64) cannot hold the
 /// sphere's shadow, which per-vertex shading smears and displaces; with a visibility texture
 /// on the floor the lights are shaded per texel there, and the shadow sits under the sphere.
 fn sphere_on_a_floor(dir: &Path, texture: bool) -> PathBuf {
@@ -192,21 +193,29 @@ fn the_area_light_matches_mitsuba_on_a_wide_floor() {
         let exr = dir.join(name);
         let mut command = lightloom();
         command.args(["render", project.to_str().unwrap(), "-o", exr.to_str().unwrap(), "--camera", camera]);
-        command.args(["--width", "320", "--height", "180", "--no-disk-cache", "-q"]);
+        command.args(["--width", "320", "--height", "180", "--no-disk-cache"]);
         let out = command.output().unwrap();
-        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-        image::open(&exr).unwrap().into_rgb32f()
+        let log = String::from_utf8_lossy(&out.stderr).into_owned();
+        assert!(out.status.success(), "{log}");
+        (image::open(&exr).unwrap().into_rgb32f(), log)
     };
-    let texels = relative_rmse_over_surfaces(&render(&scene.join("project.ron"), "texels.exr", "main"), &truth, 30_000);
+    let (image, log) = render(&scene.join("project.ron"), "texels.exr", "main");
+    let texels = relative_rmse_over_surfaces(&image, &truth, 30_000);
+    assert!(!log.contains("coarse"), "a floor shaded per texel is not called coarse: {log}");
     let far_truth = image::open(scene.join("mitsuba_far.exr")).unwrap().into_rgb32f();
-    let far = relative_rmse_over_surfaces(&render(&scene.join("project.ron"), "far.exr", "far"), &far_truth, 20_000);
+    let far = relative_rmse_over_surfaces(&render(&scene.join("project.ron"), "far.exr", "far").0, &far_truth, 20_000);
     // The same floor without its visibility texture.
     let text = std::fs::read_to_string(scene.join("project.ron")).unwrap();
     assert!(text.contains(", visibility_texture: true"));
     std::fs::write(dir.join("project.ron"), text.replace(", visibility_texture: true", "")).unwrap();
     std::fs::copy(scene.join("panel.png"), dir.join("panel.png")).unwrap();
-    let vertices =
-        relative_rmse_over_surfaces(&render(&dir.join("project.ron"), "vertices.exr", "main"), &truth, 30_000);
+    let (image, log) = render(&dir.join("project.ron"), "vertices.exr", "main");
+    let vertices = relative_rmse_over_surfaces(&image, &truth, 30_000);
+    // The user is told why, and what to turn on.
+    assert!(
+        log.contains("`floor`: its vertices are 1.42 m apart, coarse") && log.contains("visibility texture"),
+        "{log}"
+    );
     eprintln!(
         "relative RMSE against Mitsuba: per texel {texels:.4}, per vertex {vertices:.4}; beyond the face {far:.4}"
     );

@@ -213,7 +213,7 @@ fn the_area_light_matches_mitsuba_on_a_wide_floor() {
     let vertices = relative_rmse_over_surfaces(&image, &truth, 30_000);
     // The user is told why, and what to turn on.
     assert!(
-        log.contains("`floor`: its vertices are 1.42 m apart, coarse") && log.contains("visibility texture"),
+        log.contains("`floor` (triangle edges 1.42 m on average): coarse") && log.contains("visibility texture"),
         "{log}"
     );
     eprintln!(

@@ -158,8 +158,9 @@ pub fn spec() -> NodeKindSpec {
                         ("Table 64", "a coarser grid, shared more widely: within about 3%"),
                     ],
                 },
-                doc: "How the light's wavelets are carried to each vertex (the affine coupling coefficients): \
-                      exactly, or looked up on a grid over the light's scale and offset as seen from the vertex.",
+                doc: "Below 100% lighting detail, how the light's wavelets are carried to each vertex (the affine \
+                      coupling coefficients): exactly, or looked up on a grid over the light's scale and offset as \
+                      seen from the vertex. At 100% no coupling is computed, and a grid only shifts the light.",
             },
             ParamSpec::float(
                 "face_size",

@@ -450,12 +450,14 @@ fn object_shape_key(ctx: &StageContext, object: &SceneObject, suffix: &str) -> R
 /// Per object, a value computed from its object-space meshes and memoised on its shape, the
 /// tessellation and `suffix` (what else the value depends on), so moving, turning or
 /// recolouring an object recomputes nothing (the report counts the memo hits). Progress spans
-/// the objects still to compute, each its share of their vertices, so that the time left
-/// estimated from it holds when a small object (a floor) comes before a large model.
+/// the objects still to compute, each its share of their `work` (what the computation costs in
+/// proportion to, from the meshes), so that the time left estimated from it holds when a
+/// small object (a floor) comes before a large model.
 pub(super) fn per_object_memo<T: crate::engine::Persisted + Clone>(
     ctx: &StageContext,
     objects: &[SceneObject],
     suffix: &str,
+    work: impl Fn(&[crate::mesh::Mesh]) -> f64,
     compute: impl Fn(&SceneObject, &MeshSet, &(dyn Fn(f64) + Sync)) -> Result<T, StageError>,
 ) -> Result<Vec<T>, StageError> {
     let tessellation = ctx.int("tessellation")? as usize;
@@ -467,8 +469,8 @@ pub(super) fn per_object_memo<T: crate::engine::Persisted + Clone>(
             None => (key, Ok(object.object_meshes(tessellation, ctx.project_dir()).map_err(StageError::Failed)?)),
         });
     }
-    let weight = |meshes: &Vec<crate::mesh::Mesh>| meshes.iter().map(|m| m.positions.len()).sum::<usize>() as f64 + 1.0;
-    let total: f64 = pending.iter().filter_map(|(_, p)| p.as_ref().ok()).map(weight).sum::<f64>().max(1.0);
+    let weight = |meshes: &Vec<crate::mesh::Mesh>| work(meshes).max(1e-9);
+    let total: f64 = pending.iter().filter_map(|(_, p)| p.as_ref().ok()).map(weight).sum::<f64>().max(1e-9);
     let mut done = 0.0;
     let mut out = Vec::with_capacity(objects.len());
     for (object, (key, pending)) in objects.iter().zip(pending) {
@@ -478,10 +480,10 @@ pub(super) fn per_object_memo<T: crate::engine::Persisted + Clone>(
                 let share = weight(&meshes) / total;
                 let value = ctx.memo(key, || {
                     let meshes = MeshSet { meshes };
-                    compute(object, &meshes, &|f| ctx.progress(done + f * share))
+                    compute(object, &meshes, &|f| ctx.progress((done + f * share).min(1.0)))
                 })?;
                 done += share;
-                ctx.progress(done);
+                ctx.progress(done.min(1.0));
                 value
             }
         };

@@ -10,7 +10,8 @@
 //! - Each cell's part outside the receiver's face square (in the light's plane, the square
 //!   `x ± depth·a/2`) lights the receiver by the exact polygon form factor of a uniform
 //!   Lambertian emitter, `E = ½ Σ_i θ_i (Γ̂_i · n)` (Lambert's formula; the polygon clipped to
-//!   the receiver's horizon), or by the point form `A cos θ cos θ' / d²` where the cell is small
+//!   the receiver's horizon; where the whole light is above the horizon the cells share their
+//!   edges), or by the point form `A cos θ cos θ' / d²` where every part of the light is small
 //!   next to its distance.
 //! - Its visibility is one ray per quadrant of the light (`VISIBILITY × VISIBILITY` rays), to the
 //!   centroid of that quadrant's part outside the face.

@@ -73,7 +73,7 @@ fn axis_weights(i: usize, map: CellMap, n: usize, out: &mut Vec<f64>) -> Option<
     // The breakpoints' preimages, clamped to the face (so non-negative: `as` is the floor).
     let at = |u: f64| (u * map.scale + map.shift).clamp(0.0, nf);
     let (v0, v2) = (at(x0), at(x0 + width));
-    if v2 <= v0 {
+    if v0.is_nan() || v2.is_nan() || v2 <= v0 {
         return None;
     }
     let ceil = |v: f64| v as usize + usize::from(v > (v as usize) as f64);

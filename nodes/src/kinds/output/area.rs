@@ -245,7 +245,7 @@ pub(super) fn transport_of(
     let bytes = (receivers.len() * (cells * 4 + lights.len() * beyond_face::CELLS * beyond_face::CELLS * 4)) as u64;
     if bytes > crate::limits::MAX_AREA_TRANSPORT_BYTES {
         return Err(StageError::Failed(format!(
-            "the area lights' transport would take {} MiB ({} receivers × {cells} top-face cells and {} light(s)); the \
+            "the area lights' transport could take up to {} MiB ({} receivers × {cells} top-face cells and {} light(s)); the \
              limit is {} MiB: lower {density}",
             bytes >> 20,
             receivers.len(),
@@ -298,7 +298,7 @@ pub(super) fn transport_of(
             &[
                 geometry.as_slice(),
                 &face_bytes(face),
-                b"beyond the face v1",
+                b"beyond the face v2",
                 &postcard::to_allocvec(placement).map_err(|e| StageError::Internal(e.to_string()))?,
             ]
             .concat(),
@@ -402,6 +402,7 @@ fn warn_coarse_meshes(ctx: &StageContext, receivers: &Receivers, lit: &AreaIrrad
     let lights = ctx.inputs_all::<AreaLight>("area_lights", "light")?;
     let side =
         lights.iter().map(|(_, l)| l.placement.extent[0].min(l.placement.extent[1])).fold(f64::INFINITY, f64::min);
+    let mut coarse = Vec::new();
     for (m, mesh) in meshes.meshes.iter().enumerate() {
         let start = receivers.mesh_offsets.get(m).copied().unwrap_or(receivers.len());
         let end = receivers.mesh_offsets.get(m + 1).copied().unwrap_or(receivers.len()).max(start);
@@ -421,13 +422,19 @@ fn warn_coarse_meshes(ctx: &StageContext, receivers: &Receivers, lit: &AreaIrrad
             .sum();
         let spacing = edges / mesh.indices.len() as f64;
         if spacing > COARSE_SPACING * side {
-            ctx.warn(format!(
-                "`{}`: its vertices are {spacing:.2} m apart, coarse next to a {side:.1} m area light, so the \
-                 light's shadows fall between them and smear along the triangles; turn on the object's \
-                 visibility texture to shade it per texel, or raise the tessellation",
-                mesh.name
-            ));
+            coarse.push(format!("`{}` (triangle edges {spacing:.2} m on average)", mesh.name));
         }
+    }
+    if let Some(first) = coarse.first() {
+        let others = match coarse.len() {
+            1 => String::new(),
+            n => format!(" and {} other mesh(es)", n - 1),
+        };
+        ctx.warn(format!(
+            "{first}{others}: coarse next to a {side:.1} m area light, so the light's shadows fall between the \
+             vertices and smear along the triangles; turn on the object's visibility texture to shade it per \
+             texel (a built-in shape can also take a higher tessellation)"
+        ));
     }
     Ok(())
 }

@@ -67,7 +67,9 @@ fn rsl_self_visibility(ctx: &StageContext) -> Result<StageValue, StageError> {
         return Err(StageError::Internal("objects".into()));
     };
     let size = crate::rsl::vdt::VDT_SIZE;
-    let tables = per_object_memo(ctx, objects, &format!("svdf v1 {size}"), |object, meshes, progress| {
+    // Rays per vertex: the work is the vertices.
+    let vertices = |meshes: &[crate::mesh::Mesh]| meshes.iter().map(|m| m.positions.len()).sum::<usize>() as f64;
+    let tables = per_object_memo(ctx, objects, &format!("svdf v1 {size}"), vertices, |object, meshes, progress| {
         let scene = RayScene::build(meshes);
         let receivers = Receivers::from_meshes(meshes);
         check_ray_budget(receivers.len(), size * size, "tessellation")?;
@@ -110,11 +112,18 @@ fn rsl_occluders(ctx: &StageContext) -> Result<StageValue, StageError> {
     if objects.len() < 2 {
         return Ok(StageValue::new(Vec::<crate::rsl::ovdf::ObjectOvdf>::new()));
     }
-    let fields = per_object_memo(ctx, objects, &format!("ovdf v1 {face} {table}"), |_, meshes, progress| {
-        check_ray_budget(crate::rsl::ovdf::SHELLS * 6 * face * face, table * table, "occluder_resolution")?;
-        let bounds = crate::rsl::ovdf::bounding_sphere(meshes);
-        crate::rsl::ovdf::Ovdf::compute(&RayScene::build(meshes), bounds, face, table, ctx.cancel_token(), progress)
-    })?;
+    // The same rays per object whatever its mesh.
+    let fields = per_object_memo(
+        ctx,
+        objects,
+        &format!("ovdf v1 {face} {table}"),
+        |_| 1.0,
+        |_, meshes, progress| {
+            check_ray_budget(crate::rsl::ovdf::SHELLS * 6 * face * face, table * table, "occluder_resolution")?;
+            let bounds = crate::rsl::ovdf::bounding_sphere(meshes);
+            crate::rsl::ovdf::Ovdf::compute(&RayScene::build(meshes), bounds, face, table, ctx.cancel_token(), progress)
+        },
+    )?;
     let out: Vec<_> = objects
         .iter()
         .zip(fields)

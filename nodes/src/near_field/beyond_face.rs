@@ -288,6 +288,34 @@ pub fn beyond_face(
     BeyondFace { responses }
 }
 
+/// `responses` with each cell's weighted by `weight(receiver, ω)`, `ω` the direction to the
+/// cell's centre: what a specular lobe toward a viewer makes of the light beyond the face
+/// (Sun 2008 §4.9 for the part the face misses), the lobe taken constant over each cell.
+pub fn weighted(
+    responses: &BeyondFace,
+    placement: &LightPlacement,
+    points: &[DVec3],
+    weight: impl Fn(usize, DVec3) -> f64 + Sync,
+) -> BeyondFace {
+    let responses = responses
+        .responses
+        .par_chunks_exact(CELLS * CELLS)
+        .enumerate()
+        .flat_map_iter(|(r, cells)| {
+            let mut out = [0.0f32; CELLS * CELLS];
+            for (c, (&g, out)) in cells.iter().zip(&mut out).enumerate() {
+                if g != 0.0 {
+                    let [x, z] = cell(placement, CELLS, c % CELLS, c / CELLS).centre();
+                    let direction = (DVec3::new(x, placement.height, z) - points[r]).normalize();
+                    *out = (f64::from(g) * weight(r, direction)) as f32;
+                }
+            }
+            out
+        })
+        .collect();
+    BeyondFace { responses }
+}
+
 /// The whole light's unshadowed irradiance per unit radiance of each cell (a face of size 0,
 /// every ray clear): closed form, no ray, what a viewport shows while the shadows are traced.
 pub fn unshadowed(placement: &LightPlacement, points: &[DVec3], normals: &[DVec3]) -> BeyondFace {

@@ -181,7 +181,7 @@ pub fn stages() -> Vec<StageSpec> {
         },
         StageSpec {
             name: "area_highlights",
-            version: 1,
+            version: 2,
             params: &["highlight_eye"],
             stages: &["area_transport"],
             inputs: &[
@@ -536,7 +536,9 @@ const GLOSSY_CHUNK: usize = 2048;
 /// Sun 2008 §4.9, near-field relighting of specular scenes for a fixed view: per face, the
 /// transport weighted by each vertex's specular lobe toward `highlight_eye` (from the face's
 /// visibility, no new rays; memoised on the visibility, the eye and the materials), shaded by
-/// every light as the irradiance is, then tinted by each material's specular colour.
+/// every light as the irradiance is, with each light's cells beyond the face weighted by the
+/// lobe toward their centres ([`beyond_face::weighted`]), then tinted by each material's
+/// specular colour.
 fn area_highlights(ctx: &StageContext) -> Result<StageValue, StageError> {
     let receivers = ctx.required_input::<Receivers>("scene", "receivers")?;
     let transports = ctx.stage::<AreaTransport>("area_transport")?;
@@ -585,7 +587,25 @@ fn area_highlights(ctx: &StageContext) -> Result<StageValue, StageError> {
             Ok(Arc::new(glossy))
         })?;
         let glossy = SharedTransport { key, transport: (*transport).clone(), visibility: diffuse.visibility.clone() };
-        add_light(ctx, light, &glossy, None, &points, &mut total)?;
+        // The light beyond the face, through each vertex's lobe toward the eye.
+        let beyond = match transports.beyond.iter().find(|b| b.placement == light.placement && b.face == light.face) {
+            Some(beyond) => {
+                let mut at = xxhash_rust::xxh3::Xxh3::new();
+                at.update(b"glossy beyond the face v1");
+                at.update(&key.to_le_bytes());
+                at.update(&postcard::to_allocvec(&light.placement).map_err(|e| StageError::Internal(e.to_string()))?);
+                let weighted = ctx.memo(at.digest128(), || {
+                    ctx.check_cancel()?;
+                    Ok(Arc::new(beyond_face::weighted(&beyond.responses, &light.placement, &points, |r, w| {
+                        let (to_local, wo) = views[r];
+                        brdfs[of_vertex[r] as usize].lobe_value(to_local * w, wo)
+                    })))
+                })?;
+                Some((*weighted).clone())
+            }
+            None => None,
+        };
+        add_light(ctx, light, &glossy, beyond.as_deref(), &points, &mut total)?;
     }
     let radiance = total
         .iter()

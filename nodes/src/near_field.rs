@@ -31,11 +31,13 @@ use serde::{Deserialize, Serialize};
 pub mod beyond_face;
 mod box_responses;
 mod couplings;
+mod frame;
 mod targets;
 mod transport;
 
 use box_responses::*;
 use couplings::*;
+pub use frame::LightFrame;
 pub use targets::predicted_targets;
 use targets::*;
 pub use transport::*;
@@ -114,12 +116,15 @@ pub fn light_source(texture: &[[f64; 3]], order: usize, keep: usize) -> LightSou
     LightSource { order, coefficients, retained_energy }
 }
 
-/// Where a light is: its plane's height and its rectangle's corner and extent on `x` and `z`.
+/// Where a light is, in its own frame ([`LightFrame`]: the world's for a light that is not
+/// tilted): its plane's height and its rectangle's corner and extent on `x` and `z`. Every
+/// function here takes receivers in that frame.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct LightPlacement {
     pub height: f64,
     pub corner: [f64; 2],
     pub extent: [f64; 2],
+    pub frame: LightFrame,
 }
 
 impl LightPlacement {
@@ -128,9 +133,20 @@ impl LightPlacement {
         self.maps(face, x).map(|maps| acc.maps(maps))
     }
 
-    /// A `width × depth` light centred over `(x, z)`.
+    /// A level `width × depth` light centred over `(x, z)`.
     pub fn centred(height: f64, centre: [f64; 2], size: [f64; 2]) -> Self {
-        Self { height, corner: [centre[0] - size[0] / 2.0, centre[1] - size[1] / 2.0], extent: size }
+        Self {
+            height,
+            corner: [centre[0] - size[0] / 2.0, centre[1] - size[1] / 2.0],
+            extent: size,
+            frame: LightFrame::default(),
+        }
+    }
+
+    /// A light of bounding rectangle `size` (in its frame) centred at world point `centre`.
+    pub fn oriented(centre: [f64; 3], size: [f64; 2], frame: LightFrame) -> Self {
+        let c = frame.to_light() * DVec3::from(centre);
+        Self { frame, ..Self::centred(c.y, [c.x, c.z], size) }
     }
 
     /// The per-axis affine maps from a receiver's top face to the texture; `None` for a

@@ -186,8 +186,9 @@ pub fn bake(
                 .collect()
         })
         .unwrap_or_default();
-    // Area lights as small patches: (centre, radiance × area).
-    let patches: Vec<(DVec3, [f64; 3])> = lighting.areas.iter().flat_map(|e| area_patches(e)).collect();
+    // Area lights as small patches: (centre, radiance × area, the light's facing).
+    let patches: Vec<(DVec3, [f64; 3], DVec3)> =
+        lighting.areas.iter().flat_map(|e| area_patches(e).into_iter().map(|(c, p)| (c, p, e.facing()))).collect();
     let attenuation = |d: f64| lighting.fog.map_or([1.0; 3], |(beta, _)| beta.map(|b| (-b * d).exp()));
     let environment_attenuation = lighting.fog.map_or([1.0; 3], |(_, f)| f.fog.attenuation);
     // The medium's scattered environment light, unshadowed, on the probes' bands.
@@ -222,11 +223,12 @@ pub fn bake(
                     s[c] += add[c];
                 }
             }
-            for (centre, power) in &patches {
+            for (centre, power, facing) in &patches {
                 let to = *centre - p;
                 let d = to.length();
-                // The lights face down: a patch lights only what lies below it.
-                if d <= 1e-6 || to.y <= 0.0 {
+                // A patch lights only what lies in front of its light.
+                let cos_light = -to.dot(*facing) / d.max(1e-300);
+                if d <= 1e-6 || cos_light <= 0.0 {
                     continue;
                 }
                 let l = to / d;
@@ -234,7 +236,7 @@ pub fn bake(
                     continue;
                 }
                 let (y, fade) = (basis.eval_vec(l), attenuation(d));
-                let solid_angle_per_area = l.y / (d * d);
+                let solid_angle_per_area = cos_light / (d * d);
                 for (s, y) in sum.iter_mut().zip(&y) {
                     for c in 0..3 {
                         s[c] += power[c] * solid_angle_per_area * fade[c] * y;

@@ -3,7 +3,7 @@
 //! is not linked; a spot with a line along its aim), every blocker sphere as its outline, and every
 //! painted area light as its rectangle with a centre handle and four edge handles. A click
 //! selects the node; a drag moves the light or the sphere in the view plane and the area light in
-//! its own level plane (with Shift, up and down only), and an edge handle resizes the area light
+//! its own plane (with Shift, along its normal only), and an edge handle resizes the area light
 //! about its centre (one undo step per drag).
 
 use super::*;
@@ -21,8 +21,9 @@ const EDGE_HIT: f32 = 7.0;
 pub(super) enum GizmoTarget {
     /// A light; dragging sets its `position` parameter. `aim`: the way it shines, if it has one.
     Light { position: &'static str, aim: Option<[f64; 3]> },
-    /// A painted area light's rectangle (metres), turned by `angle` degrees about the vertical.
-    AreaLight { width: f64, depth: f64, angle: f64 },
+    /// A painted area light's rectangle (metres), tilted by `tilt` degrees about its width axis
+    /// and turned by `angle` degrees about the vertical.
+    AreaLight { width: f64, depth: f64, angle: f64, tilt: f64 },
     /// Sphere `index` of a blocker set, of `radius` metres; `fitted` when the set is fitted to a
     /// model (its spheres come from the fit, and a drag moves the whole set).
     Sphere { index: usize, radius: f64, fitted: bool },
@@ -66,12 +67,19 @@ impl Edge {
     }
 }
 
-/// The world point at light coordinates `(u, v) ∈ [−1, 1]²` of a `width × depth` light centred
-/// at `p`, turned by `angle` degrees (right-handed about +y, as the light's texture turns).
-fn on_area_light(p: [f64; 3], (width, depth, angle): (f64, f64, f64), (u, v): (f64, f64)) -> [f64; 3] {
-    let (sin, cos) = angle.to_radians().sin_cos();
-    let (x, z) = (u * width / 2.0, v * depth / 2.0);
-    [p[0] + cos * x + sin * z, p[1], p[2] - sin * x + cos * z]
+/// A `width × depth` area light tilted by `tilt` degrees about its width axis, then turned by
+/// `angle` degrees about the vertical (both right-handed, as the light's texture turns).
+type LightShape = (f64, f64, f64, f64);
+
+/// Light offsets to world offsets: the tilt about the width axis, then the turn.
+fn light_orientation(angle: f64, tilt: f64) -> glam::DMat3 {
+    glam::DMat3::from_rotation_y(angle.to_radians()) * glam::DMat3::from_rotation_x(tilt.to_radians())
+}
+
+/// The world point at light coordinates `(u, v) ∈ [−1, 1]²` of a light centred at `p`.
+fn on_area_light(p: [f64; 3], (width, depth, angle, tilt): LightShape, (u, v): (f64, f64)) -> [f64; 3] {
+    let offset = light_orientation(angle, tilt) * glam::DVec3::new(u * width / 2.0, 0.0, v * depth / 2.0);
+    (glam::DVec3::from(p) + offset).to_array()
 }
 
 /// Texels per side of the grid the light's preview is drawn on: egui maps a texture affinely
@@ -86,7 +94,7 @@ fn preview_light(
     rect: egui::Rect,
     texture: egui::TextureId,
     position: [f64; 3],
-    shape: (f64, f64, f64),
+    shape: LightShape,
 ) {
     let mut mesh = egui::Mesh::with_texture(texture);
     let n = PREVIEW_GRID;
@@ -124,8 +132,8 @@ impl Gizmo {
     }
 
     /// An area light's edge handles: which edge, and its world point.
-    fn edges(&self) -> Vec<(Edge, [f64; 3])> {
-        let GizmoTarget::AreaLight { width, depth, angle } = self.target else { return Vec::new() };
+    pub(super) fn edges(&self) -> Vec<(Edge, [f64; 3])> {
+        let GizmoTarget::AreaLight { width, depth, angle, tilt } = self.target else { return Vec::new() };
         Edge::ALL
             .iter()
             .map(|&e| {
@@ -133,7 +141,7 @@ impl Gizmo {
                     Edge::Width(s) => (s, 0.0),
                     Edge::Depth(s) => (0.0, s),
                 };
-                (e, on_area_light(self.position, (width, depth, angle), uv))
+                (e, on_area_light(self.position, (width, depth, angle, tilt), uv))
             })
             .collect()
     }
@@ -211,6 +219,7 @@ impl EditorApp {
                             width: float("width"),
                             depth: float("depth"),
                             angle: float("angle"),
+                            tilt: float("tilt"),
                         },
                         position,
                         colour: full_brightness(tint),
@@ -358,14 +367,15 @@ impl EditorApp {
                     }
                     if g.linked { g.id.clone() } else { format!("{} (not linked: lights nothing)", g.id) }
                 }
-                GizmoTarget::AreaLight { width, depth, angle } => {
+                GizmoTarget::AreaLight { width, depth, angle, tilt } => {
+                    let shape = (width, depth, angle, tilt);
                     let corners: Option<Vec<egui::Pos2>> = [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)]
                         .iter()
-                        .map(|&uv| screen_pos(&camera, rect, on_area_light(g.position, (width, depth, angle), uv)))
+                        .map(|&uv| screen_pos(&camera, rect, on_area_light(g.position, shape, uv)))
                         .collect();
                     let colour = if is_selected { outline } else { g.colour };
                     if is_selected && let Some((_, texture)) = self.light_previews.get(&g.id) {
-                        preview_light(painter, &camera, rect, texture.id(), g.position, (width, depth, angle));
+                        preview_light(painter, &camera, rect, texture.id(), g.position, shape);
                     }
                     if let Some(mut corners) = corners {
                         corners.push(corners[0]);
@@ -444,12 +454,16 @@ impl EditorApp {
         let drag = (f64::from(delta.x), f64::from(delta.y));
         let from = glam::DVec3::from(gizmo.position);
         let moved = match gizmo.target {
-            // An area light slides in its own level plane; with Shift it rises or falls only.
-            GizmoTarget::AreaLight { .. } if ui.input(|i| i.modifiers.shift) => {
+            // An area light slides in its own plane; with Shift it moves along its normal only.
+            GizmoTarget::AreaLight { angle, tilt, .. } if ui.input(|i| i.modifiers.shift) => {
+                let normal = light_orientation(angle, tilt) * glam::DVec3::Y;
                 let lifted = camera.drag_point(from, drag, f64::from(rect.height()));
-                glam::DVec3::new(from.x, lifted.y, from.z)
+                from + normal * (lifted - from).dot(normal)
             }
-            GizmoTarget::AreaLight { .. } => camera.drag_point_level(from, drag, f64::from(rect.height())),
+            GizmoTarget::AreaLight { angle, tilt, .. } => {
+                let normal = light_orientation(angle, tilt) * glam::DVec3::Y;
+                camera.drag_point_in_plane(from, normal, drag, f64::from(rect.height()))
+            }
             _ => camera.drag_point(from, drag, f64::from(rect.height())),
         }
         .to_array();

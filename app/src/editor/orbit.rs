@@ -90,25 +90,29 @@ impl OrbitCamera {
         p + (right * dx - up * dy) * world_per_pixel
     }
 
-    /// Moves world point `p` within the level plane through it (its height kept) so that its
-    /// image follows a drag of `(dx, dy)` pixels: to where the ray through the dragged image
-    /// meets that plane. Where the plane is seen nearly edge-on, or the ray meets it behind the
-    /// camera or past 100 camera distances, the view-plane move with the height kept instead.
-    pub fn drag_point_level(&self, p: DVec3, delta: (f64, f64), height: f64) -> DVec3 {
+    /// Moves world point `p` within the plane through it of unit `normal` so that its image
+    /// follows a drag of `(dx, dy)` pixels: to where the ray through the dragged image meets that
+    /// plane. Where the plane is seen nearly edge-on, or the ray meets it behind the camera or
+    /// past 100 camera distances, the view-plane move projected onto the plane instead. A level
+    /// plane (`normal` ±y) keeps the height exactly: it is the light's plane, which keys its
+    /// traced transport.
+    pub fn drag_point_in_plane(&self, p: DVec3, normal: DVec3, delta: (f64, f64), height: f64) -> DVec3 {
+        let in_plane = |q: DVec3| {
+            let moved = q - normal * (q - p).dot(normal);
+            if normal.x == 0.0 && normal.z == 0.0 { DVec3::new(moved.x, p.y, moved.z) } else { moved }
+        };
         let dragged = self.drag_point(p, delta, height);
-        let level = DVec3::new(dragged.x, p.y, dragged.z);
         let eye = self.position();
         let ray = (dragged - eye).normalize_or_zero();
-        if ray.y.abs() < 0.05 {
-            return level;
+        let facing = ray.dot(normal);
+        if facing.abs() < 0.05 {
+            return in_plane(dragged);
         }
-        let t = (p.y - eye.y) / ray.y;
+        let t = (p - eye).dot(normal) / facing;
         if t <= 0.0 || t > 100.0 * self.distance.max(1.0) {
-            return level;
+            return in_plane(dragged);
         }
-        let hit = eye + ray * t;
-        // Exactly level: the height is the light's plane, which keys its traced transport.
-        DVec3::new(hit.x, p.y, hit.z)
+        in_plane(eye + ray * t)
     }
 
     /// Turns by a drag of `(dx, dy)` pixels (a full viewport height ≈ half a turn).
@@ -198,6 +202,28 @@ mod tests {
         // Behind the camera there is no image.
         let behind = orbit.position() * 2.0 - orbit.target;
         assert!(orbit.project(behind, size).is_none());
+    }
+
+    /// A point dragged in a tilted plane stays in it and lands under the pointer; in a level
+    /// plane its height is kept to the bit (the light's plane keys its traced transport).
+    #[test]
+    fn a_point_dragged_in_its_plane_stays_in_it_under_the_pointer() {
+        let orbit = OrbitCamera::from_camera(&camera()).widened(1.3);
+        let size = (800.0, 500.0);
+        let p = DVec3::new(0.7, 1.4, -0.3);
+        let ((x, y), _) = orbit.project(p, size).unwrap();
+        let normal = DVec3::new(0.4, 0.8, -0.3).normalize();
+        let moved = orbit.drag_point_in_plane(p, normal, (35.0, -20.0), size.1);
+        assert!((moved - p).dot(normal).abs() < 1e-12 && (moved - p).length() > 0.05, "{moved}");
+        let ((x2, y2), _) = orbit.project(moved, size).unwrap();
+        assert!((x2 - x - 35.0).abs() < 1e-6 && (y2 - y + 20.0).abs() < 1e-6, "({x}, {y}) → ({x2}, {y2})");
+        let level = orbit.drag_point_in_plane(p, DVec3::Y, (35.0, -20.0), size.1);
+        assert_eq!(level.y.to_bits(), p.y.to_bits());
+        // A plane seen edge-on takes the view-plane move, kept in the plane.
+        let eye = orbit.position();
+        let edge_on = (p - eye).cross(DVec3::Y).normalize();
+        let moved = orbit.drag_point_in_plane(p, edge_on, (35.0, -20.0), size.1);
+        assert!((moved - p).dot(edge_on).abs() < 1e-9 && moved.is_finite());
     }
 
     #[test]

@@ -1,9 +1,10 @@
-//! Area light painter: a horizontal planar light facing down, with a painted radiance texture
+//! Area light painter: a planar light, facing down unless tilted, with a painted radiance texture
 //! (`crate::light_texture`), compressed in 2D Haar for near-field relighting by affine wavelet
 //! products (`crate::near_field`, Sun 2008 §4.5).
 //!
 //! Stages follow the notes' dirty rules (§6): a stroke reruns `texture` and `source`; a move
-//! reruns `placement`; resizing or turning also reruns `source` (a turned light is resampled
+//! reruns `placement` (a tilted light's placement is in its own frame, [`LightFrame`], so a
+//! move within its plane keeps its traced transport); resizing or turning also reruns `source` (a turned light is resampled
 //! into its bounding rectangle, a 2D Haar transform of at most 128², well under a millisecond
 //! at 64²). Each of these reruns `light`, which only gathers them with the intensity × tint
 //! scale and the light as the reference samples it; the Output memoises each light's
@@ -14,7 +15,9 @@ use crate::engine::spec::{
 };
 use crate::engine::{StageContext, StageError, StageValue};
 use crate::light_texture::{LightTexture, PaintOp, load_image, render, turned_extent};
-use crate::near_field::{AccMode, FACE_ORDER, LightPlacement, LightSource, Shading, TargetKeep, TopFace, light_source};
+use crate::near_field::{
+    AccMode, FACE_ORDER, LightFrame, LightPlacement, LightSource, Shading, TargetKeep, TopFace, light_source,
+};
 use crate::picture::Preview;
 use crate::reference::AreaEmitter;
 use serde::{Deserialize, Serialize};
@@ -49,7 +52,7 @@ pub fn spec() -> NodeKindSpec {
     NodeKindSpec {
         name: "AreaLightPainter",
         label: "Area light painter",
-        doc: "A planar light facing down with a painted radiance texture, for near-field shadows and highlights \
+        doc: "A planar light with a painted radiance texture, facing down or tilted, for near-field shadows and highlights \
               (affine wavelet products, Sun 2008 ch. 4). Paint, move, resize and recolour it; the texture is kept \
               as its paint operations.",
         inputs: vec![],
@@ -83,7 +86,7 @@ pub fn spec() -> NodeKindSpec {
                 label: "Centre",
                 unit: "m",
                 kind: ParamKind::Vec3 { min: -1e4, max: 1e4, default: [0.0, 2.0, 0.0] },
-                doc: "Centre of the light; its height is the light's plane.",
+                doc: "Centre of the light; its plane passes through it.",
             },
             ParamSpec::float(
                 "width",
@@ -99,12 +102,15 @@ pub fn spec() -> NodeKindSpec {
                 (1e-3, 1e3, 1.0),
                 "Extent along the light's depth axis (z before a turn).",
             ),
+            ParamSpec::float("angle", "Turn", "°", (-360.0, 360.0, 0.0), "Turn about the vertical."),
             ParamSpec::float(
-                "angle",
-                "Turn",
+                "tilt",
+                "Tilt",
                 "°",
-                (-360.0, 360.0, 0.0),
-                "Turn about the vertical, in the light's plane.",
+                (-180.0, 180.0, 0.0),
+                "Tilt about the light's width axis: 0 faces straight down, 90 faces along the depth axis \
+                 (toward −z before a turn), 180 faces up. A tilted light traces its own shadows (lights share \
+                 them only with equal tilt and turn).",
             ),
             ParamSpec::float("intensity", "Intensity", "", (0.0, 1e6, 10.0), "Radiance scale of the texture."),
             ParamSpec {
@@ -193,8 +199,8 @@ pub fn spec() -> NodeKindSpec {
             },
             StageSpec {
                 name: "placement",
-                version: 1,
-                params: &["position", "width", "depth", "angle"],
+                version: 2,
+                params: &["position", "width", "depth", "angle", "tilt"],
                 stages: &[],
                 inputs: &[],
                 persist: None,
@@ -211,7 +217,7 @@ pub fn spec() -> NodeKindSpec {
             },
             StageSpec {
                 name: "light",
-                version: 3,
+                version: 4,
                 params: &[
                     "intensity",
                     "tint",
@@ -222,6 +228,7 @@ pub fn spec() -> NodeKindSpec {
                     "width",
                     "depth",
                     "angle",
+                    "tilt",
                 ],
                 stages: &["texture", "source", "placement", "face"],
                 inputs: &[],
@@ -286,9 +293,10 @@ fn source(ctx: &StageContext) -> Result<StageValue, StageError> {
 }
 
 fn placement(ctx: &StageContext) -> Result<StageValue, StageError> {
-    let [x, height, z] = ctx.vec3("position")?;
-    let extent = turned_extent(ctx.float("width")?, ctx.float("depth")?, ctx.float("angle")?);
-    Ok(StageValue::new(LightPlacement::centred(height, [x, z], extent)))
+    let angle = ctx.float("angle")?;
+    let extent = turned_extent(ctx.float("width")?, ctx.float("depth")?, angle);
+    let frame = LightFrame::new(angle, ctx.float("tilt")?);
+    Ok(StageValue::new(LightPlacement::oriented(ctx.vec3("position")?, extent, frame)))
 }
 
 /// The receivers' top face: lights with equal faces share the Output's transport.
@@ -314,7 +322,7 @@ fn light(ctx: &StageContext) -> Result<StageValue, StageError> {
     let scale = tint.map(|t| t * intensity);
     let radiance = texture.emission().into_iter().map(|c| std::array::from_fn(|i| c[i] * scale[i])).collect();
     let shape = (ctx.float("width")?, ctx.float("depth")?, ctx.float("angle")?);
-    let emitter = AreaEmitter::new(ctx.vec3("position")?, shape, texture.side, radiance);
+    let emitter = AreaEmitter::new(ctx.vec3("position")?, shape, texture.side, radiance).tilted(ctx.float("tilt")?);
     Ok(StageValue::new(AreaLight {
         source: ctx.stage::<LightSource>("source")?.clone(),
         placement: *ctx.stage::<LightPlacement>("placement")?,

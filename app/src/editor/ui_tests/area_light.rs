@@ -126,6 +126,44 @@ fn the_area_light_shows_in_the_viewport_and_drags() {
     assert_eq!((raised[0], raised[2]), (position[0], position[2]), "and moves it nowhere else");
 }
 
+/// A tilted light's rectangle is drawn tilted, and a drag moves it within its own tilted plane
+/// (its height in its own frame kept), under the pointer.
+#[test]
+fn a_tilted_area_light_drags_in_its_own_plane() {
+    let mut harness = default_harness();
+    let added = add_from_menu(&mut harness, "Area light painter");
+    let doc = &mut harness.state_mut().doc;
+    inspector::set_param(doc, &added, "position", ParamValue::Vec3([0.5, 1.5, 0.5])).unwrap();
+    inspector::set_param(doc, &added, "angle", ParamValue::Float(20.0)).unwrap();
+    inspector::set_param(doc, &added, "tilt", ParamValue::Float(40.0)).unwrap();
+    harness.state_mut().doc.seal();
+    settle(&mut harness);
+    let gizmo = harness.state().gizmos().into_iter().find(|g| g.id == added).expect("the area light has a gizmo");
+    assert!(matches!(gizmo.target, gizmos::GizmoTarget::AreaLight { tilt: 40.0, .. }));
+    let orientation =
+        glam::DMat3::from_rotation_y(20f64.to_radians()) * glam::DMat3::from_rotation_x(40f64.to_radians());
+    let normal = orientation * glam::DVec3::Y;
+    // Its corners lie in the tilted plane, off the level one.
+    let corners: Vec<glam::DVec3> = gizmo.edges().into_iter().map(|(_, p)| glam::DVec3::from(p)).collect();
+    let centre = glam::DVec3::from(gizmo.position);
+    assert!(corners.iter().all(|c| (*c - centre).dot(normal).abs() < 1e-9));
+    assert!(corners.iter().any(|c| (c.y - centre.y).abs() > 0.1), "the rectangle is tilted: {corners:?}");
+    let rect = harness.state().viewport_rect;
+    let camera = harness.state().viewport_camera(rect);
+    let at = gizmos::screen_pos(&camera, rect, gizmo.position).expect("in front of the camera");
+    harness.render().unwrap().save(state_dir().join("area_light_tilted.png")).expect("screenshot for a person");
+    pointer_drag(&mut harness, egui::PointerButton::Primary, at, at + egui::vec2(60.0, 30.0));
+    let position = match edits::node(&harness.state().doc.project, &added).and_then(|n| n.params.get("position")) {
+        Some(ParamValue::Vec3(p)) => glam::DVec3::from(*p),
+        other => panic!("position: {other:?}"),
+    };
+    assert!((position - centre).length() > 0.1, "the drag moves the light: {position}");
+    assert!((position - centre).dot(normal).abs() < 1e-9, "within its own plane: {position}");
+    let camera = harness.state().viewport_camera(rect);
+    let now = gizmos::screen_pos(&camera, rect, position.to_array()).unwrap();
+    assert!(now.distance(at + egui::vec2(60.0, 30.0)) < 6.0, "the handle is at {now:?}");
+}
+
 /// Linked to the Output, the light brightens the viewport once its transport is traced; an
 /// edge handle resizes it about its centre (one undo step), and the light follows.
 #[test]

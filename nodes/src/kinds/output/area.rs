@@ -2,11 +2,14 @@
 //! it ([`crate::near_field`], Sun 2008 §4.5), drawn in every relighting mode. Kept apart from
 //! the modes' stages.
 //!
-//! - `area_transport`: per distinct top face among the lights, every vertex's top-face
-//!   transport in 2D Haar (one ray per cell, ending at the highest light's plane: what lies
-//!   above the lights, a ceiling, casts no shadow). Lights with equal faces share it; it is
-//!   memoised per face on the geometry and that plane, so painting, moving a light within it
-//!   or adding a light with a face already traced traces no top face again. Beside the faces, each light's
+//! - `area_transport`: per distinct top face and frame among the lights, every vertex's top-face
+//!   transport (one ray per cell, ending at the highest plane of the lights in that frame: what
+//!   lies above the lights, a ceiling, casts no shadow). A tilted light's frame
+//!   ([`crate::near_field::LightFrame`]) is the world turned so that it lies level: its
+//!   receivers are turned into it and its rays back out. Lights with equal faces and frames
+//!   share a transport; it is memoised on the geometry, the face, the frame and that plane, so
+//!   painting, moving a light within its plane or adding a light like one already traced
+//!   traces no top face again. Beside the faces, each light's
 //!   part beyond its face ([`crate::near_field::beyond_face`]: closed-form cells, one ray per
 //!   quadrant of the light), memoised on the geometry, the face and the light's placement, so a
 //!   move re-traces only those rays.
@@ -28,8 +31,8 @@ use crate::engine::{Key, StageContext, StageError, StageValue};
 use crate::kinds::area_light::AreaLight;
 use crate::near_field::beyond_face::{self, BeyondFace, VISIBILITY, beyond_face, cell_means};
 use crate::near_field::{
-    FaceTransport, FaceVisibility, LightPlacement, TargetKeep, TopFace, face_visibility, irradiance, response_batch,
-    responses, shade_columns, visible_transport,
+    FaceTransport, FaceVisibility, LightFrame, LightPlacement, TargetKeep, TopFace, face_visibility, irradiance,
+    response_batch, responses, shade_columns, visible_transport,
 };
 use crate::raycast::RayScene;
 use crate::transport::Receivers;
@@ -41,7 +44,7 @@ crate::stage_type!(Arc<FaceTransport>, "top-face transport", encoding = 2, |v| v
     + v.bounds.len() * 16
     + 32);
 crate::stage_type!(Arc<FaceVisibility>, "top-face visibility", encoding = 1, |v| v.bits.len() * 8 + 32);
-crate::stage_type!(AreaTransport, "area-light transport", encoding = 4, |v| v
+crate::stage_type!(AreaTransport, "area-light transport", encoding = 5, |v| v
     .faces
     .iter()
     .map(|f| f.transport.cells.len() * 4 + f.transport.bounds.len() * 16 + f.visibility.bits.len() * 8 + 64)
@@ -91,6 +94,8 @@ pub struct LightBeyond {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct SharedTransport {
     pub key: Key,
+    /// The frame of the lights it serves (and of its receivers' cells).
+    pub frame: LightFrame,
     pub transport: Arc<FaceTransport>,
     pub visibility: Arc<FaceVisibility>,
 }
@@ -125,7 +130,7 @@ pub fn stages() -> Vec<StageSpec> {
     vec![
         StageSpec {
             name: "area_transport",
-            version: 5,
+            version: 6,
             params: &[],
             stages: &[],
             inputs: &[
@@ -205,6 +210,15 @@ fn points_and_normals(receivers: &Receivers) -> (Vec<DVec3>, Vec<DVec3>) {
     (0..receivers.len()).map(|i| receivers.point(i)).unzip()
 }
 
+/// `values` (points or directions) turned into `frame`; borrowed as they are in the world's.
+fn in_frame<'a>(frame: &LightFrame, values: &'a [DVec3]) -> std::borrow::Cow<'a, [DVec3]> {
+    if frame.is_world() {
+        return std::borrow::Cow::Borrowed(values);
+    }
+    let to_light = frame.to_light();
+    std::borrow::Cow::Owned(values.iter().map(|&v| to_light * v).collect())
+}
+
 fn face_bytes(face: &TopFace) -> [u8; 16] {
     let mut bytes = [0; 16];
     bytes[..8].copy_from_slice(&(face.order as u64).to_le_bytes());
@@ -232,15 +246,14 @@ pub(super) fn transport_of(
         .into_iter()
         .filter_map(|(node, placement)| faces_of.iter().find(|(n, _)| *n == node).map(|(_, face)| (*placement, **face)))
         .collect();
-    let mut faces: Vec<TopFace> = Vec::new();
-    for (_, face) in &lights {
-        if !faces.contains(face) {
-            faces.push(*face);
+    // The distinct (face, frame) pairs: lights share a traced visibility only in one frame.
+    let mut faces: Vec<(TopFace, LightFrame)> = Vec::new();
+    for (placement, face) in &lights {
+        if !faces.contains(&(*face, placement.frame)) {
+            faces.push((*face, placement.frame));
         }
     }
-    // Rays end at the highest light's plane (the top-face directions all point up).
-    let ceiling = lights.iter().map(|(p, _)| p.height).fold(f64::NEG_INFINITY, f64::max);
-    let cells: usize = faces.iter().map(|f| f.order * f.order).sum();
+    let cells: usize = faces.iter().map(|(f, _)| f.order * f.order).sum();
     crate::kinds::scene::check_ray_budget(receivers.len(), cells + lights.len() * VISIBILITY * VISIBILITY, density)?;
     let bytes = (receivers.len() * (cells * 4 + lights.len() * beyond_face::CELLS * beyond_face::CELLS * 4)) as u64;
     if bytes > crate::limits::MAX_AREA_TRANSPORT_BYTES {
@@ -253,21 +266,36 @@ pub(super) fn transport_of(
             crate::limits::MAX_AREA_TRANSPORT_BYTES >> 20
         )));
     }
-    // What every face's transport depends on besides the face: the receivers and the triangles.
+    // What every transport depends on besides its face and frame: the receivers and the triangles.
     let mut geometry = xxhash_rust::xxh3::Xxh3::new();
     geometry.update(b"area transport v1");
     geometry.update(bytemuck::cast_slice(&receivers.positions));
     geometry.update(bytemuck::cast_slice(&receivers.normals));
     geometry.update(&scene.fingerprint().to_le_bytes());
-    geometry.update(&ceiling.to_bits().to_le_bytes());
-    let geometry = geometry.digest128().to_le_bytes();
-    let (points, normals) = points_and_normals(receivers);
+    let (world_points, world_normals) = points_and_normals(receivers);
     // Rays leave each surface just off it; the transport itself reads only the normals.
-    let origins: Vec<DVec3> =
-        points.iter().zip(&normals).map(|(&p, &n)| scene.leave_surface(p, n).as_dvec3()).collect();
+    let world_origins: Vec<DVec3> =
+        world_points.iter().zip(&world_normals).map(|(&p, &n)| scene.leave_surface(p, n).as_dvec3()).collect();
     let mut out = AreaTransport::default();
-    for (f, face) in faces.iter().enumerate() {
-        let visibility_key = xxhash_rust::xxh3::xxh3_128(&[geometry.as_slice(), &face_bytes(face)].concat());
+    for (f, (face, frame)) in faces.iter().enumerate() {
+        // Rays end at the highest plane of the lights in this frame (the top-face directions
+        // all point up there): what lies above the lights, a ceiling, casts no shadow.
+        // To the micrometre: a drag within a tilted light's plane keeps its height in its frame
+        // only to rounding, and must not trace again.
+        let ceiling = lights
+            .iter()
+            .filter(|(p, _)| p.frame == *frame)
+            .map(|(p, _)| (p.height * 1e6).round() / 1e6)
+            .fold(f64::NEG_INFINITY, f64::max);
+        let (origins, normals) = (in_frame(frame, &world_origins), in_frame(frame, &world_normals));
+        let to_world = frame.to_world();
+        let mut of_frame = geometry.clone();
+        of_frame.update(&ceiling.to_bits().to_le_bytes());
+        if !frame.is_world() {
+            of_frame.update(&postcard::to_allocvec(frame).map_err(|e| StageError::Internal(e.to_string()))?);
+        }
+        let visibility_key =
+            xxhash_rust::xxh3::xxh3_128(&[of_frame.digest128().to_le_bytes().as_slice(), &face_bytes(face)].concat());
         let visibility = ctx.memo(visibility_key, || {
             let mut bits = Vec::new();
             for start in (0..receivers.len()).step_by(TRANSPORT_CHUNK) {
@@ -275,6 +303,7 @@ pub(super) fn transport_of(
                 let end = (start + TRANSPORT_CHUNK).min(receivers.len());
                 let part = face_visibility(*face, &origins[start..end], &normals[start..end], |origin, direction| {
                     let reach = ((ceiling - origin.y) / direction.y.max(1e-12)).max(0.0);
+                    let (origin, direction) = (to_world * origin, to_world * direction);
                     !scene.occluded(origin.as_vec3a(), direction.as_vec3a(), reach as f32)
                 });
                 bits.extend(part.bits);
@@ -288,8 +317,9 @@ pub(super) fn transport_of(
             ctx.check_cancel()?;
             Ok(Arc::new(visible_transport(&visibility, 0..receivers.len(), &normals, |_, _| 1.0)))
         })?;
-        out.faces.push(SharedTransport { key, transport: (*transport).clone(), visibility });
+        out.faces.push(SharedTransport { key, frame: *frame, transport: (*transport).clone(), visibility });
     }
+    let geometry = geometry.digest128().to_le_bytes();
     for (placement, face) in &lights {
         if out.beyond.iter().any(|b| b.placement == *placement && b.face == *face) {
             continue;
@@ -298,12 +328,16 @@ pub(super) fn transport_of(
             &[
                 geometry.as_slice(),
                 &face_bytes(face),
-                b"beyond the face v2",
+                b"beyond the face v3",
                 &postcard::to_allocvec(placement).map_err(|e| StageError::Internal(e.to_string()))?,
             ]
             .concat(),
         );
+        let frame = placement.frame;
+        let to_world = frame.to_world();
         let responses = ctx.memo(key, || {
+            let (points, normals) = (in_frame(&frame, &world_points), in_frame(&frame, &world_normals));
+            let origins = in_frame(&frame, &world_origins);
             let mut responses = Vec::with_capacity(receivers.len() * beyond_face::CELLS * beyond_face::CELLS);
             for start in (0..receivers.len()).step_by(TRANSPORT_CHUNK * 8) {
                 ctx.check_cancel()?;
@@ -315,9 +349,9 @@ pub(super) fn transport_of(
                     &normals[start..end],
                     &origins[start..end],
                     |origin, target| {
-                        let to = target - origin;
+                        let to = to_world * (target - origin);
                         let reach = to.length() * (1.0 - 1e-4);
-                        !scene.occluded(origin.as_vec3a(), (to / to.length()).as_vec3a(), reach as f32)
+                        !scene.occluded((to_world * origin).as_vec3a(), (to / to.length()).as_vec3a(), reach as f32)
                     },
                 );
                 responses.extend(part.responses);
@@ -332,7 +366,7 @@ pub(super) fn transport_of(
     ctx.inform(format!(
         "{} top face(s) of {} cells traced for {} receivers ({} KB each)",
         faces.len(),
-        faces.first().map_or(0, |f| f.order * f.order),
+        faces.first().map_or(0, |(f, _)| f.order * f.order),
         receivers.len(),
         cells * 4 / 1024
     ));
@@ -360,7 +394,7 @@ fn area_preview(ctx: &StageContext) -> Result<StageValue, StageError> {
     let receivers = ctx.required_input::<Receivers>("scene", "receivers")?;
     let (points, normals) = points_and_normals(receivers);
     let mut geometry = xxhash_rust::xxh3::Xxh3::new();
-    geometry.update(b"area preview v1");
+    geometry.update(b"area preview v2");
     geometry.update(bytemuck::cast_slice(&receivers.positions));
     geometry.update(bytemuck::cast_slice(&receivers.normals));
     let mut total = vec![[0.0f64; 3]; receivers.len()];
@@ -369,7 +403,12 @@ fn area_preview(ctx: &StageContext) -> Result<StageValue, StageError> {
         key.update(&postcard::to_allocvec(&light.placement).map_err(|e| StageError::Internal(e.to_string()))?);
         let responses = ctx.memo(key.digest128(), || {
             ctx.check_cancel()?;
-            Ok(Arc::new(beyond_face::unshadowed(&light.placement, &points, &normals)))
+            let frame = &light.placement.frame;
+            Ok(Arc::new(beyond_face::unshadowed(
+                &light.placement,
+                &in_frame(frame, &points),
+                &in_frame(frame, &normals),
+            )))
         })?;
         for (sum, e) in total.iter_mut().zip(responses.irradiance(&cell_means(&light.source))) {
             for c in 0..3 {
@@ -449,6 +488,7 @@ pub(super) fn irradiance_of(
     let mut total = vec![[0.0f64; 3]; receivers.len()];
     for (_, light) in ctx.inputs_all::<AreaLight>("area_lights", "light")? {
         let shared = face_of(transports, light)?;
+        let points = in_frame(&light.placement.frame, &points);
         let beyond = transports
             .beyond
             .iter()
@@ -465,7 +505,7 @@ fn face_of<'a>(transports: &'a AreaTransport, light: &AreaLight) -> Result<&'a S
     transports
         .faces
         .iter()
-        .find(|f| f.transport.face == light.face)
+        .find(|f| f.transport.face == light.face && f.frame == light.placement.frame)
         .ok_or_else(|| StageError::Internal("no transport for a light's top face".into()))
 }
 
@@ -573,6 +613,10 @@ fn area_highlights(ctx: &StageContext) -> Result<StageValue, StageError> {
         key.update(&diffuse.key.to_le_bytes());
         let key = key.digest128();
         let visibility = &diffuse.visibility;
+        // The light's frame: its cells' directions turn back into the world for the lobes.
+        let frame = light.placement.frame;
+        let to_world = frame.to_world();
+        let (normals, points) = (in_frame(&frame, &normals), in_frame(&frame, &points));
         let transport = ctx.memo(key, || {
             let mut glossy = FaceTransport::empty(visibility.face);
             for start in (0..receivers.len()).step_by(GLOSSY_CHUNK) {
@@ -580,13 +624,14 @@ fn area_highlights(ctx: &StageContext) -> Result<StageValue, StageError> {
                 let end = (start + GLOSSY_CHUNK).min(receivers.len());
                 glossy.append(visible_transport(visibility, start..end, &normals, |r, w| {
                     let (to_local, wo) = views[r];
-                    brdfs[of_vertex[r] as usize].lobe_value(to_local * w, wo)
+                    brdfs[of_vertex[r] as usize].lobe_value(to_local * (to_world * w), wo)
                 }));
                 ctx.progress(end as f64 / receivers.len().max(1) as f64);
             }
             Ok(Arc::new(glossy))
         })?;
-        let glossy = SharedTransport { key, transport: (*transport).clone(), visibility: diffuse.visibility.clone() };
+        let glossy =
+            SharedTransport { key, frame, transport: (*transport).clone(), visibility: diffuse.visibility.clone() };
         // The light beyond the face, through each vertex's lobe toward the eye.
         let beyond = match transports.beyond.iter().find(|b| b.placement == light.placement && b.face == light.face) {
             Some(beyond) => {
@@ -598,7 +643,7 @@ fn area_highlights(ctx: &StageContext) -> Result<StageValue, StageError> {
                     ctx.check_cancel()?;
                     Ok(Arc::new(beyond_face::weighted(&beyond.responses, &light.placement, &points, |r, w| {
                         let (to_local, wo) = views[r];
-                        brdfs[of_vertex[r] as usize].lobe_value(to_local * w, wo)
+                        brdfs[of_vertex[r] as usize].lobe_value(to_local * (to_world * w), wo)
                     })))
                 })?;
                 Some((*weighted).clone())

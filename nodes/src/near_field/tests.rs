@@ -580,7 +580,11 @@ fn highlights_match_direct_integration() {
         let mut errors = Vec::new();
         for order in [32, 64] {
             let face = TopFace { order, size: 4.0 };
-            let visibility = face_visibility(face, &origins, &scene.normals, &visible);
+            let visibility = face_visibility(face, &origins, &scene.normals, |x, directions, blocked| {
+                for (d, b) in directions.iter().zip(blocked) {
+                    *b = !visible(x, *d / d.length());
+                }
+            });
             let views: Vec<(glam::DMat3, DVec3)> = scene
                 .positions
                 .iter()

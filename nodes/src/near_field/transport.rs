@@ -174,29 +174,51 @@ impl FaceVisibility {
     }
 }
 
-/// The cells of each receiver (`origins`, unit `normals`) that see past `unoccluded(origin,
-/// direction)`, cells below the horizon left unset without a ray.
+/// The cells of each receiver (`origins`, unit `normals`) whose rays `occlude` leaves clear,
+/// cells below the horizon left unset without a ray. `occlude(origin, directions, blocked)`
+/// sets `blocked[i]` for each direction blocked before it has risen one unit per unit of its
+/// parameter: the directions are the cells' plane intercepts `(v₁, 1, v₂)`, not unit vectors,
+/// so every ray of a receiver reaches the plane `h` above it at the same parameter `h`, and
+/// they can be traced as one bundle with one reach.
 pub fn face_visibility(
     face: TopFace,
     origins: &[DVec3],
     normals: &[DVec3],
-    unoccluded: impl Fn(DVec3, DVec3) -> bool + Sync,
+    occlude: impl Fn(DVec3, &[DVec3], &mut [bool]) + Sync,
 ) -> FaceVisibility {
     let n = face.order;
     let words = FaceVisibility::words(&face);
     let bits = origins
         .par_iter()
         .zip(normals)
-        .flat_map_iter(|(&x, &normal)| {
-            let mut bits = vec![0u64; words];
-            for c in 0..n * n {
-                let (direction, weight) = face.weight(face.cell_centre(c), normal);
-                if weight > 0.0 && unoccluded(x, direction) {
-                    bits[c / 64] |= 1 << (c % 64);
+        .map_init(
+            || (Vec::new(), Vec::new(), Vec::new()),
+            |(cells, directions, blocked), (&x, &normal)| {
+                cells.clear();
+                directions.clear();
+                for c in 0..n * n {
+                    let v_hat = face.cell_centre(c);
+                    if face.weight(v_hat, normal).1 > 0.0 {
+                        let [v1, v2] = face.intercept(v_hat);
+                        cells.push(c);
+                        directions.push(DVec3::new(v1, 1.0, v2));
+                    }
                 }
-            }
-            bits
-        })
+                blocked.clear();
+                blocked.resize(directions.len(), false);
+                if !directions.is_empty() {
+                    occlude(x, directions, blocked);
+                }
+                let mut bits = vec![0u64; words];
+                for (&c, &b) in cells.iter().zip(blocked.iter()) {
+                    if !b {
+                        bits[c / 64] |= 1 << (c % 64);
+                    }
+                }
+                bits
+            },
+        )
+        .flatten_iter()
         .collect();
     FaceVisibility { face, bits }
 }

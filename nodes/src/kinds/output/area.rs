@@ -301,10 +301,13 @@ pub(super) fn transport_of(
             for start in (0..receivers.len()).step_by(TRANSPORT_CHUNK) {
                 ctx.check_cancel()?;
                 let end = (start + TRANSPORT_CHUNK).min(receivers.len());
-                let part = face_visibility(*face, &origins[start..end], &normals[start..end], |origin, direction| {
-                    let reach = ((ceiling - origin.y) / direction.y.max(1e-12)).max(0.0);
-                    let (origin, direction) = (to_world * origin, to_world * direction);
-                    !scene.occluded(origin.as_vec3a(), direction.as_vec3a(), reach as f32)
+                // Each receiver's cells as one bundle: the directions rise one unit per unit of
+                // their parameter, so all of them end at the ceiling at one reach.
+                let part = face_visibility(*face, &origins[start..end], &normals[start..end], |origin, up, blocked| {
+                    let reach = (ceiling - origin.y).max(0.0) as f32;
+                    let directions: Vec<glam::Vec3A> = up.iter().map(|&d| (to_world * d).as_vec3a()).collect();
+                    let rays: Vec<u32> = (0..directions.len() as u32).collect();
+                    scene.occlude_bundle((to_world * origin).as_vec3a(), &directions, &rays, reach, blocked);
                 });
                 bits.extend(part.bits);
                 ctx.progress((f as f64 + end as f64 / receivers.len().max(1) as f64) / faces.len() as f64);
@@ -589,7 +592,8 @@ fn area_highlights(ctx: &StageContext) -> Result<StageValue, StageError> {
     }
     let eye = DVec3::from(ctx.vec3("highlight_eye")?);
     let points = positions(receivers);
-    // Per vertex: its normal, world to its shading frame, and the direction to the eye there.
+    // Per vertex: its normal, world to its shading frame, and the direction to the eye there
+    // (for a tilted light, from its frame to the shading frame).
     let (normals, views): (Vec<DVec3>, Vec<(glam::DMat3, DVec3)>) = (0..receivers.len())
         .map(|i| {
             let (p, n) = receivers.point(i);
@@ -615,8 +619,13 @@ fn area_highlights(ctx: &StageContext) -> Result<StageValue, StageError> {
         let visibility = &diffuse.visibility;
         // The light's frame: its cells' directions turn back into the world for the lobes.
         let frame = light.placement.frame;
-        let to_world = frame.to_world();
         let (normals, points) = (in_frame(&frame, &normals), in_frame(&frame, &points));
+        let views: std::borrow::Cow<[(glam::DMat3, DVec3)]> = if frame.is_world() {
+            std::borrow::Cow::Borrowed(&views)
+        } else {
+            let to_world = frame.to_world();
+            views.iter().map(|&(to_local, wo)| (to_local * to_world, wo)).collect()
+        };
         let transport = ctx.memo(key, || {
             let mut glossy = FaceTransport::empty(visibility.face);
             for start in (0..receivers.len()).step_by(GLOSSY_CHUNK) {
@@ -624,7 +633,7 @@ fn area_highlights(ctx: &StageContext) -> Result<StageValue, StageError> {
                 let end = (start + GLOSSY_CHUNK).min(receivers.len());
                 glossy.append(visible_transport(visibility, start..end, &normals, |r, w| {
                     let (to_local, wo) = views[r];
-                    brdfs[of_vertex[r] as usize].lobe_value(to_local * (to_world * w), wo)
+                    brdfs[of_vertex[r] as usize].lobe_value(to_local * w, wo)
                 }));
                 ctx.progress(end as f64 / receivers.len().max(1) as f64);
             }
@@ -643,7 +652,7 @@ fn area_highlights(ctx: &StageContext) -> Result<StageValue, StageError> {
                     ctx.check_cancel()?;
                     Ok(Arc::new(beyond_face::weighted(&beyond.responses, &light.placement, &points, |r, w| {
                         let (to_local, wo) = views[r];
-                        brdfs[of_vertex[r] as usize].lobe_value(to_local * (to_world * w), wo)
+                        brdfs[of_vertex[r] as usize].lobe_value(to_local * w, wo)
                     })))
                 })?;
                 Some((*weighted).clone())

@@ -599,9 +599,32 @@ fn highlights_match_direct_integration() {
             let radiance = irradiance(&source, &light, &transport, &scene.positions, TargetKeep::All);
             errors.push(relative_l2(&radiance, &truth));
             if order == 32 {
-                // Factor 1: the diffuse transport, bit for bit.
+                // Factor 1: the diffuse transport. It is one ray per cell's, bit for bit, but on
+                // the sphere's silhouette, whose cells take the share of their finer rays that
+                // get through: a few percent of the cells, each between open and shut.
                 let diffuse = visible_transport(&visibility, 0..origins.len(), &scene.normals, |_, _| 1.0);
-                assert_eq!(diffuse, face_transport(face, &origins, &scene.normals, 1, &visible));
+                let one_ray = face_transport(face, &origins, &scene.normals, 1, &visible);
+                let (mut differ, mut lit) = (0, 0);
+                for r in 0..origins.len() {
+                    let mut cells = [vec![0.0f32; order * order], vec![0.0f32; order * order]];
+                    for (transport, dense) in [&diffuse, &one_ray].into_iter().zip(&mut cells) {
+                        let super::box_responses::Cells { n, values, bounds } = transport.cells_of(r);
+                        let [lo1, hi1, lo2, _] = bounds.map(usize::from);
+                        for (k, &v) in values.iter().enumerate() {
+                            dense[(lo2 + k / (hi1 - lo1)) * n + lo1 + k % (hi1 - lo1)] = v;
+                        }
+                    }
+                    for c in 0..order * order {
+                        let (d, one) = (cells[0][c], cells[1][c]);
+                        lit += usize::from(one > 0.0);
+                        if d != one {
+                            differ += 1;
+                            let full = face.weight(face.cell_centre(c), scene.normals[r]).1 as f32;
+                            assert!(d >= 0.0 && d <= full * (1.0 + 1e-6), "cell {c}: {d} of {full}");
+                        }
+                    }
+                }
+                assert!(differ > 0 && differ * 20 < lit, "{differ} of {lit} lit cells differ from one ray per cell");
             }
         }
         eprintln!("{model}: highlight relative L2 at orders 32 and 64: {errors:?}");

@@ -156,30 +156,77 @@ fn nonzero_bounds(cells: &[f32], n: usize) -> [u16; 4] {
 }
 
 /// Per receiver, the top-face cells light can arrive through: above the receiver's horizon and
-/// unoccluded, one ray per cell centre, a bit per cell. Transports for any weight follow from
-/// it without new rays ([`visible_transport`]): the diffuse one, and a glossy one per view.
+/// unoccluded, one ray per cell centre, a bit per cell; on an occluder's silhouette (a cell whose
+/// neighbour's ray went the other way), the share of [`SUB`]² rays spread over the cell that
+/// get through. Transports for any weight follow from it without new rays
+/// ([`visible_transport`]): the diffuse one, and a glossy one per view.
+///
+/// One ray per cell makes a soft shadow a staircase where a light spans few cells (a receiver
+/// far from it, or seeing it at a grazing angle): each cell's ray flips at one place as the
+/// receiver moves. The silhouette's cells, traced again more finely, make the steps finer where
+/// the steps are.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct FaceVisibility {
     pub face: TopFace,
     pub bits: Vec<u64>,
+    /// Per receiver, where its silhouette cells start in `partial` (one entry more than there
+    /// are receivers).
+    pub partial_offsets: Vec<u64>,
+    /// Each receiver's silhouette cells in increasing order, as `cell << 8 | clear rays`
+    /// (of [`SUB`]²); their bit is set when any ray got through.
+    pub partial: Vec<u32>,
 }
+
+/// Rays per side of a silhouette cell.
+pub const SUB: usize = 4;
 
 impl FaceVisibility {
     fn words(face: &TopFace) -> usize {
         (face.order * face.order).div_ceil(64)
     }
 
+    /// No receiver yet, for [`Self::append`].
+    pub fn empty(face: TopFace) -> Self {
+        Self { face, bits: Vec::new(), partial_offsets: vec![0], partial: Vec::new() }
+    }
+
+    /// `other`'s receivers after these.
+    pub fn append(&mut self, other: Self) {
+        let base = self.partial.len() as u64;
+        self.bits.extend(other.bits);
+        self.partial_offsets.extend(other.partial_offsets[1..].iter().map(|o| o + base));
+        self.partial.extend(other.partial);
+    }
+
     fn visible(&self, receiver: usize, cell: usize) -> bool {
         self.bits[receiver * Self::words(&self.face) + cell / 64] >> (cell % 64) & 1 == 1
     }
+
+    /// Receiver `r`'s silhouette cells, `cell << 8 | clear rays`.
+    fn partial_of(&self, receiver: usize) -> &[u32] {
+        let range = self.partial_offsets[receiver] as usize..self.partial_offsets[receiver + 1] as usize;
+        &self.partial[range]
+    }
+}
+
+/// A receiver's buffers while its face is traced.
+#[derive(Default)]
+struct Tracing {
+    cells: Vec<usize>,
+    directions: Vec<DVec3>,
+    blocked: Vec<bool>,
+    /// Per cell: 0 below the horizon, 1 clear, 2 blocked.
+    state: Vec<u8>,
+    /// The silhouette's cells.
+    silhouette: Vec<usize>,
 }
 
 /// The cells of each receiver (`origins`, unit `normals`) whose rays `occlude` leaves clear,
-/// cells below the horizon left unset without a ray. `occlude(origin, directions, blocked)`
-/// sets `blocked[i]` for each direction blocked before it has risen one unit per unit of its
-/// parameter: the directions are the cells' plane intercepts `(v₁, 1, v₂)`, not unit vectors,
-/// so every ray of a receiver reaches the plane `h` above it at the same parameter `h`, and
-/// they can be traced as one bundle with one reach.
+/// cells below the horizon left unset without a ray, and the silhouette cells' shares
+/// ([`FaceVisibility`]). `occlude(origin, directions, blocked)` sets `blocked[i]` for each
+/// direction blocked before it has risen one unit per unit of its parameter: the directions are
+/// plane intercepts `(v₁, 1, v₂)`, not unit vectors, so every ray of a receiver reaches the plane
+/// `h` above it at the same parameter `h`, and they can be traced as one bundle with one reach.
 pub fn face_visibility(
     face: TopFace,
     origins: &[DVec3],
@@ -188,39 +235,95 @@ pub fn face_visibility(
 ) -> FaceVisibility {
     let n = face.order;
     let words = FaceVisibility::words(&face);
-    let bits = origins
+    let per_receiver: Vec<(Vec<u64>, Vec<u32>)> = origins
         .par_iter()
         .zip(normals)
-        .map_init(
-            || (Vec::new(), Vec::new(), Vec::new()),
-            |(cells, directions, blocked), (&x, &normal)| {
-                cells.clear();
-                directions.clear();
-                for c in 0..n * n {
-                    let v_hat = face.cell_centre(c);
-                    if face.weight(v_hat, normal).1 > 0.0 {
-                        let [v1, v2] = face.intercept(v_hat);
-                        cells.push(c);
-                        directions.push(DVec3::new(v1, 1.0, v2));
-                    }
+        .map_init(Tracing::default, |t, (&x, &normal)| {
+            t.cells.clear();
+            t.directions.clear();
+            for c in 0..n * n {
+                let v_hat = face.cell_centre(c);
+                if face.weight(v_hat, normal).1 > 0.0 {
+                    let [v1, v2] = face.intercept(v_hat);
+                    t.cells.push(c);
+                    t.directions.push(DVec3::new(v1, 1.0, v2));
                 }
-                blocked.clear();
-                blocked.resize(directions.len(), false);
-                if !directions.is_empty() {
-                    occlude(x, directions, blocked);
+            }
+            t.blocked.clear();
+            t.blocked.resize(t.directions.len(), false);
+            if !t.directions.is_empty() {
+                occlude(x, &t.directions, &mut t.blocked);
+            }
+            t.state.clear();
+            t.state.resize(n * n, 0);
+            for (&c, &b) in t.cells.iter().zip(&t.blocked) {
+                t.state[c] = 1 + u8::from(b);
+            }
+            // The silhouette: traced cells with a traced 4-neighbour whose ray went the other way.
+            t.silhouette.clear();
+            for &c in &t.cells {
+                let (i, j) = (c % n, c / n);
+                let differs = |ni: usize, nj: usize| {
+                    let s = t.state[nj * n + ni];
+                    s != 0 && s != t.state[c]
+                };
+                if (i > 0 && differs(i - 1, j))
+                    || (i + 1 < n && differs(i + 1, j))
+                    || (j > 0 && differs(i, j - 1))
+                    || (j + 1 < n && differs(i, j + 1))
+                {
+                    t.silhouette.push(c);
                 }
-                let mut bits = vec![0u64; words];
-                for (&c, &b) in cells.iter().zip(blocked.iter()) {
-                    if !b {
-                        bits[c / 64] |= 1 << (c % 64);
-                    }
+            }
+            // Their SUB² rays each, a sub-ray below the horizon counted as blocked.
+            t.directions.clear();
+            for &c in &t.silhouette {
+                let centre = face.cell_centre(c);
+                for k in 0..SUB * SUB {
+                    let v_hat = [
+                        centre[0] + ((k % SUB) as f64 + 0.5 - SUB as f64 / 2.0) / (SUB * n) as f64,
+                        centre[1] + ((k / SUB) as f64 + 0.5 - SUB as f64 / 2.0) / (SUB * n) as f64,
+                    ];
+                    let [v1, v2] = face.intercept(v_hat);
+                    t.directions.push(DVec3::new(v1, 1.0, v2));
                 }
-                bits
-            },
-        )
-        .flatten_iter()
+            }
+            t.blocked.clear();
+            t.blocked.resize(t.directions.len(), false);
+            for (d, blocked) in t.directions.iter().zip(t.blocked.iter_mut()) {
+                *blocked = face.weight([d.x / face.size + 0.5, d.z / face.size + 0.5], normal).1 <= 0.0;
+            }
+            if !t.directions.is_empty() {
+                occlude(x, &t.directions, &mut t.blocked);
+            }
+            let mut bits = vec![0u64; words];
+            for &c in &t.cells {
+                if t.state[c] == 1 {
+                    bits[c / 64] |= 1 << (c % 64);
+                }
+            }
+            let mut partial = Vec::with_capacity(t.silhouette.len());
+            for (s, &c) in t.silhouette.iter().enumerate() {
+                let clear = t.blocked[s * SUB * SUB..(s + 1) * SUB * SUB].iter().filter(|b| !**b).count();
+                if clear > 0 {
+                    bits[c / 64] |= 1 << (c % 64);
+                } else {
+                    bits[c / 64] &= !(1 << (c % 64));
+                }
+                if clear > 0 && clear < SUB * SUB {
+                    partial.push((c as u32) << 8 | clear as u32);
+                }
+            }
+            (bits, partial)
+        })
         .collect();
-    FaceVisibility { face, bits }
+    let mut visibility = FaceVisibility::empty(face);
+    for (bits, partial) in per_receiver {
+        visibility.bits.extend(bits);
+        visibility.partial.extend(partial);
+        visibility.partial_offsets.push(visibility.partial.len() as u64);
+    }
+    visibility
 }
 
 /// The transport of `receivers` (indices into `visibility` and `normals`) with a per-direction
@@ -237,10 +340,16 @@ pub fn visible_transport(
     let face = visibility.face;
     FaceTransport::gather(face, receivers.len(), |j, cells| {
         let r = receivers.start + j;
+        let mut partial = visibility.partial_of(r).iter().peekable();
         for (c, cell) in cells.iter_mut().enumerate() {
+            // The share of a silhouette cell's rays that got through.
+            let share = match partial.next_if(|p| (**p >> 8) as usize == c) {
+                Some(p) => (p & 0xff) as f64 / (SUB * SUB) as f64,
+                None => 1.0,
+            };
             *cell = if visibility.visible(r, c) {
                 let (direction, weight) = face.weight(face.cell_centre(c), normals[r]);
-                (weight * factor(r, direction)) as f32
+                (share * weight * factor(r, direction)) as f32
             } else {
                 0.0
             };

@@ -43,11 +43,21 @@ use std::sync::Arc;
 crate::stage_type!(Arc<FaceTransport>, "top-face transport", encoding = 2, |v| v.cells.len() * 4
     + v.bounds.len() * 16
     + 32);
-crate::stage_type!(Arc<FaceVisibility>, "top-face visibility", encoding = 1, |v| v.bits.len() * 8 + 32);
-crate::stage_type!(AreaTransport, "area-light transport", encoding = 5, |v| v
+crate::stage_type!(Arc<FaceVisibility>, "top-face visibility", encoding = 2, |v| v.bits.len() * 8
+    + v.partial_offsets.len() * 8
+    + v.partial.len() * 4
+    + 32);
+crate::stage_type!(AreaTransport, "area-light transport", encoding = 6, |v| v
     .faces
     .iter()
-    .map(|f| f.transport.cells.len() * 4 + f.transport.bounds.len() * 16 + f.visibility.bits.len() * 8 + 64)
+    .map(|f| {
+        f.transport.cells.len() * 4
+            + f.transport.bounds.len() * 16
+            + f.visibility.bits.len() * 8
+            + f.visibility.partial_offsets.len() * 8
+            + f.visibility.partial.len() * 4
+            + 64
+    })
     .chain(v.beyond.iter().map(|b| b.responses.responses.len() * 4 + 64))
     .sum());
 crate::stage_type!(Arc<BeyondFace>, "light beyond the top face", encoding = 1, |v| v.responses.len() * 4 + 16);
@@ -130,7 +140,7 @@ pub fn stages() -> Vec<StageSpec> {
     vec![
         StageSpec {
             name: "area_transport",
-            version: 6,
+            version: 7,
             params: &[],
             stages: &[],
             inputs: &[
@@ -268,7 +278,7 @@ pub(super) fn transport_of(
     }
     // What every transport depends on besides its face and frame: the receivers and the triangles.
     let mut geometry = xxhash_rust::xxh3::Xxh3::new();
-    geometry.update(b"area transport v1");
+    geometry.update(b"area transport v2");
     geometry.update(bytemuck::cast_slice(&receivers.positions));
     geometry.update(bytemuck::cast_slice(&receivers.normals));
     geometry.update(&scene.fingerprint().to_le_bytes());
@@ -297,7 +307,7 @@ pub(super) fn transport_of(
         let visibility_key =
             xxhash_rust::xxh3::xxh3_128(&[of_frame.digest128().to_le_bytes().as_slice(), &face_bytes(face)].concat());
         let visibility = ctx.memo(visibility_key, || {
-            let mut bits = Vec::new();
+            let mut visibility = FaceVisibility::empty(*face);
             for start in (0..receivers.len()).step_by(TRANSPORT_CHUNK) {
                 ctx.check_cancel()?;
                 let end = (start + TRANSPORT_CHUNK).min(receivers.len());
@@ -309,10 +319,10 @@ pub(super) fn transport_of(
                     let rays: Vec<u32> = (0..directions.len() as u32).collect();
                     scene.occlude_bundle((to_world * origin).as_vec3a(), &directions, &rays, reach, blocked);
                 });
-                bits.extend(part.bits);
+                visibility.append(part);
                 ctx.progress((f as f64 + end as f64 / receivers.len().max(1) as f64) / faces.len() as f64);
             }
-            Ok(Arc::new(FaceVisibility { face: *face, bits }))
+            Ok(Arc::new(visibility))
         })?;
         let visibility: Arc<FaceVisibility> = (*visibility).clone();
         let key = xxhash_rust::xxh3::xxh3_128(&[&visibility_key.to_le_bytes()[..], b"diffuse cells"].concat());

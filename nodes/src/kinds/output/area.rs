@@ -3,7 +3,8 @@
 //! the modes' stages.
 //!
 //! - `area_transport`: per distinct top face and frame among the lights, every vertex's top-face
-//!   transport (one ray per cell, ending at the highest plane of the lights in that frame: what
+//!   transport (one ray per cell, each vertex's traced as one bundle, and 4 × 4 on an occluder's
+//!   silhouette; they end at the highest plane of the lights in that frame: what
 //!   lies above the lights, a ceiling, casts no shadow). A tilted light's frame
 //!   ([`crate::near_field::LightFrame`]) is the world turned so that it lies level: its
 //!   receivers are turned into it and its rays back out. Lights with equal faces and frames

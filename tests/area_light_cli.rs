@@ -233,7 +233,7 @@ fn the_area_light_matches_mitsuba_on_a_wide_floor() {
 /// Against Mitsuba 3 (tests/projects/mitsuba/area_tilted, made by tools/mitsuba/area_light.py
 /// area_tilted at 4096 samples): a 2 × 1 m panel turned −90° and tilted 50°, lighting a sphere,
 /// a box and the floor from the side (the sphere's shadow falls long across the floor), within
-/// 6%. The same panel level, or tilted the other way, is far from the truth: the tilt is what
+/// 5% (the goal is 6%). The same panel level, or tilted the other way, is far from the truth: the tilt is what
 /// puts the light where Mitsuba has it.
 #[test]
 fn a_tilted_area_light_matches_mitsuba() {
@@ -251,6 +251,7 @@ fn a_tilted_area_light_matches_mitsuba() {
     eprintln!(
         "relative RMSE against Mitsuba: tilted {tilted:.4}; level {level:.4}, tilted the other way {mirrored:.4}"
     );
-    assert!(tilted < 0.06, "tilted: {tilted}");
+    // 4.3% (4.8%, and banded, with one ray per top-face cell on the silhouettes too).
+    assert!(tilted < 0.05, "tilted: {tilted}");
     assert!(level > 4.0 * tilted && mirrored > 4.0 * tilted, "level {level}, mirrored {mirrored}, tilted {tilted}");
 }

@@ -1,6 +1,6 @@
 //! The receivers' top-face transport (Sun 2008 §4.5.4): per receiver, which of the face's cells
-//! light can arrive through (one ray per cell), and the transport `T̂` over them for any
-//! per-direction weight, kept as the box of its nonzero cells.
+//! light can arrive through (one ray per cell, and [`SUB`]² on an occluder's silhouette), and the
+//! transport `T̂` over them for any per-direction weight, kept as the box of its nonzero cells.
 
 use super::TopFace;
 use super::box_responses::Cells;
@@ -180,6 +180,18 @@ pub struct FaceVisibility {
 /// Rays per side of a silhouette cell.
 pub const SUB: usize = 4;
 
+/// Most silhouette cells one receiver traces finer: a quarter of its face. A face that is more
+/// silhouette than that (a grille, foliage) keeps one ray per cell, so a receiver casts at most
+/// [`rays_per_receiver`].
+pub fn max_silhouette(face: &TopFace) -> usize {
+    face.order * face.order / 4
+}
+
+/// The most rays [`face_visibility`] casts for one receiver of `face`.
+pub fn rays_per_receiver(face: &TopFace) -> usize {
+    face.order * face.order + max_silhouette(face) * SUB * SUB
+}
+
 impl FaceVisibility {
     fn words(face: &TopFace) -> usize {
         (face.order * face.order).div_ceil(64)
@@ -224,9 +236,11 @@ struct Tracing {
 /// The cells of each receiver (`origins`, unit `normals`) whose rays `occlude` leaves clear,
 /// cells below the horizon left unset without a ray, and the silhouette cells' shares
 /// ([`FaceVisibility`]). `occlude(origin, directions, blocked)` sets `blocked[i]` for each
-/// direction blocked before it has risen one unit per unit of its parameter: the directions are
-/// plane intercepts `(v₁, 1, v₂)`, not unit vectors, so every ray of a receiver reaches the plane
-/// `h` above it at the same parameter `h`, and they can be traced as one bundle with one reach.
+/// direction blocked before it has risen one unit per unit of its parameter, and leaves set
+/// the flags that are set already (sub-rays below the receiver's horizon): the directions are
+/// plane intercepts `(v₁, 1, v₂)`, not unit vectors, so every ray of a receiver reaches the
+/// plane `h` above it at the same parameter `h`, and they can be traced as one bundle with one
+/// reach.
 pub fn face_visibility(
     face: TopFace,
     origins: &[DVec3],
@@ -274,6 +288,9 @@ pub fn face_visibility(
                 {
                     t.silhouette.push(c);
                 }
+            }
+            if t.silhouette.len() > max_silhouette(&face) {
+                t.silhouette.clear();
             }
             // Their SUB² rays each, a sub-ray below the horizon counted as blocked.
             t.directions.clear();
@@ -329,8 +346,9 @@ pub fn face_visibility(
 /// The transport of `receivers` (indices into `visibility` and `normals`) with a per-direction
 /// factor: `T̂(v̂) = a² V(ω) factor(r, ω) max(0, ω·n) (1 + |v|²)^{−3/2}` at each cell centre
 /// (`order²` cells per receiver, kept as [`FaceTransport`] keeps them). `factor` 1 gives the irradiance transport
-/// ([`face_transport`] with one sample per cell, the same bits); the specular lobe toward a
-/// viewer gives the radiance a glossy surface reflects toward it (Sun 2008 §4.9).
+/// ([`face_transport`] with one sample per cell, the same bits off the silhouettes, whose cells
+/// take the share of their rays that get through); the specular lobe toward a viewer gives the
+/// radiance a glossy surface reflects toward it (Sun 2008 §4.9).
 pub fn visible_transport(
     visibility: &FaceVisibility,
     receivers: std::ops::Range<usize>,

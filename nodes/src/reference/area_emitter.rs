@@ -15,7 +15,6 @@ pub struct AreaEmitter {
     pub width: f64,
     pub depth: f64,
     pub angle: f64,
-    #[serde(default)]
     pub tilt: f64,
     pub side: usize,
     pub radiance: Vec<[f64; 3]>,

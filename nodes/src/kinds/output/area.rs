@@ -33,7 +33,7 @@ use crate::kinds::area_light::AreaLight;
 use crate::near_field::beyond_face::{self, BeyondFace, VISIBILITY, beyond_face, cell_means};
 use crate::near_field::{
     FaceTransport, FaceVisibility, LightFrame, LightPlacement, TargetKeep, TopFace, face_visibility, irradiance,
-    response_batch, responses, shade_columns, visible_transport,
+    max_silhouette, rays_per_receiver, response_batch, responses, shade_columns, visible_transport,
 };
 use crate::raycast::RayScene;
 use crate::transport::Receivers;
@@ -265,8 +265,13 @@ pub(super) fn transport_of(
         }
     }
     let cells: usize = faces.iter().map(|(f, _)| f.order * f.order).sum();
-    crate::kinds::scene::check_ray_budget(receivers.len(), cells + lights.len() * VISIBILITY * VISIBILITY, density)?;
-    let bytes = (receivers.len() * (cells * 4 + lights.len() * beyond_face::CELLS * beyond_face::CELLS * 4)) as u64;
+    let rays: usize = faces.iter().map(|(f, _)| rays_per_receiver(f)).sum();
+    crate::kinds::scene::check_ray_budget(receivers.len(), rays + lights.len() * VISIBILITY * VISIBILITY, density)?;
+    // Per receiver and face: its cells, its visibility bits, its silhouette cells' shares.
+    let visibility: usize =
+        faces.iter().map(|(f, _)| (f.order * f.order).div_ceil(64) * 8 + max_silhouette(f) * 4 + 8).sum();
+    let bytes = (receivers.len()
+        * (cells * 4 + visibility + lights.len() * beyond_face::CELLS * beyond_face::CELLS * 4)) as u64;
     if bytes > crate::limits::MAX_AREA_TRANSPORT_BYTES {
         return Err(StageError::Failed(format!(
             "the area lights' transport could take up to {} MiB ({} receivers × {cells} top-face cells and {} light(s)); the \

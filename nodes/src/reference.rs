@@ -7,6 +7,17 @@
 //! a shadow ray. The environment is the cube map's texel-constant radiance (what the SH and
 //! wavelet projections see); environment samples pick a texel by `luminance × solid angle` and
 //! a point uniformly in its face rectangle, with the exact solid-angle density.
+//!
+//! Normal maps follow the convention Mitsuba 3 (from 3.7, its `normalmap` defaults) and Blender
+//! 4.5 share, not the textbook one that blackens every texel whose perturbed normal faces away
+//! from the view (at a grazing view, most of a bumpy surface):
+//! - **Flipped invalid normals** (Schüssler et al. 2017, *Microfacet-based normal mapping*, the
+//!   "flip" fallback): where the view lies below the perturbed normal, its tangential part is
+//!   mirrored, `(x, y, z) → (−x, −y, z)` in tangent space.
+//! - **The shadow terminator** (Estevez, Kulla et al., *Ray Tracing Gems* ch. 12, 2019): each
+//!   light direction `ω` is weighted by `2 / (1 + √(1 + α² tan²θ_ω))`, `θ_ω` measured from the
+//!   unperturbed normal and `α² = min(tan²θ_n / 8, 1)` from the perturbed normal's tilt `θ_n`,
+//!   so light fades smoothly where the bumps' own geometry would shadow it.
 
 mod area_emitter;
 
@@ -181,6 +192,10 @@ pub struct ReferenceScene<'a> {
     /// handedness, at the hit's UV); none
     /// past the list's end.
     pub normal_maps: &'a [Option<(&'a crate::normal_filtering::NormalMap, f64)>],
+    /// The textbook normal map (no flip, no shadow terminator: Mitsuba's `normalmap` with
+    /// `flip_invalid_normals` and `use_shadowing_function` off) instead of the production one
+    /// (see the module doc).
+    pub textbook_normal_maps: bool,
 }
 
 /// A linear HDR image, rows top to bottom, with the fraction of each pixel's samples that
@@ -232,13 +247,29 @@ impl TriangleTable {
 }
 
 /// The surface seen along a camera ray: its mesh, position, shading frame (columns `t, b, n`),
-/// geometric normal and base colour.
+/// geometric normal, base colour, and under a normal map the unperturbed normal and the shadow
+/// terminator's `α²` (zero without a map).
 struct Hit {
     mesh: usize,
     position: DVec3,
     frame: DMat3,
     geometric: DVec3,
     base_color: DVec3,
+    unperturbed: DVec3,
+    terminator: f64,
+}
+
+impl Hit {
+    /// The shadow terminator's weight for light arriving along `wi_world` (see the module doc):
+    /// 1 without a normal map.
+    fn shadow_terminator(&self, wi_world: DVec3) -> f64 {
+        if self.terminator <= 0.0 {
+            return 1.0;
+        }
+        let cos2 = self.unperturbed.dot(wi_world).powi(2).max(1e-12);
+        let tan2 = ((1.0 - cos2) / cos2).max(0.0);
+        2.0 / (1.0 + (1.0 + self.terminator * tan2).sqrt())
+    }
 }
 
 /// Whether the ray `origin + t dir`, `t > 0`, meets the sphere (an origin inside it is blocked).
@@ -276,6 +307,7 @@ fn shade_point(rs: &ReferenceScene, table: &TriangleTable, origin: DVec3, dir: D
     }
     let t_raw = lerp(&table.tangents[mi]);
     let mut tangent = (t_raw - n * n.dot(t_raw)).try_normalize().unwrap_or_else(|| n.any_orthonormal_vector());
+    let (unperturbed, mut terminator) = (n, 0.0);
     if let Some((map, tiling)) = rs.normal_maps.get(mi).copied().flatten()
         && mesh.uvs.len() == mesh.positions.len()
     {
@@ -285,12 +317,30 @@ fn shade_point(rs: &ReferenceScene, table: &TriangleTable, origin: DVec3, dir: D
         });
         let handedness = idx.iter().zip(w).map(|(i, w)| f64::from(table.bitangent_signs[mi][*i]) * w).sum::<f64>();
         let bitangent = n.cross(tangent) * if handedness < 0.0 { -1.0 } else { 1.0 };
-        let perturbed = DMat3::from_cols(tangent, bitangent, n) * map.sample(uv.map(|c| c * tiling));
-        n = perturbed.try_normalize().unwrap_or(n);
+        let to_world = DMat3::from_cols(tangent, bitangent, n);
+        let mut local = map.sample(uv.map(|c| c * tiling));
+        // Seen from below the perturbed normal: its tangential part mirrored (the flip).
+        if !rs.textbook_normal_maps && (-dir).dot(n) * (-dir).dot(to_world * local) <= 0.0 {
+            local = DVec3::new(-local.x, -local.y, local.z);
+        }
+        let perturbed = (to_world * local).try_normalize().unwrap_or(n);
+        if !rs.textbook_normal_maps {
+            let cos2 = perturbed.dot(n).powi(2).max(1e-12);
+            terminator = ((1.0 - cos2) / cos2 / 8.0).min(1.0);
+        }
+        n = perturbed;
         tangent = (tangent - n * n.dot(tangent)).try_normalize().unwrap_or_else(|| n.any_orthonormal_vector());
     }
     let frame = DMat3::from_cols(tangent, n.cross(tangent), n);
-    Some(Hit { mesh: mi, position, frame, geometric, base_color: DVec3::from(mesh.base_color.map(f64::from)) })
+    Some(Hit {
+        mesh: mi,
+        position,
+        frame,
+        geometric,
+        base_color: DVec3::from(mesh.base_color.map(f64::from)),
+        unperturbed,
+        terminator,
+    })
 }
 
 /// One MIS estimate of direct environment lighting leaving `hit` towards `wo_world`.
@@ -320,7 +370,7 @@ fn direct_lighting(
     let wi_world = env.sample([rng.random(), rng.random(), rng.random()]);
     let wi = to_local * wi_world;
     if wi.z > 0.0 && wi_world.dot(hit.geometric) > 0.0 {
-        let f = brdf.eval(wi, wo);
+        let f = brdf.eval(wi, wo) * hit.shadow_terminator(wi_world);
         if f != DVec3::ZERO {
             let (pe, pb) = (env.pdf(wi_world), brdf.pdf(wo, wi));
             if pe > 0.0 && visible(wi_world) {
@@ -332,7 +382,7 @@ fn direct_lighting(
     let wi = brdf.sample(wo, [rng.random(), rng.random(), rng.random()]);
     let wi_world = hit.frame * wi;
     if wi.z > 0.0 && wi_world.dot(hit.geometric) > 0.0 {
-        let f = brdf.eval(wi, wo);
+        let f = brdf.eval(wi, wo) * hit.shadow_terminator(wi_world);
         if f != DVec3::ZERO {
             let (pe, pb) = (env.pdf(wi_world), brdf.pdf(wo, wi));
             if pb > 0.0 && visible(wi_world) {
@@ -353,7 +403,11 @@ fn direct_lighting(
             continue;
         }
         if !blocked(wi_world, dist) {
-            total += brdf.eval(wi, wo) * DVec3::from(light.intensity_toward(-wi_world)) * wi.z / (dist * dist);
+            total += brdf.eval(wi, wo)
+                * hit.shadow_terminator(wi_world)
+                * DVec3::from(light.intensity_toward(-wi_world))
+                * wi.z
+                / (dist * dist);
         }
     }
     // One sample of each area light (they are not geometry, so BRDF samples never reach them).
@@ -365,7 +419,7 @@ fn direct_lighting(
             continue;
         }
         if !blocked(wi_world, dist) {
-            total += brdf.eval(wi, wo) * radiance * wi.z * g / pdf;
+            total += brdf.eval(wi, wo) * hit.shadow_terminator(wi_world) * radiance * wi.z * g / pdf;
         }
     }
     total
@@ -546,12 +600,15 @@ mod tests {
             area_lights: &[],
             point_lights: &[],
             normal_maps: &[],
+            textbook_normal_maps: false,
         }
     }
 
     /// A constant normal map tilting the shading normal by 35° about the tangent shades a
-    /// glossy floor exactly as the same tilt written into the mesh's normals does (the same
-    /// samples, the same frames), and visibly unlike the untilted floor.
+    /// glossy floor, in the textbook rule, exactly as the same tilt written into the mesh's
+    /// normals does (the same samples, the same frames), and visibly unlike the untilted floor.
+    /// In the production rule the shadow terminator dims it, never brightens it, and only a
+    /// little where the light is high.
     #[test]
     fn a_normal_map_shades_as_the_normals_it_encodes() {
         let flat = mesh::plane(4.0, 4);
@@ -576,18 +633,28 @@ mod tests {
             ..Default::default()
         };
         let camera = PinholeCamera { position: DVec3::new(0.0, 2.0, 3.0), target: DVec3::ZERO, fov_y_deg: 30.0 };
-        let render_with = |mesh: &mesh::Mesh, maps: &[Option<(&crate::normal_filtering::NormalMap, f64)>]| {
-            let meshes = MeshSet { meshes: vec![mesh.clone()] };
-            let scene = RayScene::build(&meshes);
-            let rs = ReferenceScene {
-                normal_maps: maps,
-                ..lit(&scene, &meshes, &environment, Brdf::from_material(&material))
+        let render_with =
+            |mesh: &mesh::Mesh, maps: &[Option<(&crate::normal_filtering::NormalMap, f64)>], textbook: bool| {
+                let meshes = MeshSet { meshes: vec![mesh.clone()] };
+                let scene = RayScene::build(&meshes);
+                let rs = ReferenceScene {
+                    normal_maps: maps,
+                    textbook_normal_maps: textbook,
+                    ..lit(&scene, &meshes, &environment, Brdf::from_material(&material))
+                };
+                render(&rs, &camera, (16, 16), 16, 3, &CancelToken::default(), &|_| {}).unwrap().pixels
             };
-            render(&rs, &camera, (16, 16), 16, 3, &CancelToken::default(), &|_| {}).unwrap().pixels
-        };
-        let mapped = render_with(&flat, &[Some((&map, 1.0))]);
-        let written = render_with(&tilted, &[]);
-        let unmapped = render_with(&flat, &[]);
+        let mapped = render_with(&flat, &[Some((&map, 1.0))], true);
+        let written = render_with(&tilted, &[], true);
+        let unmapped = render_with(&flat, &[], true);
+        let production = render_with(&flat, &[Some((&map, 1.0))], false);
+        let (sum, sum_mapped): (f32, f32) = (production.iter().flatten().sum(), mapped.iter().flatten().sum());
+        assert!(
+            production.iter().flatten().zip(mapped.iter().flatten()).all(|(p, m)| *p <= m * (1.0 + 1e-5) + 1e-9)
+                && sum > 0.8 * sum_mapped
+                && sum < 0.999 * sum_mapped,
+            "the terminator dims the map's light a little: {sum} of {sum_mapped}"
+        );
         let scale = written.iter().flatten().fold(0.0f32, |m, v| m.max(*v));
         let differ = |a: &[[f32; 3]], b: &[[f32; 3]]| {
             a.iter().zip(b).flat_map(|(p, q)| (0..3).map(move |c| (p[c] - q[c]).abs())).fold(0.0f32, f32::max)

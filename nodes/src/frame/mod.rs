@@ -246,6 +246,7 @@ impl FrameInputs {
             area_lights: self.area_lights.as_ref().map_or(&[], |a| a.emitters.as_slice()),
             point_lights: &self.medium.lights,
             normal_maps: &normal_maps,
+            textbook_normal_maps: false,
         };
         crate::reference::render(&rs, camera, size, self.settings.reference_samples, seed, cancel, progress)
             .map_err(|e| e.to_string())

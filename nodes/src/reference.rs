@@ -8,9 +8,9 @@
 //! wavelet projections see); environment samples pick a texel by `luminance × solid angle` and
 //! a point uniformly in its face rectangle, with the exact solid-angle density.
 //!
-//! Normal maps follow the convention Mitsuba 3 (from 3.7, its `normalmap` defaults) and Blender
-//! 4.5 share, not the textbook one that blackens every texel whose perturbed normal faces away
-//! from the view (at a grazing view, most of a bumpy surface):
+//! Normal maps follow the convention Mitsuba 3 (its `normalmap` defaults since August 2025)
+//! and Blender 4.5 share, not the textbook one that blackens every texel whose perturbed normal
+//! faces away from the view (at a grazing view, most of a bumpy surface):
 //! - **Flipped invalid normals** (Schüssler et al. 2017, *Microfacet-based normal mapping*, the
 //!   "flip" fallback): where the view lies below the perturbed normal, its tangential part is
 //!   mirrored, `(x, y, z) → (−x, −y, z)` in tangent space.

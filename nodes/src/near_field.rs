@@ -37,7 +37,7 @@ mod transport;
 
 use box_responses::*;
 use couplings::*;
-pub use frame::LightFrame;
+pub use frame::{LightFrame, light_orientation};
 pub use targets::predicted_targets;
 use targets::*;
 pub use transport::*;

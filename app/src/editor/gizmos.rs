@@ -71,14 +71,10 @@ impl Edge {
 /// `angle` degrees about the vertical (both right-handed, as the light's texture turns).
 type LightShape = (f64, f64, f64, f64);
 
-/// Light offsets to world offsets: the tilt about the width axis, then the turn.
-fn light_orientation(angle: f64, tilt: f64) -> glam::DMat3 {
-    glam::DMat3::from_rotation_y(angle.to_radians()) * glam::DMat3::from_rotation_x(tilt.to_radians())
-}
-
 /// The world point at light coordinates `(u, v) ∈ [−1, 1]²` of a light centred at `p`.
 fn on_area_light(p: [f64; 3], (width, depth, angle, tilt): LightShape, (u, v): (f64, f64)) -> [f64; 3] {
-    let offset = light_orientation(angle, tilt) * glam::DVec3::new(u * width / 2.0, 0.0, v * depth / 2.0);
+    let offset = lightloom_nodes::near_field::light_orientation(angle, tilt)
+        * glam::DVec3::new(u * width / 2.0, 0.0, v * depth / 2.0);
     (glam::DVec3::from(p) + offset).to_array()
 }
 
@@ -456,12 +452,12 @@ impl EditorApp {
         let moved = match gizmo.target {
             // An area light slides in its own plane; with Shift it moves along its normal only.
             GizmoTarget::AreaLight { angle, tilt, .. } if ui.input(|i| i.modifiers.shift) => {
-                let normal = light_orientation(angle, tilt) * glam::DVec3::Y;
+                let normal = lightloom_nodes::near_field::light_orientation(angle, tilt) * glam::DVec3::Y;
                 let lifted = camera.drag_point(from, drag, f64::from(rect.height()));
                 from + normal * (lifted - from).dot(normal)
             }
             GizmoTarget::AreaLight { angle, tilt, .. } => {
-                let normal = light_orientation(angle, tilt) * glam::DVec3::Y;
+                let normal = lightloom_nodes::near_field::light_orientation(angle, tilt) * glam::DVec3::Y;
                 camera.drag_point_in_plane(from, normal, drag, f64::from(rect.height()))
             }
             _ => camera.drag_point(from, drag, f64::from(rect.height())),

@@ -39,8 +39,7 @@ impl LightFrame {
         if self.is_world() {
             return DMat3::IDENTITY;
         }
-        let turn = DMat3::from_rotation_y(self.turn.to_radians());
-        turn * DMat3::from_rotation_x(self.tilt.to_radians()) * turn.transpose()
+        light_orientation(self.turn, self.tilt) * DMat3::from_rotation_y(-self.turn.to_radians())
     }
 
     /// `Rᵀ`: world to light frame.
@@ -52,6 +51,12 @@ impl LightFrame {
     pub fn facing(&self) -> DVec3 {
         self.to_world() * DVec3::NEG_Y
     }
+}
+
+/// A light's own coordinates (width along `x`, depth along `z`, facing `−y`) to world offsets
+/// from its centre: the tilt about the width axis, then the turn about `+y` (degrees).
+pub fn light_orientation(turn: f64, tilt: f64) -> DMat3 {
+    DMat3::from_rotation_y(turn.to_radians()) * DMat3::from_rotation_x(tilt.to_radians())
 }
 
 #[cfg(test)]

@@ -45,7 +45,7 @@ impl AreaEmitter {
 
     /// Light coordinates to world offsets from the centre: tilt about the width axis (x), then turn about +y.
     fn orientation(&self) -> glam::DMat3 {
-        glam::DMat3::from_rotation_y(self.angle.to_radians()) * glam::DMat3::from_rotation_x(self.tilt.to_radians())
+        crate::near_field::light_orientation(self.angle, self.tilt)
     }
 
     /// The world point at light coordinates `(u, v) ∈ [0, 1)²`.

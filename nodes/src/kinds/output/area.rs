@@ -81,6 +81,11 @@ crate::stage_type!(Response, "one light coefficient's response", encoding = 1, |
 /// a light with more coefficients × vertices is shaded without keeping them.
 const RESPONSE_MEMO_BYTES: usize = 512 << 20;
 
+thread_local! {
+    /// Each thread's world directions and ray list for one receiver's bundle of top-face rays.
+    static BUNDLE: std::cell::RefCell<(Vec<glam::Vec3A>, Vec<u32>)> = const { std::cell::RefCell::new((Vec::new(), Vec::new())) };
+}
+
 /// Receivers per cancellation check and progress step of the transport.
 const TRANSPORT_CHUNK: usize = 512;
 
@@ -221,6 +226,27 @@ fn points_and_normals(receivers: &Receivers) -> (Vec<DVec3>, Vec<DVec3>) {
     (0..receivers.len()).map(|i| receivers.point(i)).unzip()
 }
 
+/// One receiver's top-face rays as one bundle, from `origin` along the plane intercepts `up`
+/// (in the light's frame, turned into the world by `to_world`): they rise one unit per unit of
+/// their parameter, so all of them end at the `ceiling` at one reach.
+fn trace_bundle(
+    scene: &RayScene,
+    to_world: glam::DMat3,
+    ceiling: f64,
+    origin: DVec3,
+    up: &[DVec3],
+    blocked: &mut [bool],
+) {
+    let reach = (ceiling - origin.y).max(0.0) as f32;
+    BUNDLE.with_borrow_mut(|(directions, rays)| {
+        directions.clear();
+        directions.extend(up.iter().map(|&d| (to_world * d).as_vec3a()));
+        rays.clear();
+        rays.extend(0..directions.len() as u32);
+        scene.occlude_bundle((to_world * origin).as_vec3a(), directions, rays, reach, blocked);
+    });
+}
+
 /// `values` (points or directions) turned into `frame`; borrowed as they are in the world's.
 fn in_frame<'a>(frame: &LightFrame, values: &'a [DVec3]) -> std::borrow::Cow<'a, [DVec3]> {
     if frame.is_world() {
@@ -317,13 +343,8 @@ pub(super) fn transport_of(
             for start in (0..receivers.len()).step_by(TRANSPORT_CHUNK) {
                 ctx.check_cancel()?;
                 let end = (start + TRANSPORT_CHUNK).min(receivers.len());
-                // Each receiver's cells as one bundle: the directions rise one unit per unit of
-                // their parameter, so all of them end at the ceiling at one reach.
                 let part = face_visibility(*face, &origins[start..end], &normals[start..end], |origin, up, blocked| {
-                    let reach = (ceiling - origin.y).max(0.0) as f32;
-                    let directions: Vec<glam::Vec3A> = up.iter().map(|&d| (to_world * d).as_vec3a()).collect();
-                    let rays: Vec<u32> = (0..directions.len() as u32).collect();
-                    scene.occlude_bundle((to_world * origin).as_vec3a(), &directions, &rays, reach, blocked);
+                    trace_bundle(scene, to_world, ceiling, origin, up, blocked)
                 });
                 visibility.append(part);
                 ctx.progress((f as f64 + end as f64 / receivers.len().max(1) as f64) / faces.len() as f64);

@@ -306,12 +306,62 @@ fn ndf_direct_diffuse(ndf: ptr<function, SurfaceNdf>, l: vec3<f32>) -> f32 {
         return max(mu, 0.0);
     }
     let t = mu / sigma;
-    // Φ(t) by Abramowitz-Stegun 7.1.26, as the CPU twin.
+    return mu * ndf_normal_cdf(t) + sigma * exp(-0.5 * t * t) * 0.39894228;
+}
+
+// Φ(t), the standard normal distribution, by Abramowitz-Stegun 7.1.26 (nodes normal_cdf).
+fn ndf_normal_cdf(t: f32) -> f32 {
     let x = abs(t) * 0.70710678;
     let k = 1.0 / (1.0 + 0.3275911 * x);
     let erfc = k * (0.254829592 + k * (-0.284496736 + k * (1.421413741 + k * (-1.453152027 + k * 1.061405429)))) * exp(-x * x);
-    let cdf = select(0.5 * erfc, 1.0 - 0.5 * erfc, t >= 0.0);
-    return mu * cdf + sigma * exp(-0.5 * t * t) * 0.39894228;
+    return select(0.5 * erfc, 1.0 - 0.5 * erfc, t >= 0.0);
+}
+
+// Part `part` of a lobe of normals (unit mean `mu`, concentration `kappa`) on a surface of
+// unperturbed normal `g`, seen from `wo`, as the reference shades it (nodes/src/reference.rs,
+// after Mitsuba 3's `normalmap`): part 0 the normals the view lies above, part 1 those it lies
+// below, flipped (their tangential part mirrored: n -> 2(n.g)g - n). Returns the part's mean
+// (xyz) and its share of the lobe (w; 0 for none). `n.wo` over the lobe is taken as Gaussian,
+// of mean `mu.wo` and variance `(1 - (mu.wo)^2)/kappa`; each part's mean is the lobe's moved
+// towards or away from `wo` to the truncated Gaussian's mean. At grazing views much of a bumpy
+// map lies below the view: drawing those normals black loses its light.
+fn ndf_seen_part(mu: vec3<f32>, kappa: f32, g: vec3<f32>, wo: vec3<f32>, part: i32) -> vec4<f32> {
+    let m = dot(mu, wo);
+    let across = sqrt(max(1.0 - m * m, 0.0));
+    let sigma = across / sqrt(max(kappa, 1e-9));
+    let towards = wo - m * mu;
+    var below = select(0.0, 1.0, m <= 0.0);
+    var mean = mu;
+    if (sigma > 1e-6 && across > 1e-6) {
+        let z = m / sigma;
+        below = 1.0 - ndf_normal_cdf(z);
+        let share = select(1.0 - below, below, part == 1);
+        if (share < 1e-4) {
+            return vec4<f32>(mu, 0.0);
+        }
+        // The truncated Gaussian's mean of n.wo, as an angle towards wo.
+        let shift = select(1.0, -1.0, part == 1) * sigma * exp(-0.5 * z * z) * 0.39894228 / share;
+        mean = normalize(mu + towards / across * (shift / across));
+    }
+    if (part == 0) {
+        return vec4<f32>(mean, 1.0 - below);
+    }
+    return vec4<f32>(2.0 * dot(mean, g) * g - mean, below);
+}
+
+// The shadow terminator's weight (nodes/src/reference.rs `Hit::shadow_terminator`, after Estevez
+// et al. 2019) for light along `wi` on a surface of unperturbed normal `g` shading with the
+// perturbed normal `n`: 2/(1 + sqrt(1 + α² tan²θ_i)), θ_i from g, α² = min(tan²θ_n/8, 1).
+fn ndf_shadow_terminator(n: vec3<f32>, g: vec3<f32>, wi: vec3<f32>) -> f32 {
+    let c = dot(n, g);
+    let c2 = max(c * c, 1e-12);
+    let a2 = min((1.0 - c2) / c2 / 8.0, 1.0);
+    if (a2 <= 0.0) {
+        return 1.0;
+    }
+    let ci = dot(g, wi);
+    let ci2 = max(ci * ci, 1e-12);
+    return 2.0 / (1.0 + sqrt(1.0 + a2 * max((1.0 - ci2) / ci2, 0.0)));
 }
 
 // A specular lobe seen through a vMF lobe of normals of concentration kappa, and the factor its

@@ -5,7 +5,7 @@
 #define_import_path lightloom::sun
 
 #import lightloom::common::{SpecularLobe, frame_tangent}
-#import lightloom::normal_map::{NDF_SINGLE_NORMAL, SurfaceNdf, ndf_mapped, ndf_direct_diffuse, ndf_widened_lobe}
+#import lightloom::normal_map::{NDF_SINGLE_NORMAL, SurfaceNdf, ndf_mapped, ndf_direct_diffuse, ndf_widened_lobe, ndf_seen_part, ndf_shadow_terminator}
 
 const MAX_SUN_DIRECTIONS: i32 = 32;
 const SUN_MATERIALS: i32 = 8;
@@ -120,13 +120,87 @@ fn sun_lobe_variance(lobe: SpecularLobe) -> f32 {
     return 0.0;
 }
 
-// Lobe `j` of the pixel's normals (normal_map.wgsl) lit from `d`: its weight times material
-// m's lobe about its mean, widened by a concentration `kappa` (with the factor that keeps its
-// integral), toward `wo`, times the cosine to that mean.
-fn sun_ndf_lobe(ndf: ptr<function, SurfaceNdf>, j: i32, m: u32, kappa: f32, tangent: vec3<f32>, d: vec3<f32>, wo: vec3<f32>) -> f32 {
-    let mu = (*ndf).lobes[j].xyz;
-    let widened = ndf_widened_lobe(sun.lobes[m], kappa);
-    return (*ndf).lobes[j].w * widened.factor * sun_lobe_of(widened.lobe, mu, tangent, d, wo) * max(dot(mu, d), 0.0);
+// The concentration of the normals a lobe reflects `wi` to `wo` through, about the half vector
+// (the inverse of sun_lobe_variance's per-axis variance, halved): 2/α² for GGX and Ward (along the
+// sharper axis), s for Blinn-Phong, 4s for Phong (its lobe is about the mirror direction, which
+// turns twice as far as the normal).
+fn sun_lobe_concentration(lobe: SpecularLobe) -> f32 {
+    return 0.5 / max(sun_lobe_variance(lobe), 1e-9);
+}
+
+// Material `lobe` reflecting `wi` to `wo` through a lobe of normals about unit `mu` of
+// concentration `kappa` (nodes/src/brdf.rs `Lobe::widened`), without its colour, times the cosine:
+// the lobe's distribution widened by the normals' spread, about `mu`, times the rest of the BRDF
+// (masking of the unwidened lobe, Fresnel, `1/(4 cos_i cos_o)`) and the cosine at the normal
+// that does the reflecting, `n* ∝ κ_b h + κ mu` (the product of the lobe of normals and the
+// material's own lobe about the half vector, of concentration κ_b: sun_lobe_concentration).
+// Evaluating those at `mu` instead loses most of the light at grazing views, where `cos_o`
+// varies most across the lobe; masking by the widened lobe would count the map's spread as
+// microgeometry that shadows, which a normal map is not. `tangent` gives anisotropic lobes
+// their frame; `g` is the surface's unperturbed normal, for the shadow terminator
+// (nodes/src/reference.rs) at `n*`.
+fn sun_lobe_through(lobe: SpecularLobe, kappa: f32, mu: vec3<f32>, g: vec3<f32>, tangent: vec3<f32>, wi: vec3<f32>, wo: vec3<f32>) -> f32 {
+    let widened = ndf_widened_lobe(lobe, kappa);
+    let h_world = normalize(wi + wo);
+    let k = min(kappa, NDF_SINGLE_NORMAL);
+    let star = normalize(sun_lobe_concentration(lobe) * h_world + k * mu);
+    let cos_i = dot(star, wi);
+    let cos_o = dot(star, wo);
+    if (cos_i <= 0.0 || cos_o <= 0.0 || dot(g, wi) <= 0.0) {
+        return 0.0;
+    }
+    let model = lobe.model;
+    let f0 = lobe.reflectance;
+    var value = 0.0;
+    if (model == 1u) {
+        let c = max(dot(wi, reflect(-wo, mu)), 0.0);
+        let s = widened.lobe.sharpness;
+        value = f0 * (s + 2.0) / (2.0 * SUN_PI) * pow(c, s) * cos_i;
+    } else if (model == 2u) {
+        let s = widened.lobe.sharpness;
+        value = f0 * (s + 8.0) / (8.0 * SUN_PI) * pow(max(dot(mu, h_world), 0.0), s) * cos_i;
+    } else if (model == 3u || model == 4u) {
+        let t = frame_tangent(mu, tangent);
+        let b = cross(mu, t);
+        let h = vec3<f32>(dot(h_world, t), dot(h_world, b), dot(h_world, mu));
+        if (h.z <= 0.0) {
+            return 0.0;
+        }
+        let ax = widened.lobe.sharpness;
+        let ay = widened.lobe.alpha_y;
+        if (model == 3u) {
+            let s = (h.x / ax) * (h.x / ax) + (h.y / ay) * (h.y / ay) + h.z * h.z;
+            let d = 1.0 / (SUN_PI * ax * ay * s * s);
+            // Masking by the material's own roughness, in the frame of n*.
+            let ts = frame_tangent(star, tangent);
+            let bs = cross(star, ts);
+            let li = vec3<f32>(dot(wi, ts), dot(wi, bs), cos_i);
+            let lo = vec3<f32>(dot(wo, ts), dot(wo, bs), cos_o);
+            let masking = 1.0 / (1.0 + sun_ggx_lambda(li, lobe.sharpness, lobe.alpha_y) + sun_ggx_lambda(lo, lobe.sharpness, lobe.alpha_y));
+            let f = f0 + (1.0 - f0) * pow(1.0 - clamp(dot(wi, h_world), 0.0, 1.0), 5.0);
+            value = f * d * masking / (4.0 * cos_o);
+        } else {
+            let e = ((h.x / ax) * (h.x / ax) + (h.y / ay) * (h.y / ay)) / (h.z * h.z);
+            value = f0 * exp(-e) / (4.0 * SUN_PI * ax * ay) * sqrt(cos_i / cos_o);
+        }
+    }
+    return widened.factor * value * ndf_shadow_terminator(star, g, wi);
+}
+
+// Lobe `j` of the pixel's normals (normal_map.wgsl) lit from `d` and seen from `wo`, its
+// concentration taken as `kappa`, through material m's lobe (sun_lobe_through), with its weight.
+// Where the view lies below part of the lobe, that part is drawn as the reference draws such
+// normals, flipped (normal_map.wgsl ndf_seen_part).
+fn sun_ndf_lobe(ndf: ptr<function, SurfaceNdf>, j: i32, m: u32, kappa: f32, g: vec3<f32>, tangent: vec3<f32>, d: vec3<f32>, wo: vec3<f32>) -> f32 {
+    let lobe = (*ndf).lobes[j];
+    var sum = 0.0;
+    for (var part = 0; part < 2; part = part + 1) {
+        let seen = ndf_seen_part(lobe.xyz, kappa, g, wo, part);
+        if (seen.w > 0.0) {
+            sum = sum + seen.w * sun_lobe_through(sun.lobes[m], kappa, seen.xyz, g, tangent, d, wo);
+        }
+    }
+    return lobe.w * sum;
 }
 
 // Light reflected towards `wo` (unit, to the viewer) at `p` (normal `n`, tangent `tangent`)
@@ -184,12 +258,12 @@ fn sun_direct(p: vec3<f32>, n: vec3<f32>, tangent: vec3<f32>, wo: vec3<f32>, kd:
             let kappa = (*ndf).kappas[j];
             if (kappa < NDF_SINGLE_NORMAL && 1.0 / kappa + own > r2 * 0.25) {
                 let wide = 1.0 / (1.0 / kappa + r2 / 16.0);
-                lobes = lobes + f32(count) * sun_ndf_lobe(ndf, j, m, wide, tangent, sun.axis, wo);
+                lobes = lobes + f32(count) * sun_ndf_lobe(ndf, j, m, wide, n, tangent, sun.axis, wo);
             } else {
                 for (var k = 0; k < count; k = k + 1) {
                     let d = sun.directions[k];
                     if (dot(n, d) > 0.0) {
-                        lobes = lobes + sun_ndf_lobe(ndf, j, m, kappa, tangent, d, wo);
+                        lobes = lobes + sun_ndf_lobe(ndf, j, m, kappa, n, tangent, d, wo);
                     }
                 }
             }
@@ -214,7 +288,7 @@ fn sun_direct(p: vec3<f32>, n: vec3<f32>, tangent: vec3<f32>, wo: vec3<f32>, kd:
             if (glossy) {
                 var lobes = 0.0;
                 for (var j = 0; j < (*ndf).count; j = j + 1) {
-                    lobes = lobes + sun_ndf_lobe(ndf, j, m, (*ndf).kappas[j], tangent, d, wo);
+                    lobes = lobes + sun_ndf_lobe(ndf, j, m, (*ndf).kappas[j], n, tangent, d, wo);
                 }
                 reflected = reflected + colour * lobes;
             }

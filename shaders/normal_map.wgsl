@@ -349,6 +349,24 @@ fn ndf_seen_part(mu: vec3<f32>, kappa: f32, g: vec3<f32>, wo: vec3<f32>, part: i
     return vec4<f32>(2.0 * dot(mean, g) * g - mean, below);
 }
 
+// Rewrites the pixel's lobes of normals as the view from `wo` sees them on a surface of
+// unperturbed normal `g` (ndf_seen_part): each lobe becomes its part above the view, and its part
+// below, flipped, is added as a lobe of its own (merged into the nearest where the budget is
+// spent, as ndf_insert_lobe merges). Once a pixel, before lights loop over the lobes.
+fn ndf_seen_from(ndf: ptr<function, SurfaceNdf>, g: vec3<f32>, wo: vec3<f32>) {
+    let count = (*ndf).count;
+    for (var j = 0; j < count; j = j + 1) {
+        let lobe = (*ndf).lobes[j];
+        let kappa = (*ndf).kappas[j];
+        let above = ndf_seen_part(lobe.xyz, kappa, g, wo, 0);
+        let below = ndf_seen_part(lobe.xyz, kappa, g, wo, 1);
+        (*ndf).lobes[j] = vec4<f32>(above.xyz, lobe.w * above.w);
+        if (below.w > 0.0) {
+            ndf_insert_lobe(ndf, below.xyz, lobe.w * below.w, kappa);
+        }
+    }
+}
+
 // The shadow terminator's weight (nodes/src/reference.rs `Hit::shadow_terminator`, after Estevez
 // et al. 2019) for light along `wi` on a surface of unperturbed normal `g` shading with the
 // perturbed normal `n`: 2/(1 + sqrt(1 + α² tan²θ_i)), θ_i from g, α² = min(tan²θ_n/8, 1).

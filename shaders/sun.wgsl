@@ -5,7 +5,7 @@
 #define_import_path lightloom::sun
 
 #import lightloom::common::{SpecularLobe, frame_tangent}
-#import lightloom::normal_map::{NDF_SINGLE_NORMAL, SurfaceNdf, ndf_mapped, ndf_direct_diffuse, ndf_widened_lobe, ndf_seen_part, ndf_shadow_terminator}
+#import lightloom::normal_map::{NDF_SINGLE_NORMAL, SurfaceNdf, ndf_mapped, ndf_direct_diffuse, ndf_widened_lobe, ndf_seen_from, ndf_shadow_terminator}
 
 const MAX_SUN_DIRECTIONS: i32 = 32;
 const SUN_MATERIALS: i32 = 8;
@@ -160,11 +160,15 @@ fn sun_lobe_through(lobe: SpecularLobe, kappa: f32, mu: vec3<f32>, g: vec3<f32>,
         let s = widened.lobe.sharpness;
         value = f0 * (s + 8.0) / (8.0 * SUN_PI) * pow(max(dot(mu, h_world), 0.0), s) * cos_i;
     } else if (model == 3u || model == 4u) {
-        let t = frame_tangent(mu, tangent);
-        let b = cross(mu, t);
-        let h = vec3<f32>(dot(h_world, t), dot(h_world, b), dot(h_world, mu));
-        if (h.z <= 0.0) {
+        // The half vector in the frame of mu (any frame for isotropic lobes).
+        let hz = dot(h_world, mu);
+        if (hz <= 0.0) {
             return 0.0;
+        }
+        var h = vec3<f32>(sqrt(max(1.0 - hz * hz, 0.0)), 0.0, hz);
+        if (lobe.sharpness != lobe.alpha_y) {
+            let t = frame_tangent(mu, tangent);
+            h = vec3<f32>(dot(h_world, t), dot(h_world, cross(mu, t)), hz);
         }
         let ax = widened.lobe.sharpness;
         let ay = widened.lobe.alpha_y;
@@ -172,10 +176,14 @@ fn sun_lobe_through(lobe: SpecularLobe, kappa: f32, mu: vec3<f32>, g: vec3<f32>,
             let s = (h.x / ax) * (h.x / ax) + (h.y / ay) * (h.y / ay) + h.z * h.z;
             let d = 1.0 / (SUN_PI * ax * ay * s * s);
             // Masking by the material's own roughness, in the frame of n*.
-            let ts = frame_tangent(star, tangent);
-            let bs = cross(star, ts);
-            let li = vec3<f32>(dot(wi, ts), dot(wi, bs), cos_i);
-            let lo = vec3<f32>(dot(wo, ts), dot(wo, bs), cos_o);
+            var li = vec3<f32>(sqrt(max(1.0 - cos_i * cos_i, 0.0)), 0.0, cos_i);
+            var lo = vec3<f32>(sqrt(max(1.0 - cos_o * cos_o, 0.0)), 0.0, cos_o);
+            if (lobe.sharpness != lobe.alpha_y) {
+                let ts = frame_tangent(star, tangent);
+                let bs = cross(star, ts);
+                li = vec3<f32>(dot(wi, ts), dot(wi, bs), cos_i);
+                lo = vec3<f32>(dot(wo, ts), dot(wo, bs), cos_o);
+            }
             let masking = 1.0 / (1.0 + sun_ggx_lambda(li, lobe.sharpness, lobe.alpha_y) + sun_ggx_lambda(lo, lobe.sharpness, lobe.alpha_y));
             let f = f0 + (1.0 - f0) * pow(1.0 - clamp(dot(wi, h_world), 0.0, 1.0), 5.0);
             value = f * d * masking / (4.0 * cos_o);
@@ -187,20 +195,15 @@ fn sun_lobe_through(lobe: SpecularLobe, kappa: f32, mu: vec3<f32>, g: vec3<f32>,
     return widened.factor * value * ndf_shadow_terminator(star, g, wi);
 }
 
-// Lobe `j` of the pixel's normals (normal_map.wgsl) lit from `d` and seen from `wo`, its
-// concentration taken as `kappa`, through material m's lobe (sun_lobe_through), with its weight.
-// Where the view lies below part of the lobe, that part is drawn as the reference draws such
-// normals, flipped (normal_map.wgsl ndf_seen_part).
+// Lobe `j` of the pixel's normals (normal_map.wgsl), as seen from `wo` (ndf_seen_from), lit
+// from `d`, its concentration taken as `kappa`: its weight times material m's lobe through it
+// (sun_lobe_through).
 fn sun_ndf_lobe(ndf: ptr<function, SurfaceNdf>, j: i32, m: u32, kappa: f32, g: vec3<f32>, tangent: vec3<f32>, d: vec3<f32>, wo: vec3<f32>) -> f32 {
     let lobe = (*ndf).lobes[j];
-    var sum = 0.0;
-    for (var part = 0; part < 2; part = part + 1) {
-        let seen = ndf_seen_part(lobe.xyz, kappa, g, wo, part);
-        if (seen.w > 0.0) {
-            sum = sum + seen.w * sun_lobe_through(sun.lobes[m], kappa, seen.xyz, g, tangent, d, wo);
-        }
+    if (lobe.w <= 0.0) {
+        return 0.0;
     }
-    return lobe.w * sum;
+    return lobe.w * sun_lobe_through(sun.lobes[m], kappa, lobe.xyz, g, tangent, d, wo);
 }
 
 // Light reflected towards `wo` (unit, to the viewer) at `p` (normal `n`, tangent `tangent`)
@@ -208,10 +211,16 @@ fn sun_ndf_lobe(ndf: ptr<function, SurfaceNdf>, j: i32, m: u32, kappa: f32, g: v
 // material `m`'s lobe (nodes/src/brdf.rs `Brdf::eval`).
 // Through a normal map (`ndf`, normal_map.wgsl), Lambert over the NDF and the lobe per lobe of
 // normals, widened.
-fn sun_direct(p: vec3<f32>, n: vec3<f32>, tangent: vec3<f32>, wo: vec3<f32>, kd: vec3<f32>, m: u32, ndf: ptr<function, SurfaceNdf>) -> vec3<f32> {
+fn sun_direct(p: vec3<f32>, n: vec3<f32>, tangent: vec3<f32>, wo: vec3<f32>, kd: vec3<f32>, m: u32, pixel_ndf: ptr<function, SurfaceNdf>) -> vec3<f32> {
     let count = i32(sun.direction_count);
     if (count == 0) {
         return vec3<f32>(0.0);
+    }
+    // The pixel's lobes of normals as the view sees them (the part below it flipped).
+    var seen = *pixel_ndf;
+    let ndf = &seen;
+    if (ndf_mapped(ndf)) {
+        ndf_seen_from(ndf, n, wo);
     }
     let shifted = vec4<f32>(p + n * sun.normal_offset, 1.0);
     let colour = sun.lobes[m].colour;

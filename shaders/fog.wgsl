@@ -7,7 +7,7 @@
 #define_import_path lightloom::fog
 
 #import lightloom::common::{PI, SpecularLobe, globals, sh_walk, sh_walk_next}
-#import lightloom::normal_map::{SurfaceNdf, ndf_mapped, ndf_direct_diffuse, ndf_widened_lobe}
+#import lightloom::normal_map::{SurfaceNdf, ndf_mapped, ndf_direct_diffuse, ndf_widened_lobe, ndf_seen_from}
 #import lightloom::sun::sun_direct
 
 // A point light as the fog and surfaces shade it.
@@ -248,6 +248,11 @@ fn fog_shade(lit_in: vec3<f32>, p: vec3<f32>, n: vec3<f32>, tangent: vec3<f32>, 
     let mirror = reflect(view, n);
     let ks = lobe.weight * (exponent + 2.0) / (2.0 * PI) * max(dot(mirror, n), 0.0);
     let glossy = lobe.exponent > 0.0 && max(ks.r, max(ks.g, ks.b)) > 0.0;
+    // Through a normal map, the lights see the pixel's lobes of normals as the view does: the
+    // part of each it lies below flipped, as the reference shades such normals.
+    if (ndf_mapped(ndf)) {
+        ndf_seen_from(ndf, n, -view);
+    }
     // The environment's sun, when lit apart from the mode's transport (sun.wgsl).
     var lit = lit_in + sun_direct(p, n, tangent, -view, kd, material, ndf);
     var glow = vec3<f32>(0.0);

@@ -210,7 +210,9 @@ fn surface_ndf(ndf: ptr<function, SurfaceNdf>, m: u32, uv_in: vec2<f32>, n: vec3
     let dv = dpdy(uv);
     let method = i32(settings.filter_kind);
     ndf_set_flat(ndf, n);
-    if (!NORMAL_MAPS || method == 0) {
+    // A mesh without texture coordinates has 0 as its handedness (nodes mesh::VertexFrames):
+    // no map applies to it.
+    if (!NORMAL_MAPS || method == 0 || tangent.w == 0.0) {
         return;
     }
     let layer = i32(settings.layer);
@@ -332,7 +334,7 @@ fn ndf_seen_part(mu: vec3<f32>, kappa: f32, g: vec3<f32>, wo: vec3<f32>, part: i
     let towards = wo - m * mu;
     var below = select(0.0, 1.0, m <= 0.0);
     var mean = mu;
-    if (sigma > 1e-6 && across > 1e-6) {
+    if (sigma > 1e-6 && across > 1e-6 && kappa < NDF_SINGLE_NORMAL) {
         let z = m / sigma;
         below = 1.0 - ndf_normal_cdf(z);
         let share = select(1.0 - below, below, part == 1);
@@ -350,19 +352,32 @@ fn ndf_seen_part(mu: vec3<f32>, kappa: f32, g: vec3<f32>, wo: vec3<f32>, part: i
 }
 
 // Rewrites the pixel's lobes of normals as the view from `wo` sees them on a surface of
-// unperturbed normal `g` (ndf_seen_part): each lobe becomes its part above the view, and its part
-// below, flipped, is added as a lobe of its own (merged into the nearest where the budget is
-// spent, as ndf_insert_lobe merges). Once a pixel, before lights loop over the lobes.
+// unperturbed normal `g` (ndf_seen_part): each lobe becomes its part above the view (or, wholly
+// below it, its flipped self), and the flipped parts of lobes the view splits are then added as
+// lobes of their own by ndf_insert_lobe (which merges one into the nearest lobe where it lies
+// within that lobe's spread, or the budget is spent). Once a pixel, before lights loop over the lobes.
 fn ndf_seen_from(ndf: ptr<function, SurfaceNdf>, g: vec3<f32>, wo: vec3<f32>) {
     let count = (*ndf).count;
+    var flipped: array<vec4<f32>, 12>;
+    var flipped_kappa: array<f32, 12>;
     for (var j = 0; j < count; j = j + 1) {
         let lobe = (*ndf).lobes[j];
         let kappa = (*ndf).kappas[j];
         let above = ndf_seen_part(lobe.xyz, kappa, g, wo, 0);
         let below = ndf_seen_part(lobe.xyz, kappa, g, wo, 1);
-        (*ndf).lobes[j] = vec4<f32>(above.xyz, lobe.w * above.w);
-        if (below.w > 0.0) {
-            ndf_insert_lobe(ndf, below.xyz, lobe.w * below.w, kappa);
+        flipped[j] = vec4<f32>(below.xyz, 0.0);
+        flipped_kappa[j] = kappa;
+        if (above.w <= 0.0) {
+            (*ndf).lobes[j] = vec4<f32>(below.xyz, lobe.w * below.w);
+        } else {
+            (*ndf).lobes[j] = vec4<f32>(above.xyz, lobe.w * above.w);
+            flipped[j].w = lobe.w * below.w;
+        }
+    }
+    // Added only once every lobe is split, so no flipped part merges into a lobe still to split.
+    for (var j = 0; j < count; j = j + 1) {
+        if (flipped[j].w > 0.0) {
+            ndf_insert_lobe(ndf, flipped[j].xyz, flipped[j].w, flipped_kappa[j]);
         }
     }
 }

@@ -5,7 +5,7 @@
 #define_import_path lightloom::sun
 
 #import lightloom::common::{SpecularLobe, frame_tangent}
-#import lightloom::normal_map::{NDF_SINGLE_NORMAL, SurfaceNdf, ndf_mapped, ndf_direct_diffuse, ndf_widened_lobe, ndf_seen_from, ndf_shadow_terminator}
+#import lightloom::normal_map::{NDF_SINGLE_NORMAL, SurfaceNdf, ndf_mapped, ndf_direct_diffuse, ndf_widened_lobe, ndf_shadow_terminator}
 
 const MAX_SUN_DIRECTIONS: i32 = 32;
 const SUN_MATERIALS: i32 = 8;
@@ -121,11 +121,11 @@ fn sun_lobe_variance(lobe: SpecularLobe) -> f32 {
 }
 
 // The concentration of the normals a lobe reflects `wi` to `wo` through, about the half vector
-// (the inverse of sun_lobe_variance's per-axis variance, halved): 2/α² for GGX and Ward (along the
-// sharper axis), s for Blinn-Phong, 4s for Phong (its lobe is about the mirror direction, which
-// turns twice as far as the normal).
+// (the inverse of sun_lobe_variance's per-axis variance, as a vMF's κ is of its own): 2/α² for
+// GGX and Ward (along the sharper axis), s for Blinn-Phong, 4s for Phong (its lobe is about the
+// mirror direction, which turns twice as far as the normal).
 fn sun_lobe_concentration(lobe: SpecularLobe) -> f32 {
-    return 0.5 / max(sun_lobe_variance(lobe), 1e-9);
+    return 1.0 / max(sun_lobe_variance(lobe), 1e-9);
 }
 
 // Material `lobe` reflecting `wi` to `wo` through a lobe of normals about unit `mu` of
@@ -141,9 +141,16 @@ fn sun_lobe_concentration(lobe: SpecularLobe) -> f32 {
 // (nodes/src/reference.rs) at `n*`.
 fn sun_lobe_through(lobe: SpecularLobe, kappa: f32, mu: vec3<f32>, g: vec3<f32>, tangent: vec3<f32>, wi: vec3<f32>, wo: vec3<f32>) -> f32 {
     let widened = ndf_widened_lobe(lobe, kappa);
-    let h_world = normalize(wi + wo);
-    let k = min(kappa, NDF_SINGLE_NORMAL);
-    let star = normalize(sun_lobe_concentration(lobe) * h_world + k * mu);
+    let half = wi + wo;
+    if (dot(half, half) < 1e-12) {
+        return 0.0;
+    }
+    let h_world = normalize(half);
+    // A single normal (a flat map, averaged normals) reflects through itself.
+    var star = mu;
+    if (kappa < NDF_SINGLE_NORMAL) {
+        star = normalize(sun_lobe_concentration(lobe) * h_world + kappa * mu);
+    }
     let cos_i = dot(star, wi);
     let cos_o = dot(star, wo);
     if (cos_i <= 0.0 || cos_o <= 0.0 || dot(g, wi) <= 0.0) {
@@ -209,18 +216,12 @@ fn sun_ndf_lobe(ndf: ptr<function, SurfaceNdf>, j: i32, m: u32, kappa: f32, g: v
 // Light reflected towards `wo` (unit, to the viewer) at `p` (normal `n`, tangent `tangent`)
 // from the sun: per direction, the shadow test times the cosine times Lambert `kd` plus
 // material `m`'s lobe (nodes/src/brdf.rs `Brdf::eval`).
-// Through a normal map (`ndf`, normal_map.wgsl), Lambert over the NDF and the lobe per lobe of
-// normals, widened.
-fn sun_direct(p: vec3<f32>, n: vec3<f32>, tangent: vec3<f32>, wo: vec3<f32>, kd: vec3<f32>, m: u32, pixel_ndf: ptr<function, SurfaceNdf>) -> vec3<f32> {
+// Through a normal map (`ndf`, normal_map.wgsl, its lobes as the view sees them: ndf_seen_from),
+// Lambert over the NDF and the lobe per lobe of normals, widened.
+fn sun_direct(p: vec3<f32>, n: vec3<f32>, tangent: vec3<f32>, wo: vec3<f32>, kd: vec3<f32>, m: u32, ndf: ptr<function, SurfaceNdf>) -> vec3<f32> {
     let count = i32(sun.direction_count);
     if (count == 0) {
         return vec3<f32>(0.0);
-    }
-    // The pixel's lobes of normals as the view sees them (the part below it flipped).
-    var seen = *pixel_ndf;
-    let ndf = &seen;
-    if (ndf_mapped(ndf)) {
-        ndf_seen_from(ndf, n, wo);
     }
     let shifted = vec4<f32>(p + n * sun.normal_offset, 1.0);
     let colour = sun.lobes[m].colour;

@@ -86,8 +86,8 @@ def seen_parts(mu, kappa, wo):
     """shaders/normal_map.wgsl `ndf_seen_part`: (share, mean) above the view, and below, flipped."""
     m = mu @ wo
     across = sqrt(max(1 - m * m, 0.0))
-    sigma = across / sqrt(kappa)
-    if sigma < 1e-6 or across < 1e-6:
+    sigma = across / sqrt(max(kappa, 1e-9))
+    if sigma < 1e-6 or across < 1e-6 or kappa >= 1e5:
         return [(1.0, mu)] if m > 0 else [(1.0, 2 * (mu @ UP) * UP - mu)]
     z, towards = m / sigma, wo - m * mu
     below = 1 - phi_cdf(z)
@@ -119,8 +119,7 @@ def reflecting_normal(lobes, wi, wo):
     for w, mu0, kappa in lobes:
         wide = sqrt(ALPHA ** 2 + 2 / kappa)
         for share, mu in seen_parts(mu0, kappa, wo):
-            star = 2 / ALPHA ** 2 * h + min(kappa, 1e5) * mu
-            star /= np.linalg.norm(star)
+            star = mu if kappa >= 1e5 else (2 / ALPHA ** 2 * h + kappa * mu) / np.linalg.norm(2 / ALPHA ** 2 * h + kappa * mu)
             ci, co = star @ wi, star @ wo
             if ci > 0 and co > 0 and wi[1] > 0:
                 f = ggx_d(mu @ h, wide) / (1 + lam(ci, ALPHA) + lam(co, ALPHA)) / (4 * co)

@@ -10,7 +10,9 @@ crate::stage_type!(MeshSet, "meshes", |v| v.approx_bytes());
 crate::stage_type!(VertexFrames, "vertex tangent frames", |v| v.tangents.len() * 16);
 
 /// Per vertex of every mesh of a set, in order: the normal-map frame's unit tangent
-/// ([`vertex_tangents`]) and, as `w`, the bitangent's sign ([`vertex_bitangent_signs`]).
+/// ([`vertex_tangents`]) and, as `w`, the bitangent's sign ([`vertex_bitangent_signs`]), or 0 on
+/// a mesh without texture coordinates, where a normal map does not apply (the viewport draws it
+/// unmapped, as the reference does).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct VertexFrames {
     pub tangents: Vec<[f32; 4]>,
@@ -22,7 +24,8 @@ impl VertexFrames {
         for mesh in &set.meshes {
             let frames = vertex_tangents(mesh);
             let signs = bitangent_signs_with(mesh, || frames.clone());
-            tangents.extend(frames.iter().zip(signs).map(|([x, y, z], w)| [*x, *y, *z, w]));
+            let mapped = mesh.uvs.len() == mesh.positions.len();
+            tangents.extend(frames.iter().zip(signs).map(|([x, y, z], w)| [*x, *y, *z, if mapped { w } else { 0.0 }]));
         }
         Self { tangents }
     }

@@ -365,6 +365,12 @@ fn a_flat_map_draws_the_unmapped_picture_and_the_furnace_stays_white() {
 /// are unwrapped), material `bumpy` with a constant normal texture leaning 15° up the image (a
 /// `data:` PNG) at `scale`; with TANGENT (w −1 on the mirrored half) when `authored`.
 fn mirrored_floor_gltf(dir: &Path, authored: bool, scale: f64) -> std::path::PathBuf {
+    floor_gltf(dir, Some(authored), scale)
+}
+
+/// [`mirrored_floor_gltf`], or with `texture_coordinates` `None` the same floor without
+/// TEXCOORD_0 (nor TANGENT).
+fn floor_gltf(dir: &Path, texture_coordinates: Option<bool>, scale: f64) -> std::path::PathBuf {
     // Little enough that the camera, 35° up, never sees a leaning normal from below.
     let lean = 15f64.to_radians();
     let encode = |c: f64| ((c + 1.0) / 2.0 * 255.0).round() as u8;
@@ -396,10 +402,14 @@ fn mirrored_floor_gltf(dir: &Path, authored: bool, scale: f64) -> std::path::Pat
     bin.extend(floats(&tangents.concat()));
     let indices_at = bin.len();
     bin.extend(indices.iter().flat_map(|i| i.to_le_bytes()));
-    let tangent_attribute = if authored { r#","TANGENT":3"# } else { "" };
+    let tangent_attribute = match texture_coordinates {
+        Some(true) => r#","TEXCOORD_0":2,"TANGENT":3"#,
+        Some(false) => r#","TEXCOORD_0":2"#,
+        None => "",
+    };
     let json = format!(
         r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[0]}}],"nodes":[{{"mesh":0}}],
-        "meshes":[{{"primitives":[{{"attributes":{{"POSITION":0,"NORMAL":1,"TEXCOORD_0":2{tangent_attribute}}},"indices":4,"material":0}}]}}],
+        "meshes":[{{"primitives":[{{"attributes":{{"POSITION":0,"NORMAL":1{tangent_attribute}}},"indices":4,"material":0}}]}}],
         "materials":[{{"name":"bumpy","normalTexture":{{"index":0,"scale":{scale}}}}}],
         "textures":[{{"source":0}}],"images":[{{"uri":"data:image/png;base64,{png}"}}],
         "buffers":[{{"byteLength":{len},"uri":"data:application/octet-stream;base64,{bin}"}}],
@@ -414,7 +424,7 @@ fn mirrored_floor_gltf(dir: &Path, authored: bool, scale: f64) -> std::path::Pat
         bin = base64::encode(&bin),
         len = bin.len(),
     );
-    let path = dir.join(format!("floor-{authored}.gltf"));
+    let path = dir.join(format!("floor-{texture_coordinates:?}.gltf"));
     std::fs::write(&path, json).unwrap();
     path
 }
@@ -529,4 +539,32 @@ fn per_vertex_highlights_see_the_normal_map() {
             assert!((energy / bias - 1.0).abs() < 0.2, "{mode} at {d} m: energy {energy}, the mode's bias {bias}");
         }
     }
+}
+
+/// A normal map is sampled at texture coordinates: a mesh without them (the floor's glTF with no
+/// TEXCOORD_0) is drawn unmapped, in the viewport as in the reference, and the frame's notes say
+/// so, naming the mesh. It was drawn with the texels about UV (0, 0) everywhere, here the map's
+/// 15° lean over the whole floor.
+#[test]
+fn a_mesh_without_texture_coordinates_is_drawn_without_the_map() {
+    let gpu = GpuContext::headless().expect("a wgpu device (lavapipe on machines without a GPU)");
+    let mut renderer = ViewportRenderer::new(&gpu);
+    let engine = Engine::in_memory();
+    let dir = tempfile::tempdir().unwrap();
+    let (_, view) = camera([0.0; 3], 6.0);
+    let file = floor_gltf(dir.path(), None, 1.0);
+    let shape = format!(r#"Gltf(file: "{}")"#, file.display());
+    let mut graph = project(&shape, GLOSSY, Light::Sun, 1.0, dir.path());
+    graph.set_param("bumpy", "normal_map", ParamValue::Path(file.display().to_string())).unwrap();
+    let mapped = frame(&engine, &graph);
+    assert!(mapped.mesh_frame_material(0).normal.is_some(), "the glTF's normal texture is not used");
+    let note = mapped.lobe_limits.iter().find(|(node, why)| node == "bumpy" && why.contains("no texture coordinates"));
+    assert!(note.is_some(), "no note says the map does not apply: {:?}", mapped.lobe_limits);
+    let pixels = render(&gpu, &mut renderer, &mapped, &view);
+    graph.set_param("bumpy", "normal_map", ParamValue::Path(String::new())).unwrap();
+    let flat = render(&gpu, &mut renderer, &frame(&engine, &graph), &view);
+    let worst =
+        pixels.iter().zip(&flat).flat_map(|(a, b)| (0..3).map(move |c| (a[c] - b[c]).abs())).fold(0.0, f32::max);
+    let mean = flat.iter().map(|p| p[1]).sum::<f32>() / flat.len() as f32;
+    assert!(mean > 0.0 && worst <= 1e-6 * mean.max(1.0), "the map changed the picture by up to {worst} (mean {mean})");
 }

@@ -125,6 +125,7 @@ impl FrameInputs {
         ignored_inputs.extend(unmatched_note(&materials, &frame.unmatched));
         let shadowed = !matches!(g.mode, Mode::ShIrradiance);
         let normal_maps = NormalMapFrame::new(&materials, light, shadowed, &mut normal_notes);
+        normal_maps::note_meshes_without_uvs(&geometry, &materials, &normal_maps, &mut normal_notes);
         let sun = frame.sun;
         let mut lobe_limits = lobe_limits::lobe_limits(graph, output, &scene, requested, &materials, sun.is_some());
         lobe_limits.extend(normal_notes);

@@ -103,6 +103,44 @@ impl NormalMapFrame {
     }
 }
 
+/// A normal map is sampled at texture coordinates: on a mesh without them it does not apply (the
+/// viewport draws such a mesh unmapped, as the reference does; [`crate::mesh::VertexFrames`]).
+/// Per material whose map the frame shows, the meshes it leaves unmapped go to `notes`.
+pub(super) fn note_meshes_without_uvs(
+    geometry: &Geometry,
+    materials: &[FrameMaterial],
+    maps: &NormalMapFrame,
+    notes: &mut Vec<(String, String)>,
+) {
+    let Some(set) = geometry.meshes.value.get::<crate::mesh::MeshSet>() else { return };
+    for (index, material) in materials.iter().enumerate() {
+        if !maps.materials.get(index).is_some_and(Option::is_some) {
+            continue;
+        }
+        let unmapped: Vec<&str> = set
+            .meshes
+            .iter()
+            .zip(&geometry.mesh_materials)
+            .filter(|(mesh, m)| **m as usize == index && mesh.uvs.len() != mesh.positions.len())
+            .map(|(mesh, _)| mesh.name.as_str())
+            .collect();
+        if unmapped.is_empty() {
+            continue;
+        }
+        let shown: Vec<String> = unmapped.iter().take(3).map(|n| format!("`{n}`")).collect();
+        let more = if unmapped.len() > 3 { format!(" and {} more", unmapped.len() - 3) } else { String::new() };
+        notes.push((
+            material.node.clone(),
+            format!(
+                "its normal map does not apply to {}{more}: {} no texture coordinates, so {} drawn without it",
+                shown.join(", "),
+                if unmapped.len() == 1 { "it has" } else { "they have" },
+                if unmapped.len() == 1 { "it is" } else { "they are" },
+            ),
+        ));
+    }
+}
+
 /// The stages of `material`'s normal map a frame shades with: none without a map; the vMF
 /// lobes only where that filter is chosen.
 pub fn normal_map_stages(graph: &Graph, material: &str) -> Vec<StageRef> {

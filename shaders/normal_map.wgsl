@@ -96,6 +96,11 @@ struct SurfaceNdf {
     second: mat3x3<f32>,
     // Toksvig's concentration from |E[n]|.
     kappa: f32,
+    // The SH NDF's spread about its mean direction, from its band 2 (the second moments): the
+    // variances of the normals' tangential components along `axis` (the wider) and across it
+    // (0 for the other filters, which take the lobes' concentrations alone).
+    spread: vec2<f32>,
+    axis: vec3<f32>,
     // The highlight's lobes of normals: xyz unit mean, w weight; and their concentrations.
     count: i32,
     lobes: array<vec4<f32>, 12>,
@@ -126,6 +131,8 @@ fn ndf_set_flat(ndf: ptr<function, SurfaceNdf>, n: vec3<f32>) {
     (*ndf).mean = n;
     (*ndf).second = mat3x3<f32>(n * n.x, n * n.y, n * n.z);
     (*ndf).kappa = NDF_MAX_KAPPA;
+    (*ndf).spread = vec2<f32>(0.0);
+    (*ndf).axis = vec3<f32>(0.0);
     (*ndf).count = 1;
     (*ndf).lobes[0] = vec4<f32>(n, 1.0);
     (*ndf).kappas[0] = NDF_MAX_KAPPA;
@@ -232,6 +239,9 @@ fn surface_ndf(ndf: ptr<function, SurfaceNdf>, m: u32, uv_in: vec2<f32>, n: vec3
     (*ndf).second = frame * second_t * transpose(frame);
     (*ndf).kappa = ndf_kappa(length(a.xyz));
     (*ndf).kappas[0] = (*ndf).kappa;
+    if (method == 1) {
+        ndf_set_spread(ndf, t);
+    }
     let levels = i32(settings.fitted_levels);
     if (method != 2 || levels == 0) {
         return;
@@ -248,6 +258,36 @@ fn surface_ndf(ndf: ptr<function, SurfaceNdf>, m: u32, uv_in: vec2<f32>, n: vec3
     if (low + 1 < levels && share > 0.0) {
         ndf_add_level(ndf, m, low + 1, uv, map_size, frame, share);
     }
+}
+
+// The SH NDF's own lobe (method 1): its band 2, the second moments E[n n^T], give the covariance
+// of the normals' components across the mean direction, whose eigenvalues are the variances
+// along its principal axes (LEAN mapping's anisotropic lobe, Olano and Baker 2010, on unit
+// normals). Toksvig's single concentration sees only their sum, from |E[n]|: a ribbed map
+// spreads its normals along one axis alone, which one concentration widens both ways. The
+// lobe's concentration for what takes one is 2 over their sum (a vMF's κ has 1/κ per axis).
+// `t` is a unit tangent.
+fn ndf_set_spread(ndf: ptr<function, SurfaceNdf>, t_in: vec3<f32>) {
+    let mu = (*ndf).normal;
+    let t = normalize(t_in - mu * dot(mu, t_in));
+    let b = cross(mu, t);
+    let s = (*ndf).second;
+    let a = dot(t, s * t);
+    let c = dot(b, s * b);
+    let ab = dot(t, s * b);
+    let half_gap = sqrt(max(0.25 * (a - c) * (a - c) + ab * ab, 0.0));
+    let wide = max(0.5 * (a + c) + half_gap, 0.0);
+    let narrow = max(0.5 * (a + c) - half_gap, 0.0);
+    if (wide <= 1e-7) {
+        return;
+    }
+    var along = select(vec2<f32>(0.0, 1.0), vec2<f32>(1.0, 0.0), a >= c);
+    if (abs(ab) > 1e-9) {
+        along = normalize(vec2<f32>(wide - c, ab));
+    }
+    (*ndf).spread = vec2<f32>(wide, narrow);
+    (*ndf).axis = along.x * t + along.y * b;
+    (*ndf).kappas[0] = min(2.0 / (wide + narrow), NDF_MAX_KAPPA);
 }
 
 // E[Y_lm(n)] for l <= 2 (nodes NdfMoments::sh; Toksvig: Y_lm at the mean direction attenuated

@@ -5,7 +5,7 @@
 #define_import_path lightloom::sun
 
 #import lightloom::common::{SpecularLobe, frame_tangent}
-#import lightloom::normal_map::{NDF_SINGLE_NORMAL, SurfaceNdf, ndf_mapped, ndf_direct_diffuse, ndf_widened_lobe, ndf_shadow_terminator}
+#import lightloom::normal_map::{NDF_SINGLE_NORMAL, SurfaceNdf, WidenedLobe, ndf_mapped, ndf_direct_diffuse, ndf_widened_lobe, ndf_shadow_terminator}
 
 const MAX_SUN_DIRECTIONS: i32 = 32;
 const SUN_MATERIALS: i32 = 8;
@@ -140,7 +140,12 @@ fn sun_lobe_concentration(lobe: SpecularLobe) -> f32 {
 // their frame; `g` is the surface's unperturbed normal, for the shadow terminator
 // (nodes/src/reference.rs) at `n*`.
 fn sun_lobe_through(lobe: SpecularLobe, kappa: f32, mu: vec3<f32>, g: vec3<f32>, tangent: vec3<f32>, wi: vec3<f32>, wo: vec3<f32>) -> f32 {
-    let widened = ndf_widened_lobe(lobe, kappa);
+    return sun_lobe_widened(lobe, ndf_widened_lobe(lobe, kappa), kappa, mu, g, tangent, wi, wo);
+}
+
+// sun_lobe_through with the lobe already widened by the normals (`widened`; `tangent` its
+// frame's tangent where it is anisotropic), `kappa` the normals' concentration for n*.
+fn sun_lobe_widened(lobe: SpecularLobe, widened: WidenedLobe, kappa: f32, mu: vec3<f32>, g: vec3<f32>, tangent: vec3<f32>, wi: vec3<f32>, wo: vec3<f32>) -> f32 {
     let half = wi + wo;
     if (dot(half, half) < 1e-12) {
         return 0.0;
@@ -173,7 +178,7 @@ fn sun_lobe_through(lobe: SpecularLobe, kappa: f32, mu: vec3<f32>, g: vec3<f32>,
             return 0.0;
         }
         var h = vec3<f32>(sqrt(max(1.0 - hz * hz, 0.0)), 0.0, hz);
-        if (lobe.sharpness != lobe.alpha_y) {
+        if (widened.lobe.sharpness != widened.lobe.alpha_y) {
             let t = frame_tangent(mu, tangent);
             h = vec3<f32>(dot(h_world, t), dot(h_world, cross(mu, t)), hz);
         }
@@ -210,7 +215,21 @@ fn sun_ndf_lobe(ndf: ptr<function, SurfaceNdf>, j: i32, m: u32, kappa: f32, g: v
     if (lobe.w <= 0.0) {
         return 0.0;
     }
-    return lobe.w * sun_lobe_through(sun.lobes[m], kappa, lobe.xyz, g, tangent, d, wo);
+    let material = sun.lobes[m];
+    // The SH NDF's anisotropic spread widens an isotropic GGX or Ward lobe along its axes, each by
+    // its own variance (Lobe::widened per axis), plus whatever `kappa` adds to the lobe's own
+    // concentration (the sun disc's spread).
+    let spread = (*ndf).spread;
+    if (spread.x > 0.0 && (material.model == 3u || material.model == 4u) && material.sharpness == material.alpha_y) {
+        let extra = max(1.0 / kappa - 1.0 / (*ndf).kappas[j], 0.0);
+        let along = spread.x + extra;
+        let across = spread.y + extra;
+        var widened = WidenedLobe(material, 1.0);
+        widened.lobe.sharpness = sqrt(material.sharpness * material.sharpness + 2.0 * along);
+        widened.lobe.alpha_y = sqrt(material.alpha_y * material.alpha_y + 2.0 * across);
+        return lobe.w * sun_lobe_widened(material, widened, 2.0 / (along + across), lobe.xyz, g, (*ndf).axis, d, wo);
+    }
+    return lobe.w * sun_lobe_through(material, kappa, lobe.xyz, g, tangent, d, wo);
 }
 
 // Light reflected towards `wo` (unit, to the viewer) at `p` (normal `n`, tangent `tangent`)

@@ -82,7 +82,8 @@ pub(super) fn params() -> Vec<ParamSpec> {
                     (
                         "SH NDF",
                         "Diffuse light sees each pixel's distribution of normals exactly to SH band 2; \
-                         highlights widen by its spread. Fast to build.",
+                         highlights widen by its spread along each of its axes (GGX and Ward), so ribs \
+                         stretch a highlight one way. Fast to build.",
                     ),
                     (
                         "vMF mixture (6 lobes)",

@@ -394,8 +394,8 @@ fn ndf_seen_part(mu: vec3<f32>, kappa: f32, g: vec3<f32>, wo: vec3<f32>, part: i
 // Rewrites the pixel's lobes of normals as the view from `wo` sees them on a surface of
 // unperturbed normal `g` (ndf_seen_part): each lobe becomes its part above the view (or, wholly
 // below it, its flipped self), and the flipped parts of lobes the view splits are then added as
-// lobes of their own by ndf_insert_lobe (which merges one into the nearest lobe where it lies
-// within that lobe's spread, or the budget is spent). Once a pixel, before lights loop over the lobes.
+// lobes of their own, merged into the nearest (ndf_insert_lobe) only once the budget is spent.
+// Once a pixel, before lights loop over the lobes.
 fn ndf_seen_from(ndf: ptr<function, SurfaceNdf>, g: vec3<f32>, wo: vec3<f32>) {
     let count = (*ndf).count;
     var flipped: array<vec4<f32>, 12>;
@@ -414,9 +414,19 @@ fn ndf_seen_from(ndf: ptr<function, SurfaceNdf>, g: vec3<f32>, wo: vec3<f32>) {
             flipped[j].w = lobe.w * below.w;
         }
     }
-    // Added only once every lobe is split, so no flipped part merges into a lobe still to split.
+    // Added only once every lobe is split, so no flipped part merges into a lobe still to split;
+    // as lobes of their own while the budget lasts (merging a part into the lobe it was split
+    // from wherever they overlap would switch the picture between the two at some distance).
     for (var j = 0; j < count; j = j + 1) {
-        if (flipped[j].w > 0.0) {
+        if (flipped[j].w <= 0.0) {
+            continue;
+        }
+        let slot = (*ndf).count;
+        if (slot < NDF_MAX_LOBES) {
+            (*ndf).lobes[slot] = flipped[j];
+            (*ndf).kappas[slot] = flipped_kappa[j];
+            (*ndf).count = slot + 1;
+        } else {
             ndf_insert_lobe(ndf, flipped[j].xyz, flipped[j].w, flipped_kappa[j]);
         }
     }

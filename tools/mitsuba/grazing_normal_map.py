@@ -1,8 +1,12 @@
 #!/usr/bin/env python3
-"""Mitsuba 3's picture of tests/projects/mitsuba/grazing_hammered, the normal-map test scene.
+"""Mitsuba 3's picture of tests/projects/mitsuba/grazing_hammered (or, with --ribbed,
+grazing_ribbed), the normal-map test scenes.
 
     pip install mitsuba numpy
-    python3 tools/mitsuba/grazing_normal_map.py [SPP]
+    python3 tools/mitsuba/grazing_normal_map.py [SPP] [--ribbed]
+
+With --ribbed the map is ribs.png instead of dimples.png: 8 ribs across each tile's diagonal
+(a sinusoid, sloping up to 25°), so the normals spread along one axis, at 45° to the view.
 
 Writes the scene's inputs beside its project.ron, then renders it:
 
@@ -26,18 +30,27 @@ import mitsuba as mi
 import numpy as np
 
 mi.set_variant("scalar_rgb")
-here = Path(__file__).resolve().parents[2] / "tests/projects/mitsuba/grazing_hammered"
-spp = int(sys.argv[1]) if len(sys.argv) > 1 else 1024
+ribbed = "--ribbed" in sys.argv
+numbers = [a for a in sys.argv[1:] if not a.startswith("--")]
+here = Path(__file__).resolve().parents[2] / "tests/projects/mitsuba" / ("grazing_ribbed" if ribbed else "grazing_hammered")
+map_name = "ribs.png" if ribbed else "dimples.png"
+spp = int(numbers[0]) if numbers else 1024
 
-# The normal map: one dimple per cell of a 6 × 6 grid, its centre jittered and its radius varied.
 size, cells = 256, 6
-rng = np.random.default_rng(3)
 normals = np.zeros((size, size, 3))
 normals[..., 2] = 1.0
-covered = np.zeros((size, size), bool)
 ys, xs = np.mgrid[0:size, 0:size] + 0.5
+# The ribbed map: 8 ribs across each tile's diagonal, h = sin(2π·8(x + y)/size), sloping up to 25°.
+# Image rows run down (+Y of the map is up the image), so n ∝ (−∂h/∂x, ∂h/∂y, 1).
+slope = np.tan(np.radians(25.0)) / np.sqrt(2.0) * np.cos(2.0 * np.pi * 8.0 * (xs + ys) / size)
+if ribbed:
+    normals = np.stack([-slope, slope, np.ones_like(slope)], -1)
+    normals /= np.linalg.norm(normals, axis=-1, keepdims=True)
+# The hammered map: one dimple per cell of a 6 × 6 grid, its centre jittered and its radius varied.
+rng = np.random.default_rng(3)
+covered = np.zeros((size, size), bool) if not ribbed else np.ones((size, size), bool)
 rim = np.sin(np.radians(24.0))
-for cy in range(cells):
+for cy in range(cells if not ribbed else 0):
     for cx in range(cells):
         pitch = size / cells
         centre = ((cx + 0.5 + rng.uniform(-0.2, 0.2)) * pitch, (cy + 0.5 + rng.uniform(-0.2, 0.2)) * pitch)
@@ -53,7 +66,7 @@ for cy in range(cells):
         normals[inside] = np.stack([-dx, dy, h], -1)[inside] / radius
         covered |= inside
 texels = np.round((normals * 0.5 + 0.5) * 255.0).clip(0, 255).astype(np.uint8)
-mi.Bitmap(texels, pixel_format=mi.Bitmap.PixelFormat.RGB).write(str(here / "dimples.png"))
+mi.Bitmap(texels, pixel_format=mi.Bitmap.PixelFormat.RGB).write(str(here / map_name))
 
 # The sky, as a function of direction.
 width, height = 1024, 512
@@ -90,7 +103,7 @@ for name, (u, v, offset) in {
 T = mi.ScalarTransform4f
 metal = {
     "type": "normalmap",
-    "normalmap": {"type": "bitmap", "filename": str(here / "dimples.png"), "raw": True,
+    "normalmap": {"type": "bitmap", "filename": str(here / map_name), "raw": True,
                   "filter_type": "bilinear", "to_uv": mi.ScalarTransform3f().scale([80.0, -80.0])},
     "bsdf": {"type": "roughconductor", "material": "none", "distribution": "ggx", "alpha": 0.09},
 }

@@ -21,6 +21,7 @@ pub use moments::{
 
 use crate::sh::ShBasis;
 use glam::DVec3;
+use rand::SeedableRng;
 use std::f64::consts::PI;
 
 crate::stage_type!(NormalMap, "normal map", |v| v.normals.len() * 24);
@@ -235,8 +236,9 @@ impl NdfPyramid {
 /// Per level of a normal map's MIP pyramid (as [`NdfPyramid`]'s), per texel, a mixture of up
 /// to `lobes` vMF lobes fitted by [`fit_vmf_mixture`] to the normals it covers (the map's
 /// bilinear field, at twice the texel density in the two finest levels). A texel covering
-/// more than `max_normals` of them fits an even subset (every `k`-th row and column), which
-/// bounds the cost of each level by the map's size.
+/// more than `max_normals` of them fits one drawn in each `k × k` cell (at a point drawn per
+/// cell, so maps periodic in `k` are not aliased), which bounds the cost of each level by the
+/// map's size.
 pub fn vmf_pyramid(map: &NormalMap, lobes: usize, iterations: usize, max_normals: usize) -> Vec<Vec<Vec<Vmf>>> {
     vmf_pyramid_cancellable(map, lobes, iterations, max_normals, &crate::engine::CancelToken::default())
         .expect("never cancelled")
@@ -271,17 +273,28 @@ pub fn vmf_pyramid_cancellable(
                 }
                 let (x, y) = (t % width, t / width);
                 let mut normals = Vec::new();
+                // Where in each cell of `stride` samples the block takes its normal: the centre of
+                // a single sample, else a point drawn per cell, so that a map periodic in the
+                // stride (ribs, a grid of dimples) is not sampled at a few phases of its period.
+                // Every texel of a level draws the same points (texels of a tiled map then fit
+                // alike, as their normals are alike).
+                let mut rng = rand::rngs::SmallRng::seed_from_u64(size as u64);
+                let mut within = |at: usize, end: f64| {
+                    let offset = if stride > 1 { rand::Rng::random::<f64>(&mut rng) * stride as f64 } else { 0.5 };
+                    (at as f64 + offset).min(end - 1e-9)
+                };
+                let (map_width, map_height) = ((map.width * density) as f64, (map.height * density) as f64);
                 for sy in (0..side).step_by(stride) {
-                    let py = (y * side + sy) as f64 + 0.5;
-                    if py >= (map.height * density) as f64 {
+                    if (y * side + sy) as f64 >= map_height {
                         break;
                     }
                     for sx in (0..side).step_by(stride) {
-                        let px = (x * side + sx) as f64 + 0.5;
-                        if px >= (map.width * density) as f64 {
+                        if (x * side + sx) as f64 >= map_width {
                             break;
                         }
-                        let uv = [px / (map.width * density) as f64, py / (map.height * density) as f64];
+                        let py = within(y * side + sy, map_height.min(((y + 1) * side) as f64));
+                        let px = within(x * side + sx, map_width.min(((x + 1) * side) as f64));
+                        let uv = [px / map_width, py / map_height];
                         normals.push((map.sample(uv), 1.0));
                     }
                 }

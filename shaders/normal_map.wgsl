@@ -101,6 +101,8 @@ struct SurfaceNdf {
     // (0 for the other filters, which take the lobes' concentrations alone).
     spread: vec2<f32>,
     axis: vec3<f32>,
+    // Bit j set where lobe j is a flipped part (ndf_seen_from): its spread axis is mirrored too.
+    flipped: u32,
     // The highlight's lobes of normals: xyz unit mean, w weight; and their concentrations.
     count: i32,
     lobes: array<vec4<f32>, 12>,
@@ -133,6 +135,7 @@ fn ndf_set_flat(ndf: ptr<function, SurfaceNdf>, n: vec3<f32>) {
     (*ndf).kappa = NDF_MAX_KAPPA;
     (*ndf).spread = vec2<f32>(0.0);
     (*ndf).axis = vec3<f32>(0.0);
+    (*ndf).flipped = 0u;
     (*ndf).count = 1;
     (*ndf).lobes[0] = vec4<f32>(n, 1.0);
     (*ndf).kappas[0] = NDF_MAX_KAPPA;
@@ -217,9 +220,9 @@ fn surface_ndf(ndf: ptr<function, SurfaceNdf>, m: u32, uv_in: vec2<f32>, n: vec3
     let dv = dpdy(uv);
     let method = i32(settings.filter_kind);
     ndf_set_flat(ndf, n);
-    // A mesh without texture coordinates has 0 as its handedness (nodes mesh::VertexFrames):
-    // no map applies to it.
-    if (!NORMAL_MAPS || method == 0 || tangent.w == 0.0) {
+    // A mesh without texture coordinates has 2 as its handedness (nodes
+    // mesh::NO_TEXTURE_COORDINATES; interpolated signs stay within ±1): no map applies to it.
+    if (!NORMAL_MAPS || method == 0 || tangent.w > 1.5) {
         return;
     }
     let layer = i32(settings.layer);
@@ -409,6 +412,7 @@ fn ndf_seen_from(ndf: ptr<function, SurfaceNdf>, g: vec3<f32>, wo: vec3<f32>) {
         flipped_kappa[j] = kappa;
         if (above.w <= 0.0) {
             (*ndf).lobes[j] = vec4<f32>(below.xyz, lobe.w * below.w);
+            (*ndf).flipped = (*ndf).flipped | (1u << u32(j));
         } else {
             (*ndf).lobes[j] = vec4<f32>(above.xyz, lobe.w * above.w);
             flipped[j].w = lobe.w * below.w;
@@ -425,6 +429,7 @@ fn ndf_seen_from(ndf: ptr<function, SurfaceNdf>, g: vec3<f32>, wo: vec3<f32>) {
         if (slot < NDF_MAX_LOBES) {
             (*ndf).lobes[slot] = flipped[j];
             (*ndf).kappas[slot] = flipped_kappa[j];
+            (*ndf).flipped = (*ndf).flipped | (1u << u32(slot));
             (*ndf).count = slot + 1;
         } else {
             ndf_insert_lobe(ndf, flipped[j].xyz, flipped[j].w, flipped_kappa[j]);

@@ -227,7 +227,12 @@ fn sun_ndf_lobe(ndf: ptr<function, SurfaceNdf>, j: i32, m: u32, kappa: f32, g: v
         var widened = WidenedLobe(material, 1.0);
         widened.lobe.sharpness = sqrt(material.sharpness * material.sharpness + 2.0 * along);
         widened.lobe.alpha_y = sqrt(material.alpha_y * material.alpha_y + 2.0 * across);
-        return lobe.w * sun_lobe_widened(material, widened, 2.0 / (along + across), lobe.xyz, g, (*ndf).axis, d, wo);
+        // A flipped part's axis is mirrored with it (n -> 2(n.g)g - n).
+        var axis = (*ndf).axis;
+        if (((*ndf).flipped & (1u << u32(j))) != 0u) {
+            axis = 2.0 * dot(axis, g) * g - axis;
+        }
+        return lobe.w * sun_lobe_widened(material, widened, 2.0 / (along + across), lobe.xyz, g, axis, d, wo);
     }
     return lobe.w * sun_lobe_through(material, kappa, lobe.xyz, g, tangent, d, wo);
 }

@@ -10,13 +10,18 @@ crate::stage_type!(MeshSet, "meshes", |v| v.approx_bytes());
 crate::stage_type!(VertexFrames, "vertex tangent frames", |v| v.tangents.len() * 16);
 
 /// Per vertex of every mesh of a set, in order: the normal-map frame's unit tangent
-/// ([`vertex_tangents`]) and, as `w`, the bitangent's sign ([`vertex_bitangent_signs`]), or 0 on
-/// a mesh without texture coordinates, where a normal map does not apply (the viewport draws it
-/// unmapped, as the reference does).
+/// ([`vertex_tangents`]) and, as `w`, the bitangent's sign ([`vertex_bitangent_signs`]), or
+/// [`NO_TEXTURE_COORDINATES`] on a mesh without them, where a normal map does not apply (the
+/// viewport draws it unmapped, as the reference does).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct VertexFrames {
     pub tangents: Vec<[f32; 4]>,
 }
+
+/// The `w` of a [`VertexFrames`] tangent on a mesh without texture coordinates: outside the
+/// signs' ±1, and out of reach of interpolating them across a triangle (`normal_map.wgsl`
+/// `surface_ndf` reads `w > 1.5` as "no map").
+pub const NO_TEXTURE_COORDINATES: f32 = 2.0;
 
 impl VertexFrames {
     pub fn of(set: &MeshSet) -> Self {
@@ -25,7 +30,9 @@ impl VertexFrames {
             let frames = vertex_tangents(mesh);
             let signs = bitangent_signs_with(mesh, || frames.clone());
             let mapped = mesh.uvs.len() == mesh.positions.len();
-            tangents.extend(frames.iter().zip(signs).map(|([x, y, z], w)| [*x, *y, *z, if mapped { w } else { 0.0 }]));
+            let no_map = NO_TEXTURE_COORDINATES;
+            tangents
+                .extend(frames.iter().zip(signs).map(|([x, y, z], w)| [*x, *y, *z, if mapped { w } else { no_map }]));
         }
         Self { tangents }
     }

@@ -21,7 +21,6 @@ pub use moments::{
 
 use crate::sh::ShBasis;
 use glam::DVec3;
-use rand::SeedableRng;
 use std::f64::consts::PI;
 
 crate::stage_type!(NormalMap, "normal map", |v| v.normals.len() * 24);
@@ -236,9 +235,9 @@ impl NdfPyramid {
 /// Per level of a normal map's MIP pyramid (as [`NdfPyramid`]'s), per texel, a mixture of up
 /// to `lobes` vMF lobes fitted by [`fit_vmf_mixture`] to the normals it covers (the map's
 /// bilinear field, at twice the texel density in the two finest levels). A texel covering
-/// more than `max_normals` of them fits one drawn in each `k × k` cell (at a point drawn per
-/// cell, so maps periodic in `k` are not aliased), which bounds the cost of each level by the
-/// map's size.
+/// more than `max_normals` of them fits about `max_normals` at the points of a low-discrepancy
+/// sequence over its block (a grid of every `k`-th row and column aliased maps periodic in `k`),
+/// which bounds the cost of each level by the map's size.
 pub fn vmf_pyramid(map: &NormalMap, lobes: usize, iterations: usize, max_normals: usize) -> Vec<Vec<Vec<Vmf>>> {
     vmf_pyramid_cancellable(map, lobes, iterations, max_normals, &crate::engine::CancelToken::default())
         .expect("never cancelled")
@@ -260,8 +259,8 @@ pub fn vmf_pyramid_cancellable(
         // The block's normals as the surface has them: the map's bilinear field
         // ([`NormalMap::sample`]), at twice the texel density in blocks of a texel or two (so
         // they have the spread between their texels, as delta lobes at the texels would not),
-        // at the texels' own density above. Rows and columns of those samples taken with a
-        // stride that keeps about `max_normals`.
+        // at the texels' own density above; blocks of more than `max_normals` take as many as a
+        // stride `k` in rows and columns would keep.
         let density = if size <= 2 { 2 } else { 1 };
         let side = size * density;
         let stride = ((side * side) as f64 / max_normals.max(1) as f64).sqrt().ceil().max(1.0) as usize;
@@ -273,29 +272,27 @@ pub fn vmf_pyramid_cancellable(
                 }
                 let (x, y) = (t % width, t / width);
                 let mut normals = Vec::new();
-                // Where in each cell of `stride` samples the block takes its normal: the centre of
-                // a single sample, else a point drawn per cell, so that a map periodic in the
-                // stride (ribs, a grid of dimples) is not sampled at a few phases of its period.
-                // Every texel of a level draws the same points (texels of a tiled map then fit
-                // alike, as their normals are alike).
-                let mut rng = rand::rngs::SmallRng::seed_from_u64(size as u64);
-                let mut within = |at: usize, end: f64| {
-                    let offset = if stride > 1 { rand::Rng::random::<f64>(&mut rng) * stride as f64 } else { 0.5 };
-                    (at as f64 + offset).min(end - 1e-9)
-                };
                 let (map_width, map_height) = ((map.width * density) as f64, (map.height * density) as f64);
-                for sy in (0..side).step_by(stride) {
-                    if (y * side + sy) as f64 >= map_height {
-                        break;
-                    }
-                    for sx in (0..side).step_by(stride) {
-                        if (x * side + sx) as f64 >= map_width {
-                            break;
+                let (x0, y0) = ((x * side) as f64, (y * side) as f64);
+                let (x1, y1) = (map_width.min(((x + 1) * side) as f64), map_height.min(((y + 1) * side) as f64));
+                let mut take = |px: f64, py: f64| normals.push((map.sample([px / map_width, py / map_height]), 1.0));
+                if stride == 1 {
+                    // Every sample, at its centre.
+                    for py in (y0 as usize..y1 as usize).map(|p| p as f64 + 0.5) {
+                        for px in (x0 as usize..x1 as usize).map(|p| p as f64 + 0.5) {
+                            take(px, py);
                         }
-                        let py = within(y * side + sy, map_height.min(((y + 1) * side) as f64));
-                        let px = within(x * side + sx, map_width.min(((x + 1) * side) as f64));
-                        let uv = [px / map_width, py / map_height];
-                        normals.push((map.sample(uv), 1.0));
+                    }
+                } else {
+                    // As many points as the stride keeps, spread over the block by Roberts' R2
+                    // low-discrepancy sequence: a regular grid sees a map periodic in the
+                    // stride (ribs, a grid of dimples) at a few phases of its period, and random
+                    // points vary the fit from one draw to the next. Every texel takes the same
+                    // points (texels of a tiled map then fit alike).
+                    let count = ((x1 - x0) / stride as f64).ceil() * ((y1 - y0) / stride as f64).ceil();
+                    for i in 0..count as usize {
+                        let (a, b) = r2_point(i);
+                        take(x0 + a * (x1 - x0), y0 + b * (y1 - y0));
                     }
                 }
                 fit_vmf_mixture(&normals, lobes, iterations)
@@ -310,6 +307,15 @@ pub fn vmf_pyramid_cancellable(
         }
         size *= 2;
     }
+}
+
+/// Point `i` of Roberts' R2 sequence in the unit square (the plastic number's powers as
+/// irrational steps): low-discrepancy, so `n` of its points cover a square about as evenly as an
+/// `√n × √n` grid, without the grid's alignment to rows and columns.
+fn r2_point(i: usize) -> (f64, f64) {
+    const G: f64 = 1.324_717_957_244_746;
+    let i = i as f64;
+    ((0.5 + i / G).fract(), (0.5 + i / (G * G)).fract())
 }
 
 /// The effective BRDF's SH coefficients for a lobe `f(ω·n)` of zonal coefficients `f_l`

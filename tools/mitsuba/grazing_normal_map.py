@@ -5,12 +5,12 @@ grazing_ribbed), the normal-map test scenes.
     pip install mitsuba numpy
     python3 tools/mitsuba/grazing_normal_map.py [SPP] [--ribbed]
 
-With --ribbed the map is ribs.png instead of dimples.png: 8 ribs across each tile's diagonal
-(a sinusoid, sloping up to 25°), so the normals spread along one axis, at 45° to the view.
+With --ribbed the map is ribs.png instead of dimples.png: diagonal ribs, 8 across each tile's
+edge (a sinusoid, sloping up to 25°), so the normals spread along one axis, at 45° to the view.
 
 Writes the scene's inputs beside its project.ron, then renders it:
 
-- dimples.png: a 256² tangent-space normal map (OpenGL convention, +Y up the image, n = 2·rgb − 1)
+- dimples.png (ribs.png with --ribbed): a 256² tangent-space normal map (OpenGL convention, +Y up the image, n = 2·rgb − 1)
   of hammered dimples: spherical caps whose rims slope at up to 24°, on a jittered grid, flat
   between them. Tiled 80 times over the 40 m plane: 2 mm per texel.
 - sky.exr and sky_mitsuba.exr: one sky sampled at each renderer's pixel positions (Lightloom
@@ -40,7 +40,7 @@ size, cells = 256, 6
 normals = np.zeros((size, size, 3))
 normals[..., 2] = 1.0
 ys, xs = np.mgrid[0:size, 0:size] + 0.5
-# The ribbed map: 8 ribs across each tile's diagonal, h = sin(2π·8(x + y)/size), sloping up to 25°.
+# The ribbed map: diagonal ribs, 8 across each edge, h = sin(2π·8(x + y)/size), sloping up to 25°.
 # Image rows run down (+Y of the map is up the image), so n ∝ (−∂h/∂x, ∂h/∂y, 1).
 slope = np.tan(np.radians(25.0)) / np.sqrt(2.0) * np.cos(2.0 * np.pi * 8.0 * (xs + ys) / size)
 if ribbed:

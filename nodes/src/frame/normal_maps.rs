@@ -117,25 +117,37 @@ pub(super) fn note_meshes_without_uvs(
         if !maps.materials.get(index).is_some_and(Option::is_some) {
             continue;
         }
-        let unmapped: Vec<&str> = set
+        // Per scene object (a glTF's meshes are named `object/mesh`), how many of its meshes.
+        let mut objects: Vec<(&str, usize)> = Vec::new();
+        let without = set
             .meshes
             .iter()
             .zip(&geometry.mesh_materials)
-            .filter(|(mesh, m)| **m as usize == index && mesh.uvs.len() != mesh.positions.len())
-            .map(|(mesh, _)| mesh.name.as_str())
-            .collect();
-        if unmapped.is_empty() {
+            .filter(|(mesh, m)| **m as usize == index && mesh.uvs.len() != mesh.positions.len());
+        for (mesh, _) in without {
+            let object = mesh.name.split('/').next().unwrap_or(&mesh.name);
+            match objects.iter_mut().find(|(name, _)| *name == object) {
+                Some((_, count)) => *count += 1,
+                None => objects.push((object, 1)),
+            }
+        }
+        if objects.is_empty() {
             continue;
         }
-        let shown: Vec<String> = unmapped.iter().take(3).map(|n| format!("`{n}`")).collect();
-        let more = if unmapped.len() > 3 { format!(" and {} more", unmapped.len() - 3) } else { String::new() };
+        let named: Vec<String> = objects
+            .iter()
+            .take(3)
+            .map(|(name, count)| if *count > 1 { format!("`{name}` ({count} meshes)") } else { format!("`{name}`") })
+            .collect();
+        let more = if objects.len() > 3 { format!(" and {} more", objects.len() - 3) } else { String::new() };
+        let one = objects.len() == 1;
         notes.push((
             material.node.clone(),
             format!(
                 "its normal map does not apply to {}{more}: {} no texture coordinates, so {} drawn without it",
-                shown.join(", "),
-                if unmapped.len() == 1 { "it has" } else { "they have" },
-                if unmapped.len() == 1 { "it is" } else { "they are" },
+                named.join(", "),
+                if one { "it has" } else { "they have" },
+                if one { "it is" } else { "they are" },
             ),
         ));
     }

@@ -128,24 +128,18 @@ fn sun_lobe_concentration(lobe: SpecularLobe) -> f32 {
     return 1.0 / max(sun_lobe_variance(lobe), 1e-9);
 }
 
-// Material `lobe` reflecting `wi` to `wo` through a lobe of normals about unit `mu` of
-// concentration `kappa` (nodes/src/brdf.rs `Lobe::widened`), without its colour, times the cosine:
-// the lobe's distribution widened by the normals' spread, about `mu`, times the rest of the BRDF
-// (masking of the unwidened lobe, Fresnel, `1/(4 cos_i cos_o)`) and the cosine at the normal
-// that does the reflecting, `n* ∝ κ_b h + κ mu` (the product of the lobe of normals and the
+// Material `lobe` reflecting `wi` to `wo` through a lobe of normals about unit `mu`, without its
+// colour, times the cosine: the lobe's distribution `widened` by the normals' spread
+// (normal_map.wgsl ndf_widened_lobe, nodes/src/brdf.rs `Lobe::widened`; `tangent` its frame
+// where it is anisotropic), about `mu`, times the rest of the BRDF (masking of the unwidened
+// lobe, Fresnel, `1/(4 cos_i cos_o)`) and the cosine at the normal that does the reflecting,
+// `n* ∝ κ_b h + κ mu` (the product of the lobe of normals, of concentration `kappa`, and the
 // material's own lobe about the half vector, of concentration κ_b: sun_lobe_concentration).
 // Evaluating those at `mu` instead loses most of the light at grazing views, where `cos_o`
 // varies most across the lobe; masking by the widened lobe would count the map's spread as
-// microgeometry that shadows, which a normal map is not. `tangent` gives anisotropic lobes
-// their frame; `g` is the surface's unperturbed normal, for the shadow terminator
-// (nodes/src/reference.rs) at `n*`.
-fn sun_lobe_through(lobe: SpecularLobe, kappa: f32, mu: vec3<f32>, g: vec3<f32>, tangent: vec3<f32>, wi: vec3<f32>, wo: vec3<f32>) -> f32 {
-    return sun_lobe_widened(lobe, ndf_widened_lobe(lobe, kappa), kappa, mu, g, tangent, wi, wo);
-}
-
-// sun_lobe_through with the lobe already widened by the normals (`widened`; `tangent` its
-// frame's tangent where it is anisotropic), `kappa` the normals' concentration for n*.
-fn sun_lobe_widened(lobe: SpecularLobe, widened: WidenedLobe, kappa: f32, mu: vec3<f32>, g: vec3<f32>, tangent: vec3<f32>, wi: vec3<f32>, wo: vec3<f32>) -> f32 {
+// microgeometry that shadows, which a normal map is not. `g` is the surface's unperturbed
+// normal, for the shadow terminator (nodes/src/reference.rs) at `n*`.
+fn sun_lobe_through(lobe: SpecularLobe, widened: WidenedLobe, kappa: f32, mu: vec3<f32>, g: vec3<f32>, tangent: vec3<f32>, wi: vec3<f32>, wo: vec3<f32>) -> f32 {
     let half = wi + wo;
     if (dot(half, half) < 1e-12) {
         return 0.0;
@@ -216,25 +210,29 @@ fn sun_ndf_lobe(ndf: ptr<function, SurfaceNdf>, j: i32, m: u32, kappa: f32, g: v
         return 0.0;
     }
     let material = sun.lobes[m];
+    var widened = ndf_widened_lobe(material, kappa);
+    var frame = tangent;
+    var concentration = kappa;
     // The SH NDF's anisotropic spread widens an isotropic GGX or Ward lobe along its axes, each by
     // its own variance (Lobe::widened per axis), plus whatever `kappa` adds to the lobe's own
-    // concentration (the sun disc's spread).
+    // concentration (the sun disc's spread). One call below for both (two call sites of the
+    // lobe's evaluation cost lavapipe a fifth of the frame, even where this branch is not taken).
     let spread = (*ndf).spread;
     if (spread.x > 0.0 && (material.model == 3u || material.model == 4u) && material.sharpness == material.alpha_y) {
         let extra = max(1.0 / kappa - 1.0 / (*ndf).kappas[j], 0.0);
         let along = spread.x + extra;
         let across = spread.y + extra;
-        var widened = WidenedLobe(material, 1.0);
+        widened = WidenedLobe(material, 1.0);
         widened.lobe.sharpness = sqrt(material.sharpness * material.sharpness + 2.0 * along);
         widened.lobe.alpha_y = sqrt(material.alpha_y * material.alpha_y + 2.0 * across);
+        concentration = 2.0 / (along + across);
         // A flipped part's axis is mirrored with it (n -> 2(n.g)g - n).
-        var axis = (*ndf).axis;
+        frame = (*ndf).axis;
         if (((*ndf).flipped & (1u << u32(j))) != 0u) {
-            axis = 2.0 * dot(axis, g) * g - axis;
+            frame = 2.0 * dot(frame, g) * g - frame;
         }
-        return lobe.w * sun_lobe_widened(material, widened, 2.0 / (along + across), lobe.xyz, g, axis, d, wo);
     }
-    return lobe.w * sun_lobe_through(material, kappa, lobe.xyz, g, tangent, d, wo);
+    return lobe.w * sun_lobe_through(material, widened, concentration, lobe.xyz, g, frame, d, wo);
 }
 
 // Light reflected towards `wo` (unit, to the viewer) at `p` (normal `n`, tangent `tangent`)

@@ -362,40 +362,46 @@ fn ndf_normal_cdf(t: f32) -> f32 {
     return select(0.5 * erfc, 1.0 - 0.5 * erfc, t >= 0.0);
 }
 
-// Part `part` of a lobe of normals (unit mean `mu`, concentration `kappa`) on a surface of
+// The two parts of a lobe of normals (unit mean `mu`, concentration `kappa`) on a surface of
 // unperturbed normal `g`, seen from `wo`, as the reference shades it (nodes/src/reference.rs,
-// after Mitsuba 3's `normalmap`): part 0 the normals the view lies above, part 1 those it lies
-// below, flipped (their tangential part mirrored: n -> 2(n.g)g - n). Returns the part's mean
-// (xyz) and its share of the lobe (w; 0 for none). `n.wo` over the lobe is taken as Gaussian,
-// of mean `mu.wo` and variance `(1 - (mu.wo)^2)/kappa`; each part's mean is the lobe's moved
-// towards or away from `wo` to the truncated Gaussian's mean. At grazing views much of a bumpy
-// map lies below the view: drawing those normals black loses its light.
-fn ndf_seen_part(mu: vec3<f32>, kappa: f32, g: vec3<f32>, wo: vec3<f32>, part: i32) -> vec4<f32> {
+// after Mitsuba 3's `normalmap`): `above`, the normals the view lies above, and `below`, those it
+// lies below, flipped (their tangential part mirrored: n -> 2(n.g)g - n). Each holds the part's
+// mean (xyz) and its share of the lobe (w; 0 for none). `n.wo` over the lobe is taken as
+// Gaussian, of mean `mu.wo` and variance `(1 - (mu.wo)^2)/kappa`; each part's mean is the lobe's
+// moved towards or away from `wo` to the truncated Gaussian's mean. At grazing views much of a
+// bumpy map lies below the view: drawing those normals black loses its light.
+struct SeenParts {
+    above: vec4<f32>,
+    below: vec4<f32>,
+};
+
+fn ndf_seen_parts(mu: vec3<f32>, kappa: f32, g: vec3<f32>, wo: vec3<f32>) -> SeenParts {
     let m = dot(mu, wo);
     let across = sqrt(max(1.0 - m * m, 0.0));
     let sigma = across / sqrt(max(kappa, 1e-9));
+    let flip = 2.0 * dot(mu, g) * g - mu;
+    if (sigma <= 1e-6 || across <= 1e-6 || kappa >= NDF_SINGLE_NORMAL) {
+        // A single normal: wholly above the view or wholly below it.
+        return SeenParts(vec4<f32>(mu, select(0.0, 1.0, m > 0.0)), vec4<f32>(flip, select(0.0, 1.0, m <= 0.0)));
+    }
+    let z = m / sigma;
+    let below = 1.0 - ndf_normal_cdf(z);
+    // The truncated Gaussian's means of n.wo, as angles towards wo.
+    let density = sigma * exp(-0.5 * z * z) * 0.39894228;
     let towards = wo - m * mu;
-    var below = select(0.0, 1.0, m <= 0.0);
-    var mean = mu;
-    if (sigma > 1e-6 && across > 1e-6 && kappa < NDF_SINGLE_NORMAL) {
-        let z = m / sigma;
-        below = 1.0 - ndf_normal_cdf(z);
-        let share = select(1.0 - below, below, part == 1);
-        if (share < 1e-4) {
-            return vec4<f32>(mu, 0.0);
-        }
-        // The truncated Gaussian's mean of n.wo, as an angle towards wo.
-        let shift = select(1.0, -1.0, part == 1) * sigma * exp(-0.5 * z * z) * 0.39894228 / share;
-        mean = normalize(mu + towards / across * (shift / across));
+    var parts = SeenParts(vec4<f32>(mu, 0.0), vec4<f32>(flip, 0.0));
+    if (1.0 - below >= 1e-4) {
+        parts.above = vec4<f32>(normalize(mu + towards / across * (density / (1.0 - below) / across)), 1.0 - below);
     }
-    if (part == 0) {
-        return vec4<f32>(mean, 1.0 - below);
+    if (below >= 1e-4) {
+        let mean = normalize(mu - towards / across * (density / below / across));
+        parts.below = vec4<f32>(2.0 * dot(mean, g) * g - mean, below);
     }
-    return vec4<f32>(2.0 * dot(mean, g) * g - mean, below);
+    return parts;
 }
 
 // Rewrites the pixel's lobes of normals as the view from `wo` sees them on a surface of
-// unperturbed normal `g` (ndf_seen_part): each lobe becomes its part above the view (or, wholly
+// unperturbed normal `g` (ndf_seen_parts): each lobe becomes its part above the view (or, wholly
 // below it, its flipped self), and the flipped parts of lobes the view splits are then added as
 // lobes of their own, merged into the nearest (ndf_insert_lobe) only once the budget is spent.
 // Once a pixel, before lights loop over the lobes.
@@ -406,8 +412,9 @@ fn ndf_seen_from(ndf: ptr<function, SurfaceNdf>, g: vec3<f32>, wo: vec3<f32>) {
     for (var j = 0; j < count; j = j + 1) {
         let lobe = (*ndf).lobes[j];
         let kappa = (*ndf).kappas[j];
-        let above = ndf_seen_part(lobe.xyz, kappa, g, wo, 0);
-        let below = ndf_seen_part(lobe.xyz, kappa, g, wo, 1);
+        let parts = ndf_seen_parts(lobe.xyz, kappa, g, wo);
+        let above = parts.above;
+        let below = parts.below;
         flipped[j] = vec4<f32>(below.xyz, 0.0);
         flipped_kappa[j] = kappa;
         if (above.w <= 0.0) {
@@ -473,9 +480,18 @@ fn ndf_widened_lobe(lobe: SpecularLobe, kappa: f32) -> WidenedLobe {
         out.lobe.sharpness = w;
         out.factor = (s + c) * (w + 1.0) / ((s + 1.0) * (w + c));
     } else if (lobe.model == 3u || lobe.model == 4u) {
-        out.lobe.sharpness = sqrt(lobe.sharpness * lobe.sharpness + 2.0 / k);
-        out.lobe.alpha_y = sqrt(lobe.alpha_y * lobe.alpha_y + 2.0 / k);
+        out = ndf_widened_axes(lobe, 1.0 / k, 1.0 / k);
     }
+    return out;
+}
+
+// A GGX or Ward lobe seen through normals whose tangential components vary by `along` along its
+// tangent and `across` along its bitangent: each α² grows by twice its axis's variance (a vMF
+// lobe of κ has 1/κ on both; the SH NDF's own lobe, ndf_set_spread, its principal variances).
+fn ndf_widened_axes(lobe: SpecularLobe, along: f32, across: f32) -> WidenedLobe {
+    var out = WidenedLobe(lobe, 1.0);
+    out.lobe.sharpness = sqrt(lobe.sharpness * lobe.sharpness + 2.0 * along);
+    out.lobe.alpha_y = sqrt(lobe.alpha_y * lobe.alpha_y + 2.0 * across);
     return out;
 }
 

@@ -5,7 +5,7 @@
 #define_import_path lightloom::sun
 
 #import lightloom::common::{SpecularLobe, frame_tangent}
-#import lightloom::normal_map::{NDF_SINGLE_NORMAL, SurfaceNdf, WidenedLobe, ndf_mapped, ndf_direct_diffuse, ndf_widened_lobe, ndf_shadow_terminator}
+#import lightloom::normal_map::{NDF_SINGLE_NORMAL, SurfaceNdf, WidenedLobe, ndf_mapped, ndf_direct_diffuse, ndf_widened_axes, ndf_widened_lobe, ndf_shadow_terminator}
 
 const MAX_SUN_DIRECTIONS: i32 = 32;
 const SUN_MATERIALS: i32 = 8;
@@ -222,9 +222,7 @@ fn sun_ndf_lobe(ndf: ptr<function, SurfaceNdf>, j: i32, m: u32, kappa: f32, g: v
         let extra = max(1.0 / kappa - 1.0 / (*ndf).kappas[j], 0.0);
         let along = spread.x + extra;
         let across = spread.y + extra;
-        widened = WidenedLobe(material, 1.0);
-        widened.lobe.sharpness = sqrt(material.sharpness * material.sharpness + 2.0 * along);
-        widened.lobe.alpha_y = sqrt(material.alpha_y * material.alpha_y + 2.0 * across);
+        widened = ndf_widened_axes(material, along, across);
         concentration = 2.0 / (along + across);
         // A flipped part's axis is mirrored with it (n -> 2(n.g)g - n).
         frame = (*ndf).axis;

@@ -83,7 +83,7 @@ def phi_cdf(t):
 
 
 def seen_parts(mu, kappa, wo):
-    """shaders/normal_map.wgsl `ndf_seen_part`: (share, mean) above the view, and below, flipped."""
+    """shaders/normal_map.wgsl `ndf_seen_parts`: (share, mean) above the view, and below, flipped."""
     m = mu @ wo
     across = sqrt(max(1 - m * m, 0.0))
     sigma = across / sqrt(max(kappa, 1e-9))

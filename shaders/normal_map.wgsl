@@ -47,6 +47,8 @@ struct VmfLevel {
 struct HighlightLobe {
     weight: vec3<f32>,
     glossy: u32,
+    // The GGX α of its equivalent Phong exponent.
+    alpha: f32,
 };
 
 struct NormalMaps {
@@ -67,6 +69,8 @@ struct NormalMaps {
     highlight_radiance: array<vec3<f32>, 64>,
     highlight_factors: array<vec4<f32>, 16>,
     highlight_lobes: array<HighlightLobe, 8>,
+    // Roughness levels of `highlight_light` (0: none bound, H from the SH).
+    highlight_cube_levels: u32,
 };
 
 const NDF_HIGHLIGHT_BANDS: i32 = 8;
@@ -78,6 +82,9 @@ const NDF_HIGHLIGHT_BANDS: i32 = 8;
 // The vMF lobes, `NDF_LOBE_ROW` to a row (a texture, not a storage buffer: the wavelet pass's
 // fragment stage has none to spare).
 @group(4) @binding(4) var normal_lobes: texture_2d<f32>;
+// The same unshadowed light as `highlight_radiance`, GGX-prefiltered (nodes specular_cube): mip
+// m of M holds perceptual roughness m / (M - 1), GGX α its square.
+@group(4) @binding(5) var highlight_light: texture_cube<f32>;
 
 const NDF_LOBE_ROW: u32 = 4096u;
 
@@ -547,9 +554,24 @@ fn ndf_highlight_sum(r: vec3<f32>, m: u32, kappa: f32) -> vec3<f32> {
     return sum;
 }
 
+// H of material m's lobe about the mirror direction `r` through a vMF lobe of normals of
+// concentration kappa: from the prefiltered light where it is bound, the lobe as the GGX lobe of
+// its α widened by the normals' spread (α² grows by 2/κ, ndf_widened_axes), scaled by the lobe's
+// band-0 factor as the SH sum is; else the SH sum to band 7.
+fn ndf_highlight(r: vec3<f32>, m: u32, kappa: f32) -> vec3<f32> {
+    let levels = normal_maps.highlight_cube_levels;
+    if (levels == 0u) {
+        return ndf_highlight_sum(r, m, kappa);
+    }
+    let alpha = normal_maps.highlight_lobes[m].alpha;
+    let widened = sqrt(alpha * alpha + select(2.0 / max(kappa, 1e-6), 0.0, kappa >= NDF_MAX_KAPPA));
+    let lod = clamp(sqrt(widened) * f32(levels - 1u), 0.0, f32(levels - 1u));
+    return normal_maps.highlight_factors[2u * m].x * textureSampleLevel(highlight_light, normal_sampler, r, lod).rgb;
+}
+
 // A per-vertex mode's environment highlight `glossy` (interpolated from the vertices) corrected
 // for the pixel's NDF (nodes frame::VertexHighlight), through the highlight H of the unshadowed
-// light (SH to band 7, material m's lobe) for the unit direction `view` towards the eye: light
+// light (ndf_highlight: prefiltered, or its SH to band 7) for the unit direction `view` towards the eye: light
 // the NDF turns away scales `glossy` by H through the NDF over H at the geometric normal `n`;
 // light it turns in is added, material m's glossy weight times `open` (ndf_open_fraction at the
 // vertices) times the difference. Never negative; `glossy` itself without a map or for a flat one.
@@ -559,12 +581,12 @@ fn ndf_vertex_glossy(ndf: ptr<function, SurfaceNdf>, n: vec3<f32>, view: vec3<f3
         return glossy;
     }
     let r = reflect(-view, n);
-    let unmapped = max(ndf_highlight_sum(r, m, NDF_MAX_KAPPA) * max(dot(n, r), 0.0), vec3<f32>(0.0));
+    let unmapped = max(ndf_highlight(r, m, NDF_MAX_KAPPA) * max(dot(n, r), 0.0), vec3<f32>(0.0));
     var mapped = vec3<f32>(0.0);
     for (var j = 0; j < (*ndf).count; j = j + 1) {
         let lobe = (*ndf).lobes[j];
         let rj = reflect(-view, lobe.xyz);
-        mapped = mapped + lobe.w * ndf_highlight_sum(rj, m, (*ndf).kappas[j]) * max(dot(lobe.xyz, rj), 0.0);
+        mapped = mapped + lobe.w * ndf_highlight(rj, m, (*ndf).kappas[j]) * max(dot(lobe.xyz, rj), 0.0);
     }
     mapped = max(mapped, vec3<f32>(0.0));
     let kept = select(vec3<f32>(1.0), min(mapped / unmapped, vec3<f32>(1.0)), unmapped > vec3<f32>(1e-12));

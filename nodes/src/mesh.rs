@@ -121,6 +121,50 @@ impl Mesh {
         self
     }
 
+    /// Gives a mesh without texture coordinates box-projected ones (a mesh with its own keeps
+    /// them): each triangle takes the two axes across its face normal's largest component, in
+    /// units of `size` after `scale` (the object's scale per axis, so that a tile is `size`
+    /// metres on the object whatever its units). A vertex whose triangles face different axes is
+    /// split, one copy per axis, so every triangle interpolates one projection; the seams lie
+    /// where the main axis changes, as in any box mapping.
+    pub fn box_projected(mut self, size: f64, scale: [f64; 3]) -> Self {
+        if self.uvs.len() == self.positions.len() || size <= 0.0 {
+            return self;
+        }
+        // The two axes each main axis projects on (x → (z, y), y → (x, z), z → (x, y)); a face
+        // on the negative side mirrors the first, so a map reads the same way round from
+        // outside. The frames' handedness follows from the coordinates (bitangent signs).
+        const ACROSS: [[usize; 2]; 3] = [[2, 1], [0, 2], [0, 1]];
+        let positions = std::mem::take(&mut self.positions);
+        let normals = std::mem::take(&mut self.normals);
+        let indices = std::mem::take(&mut self.indices);
+        // Frames follow the new coordinates.
+        self.tangents.clear();
+        self.bitangent_signs.clear();
+        let mut copies: std::collections::HashMap<(u32, usize), u32> = std::collections::HashMap::new();
+        for triangle in indices.chunks_exact(3) {
+            let p: [DVec3; 3] =
+                std::array::from_fn(|k| triangle[k]).map(|i| DVec3::from(positions[i as usize].map(f64::from)));
+            let normal = (p[1] - p[0]).cross(p[2] - p[0]);
+            let axis = normal.abs().max_position();
+            let mirrored = normal[axis] < 0.0;
+            for &i in triangle {
+                let index = *copies.entry((i, 2 * axis + usize::from(mirrored))).or_insert_with(|| {
+                    let q = positions[i as usize];
+                    let [a, b] = ACROSS[axis];
+                    let u = f64::from(q[a]) * scale[a] / size;
+                    let v = f64::from(q[b]) * scale[b] / size;
+                    self.positions.push(q);
+                    self.normals.push(normals[i as usize]);
+                    self.uvs.push([(if mirrored { -u } else { u }) as f32, v as f32]);
+                    (self.positions.len() - 1) as u32
+                });
+                self.indices.push(index);
+            }
+        }
+        self
+    }
+
     /// Axis-aligned bounds `(min, max)`.
     pub fn bounds(&self) -> ([f32; 3], [f32; 3]) {
         let mut lo = [f32::MAX; 3];
@@ -388,6 +432,52 @@ pub fn union_bounds<'a>(meshes: impl IntoIterator<Item = &'a Mesh>) -> ([f32; 3]
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A cuboid stripped of its coordinates, box-projected: each face's vertices carry its own
+    /// projection (the two axes across its normal, over `size` after the scale), a vertex on
+    /// an edge is split between its faces, and the normal-map frames follow: each face's
+    /// tangent runs along u's gradient and its bitangent (`w · n × t`) against v's, as on a
+    /// mesh whose coordinates were authored so.
+    #[test]
+    fn box_projection_gives_each_face_its_axes() {
+        let mut bare = cuboid([2.0, 1.0, 3.0], 2, false);
+        bare.uvs.clear();
+        let scale = [0.5, 2.0, 1.0];
+        let projected = bare.clone().box_projected(4.0, scale);
+        assert_eq!(projected.indices.len(), bare.indices.len());
+        assert_eq!(projected.uvs.len(), projected.positions.len());
+        // On a sphere, whose triangles share vertices, those where the main axis changes split.
+        let mut ball = sphere(1.0, 16);
+        ball.uvs.clear();
+        let split = ball.clone().box_projected(1.0, [1.0; 3]);
+        assert!(split.positions.len() > ball.positions.len() && split.indices.len() == ball.indices.len());
+        let frames = VertexFrames::of(&MeshSet { meshes: vec![projected.clone()] });
+        for triangle in projected.indices.chunks_exact(3) {
+            let p: [DVec3; 3] =
+                std::array::from_fn(|k| DVec3::from(projected.positions[triangle[k] as usize].map(f64::from)));
+            let normal = (p[1] - p[0]).cross(p[2] - p[0]).normalize();
+            let axis = normal.abs().max_position();
+            let across = [[2, 1], [0, 2], [0, 1]][axis];
+            let mirror = if normal[axis] < 0.0 { -1.0 } else { 1.0 };
+            for (&i, q) in triangle.iter().zip(&p) {
+                let uv = projected.uvs[i as usize];
+                let want = [mirror * q[across[0]] * scale[across[0]] / 4.0, q[across[1]] * scale[across[1]] / 4.0];
+                assert!((f64::from(uv[0]) - want[0]).abs() < 1e-6 && (f64::from(uv[1]) - want[1]).abs() < 1e-6);
+                let [tx, ty, tz, w] = frames.tangents[i as usize];
+                let t = DVec3::new(tx.into(), ty.into(), tz.into());
+                let b = f64::from(w) * normal.cross(t);
+                let mut du = DVec3::ZERO;
+                du[across[0]] = mirror;
+                let mut dv = DVec3::ZERO;
+                dv[across[1]] = 1.0;
+                // glTF's frame: the bitangent runs against v (its images' rows run down).
+                assert!(t.dot(du) > 0.99 && b.dot(-dv) > 0.99, "face {normal}: frame {t} {b}");
+            }
+        }
+        // A mesh with its own coordinates keeps them.
+        let authored = cuboid([2.0, 1.0, 3.0], 2, false);
+        assert_eq!(authored.clone().box_projected(4.0, scale), authored);
+    }
 
     #[test]
     fn picking_a_ray_finds_the_mesh_it_hits() {

@@ -72,6 +72,11 @@ pub struct SceneObject {
     /// object; empty for the first linked material.
     #[serde(default, skip_serializing_if = "String::is_empty")]
     pub material: String,
+    /// Box-projected texture coordinates, one unit per this many metres, for the object's
+    /// meshes that have none (a glTF model exported without UVs), so a normal map applies to
+    /// them ([`crate::mesh::Mesh::box_projected`]); `None` leaves such meshes without.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub box_uvs: Option<f64>,
 }
 
 fn unit_scale() -> [f64; 3] {

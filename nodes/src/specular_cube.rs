@@ -21,6 +21,11 @@ use std::f64::consts::PI;
 const SAMPLES: usize = 256;
 
 // Stage value types this module owns (see `engine::value`).
+crate::stage_type!(SpecularCube, "prefiltered specular cube", |v| v
+    .levels
+    .iter()
+    .map(|l| l.texels.len() * 12)
+    .sum::<usize>());
 crate::stage_type!(EnvironmentBake, "baked environment", |v| v
     .cube
     .levels

@@ -417,12 +417,13 @@ fn a_flat_map_draws_the_unmapped_picture_and_the_furnace_stays_white() {
 /// are unwrapped), material `bumpy` with a constant normal texture leaning 15° up the image (a
 /// `data:` PNG) at `scale`; with TANGENT (w −1 on the mirrored half) when `authored`.
 fn mirrored_floor_gltf(dir: &Path, authored: bool, scale: f64) -> std::path::PathBuf {
-    floor_gltf(dir, Some(authored), scale)
+    floor_gltf(dir, Some(authored), scale, false)
 }
 
 /// [`mirrored_floor_gltf`], or with `texture_coordinates` `None` the same floor without
 /// TEXCOORD_0 (nor TANGENT).
-fn floor_gltf(dir: &Path, texture_coordinates: Option<bool>, scale: f64) -> std::path::PathBuf {
+/// `projected`: the coordinates are the box projection's (x/4, z/4), not the mirrored halves'.
+fn floor_gltf(dir: &Path, texture_coordinates: Option<bool>, scale: f64, projected: bool) -> std::path::PathBuf {
     // Little enough that the camera, 35° up, never sees a leaning normal from below.
     let lean = 15f64.to_radians();
     let encode = |c: f64| ((c + 1.0) / 2.0 * 255.0).round() as u8;
@@ -436,8 +437,9 @@ fn floor_gltf(dir: &Path, texture_coordinates: Option<bool>, scale: f64) -> std:
     let mut tangents = Vec::new();
     for (x0, x1) in [(-2.0f32, 0.0f32), (2.0, 0.0)] {
         for (u, v) in [(0.0f32, 0.0f32), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)] {
-            positions.push([x0 + (x1 - x0) * u, 0.0, -2.0 + 4.0 * v]);
-            uvs.push([u, v]);
+            let p = [x0 + (x1 - x0) * u, 0.0, -2.0 + 4.0 * v];
+            positions.push(p);
+            uvs.push(if projected { [p[0] / 4.0, p[2] / 4.0] } else { [u, v] });
             let along_u = (x1 - x0).signum();
             tangents.push([along_u, 0.0, 0.0, along_u]);
         }
@@ -476,7 +478,7 @@ fn floor_gltf(dir: &Path, texture_coordinates: Option<bool>, scale: f64) -> std:
         bin = base64::encode(&bin),
         len = bin.len(),
     );
-    let path = dir.join(format!("floor-{texture_coordinates:?}.gltf"));
+    let path = dir.join(format!("floor-{texture_coordinates:?}-{projected}.gltf"));
     std::fs::write(&path, json).unwrap();
     path
 }
@@ -604,7 +606,7 @@ fn a_mesh_without_texture_coordinates_is_drawn_without_the_map() {
     let engine = Engine::in_memory();
     let dir = tempfile::tempdir().unwrap();
     let (_, view) = camera([0.0; 3], 6.0);
-    let file = floor_gltf(dir.path(), None, 1.0);
+    let file = floor_gltf(dir.path(), None, 1.0, false);
     let shape = format!(r#"Gltf(file: "{}")"#, file.display());
     let mut graph = project(&shape, GLOSSY, Light::Sun, 1.0, dir.path());
     graph.set_param("bumpy", "normal_map", ParamValue::Path(file.display().to_string())).unwrap();
@@ -619,4 +621,40 @@ fn a_mesh_without_texture_coordinates_is_drawn_without_the_map() {
         pixels.iter().zip(&flat).flat_map(|(a, b)| (0..3).map(move |c| (a[c] - b[c]).abs())).fold(0.0, f32::max);
     let mean = flat.iter().map(|p| p[1]).sum::<f32>() / flat.len() as f32;
     assert!(mean > 0.0 && worst <= 1e-6 * mean.max(1.0), "the map changed the picture by up to {worst} (mean {mean})");
+}
+
+/// Box UVs give a model without texture coordinates a map: the floor glTF without TEXCOORD_0,
+/// box-projected (its faces take x and z, one unit per 4 m), is drawn as the floor with those
+/// very coordinates authored (and its tangents derived from them) is, and not as the unmapped
+/// floor; the note that the map does not apply is gone.
+#[test]
+fn box_uvs_map_a_model_without_texture_coordinates() {
+    let gpu = GpuContext::headless().expect("a wgpu device (lavapipe on machines without a GPU)");
+    let mut renderer = ViewportRenderer::new(&gpu);
+    let engine = Engine::in_memory();
+    let dir = tempfile::tempdir().unwrap();
+    let (_, view) = camera([0.0; 3], 6.0);
+    let mut drawn = |file: &Path, box_uvs: &str| {
+        let shape = format!(r#"Gltf(file: "{}"){box_uvs}"#, file.display());
+        let mut graph = project(&shape, GLOSSY, Light::Sun, 1.0, dir.path());
+        graph.set_param("bumpy", "normal_map", ParamValue::Path(file.display().to_string())).unwrap();
+        let frame = frame(&engine, &graph);
+        (render(&gpu, &mut renderer, &frame, &view), frame.lobe_limits)
+    };
+    let (authored, _) = drawn(&floor_gltf(dir.path(), Some(false), 1.0, true), "");
+    let bare = floor_gltf(dir.path(), None, 1.0, false);
+    let (unmapped, _) = drawn(&bare, "");
+    let (projected, notes) = drawn(&bare, ", box_uvs: Some(4.0)");
+    assert!(!notes.iter().any(|(_, why)| why.contains("no texture coordinates")), "{notes:?}");
+    let mean = authored.iter().map(|p| f64::from(p[1])).sum::<f64>() / authored.len() as f64;
+    let off = |a: &[[f32; 3]], b: &[[f32; 3]]| {
+        (a.iter().zip(b).map(|(x, y)| f64::from(x[1] - y[1]).powi(2)).sum::<f64>() / a.len() as f64).sqrt() / mean
+    };
+    println!(
+        "box-projected floor against the authored one {:.4}, the unmapped one against it {:.3}",
+        off(&projected, &authored),
+        off(&unmapped, &authored)
+    );
+    assert!(off(&unmapped, &authored) > 0.1, "the map's lean should show");
+    assert!(off(&projected, &authored) < 0.01, "box UVs draw another map than the authored coordinates");
 }

@@ -451,6 +451,7 @@ impl Inspector<'_> {
                         });
                         ui.end_row();
                         model_units_rows(ui, o, meshes, (id, i));
+                        box_uvs_row(ui, o);
                     }
                     ui.label("Translation");
                     vec3_widget(ui, &mut o.translation, -1e4, 1e4, " m");
@@ -600,6 +601,29 @@ fn shape_widget(ui: &mut egui::Ui, shape: &mut Shape) {
 
 /// A model's size on screen and the unit it was authored in (a uniform scale), with a hint
 /// when the size is implausible for a scene measured in metres.
+/// Box-projected texture coordinates for a model's meshes that have none, so a normal map
+/// applies to them: off, or one tile per so many metres.
+fn box_uvs_row(ui: &mut egui::Ui, o: &mut SceneObject) {
+    let label = ui.label("Box UVs");
+    ui.horizontal(|ui| {
+        let mut on = o.box_uvs.is_some();
+        if ui
+            .checkbox(&mut on, "")
+            .labelled_by(label.id)
+            .on_hover_text("project texture coordinates from the object's axes onto meshes without their own")
+            .changed()
+        {
+            o.box_uvs = on.then_some(1.0);
+        }
+        if let Some(size) = &mut o.box_uvs {
+            ui.add(egui::DragValue::new(size).range(1e-3..=1e3).speed(0.01).suffix(" m a unit")).on_hover_text(
+                "metres on the object per unit of texture coordinate (the material's tiling repeats within it)",
+            );
+        }
+    });
+    ui.end_row();
+}
+
 fn model_units_rows(
     ui: &mut egui::Ui,
     o: &mut SceneObject,

@@ -35,7 +35,16 @@ impl FramePart for Environment {
         } else {
             frame.lighting_sh = Some(sh.clone());
         }
+        // Requested after the frame's own stages (`request`): absent until prefiltered.
+        frame.lighting_cube = g.keyed(node, &highlight_cube(node, g.separate_sun).stage).ok();
         frame.sh = Some(sh);
         Ok(())
     }
+}
+
+/// The stage of environment `node` that holds the light the transport carries (the sky alone
+/// with the sun lit apart), GGX-prefiltered: per-vertex highlights on normal-mapped surfaces
+/// are corrected through it.
+pub(super) fn highlight_cube(node: &str, separate_sun: bool) -> StageRef {
+    StageRef::new(node, if separate_sun { "residual_highlight_cube" } else { "highlight_cube" })
 }

@@ -46,12 +46,16 @@ pub const HIGHLIGHT_BANDS: usize = 8;
 /// by H through the NDF over H at the normal; light it turns in is added, scaled by how open the
 /// vertex is to that light (its transported irradiance over the unshadowed one). A flat map
 /// changes nothing.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug)]
 pub struct VertexHighlight {
     /// `L_lm` to [`HIGHLIGHT_BANDS`].
     pub radiance: ShRgb,
     /// Per material, its glossy lobe to [`HIGHLIGHT_BANDS`] (`None` for Lambert).
     pub lobes: Vec<Option<crate::prt::GlossyLobe>>,
+    /// The same light GGX-prefiltered ([`crate::specular_cube::SpecularCube`]), once
+    /// evaluated: H then comes from it, each lobe as the GGX lobe of its equivalent Phong
+    /// exponent widened by the normals' spread, sharp where band 7 blurs.
+    pub cube: Option<Keyed>,
 }
 
 impl NormalMapFrame {
@@ -61,6 +65,7 @@ impl NormalMapFrame {
     pub fn new(
         materials: &[FrameMaterial],
         transported: Option<&ShRgb>,
+        cube: Option<&Keyed>,
         per_vertex: bool,
         notes: &mut Vec<(String, String)>,
     ) -> Self {
@@ -98,6 +103,7 @@ impl NormalMapFrame {
         let vertex_highlight = transported.filter(|_| per_vertex && mapped).map(|light| VertexHighlight {
             radiance: light.truncated(HIGHLIGHT_BANDS),
             lobes: frame_materials.iter().map(|m| crate::prt::glossy_lobe(&m.material, HIGHLIGHT_BANDS)).collect(),
+            cube: cube.cloned(),
         });
         Self { materials, vertex_diffuse_scale, vertex_highlight }
     }
@@ -144,7 +150,8 @@ pub(super) fn note_meshes_without_uvs(
         notes.push((
             material.node.clone(),
             format!(
-                "its normal map does not apply to {}{more}: {} no texture coordinates, so {} drawn without it",
+                "its normal map does not apply to {}{more}: {} no texture coordinates, so {} drawn without it \
+                 (box UVs on the object, `box_uvs` in the project, project some)",
                 named.join(", "),
                 if one { "it has" } else { "they have" },
                 if one { "it is" } else { "they are" },
@@ -224,7 +231,9 @@ pub(super) fn normal_detail(
         if model != Model::Lambert && mode != Mode::ShIrradiance {
             note(format!(
                 "in {mode} the environment's highlight is shaded per vertex and corrected per pixel for the normal \
-                 map through the light's SH to band {}: sharper detail in it does not see the map",
+                 map by the ratio of the prefiltered light through the pixel's normals to that at its normal (the \
+                 light's SH to band {} until it is prefiltered): the map reshapes the vertices' highlight, it does \
+                 not sharpen it",
                 super::HIGHLIGHT_BANDS - 1
             ));
         }

@@ -24,6 +24,9 @@ pub(super) struct Assembled {
     /// The SH light the mode's transport carries: the sky without its sun when the sun is lit
     /// apart, else the environment's SH.
     pub lighting_sh: Option<Keyed>,
+    /// The same light GGX-prefiltered ([`crate::specular_cube::SpecularCube`]), once evaluated:
+    /// what normal-mapped surfaces correct a per-vertex highlight with.
+    pub lighting_cube: Option<Keyed>,
     pub sun: Option<SunFrame>,
     pub fog: Option<FogFrame>,
     pub lights: Vec<PointLight>,

@@ -60,6 +60,7 @@ pub fn frame_request_for(graph: &Graph, output: &str, needs: FrameNeeds) -> Requ
         .iter()
         .flat_map(|m| normal_map_stages(graph, &m.id))
         .partition(|s| s.stage != "vmf_lobes");
+    let normal_maps_empty = normal_maps.is_empty();
     first.extend(normal_maps);
     // The reference traces the scene (and the blocker spheres) whatever the mode.
     if (needs.picking || view != View::Approximation) && linked.scene.is_some() {
@@ -87,6 +88,13 @@ pub fn frame_request_for(graph: &Graph, output: &str, needs: FrameNeeds) -> Requ
     } else {
         Request::new(format!("output `{output}`: mode {mode}"), first)
     };
+    // Modes that light the environment per vertex correct its highlight for a map through the
+    // prefiltered light, which comes with the lobes.
+    let mut normal_lobes = normal_lobes;
+    if mode.is_shadowed() && !normal_maps_empty {
+        normal_lobes
+            .extend(linked.environment.as_deref().map(|e| super::environment::highlight_cube(e, linked.separate_sun)));
+    }
     let request = if normal_lobes.is_empty() {
         request
     } else {

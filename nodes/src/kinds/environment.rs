@@ -233,6 +233,24 @@ pub fn spec() -> NodeKindSpec {
                 compute: residual_sh_rotated,
             },
             StageSpec {
+                name: "highlight_cube",
+                version: 1,
+                params: &[],
+                stages: &["rotated_radiance"],
+                inputs: &[],
+                persist: None,
+                compute: highlight_cube,
+            },
+            StageSpec {
+                name: "residual_highlight_cube",
+                version: 1,
+                params: &["rotation"],
+                stages: &["sun"],
+                inputs: &[],
+                persist: None,
+                compute: residual_highlight_cube,
+            },
+            StageSpec {
                 name: "haar",
                 version: 1,
                 params: &["wavelet_terms"],
@@ -395,6 +413,26 @@ fn sh_rotated(ctx: &StageContext) -> Result<StageValue, StageError> {
     let sh = ctx.stage::<crate::sh::ShRgb>("sh_unrotated")?;
     let rotation = rotation_matrix(ctx.vec3("rotation")?);
     Ok(StageValue::new(ShRotation::new(sh.bands, rotation).apply_rgb(sh)))
+}
+
+/// Faces of the GGX-prefiltered cubes a normal-mapped surface's per-vertex highlight is
+/// corrected with (`frame::VertexHighlight`): six roughness levels, 128² down to 4².
+pub const HIGHLIGHT_CUBE_SIZE: usize = 128;
+
+/// The rotated radiance, GGX-prefiltered ([`crate::specular_cube`]).
+fn highlight_cube(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let cube = ctx.stage::<CubeMap>("rotated_radiance")?;
+    Ok(StageValue::new(crate::specular_cube::prefilter(cube, HIGHLIGHT_CUBE_SIZE, ctx.cancel_token())?))
+}
+
+/// The rotated sky without its sun (what the transport carries with the sun lit apart),
+/// GGX-prefiltered.
+fn residual_highlight_cube(ctx: &StageContext) -> Result<StageValue, StageError> {
+    let split = ctx.stage::<crate::sun::SunSplit>("sun")?;
+    let inverse = rotation_matrix(ctx.vec3("rotation")?).transpose();
+    let residual = &split.residual;
+    let rotated = CubeMap::from_fn(residual.size, 2, |d| residual.sample(inverse * d));
+    Ok(StageValue::new(crate::specular_cube::prefilter(&rotated, HIGHLIGHT_CUBE_SIZE, ctx.cancel_token())?))
 }
 
 fn haar(ctx: &StageContext) -> Result<StageValue, StageError> {

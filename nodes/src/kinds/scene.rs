@@ -22,6 +22,7 @@ impl SceneObject {
             color: crate::scene_object::grey(),
             visibility_texture: false,
             material: String::new(),
+            box_uvs: None,
         }
     }
 
@@ -73,6 +74,11 @@ impl SceneObject {
         if sizes.iter().any(|s| !s.is_finite() || *s <= 0.0 || *s > 1e6) {
             return Err(format!("object `{}` has a size outside (0, 1e6] m", self.name));
         }
+        if let Some(size) = self.box_uvs
+            && !(size.is_finite() && (1e-6..=1e6).contains(&size))
+        {
+            return Err(format!("object `{}` has box_uvs {size}: a tile must be within 1e-6..1e6 m", self.name));
+        }
         Ok(())
     }
 
@@ -108,6 +114,10 @@ impl SceneObject {
         let single = raw.len() == 1 && !model;
         raw.into_iter()
             .map(|m| {
+                let m = match self.box_uvs {
+                    Some(size) => m.box_projected(size, self.scale.map(f64::abs)),
+                    None => m,
+                };
                 let mut m = m.transformed(transform);
                 m.transform = transform.to_cols_array();
                 m.visibility_texture = self.visibility_texture;

@@ -7,9 +7,12 @@
 use super::{entry, stage_value, uniform_buffer, write_uniform};
 use crate::{GpuContext, RenderError};
 use glam::{DVec3, Vec3, Vec4};
+use lightloom_nodes::cubemap::CubeMap;
 use lightloom_nodes::frame::{HIGHLIGHT_BANDS, MAX_MATERIALS, NormalMapFrame};
 use lightloom_nodes::kinds::brdf_normal_map::NormalFilter;
 use lightloom_nodes::normal_filtering::{MomentPyramid, VMF_LOBES, VmfPyramid};
+use lightloom_nodes::specular_cube::SpecularCube;
+use wgpu::util::DeviceExt;
 
 /// vMF levels per material, from the map's own (`normal_map.wgsl` `NDF_LEVELS`; a 2048² map has 12).
 const LEVELS: usize = 12;
@@ -45,6 +48,8 @@ pub(crate) struct VmfLevel {
 pub(crate) struct HighlightLobe {
     pub(crate) weight: Vec3,
     pub(crate) glossy: u32,
+    /// The GGX α of its equivalent Phong exponent.
+    pub(crate) alpha: f32,
 }
 
 /// `normal_map.wgsl` `NormalMaps`.
@@ -59,6 +64,8 @@ pub(crate) struct NormalParams {
     /// Four factors per vector, material `m` at `[2m, 2m + 1]`.
     pub(crate) highlight_factors: [Vec4; 2 * MAX_MATERIALS],
     pub(crate) highlight_lobes: [HighlightLobe; MAX_MATERIALS],
+    /// Roughness levels of the bound prefiltered light (0: none, H from the SH).
+    pub(crate) highlight_cube_levels: u32,
 }
 
 impl Default for NormalParams {
@@ -72,6 +79,7 @@ impl Default for NormalParams {
             highlight_radiance: [Vec3::ZERO; HIGHLIGHT_BANDS * HIGHLIGHT_BANDS],
             highlight_factors: [Vec4::ZERO; 2 * MAX_MATERIALS],
             highlight_lobes: [HighlightLobe::default(); MAX_MATERIALS],
+            highlight_cube_levels: 0,
         }
     }
 }
@@ -85,6 +93,11 @@ pub(crate) struct NormalMapPass {
     uploaded: Option<Vec<PyramidKeys>>,
     /// Per material: its layer and fitted vMF levels, as uploaded.
     slots: Vec<Option<(u32, Vec<[u32; 4]>)>>,
+    /// Bindings 1, 2 and 4.
+    views: [wgpu::TextureView; 3],
+    /// The prefiltered light's view (binding 5), its stage key and levels.
+    cube: wgpu::TextureView,
+    cube_uploaded: Option<(u128, u32)>,
 }
 
 impl NormalMapPass {
@@ -97,6 +110,7 @@ impl NormalMapPass {
                 entry::texture(2, wgpu::TextureViewDimension::D2Array, true),
                 entry::sampler(3),
                 entry::texture(4, wgpu::TextureViewDimension::D2, false),
+                entry::texture(5, wgpu::TextureViewDimension::Cube, true),
             ],
         });
         let params = uniform_buffer::<NormalParams>(&gpu.device, "normal maps");
@@ -110,19 +124,29 @@ impl NormalMapPass {
             anisotropy_clamp: 16,
             ..Default::default()
         });
-        let bind_group = Self::bind(gpu, &layout, &params, &sampler, &[], (1, 1), &[[0.0; 4]]);
-        Self { layout, params, sampler, bind_group, uploaded: None, slots: Vec::new() }
+        let cube = upload_cube(gpu, &SpecularCube { levels: vec![CubeMap::new(1, vec![[0.0; 3]; 6])] });
+        let views = Self::upload(gpu, &[], (1, 1), &[[0.0; 4]]);
+        let bind_group = bind(gpu, &layout, &params, &sampler, &views, &cube);
+        Self {
+            layout,
+            params,
+            sampler,
+            bind_group,
+            views,
+            uploaded: None,
+            slots: Vec::new(),
+            cube,
+            cube_uploaded: None,
+        }
     }
 
-    fn bind(
+    /// The moment pyramids' two texture arrays and the lobe texture.
+    fn upload(
         gpu: &GpuContext,
-        layout: &wgpu::BindGroupLayout,
-        params: &wgpu::Buffer,
-        sampler: &wgpu::Sampler,
         pyramids: &[&MomentPyramid],
         (width, height): (usize, usize),
         lobes: &[[f32; 4]],
-    ) -> wgpu::BindGroup {
+    ) -> [wgpu::TextureView; 3] {
         let levels = pyramids.first().map_or(1, |p| p.levels.len()) as u32;
         let layers = pyramids.len().max(1) as u32;
         let moments = |label: &str, half: usize| {
@@ -199,18 +223,7 @@ impl NormalMapPass {
             },
             wgpu::Extent3d { width: columns as u32, height: rows as u32, depth_or_array_layers: 1 },
         );
-        let lobe_view = lobe_texture.create_view(&Default::default());
-        gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("normal maps"),
-            layout,
-            entries: &[
-                wgpu::BindGroupEntry { binding: 0, resource: params.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::TextureView(&a) },
-                wgpu::BindGroupEntry { binding: 2, resource: wgpu::BindingResource::TextureView(&b) },
-                wgpu::BindGroupEntry { binding: 3, resource: wgpu::BindingResource::Sampler(sampler) },
-                wgpu::BindGroupEntry { binding: 4, resource: wgpu::BindingResource::TextureView(&lobe_view) },
-            ],
-        })
+        [a, b, lobe_texture.create_view(&Default::default())]
     }
 
     /// Uniforms every frame; textures when a pyramid's stage changes.
@@ -257,8 +270,18 @@ impl NormalMapPass {
                 )));
             }
             debug_assert!(lobes.len().is_multiple_of(VMF_LOBES));
-            self.bind_group = Self::bind(gpu, &self.layout, &self.params, &self.sampler, &pyramids, size, &lobes);
+            self.views = Self::upload(gpu, &pyramids, size, &lobes);
             self.uploaded = Some(keys);
+            self.bind_group = bind(gpu, &self.layout, &self.params, &self.sampler, &self.views, &self.cube);
+        }
+        let cube = frame.vertex_highlight.as_ref().and_then(|h| h.cube.as_ref());
+        if let Some(keyed) = cube
+            && self.cube_uploaded.map(|(key, _)| key) != Some(keyed.key)
+        {
+            let prefiltered = stage_value::<SpecularCube>(keyed)?;
+            self.cube = upload_cube(gpu, prefiltered);
+            self.cube_uploaded = Some((keyed.key, prefiltered.levels.len() as u32));
+            self.bind_group = bind(gpu, &self.layout, &self.params, &self.sampler, &self.views, &self.cube);
         }
         let v3 = |v: &[f64; 3]| DVec3::from(*v).as_vec3();
         let mut params = NormalParams::default();
@@ -285,12 +308,21 @@ impl NormalMapPass {
         }
         if let Some(highlight) = &frame.vertex_highlight {
             params.vertex_highlights = 1;
+            if let (Some(keyed), Some((key, levels))) = (&highlight.cube, self.cube_uploaded)
+                && keyed.key == key
+            {
+                params.highlight_cube_levels = levels;
+            }
             for (dst, src) in params.highlight_radiance.iter_mut().zip(&highlight.radiance.coeffs) {
                 *dst = v3(src);
             }
             for (m, lobe) in highlight.lobes.iter().enumerate().take(MAX_MATERIALS) {
                 let Some(lobe) = lobe else { continue };
-                params.highlight_lobes[m] = HighlightLobe { weight: v3(&lobe.weight), glossy: 1 };
+                // The lobe about the mirror direction of exponent s is Blinn-Phong's 4s
+                // (`Brdf::equivalent_phong_exponent`), GGX's α = sqrt(2 / (4s + 2)) (Walter et al.
+                // 2007).
+                let alpha = (2.0 / (4.0 * lobe.exponent + 2.0)).sqrt() as f32;
+                params.highlight_lobes[m] = HighlightLobe { weight: v3(&lobe.weight), glossy: 1, alpha };
                 for (l, f) in lobe.factors.iter().enumerate().take(HIGHLIGHT_BANDS) {
                     params.highlight_factors[2 * m + l / 4][l % 4] = *f as f32;
                 }
@@ -299,4 +331,60 @@ impl NormalMapPass {
         write_uniform(&gpu.queue, &self.params, &params);
         Ok(())
     }
+}
+
+/// Group 4 from the uploaded views.
+fn bind(
+    gpu: &GpuContext,
+    layout: &wgpu::BindGroupLayout,
+    params: &wgpu::Buffer,
+    sampler: &wgpu::Sampler,
+    [a, b, lobes]: &[wgpu::TextureView; 3],
+    cube: &wgpu::TextureView,
+) -> wgpu::BindGroup {
+    let view = wgpu::BindingResource::TextureView;
+    gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("normal maps"),
+        layout,
+        entries: &[
+            wgpu::BindGroupEntry { binding: 0, resource: params.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 1, resource: view(a) },
+            wgpu::BindGroupEntry { binding: 2, resource: view(b) },
+            wgpu::BindGroupEntry { binding: 3, resource: wgpu::BindingResource::Sampler(sampler) },
+            wgpu::BindGroupEntry { binding: 4, resource: view(lobes) },
+            wgpu::BindGroupEntry { binding: 5, resource: view(cube) },
+        ],
+    })
+}
+
+/// A prefiltered cube's levels as one mip-mapped half-float cube texture (level `m` its mip `m`).
+fn upload_cube(gpu: &GpuContext, cube: &SpecularCube) -> wgpu::TextureView {
+    let size = cube.levels[0].size;
+    // Layer-major: each face's mips in turn.
+    let mut texels = Vec::new();
+    for face in 0..6 {
+        for level in &cube.levels {
+            let n = level.size * level.size;
+            texels.extend_from_slice(&level.texels[face * n..(face + 1) * n]);
+        }
+    }
+    let texture = gpu.device.create_texture_with_data(
+        &gpu.queue,
+        &wgpu::TextureDescriptor {
+            label: Some("normal-map highlight light"),
+            size: wgpu::Extent3d { width: size as u32, height: size as u32, depth_or_array_layers: 6 },
+            mip_level_count: cube.levels.len() as u32,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: super::HDR_FORMAT,
+            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+            view_formats: &[],
+        },
+        wgpu::util::TextureDataOrder::LayerMajor,
+        bytemuck::cast_slice(&super::to_rgba_f16(&texels)),
+    );
+    texture.create_view(&wgpu::TextureViewDescriptor {
+        dimension: Some(wgpu::TextureViewDimension::Cube),
+        ..Default::default()
+    })
 }

@@ -547,9 +547,10 @@ fn a_gltf_materials_normal_texture_leans_mirrored_halves_alike() {
 /// the reference's camera never sees a normal from behind): a glossy plane (Blinn-Phong of
 /// exponent 40) mirrors a broad window to the camera, from near to far, in `sh_prt`,
 /// `wavelet_vertex` and `rsl`, each pixel correcting its vertices' highlight for its NDF. Against the
-/// reference with the map, the picture (8 × 8 block means) is well nearer than the unmapped
-/// one at every distance, and its energy within 20% once the mode's own bias on the unmapped
-/// plane is divided out (without the correction: 50% too bright at 3 m).
+/// reference with the map, the picture (8 × 8 block means) is under half as far off as the
+/// unmapped one at every distance (0.37–0.44 of it through the prefiltered light; 0.47–0.60
+/// through the light's SH to band 7), and its energy within 20% once the mode's own bias on
+/// the unmapped plane is divided out (without the correction: 50% too bright at 3 m).
 #[test]
 fn per_vertex_highlights_see_the_normal_map() {
     let gpu = GpuContext::headless().expect("a wgpu device (lavapipe on machines without a GPU)");
@@ -589,7 +590,10 @@ fn per_vertex_highlights_see_the_normal_map() {
                 100.0 * error(&flat),
                 energy / bias
             );
-            assert!(error(&pixels) < 0.8 * error(&flat), "{mode} at {d} m: the map takes the picture no nearer");
+            assert!(
+                error(&pixels) < 0.5 * error(&flat),
+                "{mode} at {d} m: the map takes the picture too little nearer"
+            );
             assert!((energy / bias - 1.0).abs() < 0.2, "{mode} at {d} m: energy {energy}, the mode's bias {bias}");
         }
     }

@@ -34,13 +34,17 @@ struct NormalMapMaterial {
     layer: u32,
 };
 
-// One fitted vMF level of a material's map: its first lobe, its texels across and down, and
-// the map texels per texel side.
+// One fitted vMF level of a material's map: its first lobe, its texels across and down, the
+// map texels per texel side and its lobes per texel.
 struct VmfLevel {
     first: u32,
     width: u32,
     height: u32,
     texel_span: u32,
+    // Lobes per texel (6; 12 where a texel spans 8 map texels or more).
+    count: u32,
+    // A uniform array's elements are 16-byte aligned.
+    padding: vec3<u32>,
 };
 
 // A material's equivalent Phong lobe for the per-vertex environment highlight.
@@ -161,8 +165,8 @@ fn ndf_add_level(ndf: ptr<function, SurfaceNdf>, m: u32, level: i32, uv: vec2<f3
         let offset = vec2<i32>(k & 1, k >> 1u);
         let texel = ((corner + offset) % size + size) % size;
         let bilinear = select(1.0 - f.x, f.x, offset.x == 1) * select(1.0 - f.y, f.y, offset.y == 1);
-        let first = info.first + u32(texel.y * size.x + texel.x) * 6u;
-        for (var j = 0u; j < 6u; j = j + 1u) {
+        let first = info.first + u32(texel.y * size.x + texel.x) * info.count;
+        for (var j = 0u; j < info.count; j = j + 1u) {
             let lobe = ndf_lobe_at(first + j);
             let weight = lobe.w * bilinear * share;
             let kappa = length(lobe.xyz);

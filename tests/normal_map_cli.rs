@@ -107,8 +107,12 @@ fn render_against_mitsuba(scene: &str, name: &str, settings: &[&str]) -> Vec<(f6
 
 /// The filtered approximation against Mitsuba on the same floor, in the mode that draws the sky's
 /// highlight per pixel (`wavelet_pixel`; the sun lit apart): with the vMF mixture, every band's
-/// energy within 8% and its blocks under 23%, no band worse than twice the nearest,
-/// and Toksvig's single lobe worse everywhere. With each lobe of normals evaluated at its mean
+/// energy within 8% and its blocks under 24%, no band worse than twice the nearest,
+/// and Toksvig's single lobe worse everywhere. (Correcting the sky's highlight through the
+/// prefiltered light rather than its SH to band 7 made the sky beside the streak right, 0.755
+/// against Mitsuba's 0.759 where it was 0.926 at 6–12 m, and so uncovered the streak's
+/// shoulders, 74–82% of Mitsuba's, which the bright sky had partly made up: blocks at 6–12 m
+/// went from 22.1% to 23.2%.) With each lobe of normals evaluated at its mean
 /// (masking by the widened lobe, the view's cosine at the mean, the part of the lobe the view lies
 /// below drawn black) the vMF mixture lost a fifth of the light at 12–30 m and its blocks were
 /// 52% off there.
@@ -126,7 +130,7 @@ fn filtered_normal_maps_keep_the_light_on_a_grazing_hammered_floor() {
     eprintln!("  Toksvig:     {toksvig:.3?}");
     for (band, ((error, energy), (toksvig_error, _))) in vmf.iter().zip(&toksvig).enumerate() {
         assert!((energy - 1.0).abs() < 0.08, "band {band}: energy {energy:.3}");
-        assert!(*error < 0.23, "band {band}: blocks {error:.3} off");
+        assert!(*error < 0.24, "band {band}: blocks {error:.3} off");
         assert!(error < toksvig_error, "band {band}: vMF {error:.3} against Toksvig {toksvig_error:.3}");
     }
     for (band, (error, _)) in vmf.iter().enumerate().skip(1) {
@@ -134,10 +138,12 @@ fn filtered_normal_maps_keep_the_light_on_a_grazing_hammered_floor() {
     }
 }
 
-/// The vMF mixture on the ribbed floor: every band's energy within 8% and its blocks under 45%
-/// (when the coarse levels fitted every 8th row and column of a map whose ribs repeat every 32
-/// texels, the far streak was twice as bright: 221% off at 12–30 m; the fits of six lobes to a
-/// rib's two-peaked slopes vary by 10 points there with which normals they see).
+/// The vMF mixture on the ribbed floor: every band's energy within 8%, its blocks under 15% at
+/// 2.5–12 m and under 35% at 12–30 m. Its coarse levels fit twelve lobes, which a rib's few
+/// distinct slopes pay for in likelihood (`normal_filtering::vmf_pyramid`); with six they were
+/// 10.7 / 17.8 / 26.9 / 38.0% off. (When the coarse levels fitted every 8th row and column of a
+/// map whose ribs repeat every 32 texels, the far streak was twice as bright: 221% off at
+/// 12–30 m.)
 #[test]
 fn the_vmf_mixture_keeps_a_grazing_ribbed_floor() {
     let vmf =
@@ -145,7 +151,8 @@ fn the_vmf_mixture_keeps_a_grazing_ribbed_floor() {
     eprintln!("wavelet_pixel, vMF mixture, ribbed, per band (block error, energy): {vmf:.3?}");
     for (band, (error, energy)) in vmf.iter().enumerate() {
         assert!((energy - 1.0).abs() < 0.08, "band {band}: energy {energy:.3}");
-        assert!(*error < 0.45, "band {band}: blocks {error:.3} off");
+        let limit = if band < 3 { 0.15 } else { 0.35 };
+        assert!(*error < limit, "band {band}: blocks {error:.3} off");
     }
 }
 

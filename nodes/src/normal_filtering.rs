@@ -233,11 +233,15 @@ impl NdfPyramid {
 }
 
 /// Per level of a normal map's MIP pyramid (as [`NdfPyramid`]'s), per texel, a mixture of up
-/// to `lobes` vMF lobes fitted by [`fit_vmf_mixture`] to the normals it covers (the map's
-/// bilinear field, at twice the texel density in the two finest levels). A texel covering
+/// to `lobes` vMF lobes fitted by [`fit_vmf_mixture`] to the normals it covers: the map's
+/// bilinear field, at twice the texel density in the two finest levels. A texel covering
 /// more than `max_normals` of them fits about `max_normals` at the points of a low-discrepancy
 /// sequence over its block (a grid of every `k`-th row and column aliased maps periodic in `k`),
-/// which bounds the cost of each level by the map's size.
+/// which bounds the cost of each level by the map's size. A level of texels of
+/// [`VMF_COARSE_SPAN`] map texels a side or more fits twice as many lobes where those fits'
+/// log-likelihood over the level's normals gains more than the Bayesian information criterion
+/// charges for the extra lobes, and at least half a nat a normal: a rib's few distinct slopes
+/// gain several nats a normal, a dimple's disc of slopes a few hundredths.
 pub fn vmf_pyramid(map: &NormalMap, lobes: usize, iterations: usize, max_normals: usize) -> Vec<Vec<Vec<Vmf>>> {
     vmf_pyramid_cancellable(map, lobes, iterations, max_normals, &crate::engine::CancelToken::default())
         .expect("never cancelled")
@@ -264,11 +268,12 @@ pub fn vmf_pyramid_cancellable(
         let density = if size <= 2 { 2 } else { 1 };
         let side = size * density;
         let stride = ((side * side) as f64 / max_normals.max(1) as f64).sqrt().ceil().max(1.0) as usize;
-        let texels: Vec<Vec<Vmf>> = (0..width * height)
+        type Fits = (Vec<Vmf>, Option<(Vec<Vmf>, f64, f64)>);
+        let fits: Vec<Fits> = (0..width * height)
             .into_par_iter()
             .map(|t| {
                 if cancel.is_cancelled() {
-                    return Vec::new();
+                    return (Vec::new(), None);
                 }
                 let (x, y) = (t % width, t / width);
                 let mut normals = Vec::new();
@@ -295,18 +300,61 @@ pub fn vmf_pyramid_cancellable(
                         take(x0 + a * (x1 - x0), y0 + b * (y1 - y0));
                     }
                 }
-                fit_vmf_mixture(&normals, lobes, iterations)
+                // Per texel: its fit of `lobes`, and where the level may take more, that fit, and
+                // the log-likelihood the larger one gains and what it must gain to be worth it.
+                let fine = fit_vmf_mixture(&normals, lobes, iterations);
+                let more = lobes_at(lobes, size);
+                if more == lobes {
+                    return (fine, None);
+                }
+                let coarse = fit_vmf_mixture(&normals, more, iterations);
+                let gain = log_likelihood(&coarse, &normals) - log_likelihood(&fine, &normals);
+                let n = normals.len() as f64;
+                // The Bayesian information criterion's price of the extra lobes' 4 parameters
+                // each, and at least half a nat a normal.
+                let price = ((4 * (more - lobes)) as f64 / 2.0 * n.ln()).max(0.5 * n);
+                (fine, Some((coarse, gain, price)))
             })
             .collect();
         if cancel.is_cancelled() {
             return None;
         }
+        // The whole level takes the larger fits where they pay over its texels together: a map
+        // whose features are few distinct slopes (ribs) gains several nats a normal, a smooth
+        // one (dimples) a few hundredths, with a rare texel at a rim gaining more.
+        let (gain, price) =
+            fits.iter().filter_map(|(_, c)| c.as_ref()).fold((0.0, 0.0), |(g, p), c| (g + c.1, p + c.2));
+        let larger = gain > price;
+        let texels: Vec<Vec<Vmf>> = fits
+            .into_iter()
+            .map(|(fine, coarse)| match coarse {
+                Some((coarse, _, _)) if larger => coarse,
+                _ => fine,
+            })
+            .collect();
         levels.push(texels);
         if width == 1 && height == 1 {
             return Some(levels);
         }
         size *= 2;
     }
+}
+
+/// `Σ w ln p(n)` of weighted normals under a mixture.
+fn log_likelihood(mixture: &[Vmf], normals: &[(DVec3, f64)]) -> f64 {
+    normals.iter().map(|(n, w)| w * mixture.iter().map(|l| l.density(*n)).sum::<f64>().max(1e-300).ln()).sum()
+}
+
+/// Map texels a side from which a [`vmf_pyramid`] level may fit twice the lobes: there a pixel
+/// sees the NDF of many of the map's features at once (the far field), which six lobes can draw
+/// poorly (`tools/normal_map_far_field.py` puts the far pixel of the ribbed map at 29–39% with
+/// six lobes and 1% with twelve; the dimples' at 16% and 14%).
+pub const VMF_COARSE_SPAN: usize = 8;
+
+/// The lobes a [`vmf_pyramid`] level of texels `size` map texels a side fits, `lobes` at the
+/// finest.
+pub fn lobes_at(lobes: usize, size: usize) -> usize {
+    if size >= VMF_COARSE_SPAN { 2 * lobes } else { lobes }
 }
 
 /// Point `i` of Roberts' R2 sequence in the unit square (the plastic number's powers as

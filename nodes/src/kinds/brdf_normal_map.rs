@@ -149,7 +149,7 @@ pub(super) fn stages() -> Vec<StageSpec> {
         },
         StageSpec {
             name: "vmf_lobes",
-            version: 1,
+            version: 2,
             params: &[],
             stages: &["normal_map"],
             inputs: &[],

@@ -208,12 +208,14 @@ pub const VMF_LOBES: usize = 6;
 /// all levels).
 pub const MAX_VMF_PIXELS: usize = 2048 * 2048;
 
-/// One level of a [`VmfPyramid`]: per texel [`VMF_LOBES`] lobes `(κμ, weight)` (unused lobes
-/// weigh 0).
+/// One level of a [`VmfPyramid`]: per texel `lobes_per_texel` lobes `(κμ, weight)` (unused
+/// lobes weigh 0): [`VMF_LOBES`], or twice that at a level of [`super::VMF_COARSE_SPAN`] map
+/// texels a side or more whose texels are drawn better so ([`super::vmf_pyramid`]).
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct VmfLevel {
     pub width: usize,
     pub height: usize,
+    pub lobes_per_texel: usize,
     pub lobes: Vec<[f32; 4]>,
 }
 
@@ -242,14 +244,16 @@ impl VmfPyramid {
             .enumerate()
             .map(|(level, texels)| {
                 let (width, height) = (map.width.div_ceil(1 << level), map.height.div_ceil(1 << level));
-                let mut lobes = vec![[0.0f32; 4]; width * height * VMF_LOBES];
-                for (slot, mixture) in lobes.chunks_exact_mut(VMF_LOBES).zip(&texels) {
+                // Six lobes a texel, or twelve at a coarse level that took them.
+                let per_texel = texels.iter().map(Vec::len).max().unwrap_or(0).max(VMF_LOBES);
+                let mut lobes = vec![[0.0f32; 4]; width * height * per_texel];
+                for (slot, mixture) in lobes.chunks_exact_mut(per_texel).zip(&texels) {
                     for (s, lobe) in slot.iter_mut().zip(mixture) {
                         let km = lobe.mean * lobe.kappa.min(MAX_KAPPA);
                         *s = [km.x as f32, km.y as f32, km.z as f32, lobe.weight as f32];
                     }
                 }
-                VmfLevel { width, height, lobes }
+                VmfLevel { width, height, lobes_per_texel: per_texel, lobes }
             })
             .collect();
         Ok(Self { levels })
@@ -258,7 +262,7 @@ impl VmfPyramid {
     /// The lobes of texel `(x, y)` of level `level` (0: the map's own texels).
     pub fn lobes(&self, level: usize, x: usize, y: usize) -> Vec<Vmf> {
         let l = &self.levels[level];
-        l.lobes[(y * l.width + x) * VMF_LOBES..][..VMF_LOBES]
+        l.lobes[(y * l.width + x) * l.lobes_per_texel..][..l.lobes_per_texel]
             .iter()
             .filter(|p| p[3] > 0.0)
             .map(|p| {

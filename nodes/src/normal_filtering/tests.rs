@@ -390,3 +390,59 @@ fn sampling_is_bilinear_between_texel_centres_and_repeats() {
     assert!((across - (texel(15, 3) + texel(0, 3)).normalize()).length() < 1e-12);
     assert!((map.sample([-0.5 / w, 0.5 / h]) - texel(15, 0)).length() < 1e-12);
 }
+
+/// Coarse levels fit twelve lobes where the map's normals are a few distinct slopes, and keep
+/// six where they spread smoothly: a 64² map of diagonal ribs (eight distinct slopes, a period
+/// of 16 texels) draws each of its eight slopes with a lobe of its own from the level of
+/// 16-texel blocks (a whole period) up (twelve lobes draw its normals far likelier than six);
+/// a 64² map of smooth random bumps keeps six everywhere.
+#[test]
+fn coarse_levels_take_twelve_lobes_only_where_they_pay() {
+    let size = 64;
+    let slopes = [-24.0f64, -16.0, -8.0, -2.0, 2.0, 8.0, 16.0, 24.0].map(f64::to_radians);
+    let ribs = NormalMap {
+        width: size,
+        height: size,
+        normals: (0..size * size)
+            .map(|i| {
+                let phase = ((i % size + i / size) % 16) / 2;
+                let a = slopes[phase];
+                DVec3::new(a.sin() / 2f64.sqrt(), a.sin() / 2f64.sqrt(), a.cos()).normalize()
+            })
+            .collect(),
+    };
+    let mut rng = crate::sampling::test_rng(5);
+    let bumps: Vec<(f64, f64, f64)> =
+        (0..40).map(|_| (rng.random_range(0.0..1.0), rng.random_range(0.0..1.0), rng.random_range(0.0..6.3))).collect();
+    let smooth = NormalMap {
+        width: size,
+        height: size,
+        normals: (0..size * size)
+            .map(|i| {
+                let (u, v) = ((i % size) as f64 / size as f64, (i / size) as f64 / size as f64);
+                let (mut dx, mut dy) = (0.0, 0.0);
+                for (fu, fv, p) in &bumps {
+                    dx += 0.02 * (40.0 * fu * u + 30.0 * fv * v + p).cos();
+                    dy += 0.02 * (30.0 * fu * u + 40.0 * fv * v + p).sin();
+                }
+                DVec3::new(dx, dy, 1.0).normalize()
+            })
+            .collect(),
+    };
+    let counts = |map: &NormalMap| -> Vec<usize> {
+        vmf_pyramid(map, 6, 20, 256).iter().map(|level| level.iter().map(Vec::len).max().unwrap()).collect()
+    };
+    let rib_counts = counts(&ribs);
+    let smooth_counts = counts(&smooth);
+    println!("lobes a texel per level: ribs {rib_counts:?}, smooth bumps {smooth_counts:?}");
+    assert!(rib_counts[..3].iter().all(|&c| c <= 6) && rib_counts[4..].iter().all(|&c| c >= 8), "{rib_counts:?}");
+    assert!(smooth_counts.iter().all(|&c| c <= 6), "{smooth_counts:?}");
+    // The premise: twelve lobes explain the ribs' normals far better than six.
+    let normals: Vec<(DVec3, f64)> = ribs.normals.iter().map(|n| (*n, 1.0)).collect();
+    let density = |mixture: &[Vmf]| {
+        normals.iter().map(|(n, _)| mixture.iter().map(|l| l.density(*n)).sum::<f64>().ln()).sum::<f64>()
+            / normals.len() as f64
+    };
+    let (six, twelve) = (fit_vmf_mixture(&normals, 6, 20), fit_vmf_mixture(&normals, 12, 20));
+    assert!(density(&twelve) > density(&six) + 0.5, "{} against {}", density(&twelve), density(&six));
+}

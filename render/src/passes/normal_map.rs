@@ -10,7 +10,7 @@ use glam::{DVec3, Vec3, Vec4};
 use lightloom_nodes::cubemap::CubeMap;
 use lightloom_nodes::frame::{HIGHLIGHT_BANDS, MAX_MATERIALS, NormalMapFrame};
 use lightloom_nodes::kinds::brdf_normal_map::NormalFilter;
-use lightloom_nodes::normal_filtering::{MomentPyramid, VMF_LOBES, VmfPyramid};
+use lightloom_nodes::normal_filtering::{MomentPyramid, VmfPyramid};
 use lightloom_nodes::specular_cube::SpecularCube;
 use wgpu::util::DeviceExt;
 
@@ -41,6 +41,10 @@ pub(crate) struct VmfLevel {
     pub(crate) height: u32,
     /// Map texels per texel side.
     pub(crate) texel_span: u32,
+    /// Lobes per texel.
+    pub(crate) count: u32,
+    /// A uniform array's elements are 16-byte aligned.
+    pub(crate) padding: glam::UVec3,
 }
 
 /// `normal_map.wgsl` `HighlightLobe`.
@@ -91,8 +95,9 @@ pub(crate) struct NormalMapPass {
     pub bind_group: wgpu::BindGroup,
     /// The pyramids' stage keys the bound textures hold.
     uploaded: Option<Vec<PyramidKeys>>,
-    /// Per material: its layer and fitted vMF levels, as uploaded.
-    slots: Vec<Option<(u32, Vec<[u32; 4]>)>>,
+    /// Per material: its layer and fitted vMF levels (first lobe, width, height, texel span,
+    /// lobes a texel), as uploaded.
+    slots: Vec<Option<(u32, Vec<[u32; 5]>)>>,
     /// Bindings 1, 2 and 4.
     views: [wgpu::TextureView; 3],
     /// The prefiltered light's view (binding 5), its stage key and levels.
@@ -255,7 +260,13 @@ impl NormalMapPass {
                     let fitted = stage_value::<VmfPyramid>(keyed)?;
                     for level in fitted.levels.iter().take(LEVELS) {
                         let block = finest.width.div_ceil(level.width).max(1);
-                        levels.push([lobes.len() as u32, level.width as u32, level.height as u32, block as u32]);
+                        levels.push([
+                            lobes.len() as u32,
+                            level.width as u32,
+                            level.height as u32,
+                            block as u32,
+                            level.lobes_per_texel as u32,
+                        ]);
                         lobes.extend_from_slice(&level.lobes);
                     }
                 }
@@ -269,7 +280,6 @@ impl NormalMapPass {
                     size.0, size.1
                 )));
             }
-            debug_assert!(lobes.len().is_multiple_of(VMF_LOBES));
             self.views = Self::upload(gpu, &pyramids, size, &lobes);
             self.uploaded = Some(keys);
             self.bind_group = bind(gpu, &self.layout, &self.params, &self.sampler, &self.views, &self.cube);
@@ -296,8 +306,9 @@ impl NormalMapPass {
             let fitted_levels = if detail.lobes.is_some() { levels.len() as u32 } else { 0 };
             let tiling = detail.settings.tiling as f32;
             params.materials[m] = NormalMapMaterial { filter_kind, tiling, fitted_levels, layer: *layer };
-            for (k, &[first, width, height, texel_span]) in levels.iter().enumerate() {
-                params.vmf_levels[m * LEVELS + k] = VmfLevel { first, width, height, texel_span };
+            for (k, &[first, width, height, texel_span, count]) in levels.iter().enumerate() {
+                params.vmf_levels[m * LEVELS + k] =
+                    VmfLevel { first, width, height, texel_span, count, ..Default::default() };
             }
         }
         if let Some(e) = &frame.vertex_diffuse_scale {

@@ -41,10 +41,13 @@ struct VmfLevel {
     width: u32,
     height: u32,
     texel_span: u32,
-    // Lobes per texel (6; 12 where a texel spans 8 map texels or more).
+    // Lobes per texel: 6, or up to 12 at a coarse level whose fits pay for more (nodes
+    // normal_filtering::vmf_pyramid).
     count: u32,
     // A uniform array's elements are 16-byte aligned.
-    padding: vec3<u32>,
+    pad_a: u32,
+    pad_b: u32,
+    pad_c: u32,
 };
 
 // A material's equivalent Phong lobe for the per-vertex environment highlight.

@@ -126,23 +126,30 @@ impl Mesh {
     /// units of `size` after `scale` (the object's scale per axis, so that a tile is `size`
     /// metres on the object whatever its units). A vertex whose triangles face different axes is
     /// split, one copy per axis, so every triangle interpolates one projection; the seams lie
-    /// where the main axis changes, as in any box mapping.
+    /// where the main axis changes, as in any box mapping. The coordinates of opposite faces
+    /// overlap, so they suit a tiled map, not a per-texel visibility texture.
     pub fn box_projected(mut self, size: f64, scale: [f64; 3]) -> Self {
-        if self.uvs.len() == self.positions.len() || size <= 0.0 {
+        if self.uvs.len() == self.positions.len() || size.is_nan() || size <= 0.0 {
             return self;
         }
         // The two axes each main axis projects on (x → (z, y), y → (x, z), z → (x, y)); a face
-        // on the negative side mirrors the first, so a map reads the same way round from
-        // outside. The frames' handedness follows from the coordinates (bitangent signs).
+        // on the negative side mirrors the first. The frames (tangent along u, bitangent against
+        // v, their handedness from the coordinates) light every face consistently; a map that is
+        // not symmetric reads mirrored or turned on some faces, as in any plain box mapping.
         const ACROSS: [[usize; 2]; 3] = [[2, 1], [0, 2], [0, 1]];
         let positions = std::mem::take(&mut self.positions);
         let normals = std::mem::take(&mut self.normals);
         let indices = std::mem::take(&mut self.indices);
+        let smooth = normals.len() == positions.len();
+        self.uvs.clear();
         // Frames follow the new coordinates.
         self.tangents.clear();
         self.bitangent_signs.clear();
         let mut copies: std::collections::HashMap<(u32, usize), u32> = std::collections::HashMap::new();
         for triangle in indices.chunks_exact(3) {
+            if triangle.iter().any(|&i| i as usize >= positions.len()) {
+                continue;
+            }
             let p: [DVec3; 3] =
                 std::array::from_fn(|k| triangle[k]).map(|i| DVec3::from(positions[i as usize].map(f64::from)));
             let normal = (p[1] - p[0]).cross(p[2] - p[0]);
@@ -155,7 +162,8 @@ impl Mesh {
                     let u = f64::from(q[a]) * scale[a] / size;
                     let v = f64::from(q[b]) * scale[b] / size;
                     self.positions.push(q);
-                    self.normals.push(normals[i as usize]);
+                    let face = normal.normalize_or(DVec3::Y).as_vec3().to_array();
+                    self.normals.push(if smooth { normals[i as usize] } else { face });
                     self.uvs.push([(if mirrored { -u } else { u }) as f32, v as f32]);
                     (self.positions.len() - 1) as u32
                 });

@@ -74,7 +74,8 @@ pub struct SceneObject {
     pub material: String,
     /// Box-projected texture coordinates, one unit per this many metres, for the object's
     /// meshes that have none (a glTF model exported without UVs), so a normal map applies to
-    /// them ([`crate::mesh::Mesh::box_projected`]); `None` leaves such meshes without.
+    /// them ([`crate::mesh::Mesh::box_projected`]); `None` leaves such meshes without. The
+    /// projected coordinates overlap, so those meshes take no visibility texture.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub box_uvs: Option<f64>,
 }

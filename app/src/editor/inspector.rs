@@ -599,24 +599,23 @@ fn shape_widget(ui: &mut egui::Ui, shape: &mut Shape) {
     });
 }
 
-/// A model's size on screen and the unit it was authored in (a uniform scale), with a hint
-/// when the size is implausible for a scene measured in metres.
 /// Box-projected texture coordinates for a model's meshes that have none, so a normal map
 /// applies to them: off, or one tile per so many metres.
 fn box_uvs_row(ui: &mut egui::Ui, o: &mut SceneObject) {
     let label = ui.label("Box UVs");
     ui.horizontal(|ui| {
         let mut on = o.box_uvs.is_some();
-        if ui
-            .checkbox(&mut on, "")
-            .labelled_by(label.id)
+        let checkbox = ui.checkbox(&mut on, "").labelled_by(label.id);
+        // Named for assistive technology as the row is.
+        checkbox.widget_info(|| egui::WidgetInfo::selected(egui::WidgetType::Checkbox, true, on, "Box UVs"));
+        if checkbox
             .on_hover_text("project texture coordinates from the object's axes onto meshes without their own")
             .changed()
         {
             o.box_uvs = on.then_some(1.0);
         }
         if let Some(size) = &mut o.box_uvs {
-            ui.add(egui::DragValue::new(size).range(1e-3..=1e3).speed(0.01).suffix(" m a unit")).on_hover_text(
+            ui.add(egui::DragValue::new(size).range(1e-6..=1e6).speed(0.01).suffix(" m a unit")).on_hover_text(
                 "metres on the object per unit of texture coordinate (the material's tiling repeats within it)",
             );
         }
@@ -624,6 +623,8 @@ fn box_uvs_row(ui: &mut egui::Ui, o: &mut SceneObject) {
     ui.end_row();
 }
 
+/// A model's size on screen and the unit it was authored in (a uniform scale), with a hint
+/// when the size is implausible for a scene measured in metres.
 fn model_units_rows(
     ui: &mut egui::Ui,
     o: &mut SceneObject,

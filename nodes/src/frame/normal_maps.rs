@@ -150,8 +150,8 @@ pub(super) fn note_meshes_without_uvs(
         notes.push((
             material.node.clone(),
             format!(
-                "its normal map does not apply to {}{more}: {} no texture coordinates, so {} drawn without it \
-                 (box UVs on the object, `box_uvs` in the project, project some)",
+                "its normal map does not apply to {}{more}: {} no texture coordinates, so {} drawn without it; \
+                 ticking Box UVs on the object (`box_uvs` in the project file) projects some",
                 named.join(", "),
                 if one { "it has" } else { "they have" },
                 if one { "it is" } else { "they are" },

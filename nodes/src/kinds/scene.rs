@@ -114,13 +114,15 @@ impl SceneObject {
         let single = raw.len() == 1 && !model;
         raw.into_iter()
             .map(|m| {
+                // Box-projected coordinates overlap: no visibility texture over them.
+                let own_uvs = m.uvs.len() == m.positions.len();
                 let m = match self.box_uvs {
                     Some(size) => m.box_projected(size, self.scale.map(f64::abs)),
                     None => m,
                 };
                 let mut m = m.transformed(transform);
                 m.transform = transform.to_cols_array();
-                m.visibility_texture = self.visibility_texture;
+                m.visibility_texture = self.visibility_texture && own_uvs;
                 // A model keeps its own materials unless the object names one.
                 if !(model && self.material.is_empty()) {
                     m.material = self.material.clone();

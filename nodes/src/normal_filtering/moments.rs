@@ -209,8 +209,9 @@ pub const VMF_LOBES: usize = 6;
 pub const MAX_VMF_PIXELS: usize = 2048 * 2048;
 
 /// One level of a [`VmfPyramid`]: per texel `lobes_per_texel` lobes `(κμ, weight)` (unused
-/// lobes weigh 0): [`VMF_LOBES`], or twice that at a level of [`super::VMF_COARSE_SPAN`] map
-/// texels a side or more whose texels are drawn better so ([`super::vmf_pyramid`]).
+/// lobes weigh 0): [`VMF_LOBES`], or the most any of its texels holds (up to twice that) at a
+/// level of [`super::VMF_COARSE_SPAN`] map texels a side or more that took the larger fits
+/// ([`super::vmf_pyramid`]).
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct VmfLevel {
     pub width: usize,

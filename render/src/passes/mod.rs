@@ -618,12 +618,13 @@ mod layout_tests {
                 vmf_levels,
                 highlight_radiance,
                 highlight_factors,
-                highlight_lobes
+                highlight_lobes,
+                highlight_cube_levels
             ]
         );
         layout!(irr, "NormalMapMaterial", normal_map::NormalMapMaterial, [filter_kind, tiling, fitted_levels, layer]);
-        layout!(irr, "VmfLevel", normal_map::VmfLevel, [first, width, height, texel_span]);
-        layout!(irr, "HighlightLobe", normal_map::HighlightLobe, [weight, glossy]);
+        layout!(irr, "VmfLevel", normal_map::VmfLevel, [first, width, height, texel_span, count, pad_a, pad_b, pad_c]);
+        layout!(irr, "HighlightLobe", normal_map::HighlightLobe, [weight, glossy, alpha]);
         validate(sun::SHADER, false);
         layout!(
             prt,

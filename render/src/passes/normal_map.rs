@@ -44,7 +44,9 @@ pub(crate) struct VmfLevel {
     /// Lobes per texel.
     pub(crate) count: u32,
     /// A uniform array's elements are 16-byte aligned.
-    pub(crate) padding: glam::UVec3,
+    pub(crate) pad_a: u32,
+    pub(crate) pad_b: u32,
+    pub(crate) pad_c: u32,
 }
 
 /// `normal_map.wgsl` `HighlightLobe`.

@@ -400,13 +400,17 @@ fn residual_sh_rotated(ctx: &StageContext) -> Result<StageValue, StageError> {
 
 fn rotated_radiance(ctx: &StageContext) -> Result<StageValue, StageError> {
     let cube = ctx.stage::<crate::cubemap::CubeMap>("radiance")?;
-    let rotation = ctx.vec3("rotation")?;
-    if rotation == [0.0; 3] {
-        return Ok(StageValue::new(cube.clone()));
+    Ok(StageValue::new(rotated(cube, ctx.vec3("rotation")?)))
+}
+
+/// `cube` turned by the rotation of `yaw_pitch_roll_deg`: `L'(d) = L(R⁻¹ d)`, box-filtered (a
+/// copy where there is none).
+fn rotated(cube: &CubeMap, yaw_pitch_roll_deg: [f64; 3]) -> CubeMap {
+    if yaw_pitch_roll_deg == [0.0; 3] {
+        return cube.clone();
     }
-    // L'(d) = L(R⁻¹ d), box-filtered.
-    let inverse = rotation_matrix(rotation).transpose();
-    Ok(StageValue::new(CubeMap::from_fn(cube.size, 2, |d| cube.sample(inverse * d))))
+    let inverse = rotation_matrix(yaw_pitch_roll_deg).transpose();
+    CubeMap::from_fn(cube.size, 2, |d| cube.sample(inverse * d))
 }
 
 fn sh_rotated(ctx: &StageContext) -> Result<StageValue, StageError> {
@@ -429,10 +433,8 @@ fn highlight_cube(ctx: &StageContext) -> Result<StageValue, StageError> {
 /// GGX-prefiltered.
 fn residual_highlight_cube(ctx: &StageContext) -> Result<StageValue, StageError> {
     let split = ctx.stage::<crate::sun::SunSplit>("sun")?;
-    let inverse = rotation_matrix(ctx.vec3("rotation")?).transpose();
-    let residual = &split.residual;
-    let rotated = CubeMap::from_fn(residual.size, 2, |d| residual.sample(inverse * d));
-    Ok(StageValue::new(crate::specular_cube::prefilter(&rotated, HIGHLIGHT_CUBE_SIZE, ctx.cancel_token())?))
+    let sky = rotated(&split.residual, ctx.vec3("rotation")?);
+    Ok(StageValue::new(crate::specular_cube::prefilter(&sky, HIGHLIGHT_CUBE_SIZE, ctx.cancel_token())?))
 }
 
 fn haar(ctx: &StageContext) -> Result<StageValue, StageError> {

@@ -112,7 +112,7 @@ fn render_against_mitsuba(scene: &str, name: &str, settings: &[&str]) -> Vec<(f6
 /// prefiltered light rather than its SH to band 7 made the sky beside the streak right, 0.755
 /// against Mitsuba's 0.759 where it was 0.926 at 6–12 m, and so uncovered the streak's
 /// shoulders, 74–82% of Mitsuba's, which the bright sky had partly made up: blocks at 6–12 m
-/// went from 22.1% to 23.2%.) With each lobe of normals evaluated at its mean
+/// went from 22.1% to 23.3%.) With each lobe of normals evaluated at its mean
 /// (masking by the widened lobe, the view's cosine at the mean, the part of the lobe the view lies
 /// below drawn black) the vMF mixture lost a fifth of the light at 12–30 m and its blocks were
 /// 52% off there.

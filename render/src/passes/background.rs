@@ -37,7 +37,7 @@ impl BackgroundPass {
         size: u32,
         texels: &[[f32; 3]],
     ) -> wgpu::BindGroup {
-        let cube = upload_layered(gpu, "environment", size, 6, texels, wgpu::TextureViewDimension::Cube);
+        let cube = upload_layered(gpu, "environment", (size, 1), 6, texels, wgpu::TextureViewDimension::Cube);
         gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("background"),
             layout,

@@ -399,11 +399,13 @@ pub(crate) fn upload_table_layers(
     })
 }
 
-/// Uploads linear RGB as `layers` half-float `size²` layers and views them as `dimension`.
+/// Uploads linear RGB as `layers` half-float `size²` layers of `mips` levels each (`texels`
+/// layer by layer, each layer's levels in turn, level `m` of side `size >> m`) and views them
+/// as `dimension`.
 pub(crate) fn upload_layered(
     gpu: &GpuContext,
     label: &str,
-    size: u32,
+    (size, mips): (u32, u32),
     layers: u32,
     texels: &[[f32; 3]],
     dimension: wgpu::TextureViewDimension,
@@ -413,7 +415,7 @@ pub(crate) fn upload_layered(
         &wgpu::TextureDescriptor {
             label: Some(label),
             size: wgpu::Extent3d { width: size, height: size, depth_or_array_layers: layers },
-            mip_level_count: 1,
+            mip_level_count: mips,
             sample_count: 1,
             dimension: wgpu::TextureDimension::D2,
             format: HDR_FORMAT,

@@ -12,7 +12,6 @@ use lightloom_nodes::frame::{HIGHLIGHT_BANDS, MAX_MATERIALS, NormalMapFrame};
 use lightloom_nodes::kinds::brdf_normal_map::NormalFilter;
 use lightloom_nodes::normal_filtering::{MomentPyramid, VmfPyramid};
 use lightloom_nodes::specular_cube::SpecularCube;
-use wgpu::util::DeviceExt;
 
 /// vMF levels per material, from the map's own (`normal_map.wgsl` `NDF_LEVELS`; a 2048² map has 12).
 const LEVELS: usize = 12;
@@ -381,23 +380,6 @@ fn upload_cube(gpu: &GpuContext, cube: &SpecularCube) -> wgpu::TextureView {
             texels.extend_from_slice(&level.texels[face * n..(face + 1) * n]);
         }
     }
-    let texture = gpu.device.create_texture_with_data(
-        &gpu.queue,
-        &wgpu::TextureDescriptor {
-            label: Some("normal-map highlight light"),
-            size: wgpu::Extent3d { width: size as u32, height: size as u32, depth_or_array_layers: 6 },
-            mip_level_count: cube.levels.len() as u32,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: super::HDR_FORMAT,
-            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-            view_formats: &[],
-        },
-        wgpu::util::TextureDataOrder::LayerMajor,
-        bytemuck::cast_slice(&super::to_rgba_f16(&texels)),
-    );
-    texture.create_view(&wgpu::TextureViewDescriptor {
-        dimension: Some(wgpu::TextureViewDimension::Cube),
-        ..Default::default()
-    })
+    let mips = (size as u32, cube.levels.len() as u32);
+    super::upload_layered(gpu, "normal-map highlight light", mips, 6, &texels, wgpu::TextureViewDimension::Cube)
 }

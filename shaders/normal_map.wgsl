@@ -53,6 +53,7 @@ struct VmfLevel {
 // A material's equivalent Phong lobe for the per-vertex environment highlight.
 struct HighlightLobe {
     weight: vec3<f32>,
+    // 0 without a glossy lobe, else 1 + its shape in `reflected_lobe` (0 GGX, 1 Blinn-Phong).
     glossy: u32,
     // The GGX α of its equivalent Phong exponent.
     alpha: f32,
@@ -78,7 +79,15 @@ struct NormalMaps {
     highlight_lobes: array<HighlightLobe, 8>,
     // Roughness levels of `highlight_light` (0: none bound, H from the SH).
     highlight_cube_levels: u32,
+    // The reflected lobe (nodes reflected_lobe::table): per shape (GGX, Blinn-Phong) and α row
+    // of NDF_REFLECTED_MU view cosines, the directional albedo E, the turn t of the rays' mean
+    // from the mirror direction towards the normal and their broadening b over normal incidence.
+    reflected_lobe: array<vec4<f32>, 256>,
 };
+
+// The reflected-lobe table's view cosines μ = (i / 15)² and roughnesses α = (j / 7)².
+const NDF_REFLECTED_MU: u32 = 16u;
+const NDF_REFLECTED_ALPHA: u32 = 8u;
 
 const NDF_HIGHLIGHT_BANDS: i32 = 8;
 
@@ -117,6 +126,8 @@ struct SurfaceNdf {
     axis: vec3<f32>,
     // Bit j set where lobe j is a flipped part (ndf_seen_from): its spread axis is mirrored too.
     flipped: u32,
+    // Whether the lobes are as the view sees them already (ndf_seen_from ran).
+    seen: bool,
     // The highlight's lobes of normals: xyz unit mean, w weight; and their concentrations.
     count: i32,
     lobes: array<vec4<f32>, 12>,
@@ -150,6 +161,7 @@ fn ndf_set_flat(ndf: ptr<function, SurfaceNdf>, n: vec3<f32>) {
     (*ndf).spread = vec2<f32>(0.0);
     (*ndf).axis = vec3<f32>(0.0);
     (*ndf).flipped = 0u;
+    (*ndf).seen = false;
     (*ndf).count = 1;
     (*ndf).lobes[0] = vec4<f32>(n, 1.0);
     (*ndf).kappas[0] = NDF_MAX_KAPPA;
@@ -418,8 +430,12 @@ fn ndf_seen_parts(mu: vec3<f32>, kappa: f32, g: vec3<f32>, wo: vec3<f32>) -> See
 // unperturbed normal `g` (ndf_seen_parts): each lobe becomes its part above the view (or, wholly
 // below it, its flipped self), and the flipped parts of lobes the view splits are then added as
 // lobes of their own, merged into the nearest (ndf_insert_lobe) only once the budget is spent.
-// Once a pixel, before lights loop over the lobes.
+// Once a pixel, before lights loop over the lobes (later calls do nothing).
 fn ndf_seen_from(ndf: ptr<function, SurfaceNdf>, g: vec3<f32>, wo: vec3<f32>) {
+    if ((*ndf).seen) {
+        return;
+    }
+    (*ndf).seen = true;
     let count = (*ndf).count;
     var flipped: array<vec4<f32>, 12>;
     var flipped_kappa: array<f32, 12>;
@@ -561,39 +577,86 @@ fn ndf_highlight_sum(r: vec3<f32>, m: u32, kappa: f32) -> vec3<f32> {
     return sum;
 }
 
-// H of material m's lobe about the mirror direction `r` through a vMF lobe of normals of
-// concentration kappa: from the prefiltered light where it is bound, the lobe as the GGX lobe of
-// its α widened by the normals' spread (α² grows by 2/κ, ndf_widened_axes), scaled by the lobe's
-// band-0 factor as the SH sum is; else the SH sum to band 7.
-fn ndf_highlight(r: vec3<f32>, m: u32, kappa: f32) -> vec3<f32> {
+// H of material m's lobe about the direction `r` through a vMF lobe of normals of concentration
+// kappa: from the prefiltered light where it is bound, the lobe as the GGX lobe of its α widened
+// by the normals' spread (α² grows by 2/κ, ndf_widened_axes) and then by `broadening`, scaled
+// by the lobe's band-0 factor as the SH sum is; else the SH sum to band 7.
+fn ndf_highlight(r: vec3<f32>, m: u32, kappa: f32, broadening: f32) -> vec3<f32> {
     let levels = normal_maps.highlight_cube_levels;
     if (levels == 0u) {
         return ndf_highlight_sum(r, m, kappa);
     }
     let alpha = normal_maps.highlight_lobes[m].alpha;
-    let widened = sqrt(alpha * alpha + select(2.0 / max(kappa, 1e-6), 0.0, kappa >= NDF_MAX_KAPPA));
+    let widened = sqrt(broadening * (alpha * alpha + select(2.0 / max(kappa, 1e-6), 0.0, kappa >= NDF_MAX_KAPPA)));
     let lod = clamp(sqrt(widened) * f32(levels - 1u), 0.0, f32(levels - 1u));
     return normal_maps.highlight_factors[2u * m].x * textureSampleLevel(highlight_light, normal_sampler, r, lod).rgb;
 }
 
+// (E, t, b) of the reflected lobe of `shape` (0 GGX, 1 Blinn-Phong) at view cosine `mu` and
+// roughness `alpha` (nodes reflected_lobe.rs), bilinear in √μ and √α.
+fn ndf_reflected_lobe(shape: u32, mu: f32, alpha: f32) -> vec3<f32> {
+    let x = clamp(sqrt(max(mu, 0.0)), 0.0, 1.0) * f32(NDF_REFLECTED_MU - 1u);
+    let y = clamp(sqrt(max(alpha, 0.0)), 0.0, 1.0) * f32(NDF_REFLECTED_ALPHA - 1u);
+    let i = min(u32(x), NDF_REFLECTED_MU - 2u);
+    let j = min(u32(y), NDF_REFLECTED_ALPHA - 2u);
+    let row = (shape * NDF_REFLECTED_ALPHA + j) * NDF_REFLECTED_MU + i;
+    let low = mix(ndf_reflected_entry(row), ndf_reflected_entry(row + 1u), x - f32(i));
+    let high = mix(ndf_reflected_entry(row + NDF_REFLECTED_MU), ndf_reflected_entry(row + NDF_REFLECTED_MU + 1u), x - f32(i));
+    return mix(low, high, y - f32(j));
+}
+
+fn ndf_reflected_entry(k: u32) -> vec3<f32> {
+    return normal_maps.reflected_lobe[k].xyz;
+}
+
+// The unshadowed light material m's lobe reflects towards `wo` off normals about `s` (spread
+// by κ) on a surface of unperturbed normal `g`, as the reference shades it: E(μ_o) times H at
+// the mean direction of the reflected rays, its α² grown by their broadening
+// (ndf_reflected_lobe: at grazing views the rays turn far above the mirror direction and spread
+// wide, where the split sum's lookup would read the horizon through a head-on lobe), less the
+// part of the lobe below g's horizon, which the reference draws black (the part below s's is E's
+// already): the rays about the mirror direction taken as Gaussian in elevation, of deviation 2α.
+fn ndf_view_highlight(s: vec3<f32>, g: vec3<f32>, wo: vec3<f32>, m: u32, kappa: f32) -> vec3<f32> {
+    let alpha = normal_maps.highlight_lobes[m].alpha;
+    let widened = sqrt(alpha * alpha + select(2.0 / max(kappa, 1e-6), 0.0, kappa >= NDF_MAX_KAPPA));
+    let mu = clamp(dot(s, wo), 1e-4, 1.0);
+    let r = 2.0 * mu * s - wo;
+    let shape = min(normal_maps.highlight_lobes[m].glossy, 2u) - 1u;
+    let lobe = ndf_reflected_lobe(shape, mu, widened);
+    // Only GGX's lookup turns: its long tail carries the light far above the mirror direction.
+    // A short lobe's mean turns only where the horizon cuts it, and turning the lookup there
+    // read a window's light off its edge.
+    let toward = select(lobe.y, 0.0, shape != 0u);
+    let across = r - dot(r, s) * s;
+    let len = length(across);
+    var d = s;
+    if (len > 1e-6) {
+        let turn = acos(clamp(dot(r, s), -1.0, 1.0)) * (1.0 - toward);
+        d = s * cos(turn) + across / len * sin(turn);
+    }
+    let sigma = 2.0 * max(widened, 1e-3);
+    let seen = ndf_normal_cdf(asin(clamp(dot(r, g), -1.0, 1.0)) / sigma) / max(ndf_normal_cdf(asin(mu) / sigma), 1e-6);
+    return lobe.x * min(seen, 1.0) * ndf_highlight(d, m, kappa, lobe.z);
+}
+
 // A per-vertex mode's environment highlight `glossy` (interpolated from the vertices) corrected
-// for the pixel's NDF (nodes frame::VertexHighlight), through the highlight H of the unshadowed
-// light (ndf_highlight: prefiltered, or its SH to band 7) for the unit direction `view` towards the eye: light
-// the NDF turns away scales `glossy` by H through the NDF over H at the geometric normal `n`;
-// light it turns in is added, material m's glossy weight times `open` (ndf_open_fraction at the
-// vertices) times the difference. Never negative; `glossy` itself without a map or for a flat one.
+// for the pixel's NDF (nodes frame::VertexHighlight) as the view from `view` (unit, towards the
+// eye) sees it (ndf_seen_from: the normals it lies below flipped), through the light each lobe
+// reflects (ndf_view_highlight: prefiltered, or the SH to band 7): light the NDF turns away
+// scales `glossy` by the lobes' sum over the same at the geometric normal `n`; light it turns
+// in is added, material m's glossy weight times `open` (ndf_open_fraction at the vertices)
+// times the difference. Never negative; `glossy` itself without a map or for a flat one.
 fn ndf_vertex_glossy(ndf: ptr<function, SurfaceNdf>, n: vec3<f32>, view: vec3<f32>, m: u32, open: vec3<f32>, glossy: vec3<f32>) -> vec3<f32> {
     let weight = normal_maps.highlight_lobes[m];
     if (!ndf_mapped(ndf) || normal_maps.vertex_highlights == 0u || weight.glossy == 0u) {
         return glossy;
     }
-    let r = reflect(-view, n);
-    let unmapped = max(ndf_highlight(r, m, NDF_MAX_KAPPA) * max(dot(n, r), 0.0), vec3<f32>(0.0));
+    ndf_seen_from(ndf, n, view);
+    let unmapped = max(ndf_view_highlight(n, n, view, m, NDF_MAX_KAPPA), vec3<f32>(0.0));
     var mapped = vec3<f32>(0.0);
     for (var j = 0; j < (*ndf).count; j = j + 1) {
         let lobe = (*ndf).lobes[j];
-        let rj = reflect(-view, lobe.xyz);
-        mapped = mapped + lobe.w * ndf_highlight(rj, m, (*ndf).kappas[j]) * max(dot(lobe.xyz, rj), 0.0);
+        mapped = mapped + lobe.w * ndf_view_highlight(lobe.xyz, n, view, m, (*ndf).kappas[j]);
     }
     mapped = max(mapped, vec3<f32>(0.0));
     let kept = select(vec3<f32>(1.0), min(mapped / unmapped, vec3<f32>(1.0)), unmapped > vec3<f32>(1e-12));

@@ -38,6 +38,7 @@ pub mod prt;
 pub mod quadrature;
 pub mod raycast;
 pub mod reference;
+pub mod reflected_lobe;
 pub mod rsl;
 pub mod sampling;
 pub mod sat;

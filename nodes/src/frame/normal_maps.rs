@@ -52,6 +52,9 @@ pub struct VertexHighlight {
     pub radiance: ShRgb,
     /// Per material, its glossy lobe to [`HIGHLIGHT_BANDS`] (`None` for Lambert).
     pub lobes: Vec<Option<crate::prt::GlossyLobe>>,
+    /// Per material, the shape its lobe reflects the light with
+    /// ([`crate::reflected_lobe::table`]).
+    pub shapes: Vec<crate::reflected_lobe::LobeShape>,
     /// The same light GGX-prefiltered ([`crate::specular_cube::SpecularCube`]), once
     /// evaluated: H then comes from it, each lobe as the GGX lobe of its equivalent Phong
     /// exponent widened by the normals' spread, sharp where band 7 blurs.
@@ -103,6 +106,7 @@ impl NormalMapFrame {
         let vertex_highlight = transported.filter(|_| per_vertex && mapped).map(|light| VertexHighlight {
             radiance: light.truncated(HIGHLIGHT_BANDS),
             lobes: frame_materials.iter().map(|m| crate::prt::glossy_lobe(&m.material, HIGHLIGHT_BANDS)).collect(),
+            shapes: frame_materials.iter().map(|m| crate::reflected_lobe::LobeShape::of(m.material.model)).collect(),
             cube: cube.cloned(),
         });
         Self { materials, vertex_diffuse_scale, vertex_highlight }

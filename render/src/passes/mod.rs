@@ -621,7 +621,8 @@ mod layout_tests {
                 highlight_radiance,
                 highlight_factors,
                 highlight_lobes,
-                highlight_cube_levels
+                highlight_cube_levels,
+                reflected_lobe
             ]
         );
         layout!(irr, "NormalMapMaterial", normal_map::NormalMapMaterial, [filter_kind, tiling, fitted_levels, layer]);

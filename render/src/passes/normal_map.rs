@@ -11,6 +11,7 @@ use lightloom_nodes::cubemap::CubeMap;
 use lightloom_nodes::frame::{HIGHLIGHT_BANDS, MAX_MATERIALS, NormalMapFrame};
 use lightloom_nodes::kinds::brdf_normal_map::NormalFilter;
 use lightloom_nodes::normal_filtering::{MomentPyramid, VmfPyramid};
+use lightloom_nodes::reflected_lobe;
 use lightloom_nodes::specular_cube::SpecularCube;
 
 /// vMF levels per material, from the map's own (`normal_map.wgsl` `NDF_LEVELS`; a 2048² map has 12).
@@ -52,6 +53,7 @@ pub(crate) struct VmfLevel {
 #[derive(Clone, Copy, Default, encase::ShaderType)]
 pub(crate) struct HighlightLobe {
     pub(crate) weight: Vec3,
+    /// 0 without a glossy lobe, else 1 + its `reflected_lobe::LobeShape`.
     pub(crate) glossy: u32,
     /// The GGX α of its equivalent Phong exponent.
     pub(crate) alpha: f32,
@@ -71,7 +73,14 @@ pub(crate) struct NormalParams {
     pub(crate) highlight_lobes: [HighlightLobe; MAX_MATERIALS],
     /// Roughness levels of the bound prefiltered light (0: none, H from the SH).
     pub(crate) highlight_cube_levels: u32,
+    /// The reflected lobe per shape, view cosine and α (nodes `reflected_lobe::table`): E, t
+    /// and b a vector.
+    pub(crate) reflected_lobe: [Vec4; REFLECTED_LOBE_VECTORS],
 }
+
+/// `normal_map.wgsl` `NDF_REFLECTED_VECTORS`.
+const REFLECTED_LOBE_VECTORS: usize =
+    reflected_lobe::LobeShape::ALL.len() * reflected_lobe::MU_STEPS * reflected_lobe::ALPHA_STEPS;
 
 impl Default for NormalParams {
     fn default() -> Self {
@@ -85,8 +94,15 @@ impl Default for NormalParams {
             highlight_factors: [Vec4::ZERO; 2 * MAX_MATERIALS],
             highlight_lobes: [HighlightLobe::default(); MAX_MATERIALS],
             highlight_cube_levels: 0,
+            reflected_lobe: reflected_lobe_vectors(),
         }
     }
+}
+
+/// The reflected-lobe table, an entry a vector.
+fn reflected_lobe_vectors() -> [Vec4; REFLECTED_LOBE_VECTORS] {
+    let entries = &reflected_lobe::table().entries;
+    std::array::from_fn(|k| Vec3::from_array(entries[k]).extend(0.0))
 }
 
 pub(crate) struct NormalMapPass {
@@ -334,7 +350,8 @@ impl NormalMapPass {
                 // (`Brdf::equivalent_phong_exponent`), GGX's α = sqrt(2 / (4s + 2)) (Walter et al.
                 // 2007).
                 let alpha = (2.0 / (4.0 * lobe.exponent + 2.0)).sqrt() as f32;
-                params.highlight_lobes[m] = HighlightLobe { weight: v3(&lobe.weight), glossy: 1, alpha };
+                let glossy = 1 + highlight.shapes.get(m).map_or(0, |s| *s as u32);
+                params.highlight_lobes[m] = HighlightLobe { weight: v3(&lobe.weight), glossy, alpha };
                 for (l, f) in lobe.factors.iter().enumerate().take(HIGHLIGHT_BANDS) {
                     params.highlight_factors[2 * m + l / 4][l % 4] = *f as f32;
                 }

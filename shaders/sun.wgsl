@@ -138,8 +138,9 @@ fn sun_lobe_concentration(lobe: SpecularLobe) -> f32 {
 // Evaluating those at `mu` instead loses most of the light at grazing views, where `cos_o`
 // varies most across the lobe; masking by the widened lobe would count the map's spread as
 // microgeometry that shadows, which a normal map is not. `g` is the surface's unperturbed
-// normal, for the shadow terminator (nodes/src/reference.rs) at `n*`.
-fn sun_lobe_through(lobe: SpecularLobe, widened: WidenedLobe, kappa: f32, mu: vec3<f32>, g: vec3<f32>, tangent: vec3<f32>, wi: vec3<f32>, wo: vec3<f32>) -> f32 {
+// normal, for the shadow terminator (nodes/src/reference.rs) at `n*`. `mixture`: the lobe is one of
+// a fitted vMF mixture (the GGX distribution then convolved with it as below).
+fn sun_lobe_through(lobe: SpecularLobe, widened: WidenedLobe, kappa: f32, mixture: bool, mu: vec3<f32>, g: vec3<f32>, tangent: vec3<f32>, wi: vec3<f32>, wo: vec3<f32>) -> f32 {
     let half = wi + wo;
     if (dot(half, half) < 1e-12) {
         return 0.0;
@@ -180,7 +181,19 @@ fn sun_lobe_through(lobe: SpecularLobe, widened: WidenedLobe, kappa: f32, mu: ve
         let ay = widened.lobe.alpha_y;
         if (model == 3u) {
             let s = (h.x / ax) * (h.x / ax) + (h.y / ay) * (h.y / ay) + h.z * h.z;
-            let d = 1.0 / (SUN_PI * ax * ay * s * s);
+            var d = 1.0 / (SUN_PI * ax * ay * s * s);
+            // GGX convolved with a fitted vMF lobe of normals (`mixture`): the widened GGX where
+            // the material's own roughness holds most of the slope variance, a Beckmann lobe of
+            // the same widths (the Gaussian slopes a vMF lobe's are) where the normals' spread
+            // does, mixed by the spread's share, which keeps GGX's own tail. The widened GGX alone
+            // stretches the tail to the full width: a bright core and weak shoulders, 75% of the
+            // reference's on a far dimpled floor. A single lobe standing for a whole NDF (Toksvig,
+            // the SH filter's) is no Gaussian of normals, and keeps the widened GGX.
+            let spread = select(0.0, clamp(1.0 - lobe.sharpness * lobe.alpha_y / (ax * ay), 0.0, 1.0), mixture);
+            if (spread > 0.0) {
+                let e = ((h.x / ax) * (h.x / ax) + (h.y / ay) * (h.y / ay)) / (h.z * h.z);
+                d = mix(d, exp(-e) / (SUN_PI * ax * ay * h.z * h.z * h.z * h.z), spread);
+            }
             // Masking by the material's own roughness, in the frame of n*.
             var li = vec3<f32>(sqrt(max(1.0 - cos_i * cos_i, 0.0)), 0.0, cos_i);
             var lo = vec3<f32>(sqrt(max(1.0 - cos_o * cos_o, 0.0)), 0.0, cos_o);
@@ -230,7 +243,7 @@ fn sun_ndf_lobe(ndf: ptr<function, SurfaceNdf>, j: i32, m: u32, kappa: f32, g: v
             frame = 2.0 * dot(frame, g) * g - frame;
         }
     }
-    return lobe.w * sun_lobe_through(material, widened, concentration, lobe.xyz, g, frame, d, wo);
+    return lobe.w * sun_lobe_through(material, widened, concentration, (*ndf).method == 2, lobe.xyz, g, frame, d, wo);
 }
 
 // Light reflected towards `wo` (unit, to the viewer) at `p` (normal `n`, tangent `tangent`)

@@ -158,8 +158,11 @@ fn a_leaning_map_keeps_the_sky_at_every_distance() {
 
 /// The filtered approximation against Mitsuba on the same floor, in the mode that draws the sky's
 /// highlight per pixel (`wavelet_pixel`; the sun lit apart): with the vMF mixture, every band's
-/// energy within 10% and its blocks under 24%, no band worse than twice the nearest,
-/// and Toksvig's single lobe worse everywhere. (Correcting the sky's highlight through the
+/// energy within 7% and its blocks under 20%, no band worse than twice the nearest, and
+/// Toksvig's single lobe worse everywhere. (The sun's highlight through each lobe of normals is
+/// GGX convolved with it, the widened GGX mixed with a Beckmann lobe by the normals' share of the
+/// slope variance: the streak's shoulders at 12–30 m went from 75% of Mitsuba's to 83%, and the
+/// blocks from 22.9 / 22.3% to 15.3 / 12.8% at 6–12 / 12–30 m.) (Correcting the sky's highlight through the
 /// prefiltered light rather than its SH to band 7 made the sky beside the streak right, 0.755
 /// against Mitsuba's 0.759 where it was 0.926 at 6–12 m, and so uncovered the streak's
 /// shoulders, 74–82% of Mitsuba's, which the bright sky had partly made up: blocks at 6–12 m
@@ -182,8 +185,8 @@ fn filtered_normal_maps_keep_the_light_on_a_grazing_hammered_floor() {
     eprintln!("  vMF mixture: {vmf:.3?}");
     eprintln!("  Toksvig:     {toksvig:.3?}");
     for (band, ((error, energy), (toksvig_error, _))) in vmf.iter().zip(&toksvig).enumerate() {
-        assert!((energy - 1.0).abs() < 0.1, "band {band}: energy {energy:.3}");
-        assert!(*error < 0.24, "band {band}: blocks {error:.3} off");
+        assert!((energy - 1.0).abs() < 0.07, "band {band}: energy {energy:.3}");
+        assert!(*error < 0.2, "band {band}: blocks {error:.3} off");
         assert!(error < toksvig_error, "band {band}: vMF {error:.3} against Toksvig {toksvig_error:.3}");
     }
     for (band, (error, _)) in vmf.iter().enumerate().skip(1) {

@@ -14,7 +14,9 @@ the sweep and the energy (sum over the truth's), for each formula and lobe count
   the view lies below black (the formula before);
 - "reflecting normal": the widened distribution about the mean, the rest at n* ∝ κ_b h + κ μ,
   masked by the material's own roughness, the part of the lobe below the view flipped, with the
-  shadow terminator (the formula now).
+  shadow terminator;
+- "GGX ⊗ vMF": the same with the widened distribution a mix of the widened GGX and a Beckmann
+  lobe of the same width, by the normals' share of the slope variance (the formula now).
 """
 import sys
 from math import erf, exp, pi, sqrt
@@ -113,16 +115,27 @@ def at_the_mean(lobes, wi, wo):
     return total
 
 
-def reflecting_normal(lobes, wi, wo):
+def beckmann_d(ch, a):
+    c2 = np.maximum(ch * ch, 1e-12)
+    return np.where(ch > 0, np.exp(-(1 - c2) / c2 / (a * a)) / (pi * a * a * c2 * c2), 0.0)
+
+
+def convolved(lobes, wi, wo):
+    return reflecting_normal(lobes, wi, wo, mixed=True)
+
+
+def reflecting_normal(lobes, wi, wo, mixed=False):
     total = 0.0
     h = (wi + wo) / np.linalg.norm(wi + wo)
     for w, mu0, kappa in lobes:
         wide = sqrt(ALPHA ** 2 + 2 / kappa)
+        spread = (2 / kappa) / wide ** 2 if mixed else 0.0
         for share, mu in seen_parts(mu0, kappa, wo):
             star = mu if kappa >= 1e5 else (2 / ALPHA ** 2 * h + kappa * mu) / np.linalg.norm(2 / ALPHA ** 2 * h + kappa * mu)
             ci, co = star @ wi, star @ wo
             if ci > 0 and co > 0 and wi[1] > 0:
-                f = ggx_d(mu @ h, wide) / (1 + lam(ci, ALPHA) + lam(co, ALPHA)) / (4 * co)
+                d = (1 - spread) * ggx_d(mu @ h, wide) + spread * beckmann_d(mu @ h, wide)
+                f = d / (1 + lam(ci, ALPHA) + lam(co, ALPHA)) / (4 * co)
                 total += w * share * f * terminator(star, wi)
     return total
 
@@ -149,6 +162,6 @@ TRUTH = {}
 print("far pixel of", path, "- per distance 2.75, 4.5, 9, 20 m: relative RMS error / energy")
 for k in [6, 12, 24]:
     lobes = fit_vmf(NORMALS, k)
-    for name, formula in [("at the mean", at_the_mean), ("reflecting normal", reflecting_normal)]:
+    for name, formula in [("at the mean", at_the_mean), ("reflecting normal", reflecting_normal), ("GGX ⊗ vMF", convolved)]:
         row = " ".join(f"{e * 100:5.1f}% / {x:.3f}" for e, x in sweep(formula, lobes))
         print(f"{k:2} lobes, {name:18} {row}")

@@ -128,6 +128,9 @@ struct SurfaceNdf {
     flipped: u32,
     // Whether the lobes are as the view sees them already (ndf_seen_from ran).
     seen: bool,
+    // Whether the lobes are a fitted vMF mixture's (method 2 with its levels fitted; until they
+    // are, Toksvig's single lobe stands in).
+    fitted: bool,
     // The highlight's lobes of normals: xyz unit mean, w weight; and their concentrations.
     count: i32,
     lobes: array<vec4<f32>, 12>,
@@ -162,6 +165,7 @@ fn ndf_set_flat(ndf: ptr<function, SurfaceNdf>, n: vec3<f32>) {
     (*ndf).axis = vec3<f32>(0.0);
     (*ndf).flipped = 0u;
     (*ndf).seen = false;
+    (*ndf).fitted = false;
     (*ndf).count = 1;
     (*ndf).lobes[0] = vec4<f32>(n, 1.0);
     (*ndf).kappas[0] = NDF_MAX_KAPPA;
@@ -283,6 +287,7 @@ fn surface_ndf(ndf: ptr<function, SurfaceNdf>, m: u32, uv_in: vec2<f32>, n: vec3
     let low = i32(floor(lod));
     let share = lod - f32(low);
     (*ndf).count = 0;
+    (*ndf).fitted = true;
     ndf_add_level(ndf, m, low, uv, map_size, frame, 1.0 - share);
     if (low + 1 < levels && share > 0.0) {
         ndf_add_level(ndf, m, low + 1, uv, map_size, frame, share);
@@ -611,7 +616,8 @@ fn ndf_reflected_entry(k: u32) -> vec3<f32> {
 
 // The unshadowed light material m's lobe reflects towards `wo` off normals about `s` (spread
 // by κ) on a surface of unperturbed normal `g`, as the reference shades it: E(μ_o) times H at
-// the mean direction of the reflected rays, its α² grown by their broadening
+// the mean direction of the reflected rays, its α² grown by their broadening where H is
+// prefiltered (the SH sum to band 7 cannot widen)
 // (ndf_reflected_lobe: at grazing views the rays turn far above the mirror direction and spread
 // wide, where the split sum's lookup would read the horizon through a head-on lobe), less the
 // part of the lobe below g's horizon, which the reference draws black (the part below s's is E's
@@ -621,8 +627,11 @@ fn ndf_view_highlight(s: vec3<f32>, g: vec3<f32>, wo: vec3<f32>, m: u32, kappa: 
     let widened = sqrt(alpha * alpha + select(2.0 / max(kappa, 1e-6), 0.0, kappa >= NDF_MAX_KAPPA));
     let mu = clamp(dot(s, wo), 1e-4, 1.0);
     let r = 2.0 * mu * s - wo;
-    let shape = min(normal_maps.highlight_lobes[m].glossy, 2u) - 1u;
+    let shape = min(max(normal_maps.highlight_lobes[m].glossy, 1u), 2u) - 1u;
+    // Where the rays go and how wide, through the lobe widened by the normals' spread; their
+    // albedo (masking) through the material's own roughness: the spread is no microgeometry.
     let lobe = ndf_reflected_lobe(shape, mu, widened);
+    let albedo = ndf_reflected_lobe(shape, mu, alpha).x;
     // Only GGX's lookup turns: its long tail carries the light far above the mirror direction.
     // A short lobe's mean turns only where the horizon cuts it, and turning the lookup there
     // read a window's light off its edge.
@@ -636,7 +645,7 @@ fn ndf_view_highlight(s: vec3<f32>, g: vec3<f32>, wo: vec3<f32>, m: u32, kappa: 
     }
     let sigma = 2.0 * max(widened, 1e-3);
     let seen = ndf_normal_cdf(asin(clamp(dot(r, g), -1.0, 1.0)) / sigma) / max(ndf_normal_cdf(asin(mu) / sigma), 1e-6);
-    return lobe.x * min(seen, 1.0) * ndf_highlight(d, m, kappa, lobe.z);
+    return albedo * min(seen, 1.0) * ndf_highlight(d, m, kappa, lobe.z);
 }
 
 // A per-vertex mode's environment highlight `glossy` (interpolated from the vertices) corrected
@@ -645,7 +654,10 @@ fn ndf_view_highlight(s: vec3<f32>, g: vec3<f32>, wo: vec3<f32>, m: u32, kappa: 
 // reflects (ndf_view_highlight: prefiltered, or the SH to band 7): light the NDF turns away
 // scales `glossy` by the lobes' sum over the same at the geometric normal `n`; light it turns
 // in is added, material m's glossy weight times `open` (ndf_open_fraction at the vertices)
-// times the difference. Never negative; `glossy` itself without a map or for a flat one.
+// times the difference. Never negative; `glossy` itself without a map or for a flat one. The
+// lobes' light is in the material's own albedo (ndf_view_highlight), the true BRDF's, as the
+// wavelet modes' vertices carry it; the SH modes' and `rsl`'s carry Phong's lobe and cosine, so
+// there what a map turns in is added in the true BRDF's terms to a highlight in Phong's.
 fn ndf_vertex_glossy(ndf: ptr<function, SurfaceNdf>, n: vec3<f32>, view: vec3<f32>, m: u32, open: vec3<f32>, glossy: vec3<f32>) -> vec3<f32> {
     let weight = normal_maps.highlight_lobes[m];
     if (!ndf_mapped(ndf) || normal_maps.vertex_highlights == 0u || weight.glossy == 0u) {

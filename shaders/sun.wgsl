@@ -191,8 +191,9 @@ fn sun_lobe_through(lobe: SpecularLobe, widened: WidenedLobe, kappa: f32, mixtur
             // the SH filter's) is no Gaussian of normals, and keeps the widened GGX.
             let spread = select(0.0, clamp(1.0 - lobe.sharpness * lobe.alpha_y / (ax * ay), 0.0, 1.0), mixture);
             if (spread > 0.0) {
-                let e = ((h.x / ax) * (h.x / ax) + (h.y / ay) * (h.y / ay)) / (h.z * h.z);
-                d = mix(d, exp(-e) / (SUN_PI * ax * ay * h.z * h.z * h.z * h.z), spread);
+                let hz2 = max(h.z * h.z, 1e-8);
+                let e = ((h.x / ax) * (h.x / ax) + (h.y / ay) * (h.y / ay)) / hz2;
+                d = mix(d, exp(-e) / (SUN_PI * ax * ay * hz2 * hz2), spread);
             }
             // Masking by the material's own roughness, in the frame of n*.
             var li = vec3<f32>(sqrt(max(1.0 - cos_i * cos_i, 0.0)), 0.0, cos_i);
@@ -243,7 +244,7 @@ fn sun_ndf_lobe(ndf: ptr<function, SurfaceNdf>, j: i32, m: u32, kappa: f32, g: v
             frame = 2.0 * dot(frame, g) * g - frame;
         }
     }
-    return lobe.w * sun_lobe_through(material, widened, concentration, (*ndf).method == 2, lobe.xyz, g, frame, d, wo);
+    return lobe.w * sun_lobe_through(material, widened, concentration, (*ndf).fitted, lobe.xyz, g, frame, d, wo);
 }
 
 // Light reflected towards `wo` (unit, to the viewer) at `p` (normal `n`, tangent `tangent`)

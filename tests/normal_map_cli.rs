@@ -103,7 +103,6 @@ fn scratch() -> std::path::PathBuf {
 fn render(scene: &str, name: &str, settings: &[&str]) -> image::Rgb32FImage {
     let scene = scene_dir(scene);
     let dir = scratch();
-    std::fs::create_dir_all(&dir).unwrap();
     let exr = dir.join(format!("{}-{name}.exr", scene.file_name().unwrap().to_string_lossy()));
     let mut command = Command::new(env!("CARGO_BIN_EXE_lightloom"));
     command.args([
@@ -148,7 +147,7 @@ fn a_leaning_map_keeps_the_sky_at_every_distance() {
             &[&path, "output.mode=wavelet_pixel", "metal.normal_filter=vmf"],
         );
         let figures = bands(&ours, &truth);
-        eprintln!("leaning {name}, wavelet_pixel against the reference, per band (block error, energy): {figures:.3?}");
+        eprintln!("leaning {name}, wavelet_pixel against the reference, per band (blocks, energy): {figures:.3?}");
         for (band, (error, energy)) in figures.iter().enumerate() {
             assert!((energy - 1.0).abs() < 0.15, "{name}, band {band}: energy {energy:.3}");
             assert!(*error < 0.25, "{name}, band {band}: blocks {error:.3} off");
@@ -168,8 +167,8 @@ fn a_leaning_map_keeps_the_sky_at_every_distance() {
 /// shoulders, 74–82% of Mitsuba's, which the bright sky had partly made up: blocks at 6–12 m
 /// went from 22.1% to 23.3%. Reading each lobe's sky where GGX's rays go at a grazing view, not
 /// at the mirror direction, did the same at 12–30 m: the sky beside the streak went from 0.85 to
-/// 0.72 against Mitsuba's 0.75, and the band's energy from 0.931 to 0.911.) With each lobe of normals evaluated at its mean
-/// (masking by the widened lobe, the view's cosine at the mean, the part of the lobe the view lies
+/// 0.72 against Mitsuba's 0.75, and the band's energy from 0.931 to 0.911.) With each lobe of
+/// normals evaluated at its mean (masking by the widened lobe, the view's cosine at the mean, the part of the lobe the view lies
 /// below drawn black) the vMF mixture lost a fifth of the light at 12–30 m and its blocks were
 /// 52% off there.
 #[test]
@@ -206,7 +205,7 @@ fn the_vmf_mixture_keeps_a_grazing_ribbed_floor() {
         render_against_mitsuba("grazing_ribbed", "vmf", &["output.mode=wavelet_pixel", "metal.normal_filter=vmf"]);
     eprintln!("wavelet_pixel, vMF mixture, ribbed, per band (block error, energy): {vmf:.3?}");
     for (band, (error, energy)) in vmf.iter().enumerate() {
-        assert!((energy - 1.0).abs() < 0.1, "band {band}: energy {energy:.3}");
+        assert!((energy - 1.0).abs() < 0.08, "band {band}: energy {energy:.3}");
         let limit = if band < 3 { 0.15 } else { 0.35 };
         assert!(*error < limit, "band {band}: blocks {error:.3} off");
     }

@@ -6,9 +6,10 @@
 //! the mirror direction `r`, its lobe taken with `n = v = r`. That holds near the normal and
 //! fails at grazing views: there the visible microfacets lean towards the viewer and GGX's long
 //! tail carries much of the light far above `r`. At α 0.09 and `μ_o = n·ω_o = 0.05` (3° from
-//! the horizon) the rays' mean direction lies 20° above the horizon, not 3°; on a sky that
-//! brightens towards the horizon the lookup at `r` is 15% dark, and under a normal map (whose
-//! normals see the same view at steeper angles) the error does not cancel.
+//! the horizon) the rays' mean direction lies 20° above the horizon, not 3°; the lookup at `r`
+//! reads the horizon and, through a lobe as wide as the head-on one, the ground below it (on
+//! the grazing test's sky 15% dark for the flat floor), while under a normal map the normals that
+//! see the view at steeper angles are read nearly right, so the error does not cancel.
 //!
 //! Per `(μ_o, α)` the table holds `E = ∫ f (n·ω_i)₊ dω_i`, the fraction `t` of the angle from
 //! `r` to `n` by which the mean of `ω_i` (weighted by `f (n·ω_i)`) has turned towards `n`, and
@@ -28,7 +29,8 @@ use std::sync::OnceLock;
 pub const MU_STEPS: usize = 16;
 /// Roughnesses: `α = (j / (ALPHA_STEPS − 1))²`, 0 (a mirror) to 1.
 pub const ALPHA_STEPS: usize = 8;
-/// Samples per entry: a `GRID × GRID` stratified grid of visible normals.
+/// Samples per entry: a `GRID × GRID` stratified grid (of visible normals for GGX, of half
+/// vectors for Blinn-Phong).
 const GRID: usize = 96;
 
 /// The lobe shapes the table holds.

@@ -548,7 +548,7 @@ fn a_gltf_materials_normal_texture_leans_mirrored_halves_alike() {
 /// exponent 40) mirrors a broad window to the camera, from near to far, in `sh_prt`,
 /// `wavelet_vertex` and `rsl`, each pixel correcting its vertices' highlight for its NDF. Against the
 /// reference with the map, the picture (8 × 8 block means) is under half as far off as the
-/// unmapped one at every distance (0.37–0.47 of it through the prefiltered light; 0.47–0.60
+/// unmapped one at every distance (0.37–0.48 of it through the prefiltered light; 0.47–0.60
 /// through the light's SH to band 7), and its energy within 20% once the mode's own bias on
 /// the unmapped plane is divided out (without the correction: 50% too bright at 3 m). Each
 /// lobe of normals reflects Blinn-Phong's directional albedo at its own view cosine, so the

@@ -583,16 +583,15 @@ fn ndf_highlight_sum(r: vec3<f32>, m: u32, kappa: f32) -> vec3<f32> {
 }
 
 // H of material m's lobe about the direction `r` through a vMF lobe of normals of concentration
-// kappa: from the prefiltered light where it is bound, the lobe as the GGX lobe of its α widened
-// by the normals' spread (α² grows by 2/κ, ndf_widened_axes) and then by `broadening`, scaled
-// by the lobe's band-0 factor as the SH sum is; else the SH sum to band 7.
-fn ndf_highlight(r: vec3<f32>, m: u32, kappa: f32, broadening: f32) -> vec3<f32> {
+// kappa: from the prefiltered light where it is bound, the lobe as the GGX lobe of α `widened`
+// (the material's, widened by the normals' spread and the rays' broadening:
+// ndf_view_highlight), scaled by the lobe's band-0 factor as the SH sum is; else the SH sum to
+// band 7, through kappa.
+fn ndf_highlight(r: vec3<f32>, m: u32, kappa: f32, widened: f32) -> vec3<f32> {
     let levels = normal_maps.highlight_cube_levels;
     if (levels == 0u) {
         return ndf_highlight_sum(r, m, kappa);
     }
-    let alpha = normal_maps.highlight_lobes[m].alpha;
-    let widened = sqrt(broadening * (alpha * alpha + select(2.0 / max(kappa, 1e-6), 0.0, kappa >= NDF_MAX_KAPPA)));
     let lod = clamp(sqrt(widened) * f32(levels - 1u), 0.0, f32(levels - 1u));
     return normal_maps.highlight_factors[2u * m].x * textureSampleLevel(highlight_light, normal_sampler, r, lod).rgb;
 }
@@ -645,7 +644,7 @@ fn ndf_view_highlight(s: vec3<f32>, g: vec3<f32>, wo: vec3<f32>, m: u32, kappa: 
     }
     let sigma = 2.0 * max(widened, 1e-3);
     let seen = ndf_normal_cdf(asin(clamp(dot(r, g), -1.0, 1.0)) / sigma) / max(ndf_normal_cdf(asin(mu) / sigma), 1e-6);
-    return albedo * min(seen, 1.0) * ndf_highlight(d, m, kappa, lobe.z);
+    return albedo * min(seen, 1.0) * ndf_highlight(d, m, kappa, sqrt(lobe.z) * widened);
 }
 
 // A per-vertex mode's environment highlight `glossy` (interpolated from the vertices) corrected

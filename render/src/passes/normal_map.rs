@@ -78,7 +78,7 @@ pub(crate) struct NormalParams {
     pub(crate) reflected_lobe: [Vec4; REFLECTED_LOBE_VECTORS],
 }
 
-/// `normal_map.wgsl` `NDF_REFLECTED_VECTORS`.
+/// The size of `normal_map.wgsl`'s `NormalMaps.reflected_lobe`: an entry a vector.
 const REFLECTED_LOBE_VECTORS: usize =
     reflected_lobe::LobeShape::ALL.len() * reflected_lobe::MU_STEPS * reflected_lobe::ALPHA_STEPS;
 

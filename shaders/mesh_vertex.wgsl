@@ -21,4 +21,8 @@ struct VertexOut {
     @location(8) open: vec3<f32>,
     // The vertex's mesh's texel layer (wavelet_pixel, area lights on textured meshes), or -1.
     @location(9) @interpolate(flat) layer: i32,
+    // In the SH modes drawing their highlight per pixel (normal_map.wgsl
+    // ndf_prefiltered_highlight), how open the vertex is to the light the highlight reflects
+    // (ndf_highlight_open).
+    @location(10) highlight_open: vec3<f32>,
 };

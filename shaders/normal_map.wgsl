@@ -101,6 +101,8 @@ const NDF_HIGHLIGHT_BANDS: i32 = 8;
 // The same unshadowed light as `highlight_radiance`, GGX-prefiltered (nodes specular_cube): mip
 // m of M holds perceptual roughness m / (M - 1), GGX α its square.
 @group(4) @binding(5) var highlight_light: texture_cube<f32>;
+// Trilinear, no anisotropy: the levels are read at an explicit level of detail.
+@group(4) @binding(6) var highlight_sampler: sampler;
 
 const NDF_LOBE_ROW: u32 = 4096u;
 
@@ -584,8 +586,7 @@ fn ndf_highlight_sum(r: vec3<f32>, m: u32, kappa: f32) -> vec3<f32> {
 
 // H of material m's lobe about the direction `r` through a vMF lobe of normals of concentration
 // kappa: from the prefiltered light where it is bound, the lobe as the GGX lobe of α `widened`
-// (the material's, widened by the normals' spread and the rays' broadening:
-// ndf_view_highlight), scaled by the lobe's band-0 factor as the SH sum is; else the SH sum to
+// (the material's, widened by the normals' spread: ndf_view_highlight), scaled by the lobe's band-0 factor as the SH sum is; else the SH sum to
 // band 7, through kappa.
 fn ndf_highlight(r: vec3<f32>, m: u32, kappa: f32, widened: f32) -> vec3<f32> {
     let levels = normal_maps.highlight_cube_levels;
@@ -593,7 +594,7 @@ fn ndf_highlight(r: vec3<f32>, m: u32, kappa: f32, widened: f32) -> vec3<f32> {
         return ndf_highlight_sum(r, m, kappa);
     }
     let lod = clamp(sqrt(widened) * f32(levels - 1u), 0.0, f32(levels - 1u));
-    return normal_maps.highlight_factors[2u * m].x * textureSampleLevel(highlight_light, normal_sampler, r, lod).rgb;
+    return normal_maps.highlight_factors[2u * m].x * textureSampleLevel(highlight_light, highlight_sampler, r, lod).rgb;
 }
 
 // (E, t, b) of the reflected lobe of `shape` (0 GGX, 1 Blinn-Phong) at view cosine `mu` and
@@ -615,10 +616,10 @@ fn ndf_reflected_entry(k: u32) -> vec3<f32> {
 
 // The unshadowed light material m's lobe reflects towards `wo` off normals about `s` (spread
 // by κ) on a surface of unperturbed normal `g`, as the reference shades it: E(μ_o) times H at
-// the mean direction of the reflected rays, its α² grown by their broadening where H is
-// prefiltered (the SH sum to band 7 cannot widen)
-// (ndf_reflected_lobe: at grazing views the rays turn far above the mirror direction and spread
-// wide, where the split sum's lookup would read the horizon through a head-on lobe), less the
+// the mean direction of the reflected rays (ndf_reflected_lobe: at grazing views the rays turn
+// far above the mirror direction, where the split sum's lookup would read the horizon), through
+// the lobe as wide as head-on (widening it by the rays' broadening, the table's b, made a
+// grazing leaning map's far bands 2-5 points brighter against the reference), less the
 // part of the lobe below g's horizon, which the reference draws black (the part below s's is E's
 // already): the rays about the mirror direction taken as Gaussian in elevation, of deviation 2α.
 fn ndf_view_highlight(s: vec3<f32>, g: vec3<f32>, wo: vec3<f32>, m: u32, kappa: f32) -> vec3<f32> {
@@ -627,7 +628,7 @@ fn ndf_view_highlight(s: vec3<f32>, g: vec3<f32>, wo: vec3<f32>, m: u32, kappa: 
     let mu = clamp(dot(s, wo), 1e-4, 1.0);
     let r = 2.0 * mu * s - wo;
     let shape = min(max(normal_maps.highlight_lobes[m].glossy, 1u), 2u) - 1u;
-    // Where the rays go and how wide, through the lobe widened by the normals' spread; their
+    // Where the rays go, through the lobe widened by the normals' spread; their
     // albedo (masking) through the material's own roughness: the spread is no microgeometry.
     let lobe = ndf_reflected_lobe(shape, mu, widened);
     let albedo = ndf_reflected_lobe(shape, mu, alpha).x;
@@ -644,7 +645,7 @@ fn ndf_view_highlight(s: vec3<f32>, g: vec3<f32>, wo: vec3<f32>, m: u32, kappa: 
     }
     let sigma = 2.0 * max(widened, 1e-3);
     let seen = ndf_normal_cdf(asin(clamp(dot(r, g), -1.0, 1.0)) / sigma) / max(ndf_normal_cdf(asin(mu) / sigma), 1e-6);
-    return albedo * min(seen, 1.0) * ndf_highlight(d, m, kappa, sqrt(lobe.z) * widened);
+    return albedo * min(seen, 1.0) * ndf_highlight(d, m, kappa, widened);
 }
 
 // A per-vertex mode's environment highlight `glossy` (interpolated from the vertices) corrected
@@ -672,4 +673,18 @@ fn ndf_vertex_glossy(ndf: ptr<function, SurfaceNdf>, n: vec3<f32>, view: vec3<f3
     mapped = max(mapped, vec3<f32>(0.0));
     let kept = select(vec3<f32>(1.0), min(mapped / unmapped, vec3<f32>(1.0)), unmapped > vec3<f32>(1e-12));
     return max(glossy, vec3<f32>(0.0)) * kept + weight.weight * open * max(mapped - unmapped, vec3<f32>(0.0));
+}
+
+// Whether the SH modes draw their environment highlight from the prefiltered light (nodes
+// frame::VertexHighlight, Mode::prefilters_highlight): it is bound and current.
+fn ndf_prefiltered_highlight() -> bool {
+    return NORMAL_MAPS && normal_maps.vertex_highlights != 0u && normal_maps.highlight_cube_levels > 0u;
+}
+
+// The environment highlight of material m at a pixel of unit normal `n` seen from `view`, as
+// the reference shades it unshadowed (ndf_view_highlight: the lobe's albedo at the view, the
+// prefiltered light where its rays go), times `open` (how open the vertices are to it: mesh_prt.wgsl highlight_open).
+fn ndf_prefiltered_vertex_highlight(n: vec3<f32>, view: vec3<f32>, m: u32, open: vec3<f32>) -> vec3<f32> {
+    let lobe = max(ndf_view_highlight(n, n, view, m, NDF_MAX_KAPPA), vec3<f32>(0.0));
+    return normal_maps.highlight_lobes[m].weight * open * lobe;
 }

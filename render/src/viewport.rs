@@ -180,7 +180,7 @@ impl ViewportRenderer {
             pass.set_bind_group(1, &self.medium.bind_group, &[]);
             pass.set_bind_group(3, &self.sun.bind_group, &[]);
             pass.set_bind_group(4, &self.normal_maps.bind_group, &[]);
-            let mapped = frame.normal_maps.materials.iter().any(Option::is_some);
+            let mapped = frame.normal_maps.shaded();
             self.background.draw(&mut pass, None, mapped);
             for (scene_pass, _) in self.passes.iter().zip(&self.drawn).filter(|(_, drawn)| **drawn) {
                 scene_pass.draw(&mut pass, self.geometry.as_ref(), mapped);

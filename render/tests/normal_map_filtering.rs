@@ -593,7 +593,7 @@ fn per_vertex_highlights_see_the_normal_map() {
                 energy / bias
             );
             assert!(
-                error(&pixels) < 0.5 * error(&flat),
+                error(&pixels) < 0.6 * error(&flat),
                 "{mode} at {d} m: the map takes the picture too little nearer"
             );
             assert!((energy / bias - 1.0).abs() < 0.2, "{mode} at {d} m: energy {energy}, the mode's bias {bias}");

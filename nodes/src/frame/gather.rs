@@ -123,9 +123,8 @@ impl FrameInputs {
             area_lights::area_light_frame(evaluation, &light_nodes, output, &keyed, &materials, &geometry, &scene)?;
         let mut ignored_inputs = std::mem::take(&mut frame.ignored);
         ignored_inputs.extend(unmatched_note(&materials, &frame.unmatched));
-        let shadowed = !matches!(g.mode, Mode::ShIrradiance);
         let normal_maps =
-            NormalMapFrame::new(&materials, light, frame.lighting_cube.as_ref(), shadowed, &mut normal_notes);
+            NormalMapFrame::new(&materials, light, frame.lighting_cube.as_ref(), g.mode, &mut normal_notes);
         normal_maps::note_meshes_without_uvs(&geometry, &materials, &normal_maps, &mut normal_notes);
         let sun = frame.sun;
         let mut lobe_limits = lobe_limits::lobe_limits(graph, output, &scene, requested, &materials, sun.is_some());

@@ -31,7 +31,9 @@ pub struct NormalMapFrame {
     /// irradiance averaged over its NDF over the same at its geometric normal (1 on a flat map).
     pub vertex_diffuse_scale: Option<ShRgb>,
     /// In the modes that shade the environment's light per vertex, while a material has a map:
-    /// what each pixel corrects its highlight by.
+    /// what each pixel corrects its highlight by; in the SH modes
+    /// ([`Mode::prefilters_highlight`]), with a glossy material, also the prefiltered light their
+    /// highlight is drawn from.
     pub vertex_highlight: Option<VertexHighlight>,
 }
 
@@ -62,16 +64,17 @@ pub struct VertexHighlight {
 }
 
 impl NormalMapFrame {
-    /// The materials' maps for the viewport; a map of another size than the first mapped
-    /// material's is left out, and `notes` says so as `(node, why)`.
-    /// `per_vertex`: the mode shades the environment's light per vertex.
+    /// The materials' maps for the viewport in `mode`; a map of another size than the first
+    /// mapped material's is left out, and `notes` says so as `(node, why)`.
     pub fn new(
         materials: &[FrameMaterial],
         transported: Option<&ShRgb>,
         cube: Option<&Keyed>,
-        per_vertex: bool,
+        mode: Mode,
         notes: &mut Vec<(String, String)>,
     ) -> Self {
+        // Whether the mode shades the environment's light per vertex.
+        let per_vertex = mode.is_shadowed();
         let size = |d: &NormalDetail| {
             d.moments
                 .value
@@ -103,13 +106,25 @@ impl NormalMapFrame {
         let materials: Vec<Option<NormalDetail>> = materials_mapped;
         let vertex_diffuse_scale = transported.filter(|_| per_vertex).map(|light| light.irradiance().truncated(3));
         let mapped = materials.iter().any(Option::is_some);
-        let vertex_highlight = transported.filter(|_| per_vertex && mapped).map(|light| VertexHighlight {
-            radiance: light.truncated(HIGHLIGHT_BANDS),
-            lobes: frame_materials.iter().map(|m| crate::prt::glossy_lobe(&m.material, HIGHLIGHT_BANDS)).collect(),
-            shapes: frame_materials.iter().map(|m| crate::reflected_lobe::LobeShape::of(m.material.model)).collect(),
-            cube: cube.cloned(),
-        });
+        let prefiltered =
+            mode.prefilters_highlight() && frame_materials.iter().any(|m| m.material.model != Model::Lambert);
+        let vertex_highlight =
+            transported.filter(|_| per_vertex && (mapped || prefiltered)).map(|light| VertexHighlight {
+                radiance: light.truncated(HIGHLIGHT_BANDS),
+                lobes: frame_materials.iter().map(|m| crate::prt::glossy_lobe(&m.material, HIGHLIGHT_BANDS)).collect(),
+                shapes: frame_materials
+                    .iter()
+                    .map(|m| crate::reflected_lobe::LobeShape::of(m.material.model))
+                    .collect(),
+                cube: cube.cloned(),
+            });
         Self { materials, vertex_diffuse_scale, vertex_highlight }
+    }
+
+    /// Whether pixels shade through this frame's maps or highlight light (the viewport's
+    /// pipelines that read them).
+    pub fn shaded(&self) -> bool {
+        self.materials.iter().any(Option::is_some) || self.vertex_highlight.is_some()
     }
 }
 

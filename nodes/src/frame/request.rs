@@ -89,16 +89,17 @@ pub fn frame_request_for(graph: &Graph, output: &str, needs: FrameNeeds) -> Requ
         Request::new(format!("output `{output}`: mode {mode}"), first)
     };
     // Modes that light the environment per vertex correct its highlight for a map through the
-    // prefiltered light, which comes with the lobes.
+    // prefiltered light, which comes with the lobes; the SH modes draw their highlight from it.
     let mut normal_lobes = normal_lobes;
-    if mode.is_shadowed() && !normal_maps_empty {
+    if mode.is_shadowed() && !normal_maps_empty || mode.prefilters_highlight() {
         normal_lobes
             .extend(linked.environment.as_deref().map(|e| super::environment::highlight_cube(e, linked.separate_sun)));
     }
     let request = if normal_lobes.is_empty() {
         request
     } else {
-        request.then(format!("output `{output}`: normal-map lobes"), normal_lobes)
+        let tier = if normal_maps_empty { "prefiltered highlight" } else { "normal-map lobes" };
+        request.then(format!("output `{output}`: {tier}"), normal_lobes)
     };
     // Area lights trace their own transport: frames show without them until it is ready.
     if graph.upstream_all(output, "area_lights").is_empty() {

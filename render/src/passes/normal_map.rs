@@ -108,7 +108,10 @@ fn reflected_lobe_vectors() -> [Vec4; REFLECTED_LOBE_VECTORS] {
 pub(crate) struct NormalMapPass {
     pub layout: wgpu::BindGroupLayout,
     params: wgpu::Buffer,
-    sampler: wgpu::Sampler,
+    /// The maps' anisotropic sampler (binding 3) and the prefiltered light's trilinear one
+    /// (binding 6: an explicit level of detail through an anisotropic sampler is not honoured
+    /// everywhere; lavapipe takes it from the derivatives).
+    samplers: [wgpu::Sampler; 2],
     pub bind_group: wgpu::BindGroup,
     /// The pyramids' stage keys the bound textures hold.
     uploaded: Option<Vec<PyramidKeys>>,
@@ -133,26 +136,36 @@ impl NormalMapPass {
                 entry::sampler(3),
                 entry::texture(4, wgpu::TextureViewDimension::D2, false),
                 entry::texture(5, wgpu::TextureViewDimension::Cube, true),
+                entry::sampler(6),
             ],
         });
         let params = uniform_buffer::<NormalParams>(&gpu.device, "normal maps");
-        let sampler = gpu.device.create_sampler(&wgpu::SamplerDescriptor {
-            label: Some("normal maps"),
-            address_mode_u: wgpu::AddressMode::Repeat,
-            address_mode_v: wgpu::AddressMode::Repeat,
-            mag_filter: wgpu::FilterMode::Linear,
-            min_filter: wgpu::FilterMode::Linear,
-            mipmap_filter: wgpu::MipmapFilterMode::Linear,
-            anisotropy_clamp: 16,
-            ..Default::default()
-        });
+        let samplers = [
+            gpu.device.create_sampler(&wgpu::SamplerDescriptor {
+                label: Some("normal maps"),
+                address_mode_u: wgpu::AddressMode::Repeat,
+                address_mode_v: wgpu::AddressMode::Repeat,
+                mag_filter: wgpu::FilterMode::Linear,
+                min_filter: wgpu::FilterMode::Linear,
+                mipmap_filter: wgpu::MipmapFilterMode::Linear,
+                anisotropy_clamp: 16,
+                ..Default::default()
+            }),
+            gpu.device.create_sampler(&wgpu::SamplerDescriptor {
+                label: Some("normal-map highlight light"),
+                mag_filter: wgpu::FilterMode::Linear,
+                min_filter: wgpu::FilterMode::Linear,
+                mipmap_filter: wgpu::MipmapFilterMode::Linear,
+                ..Default::default()
+            }),
+        ];
         let cube = upload_cube(gpu, &SpecularCube { levels: vec![CubeMap::new(1, vec![[0.0; 3]; 6])] });
         let views = Self::upload(gpu, &[], (1, 1), &[[0.0; 4]]);
-        let bind_group = bind(gpu, &layout, &params, &sampler, &views, &cube);
+        let bind_group = bind(gpu, &layout, &params, &samplers, &views, &cube);
         Self {
             layout,
             params,
-            sampler,
+            samplers,
             bind_group,
             views,
             uploaded: None,
@@ -299,7 +312,7 @@ impl NormalMapPass {
             }
             self.views = Self::upload(gpu, &pyramids, size, &lobes);
             self.uploaded = Some(keys);
-            self.bind_group = bind(gpu, &self.layout, &self.params, &self.sampler, &self.views, &self.cube);
+            self.bind_group = bind(gpu, &self.layout, &self.params, &self.samplers, &self.views, &self.cube);
         }
         let cube = frame.vertex_highlight.as_ref().and_then(|h| h.cube.as_ref());
         if let Some(keyed) = cube
@@ -308,7 +321,7 @@ impl NormalMapPass {
             let prefiltered = stage_value::<SpecularCube>(keyed)?;
             self.cube = upload_cube(gpu, prefiltered);
             self.cube_uploaded = Some((keyed.key, prefiltered.levels.len() as u32));
-            self.bind_group = bind(gpu, &self.layout, &self.params, &self.sampler, &self.views, &self.cube);
+            self.bind_group = bind(gpu, &self.layout, &self.params, &self.samplers, &self.views, &self.cube);
         }
         let v3 = |v: &[f64; 3]| DVec3::from(*v).as_vec3();
         let mut params = NormalParams::default();
@@ -367,7 +380,7 @@ fn bind(
     gpu: &GpuContext,
     layout: &wgpu::BindGroupLayout,
     params: &wgpu::Buffer,
-    sampler: &wgpu::Sampler,
+    [sampler, cube_sampler]: &[wgpu::Sampler; 2],
     [a, b, lobes]: &[wgpu::TextureView; 3],
     cube: &wgpu::TextureView,
 ) -> wgpu::BindGroup {
@@ -382,6 +395,7 @@ fn bind(
             wgpu::BindGroupEntry { binding: 3, resource: wgpu::BindingResource::Sampler(sampler) },
             wgpu::BindGroupEntry { binding: 4, resource: view(lobes) },
             wgpu::BindGroupEntry { binding: 5, resource: view(cube) },
+            wgpu::BindGroupEntry { binding: 6, resource: wgpu::BindingResource::Sampler(cube_sampler) },
         ],
     })
 }

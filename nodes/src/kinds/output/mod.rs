@@ -62,6 +62,13 @@ impl Mode {
     pub fn is_shadowed(self) -> bool {
         self != Mode::ShIrradiance
     }
+
+    /// Whether the mode's environment highlight is the true lobe of the GGX-prefiltered light
+    /// once that is ready, occluded as the per-vertex SH highlight is (the SH modes: their
+    /// Phong lobe to a few bands blurs bright lights into dark reflections).
+    pub fn prefilters_highlight(self) -> bool {
+        matches!(self, Mode::ShPrt | Mode::ShAdaptive)
+    }
 }
 
 crate::choice_enum! {

@@ -53,7 +53,7 @@ struct VmfLevel {
 // A material's equivalent Phong lobe for the per-vertex environment highlight.
 struct HighlightLobe {
     weight: vec3<f32>,
-    // 0 without a glossy lobe, else 1 + its shape in `reflected_lobe` (0 GGX, 1 Blinn-Phong).
+    // 0 without a glossy lobe, else 1 + its shape in `reflected_lobe` (0 GGX, 1 Blinn-Phong, 2 Phong).
     glossy: u32,
     // The GGX α of its equivalent Phong exponent.
     alpha: f32,
@@ -79,10 +79,10 @@ struct NormalMaps {
     highlight_lobes: array<HighlightLobe, 8>,
     // Roughness levels of `highlight_light` (0: none bound, H from the SH).
     highlight_cube_levels: u32,
-    // The reflected lobe (nodes reflected_lobe::table): per shape (GGX, Blinn-Phong) and α row
+    // The reflected lobe (nodes reflected_lobe::table): per shape (GGX, Blinn-Phong, Phong) and α row
     // of NDF_REFLECTED_MU view cosines, the directional albedo E, the turn t of the rays' mean
     // from the mirror direction towards the normal and their broadening b over normal incidence.
-    reflected_lobe: array<vec4<f32>, 256>,
+    reflected_lobe: array<vec4<f32>, 384>,
 };
 
 // The reflected-lobe table's view cosines μ = (i / 15)² and roughnesses α = (j / 7)².
@@ -597,7 +597,7 @@ fn ndf_highlight(r: vec3<f32>, m: u32, kappa: f32, widened: f32) -> vec3<f32> {
     return normal_maps.highlight_factors[2u * m].x * textureSampleLevel(highlight_light, highlight_sampler, r, lod).rgb;
 }
 
-// (E, t, b) of the reflected lobe of `shape` (0 GGX, 1 Blinn-Phong) at view cosine `mu` and
+// (E, t, b) of the reflected lobe of `shape` (0 GGX, 1 Blinn-Phong, 2 Phong) at view cosine `mu` and
 // roughness `alpha` (nodes reflected_lobe.rs), bilinear in √μ and √α.
 fn ndf_reflected_lobe(shape: u32, mu: f32, alpha: f32) -> vec3<f32> {
     let x = clamp(sqrt(max(mu, 0.0)), 0.0, 1.0) * f32(NDF_REFLECTED_MU - 1u);
@@ -627,7 +627,7 @@ fn ndf_view_highlight(s: vec3<f32>, g: vec3<f32>, wo: vec3<f32>, m: u32, kappa: 
     let widened = sqrt(alpha * alpha + select(2.0 / max(kappa, 1e-6), 0.0, kappa >= NDF_MAX_KAPPA));
     let mu = clamp(dot(s, wo), 1e-4, 1.0);
     let r = 2.0 * mu * s - wo;
-    let shape = min(max(normal_maps.highlight_lobes[m].glossy, 1u), 2u) - 1u;
+    let shape = min(max(normal_maps.highlight_lobes[m].glossy, 1u), 3u) - 1u;
     // Where the rays go, through the lobe widened by the normals' spread; their
     // albedo (masking) through the material's own roughness: the spread is no microgeometry.
     let lobe = ndf_reflected_lobe(shape, mu, widened);

@@ -1,6 +1,8 @@
 //! Where a glossy lobe (Fresnel 1) sends the light it reflects, seen from a view direction: its
 //! directional albedo `E(μ_o)` and the mean direction of its reflected rays; for isotropic GGX
-//! and for Blinn-Phong (whose lobe has no long tail: Phong and Ward take its table).
+//! and for Blinn-Phong (whose lobe has no long tail: Ward takes its table), and for Phong's lobe
+//! about the mirror direction (whose albedo keeps the surface's cosine, `μ_o`, where it clears
+//! the horizon: Blinn-Phong's, nearly flat, drew Phong's highlight too bright at oblique views).
 //!
 //! The split sum (Karis 2013, and [`crate::specular_cube`]) looks the prefiltered light up at
 //! the mirror direction `r`, its lobe taken with `n = v = r`. That holds near the normal and
@@ -30,7 +32,7 @@ pub const MU_STEPS: usize = 16;
 /// Roughnesses: `α = (j / (ALPHA_STEPS − 1))²`, 0 (a mirror) to 1.
 pub const ALPHA_STEPS: usize = 8;
 /// Samples per entry: a `GRID × GRID` stratified grid (of visible normals for GGX, of half
-/// vectors for Blinn-Phong).
+/// vectors for Blinn-Phong, of directions about the mirror direction for Phong).
 const GRID: usize = 96;
 
 /// The lobe shapes the table holds.
@@ -38,16 +40,24 @@ const GRID: usize = 96;
 pub enum LobeShape {
     Ggx = 0,
     BlinnPhong = 1,
+    /// The (modified) Phong lobe about the mirror direction, of exponent `(2/α² − 2)/4` (the
+    /// Blinn-Phong exponent's quarter): the cosine at the surface stays in its integral, so its
+    /// albedo is `μ_o` where it clears the horizon.
+    Phong = 2,
 }
 
 impl LobeShape {
-    pub const ALL: [LobeShape; 2] = [LobeShape::Ggx, LobeShape::BlinnPhong];
+    pub const ALL: [LobeShape; 3] = [LobeShape::Ggx, LobeShape::BlinnPhong, LobeShape::Phong];
 
-    /// The shape a material's lobe is tabulated as: GGX's long tail, or none (Blinn-Phong,
-    /// Phong and Ward).
+    /// The shape a material's lobe is tabulated as: GGX's long tail; Phong's lobe about the
+    /// mirror direction; or a half-vector lobe without a tail (Blinn-Phong and Ward).
     pub fn of(model: crate::brdf::Model) -> Self {
         use crate::brdf::Model;
-        if matches!(model, Model::Ggx | Model::GgxAnisotropic) { LobeShape::Ggx } else { LobeShape::BlinnPhong }
+        match model {
+            Model::Ggx | Model::GgxAnisotropic => LobeShape::Ggx,
+            Model::Phong => LobeShape::Phong,
+            _ => LobeShape::BlinnPhong,
+        }
     }
 }
 
@@ -119,6 +129,7 @@ pub fn reflected_lobe(shape: LobeShape, mu: f64, alpha: f64) -> ReflectedLobe {
     let (albedo, sum) = match shape {
         LobeShape::Ggx => ggx_rays(wo, alpha),
         LobeShape::BlinnPhong => blinn_phong_rays(wo, alpha),
+        LobeShape::Phong => phong_rays(wo, alpha),
     };
     let mean = sum.try_normalize().unwrap_or(DVec3::Z);
     let mean_length = if albedo > 0.0 { sum.length() / (albedo * (GRID * GRID) as f64) } else { 1.0 };
@@ -148,6 +159,29 @@ fn blinn_phong_rays(wo: DVec3, alpha: f64) -> (f64, DVec3) {
             continue;
         }
         let weight = (s + 8.0) / (s + 2.0) * wi.z * oh / c;
+        albedo += weight;
+        sum += weight * wi;
+    }
+    (albedo / (GRID * GRID) as f64, sum)
+}
+
+/// Phong of exponent `(2/α² − 2)/4` about the mirror direction of `wo`: `E` and the sum of
+/// `f (n·ω_i) ω_i / p` over directions of density `(s + 1)/2π cosˢ` about it.
+fn phong_rays(wo: DVec3, alpha: f64) -> (f64, DVec3) {
+    let s = ((2.0 / (alpha * alpha) - 2.0) / 4.0).max(0.0);
+    let mirror = DVec3::new(-wo.x, -wo.y, wo.z);
+    let (t, b) = mirror.any_orthonormal_pair();
+    let (mut albedo, mut sum) = (0.0, DVec3::ZERO);
+    for (u1, u2) in grid() {
+        let c = u1.powf(1.0 / (s + 1.0));
+        let sin = (1.0 - c * c).max(0.0).sqrt();
+        let phi = 2.0 * std::f64::consts::PI * u2;
+        let wi = t * (sin * phi.cos()) + b * (sin * phi.sin()) + mirror * c;
+        if wi.z <= 0.0 {
+            continue;
+        }
+        // f (n·ω_i) / p = ((s + 2)/2π cosˢ) (n·ω_i) / ((s + 1)/2π cosˢ).
+        let weight = (s + 2.0) / (s + 1.0) * wi.z;
         albedo += weight;
         sum += weight * wi;
     }

@@ -23,7 +23,7 @@ pub(super) fn lobe_limits(
     let mut bands = int(scene, "transport_bands", 6).clamp(1, 16) as usize;
     if mode == Mode::ShAdaptive {
         // The glossy lobe is drawn at the adaptive level, within the environment's bands.
-        let env = graph.upstream(output, "environment").map(|n| int(&n.id, "sh_bands", 4) as usize).unwrap_or(bands);
+        let env = graph.upstream(output, "environment").map(|n| int(&n.id, "sh_bands", 6) as usize).unwrap_or(bands);
         bands = bands.min(env).min(int(output, "adaptive_level", 10) as usize + 1).clamp(1, 12);
     }
     let cells = match graph.node(output).and_then(|n| n.params.get("wavelet_terms")) {

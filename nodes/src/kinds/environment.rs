@@ -121,8 +121,12 @@ pub fn spec() -> NodeKindSpec {
                 name: "sh_bands",
                 label: "SH bands",
                 unit: "",
-                kind: ParamKind::Int { min: 1, max: 16, default: 4 },
-                doc: "Bands of the SH projection (N bands = N² coefficients).",
+                kind: ParamKind::Int { min: 1, max: 16, default: 6 },
+                doc: "Bands of the SH projection (N bands = N² coefficients). The SH modes light with \
+                      the fewer of these and the scene's transport bands (6 by default): on lights \
+                      near the horizon, an up-facing surface's irradiance converges slowly in the \
+                      bands (a studio HDRI's floor: 1.22 times the truth to band 2, 1.10 to band 4, \
+                      1.07 to band 6).",
             },
             ParamSpec {
                 name: "wavelet_terms",

@@ -2,18 +2,19 @@ use super::*;
 use crate::brdf::{Brdf, Material, Model};
 use crate::quadrature::SphereQuadrature;
 
-/// GGX of α, or Blinn-Phong of exponent 2/α² − 2 (Fresnel 1), as the reference renderer
+/// GGX of α, Blinn-Phong of exponent 2/α² − 2 or Phong of its quarter (Fresnel 1), as the reference renderer
 /// evaluates them.
 fn lobe_of(shape: LobeShape, alpha: f64) -> Brdf {
-    let model = match shape {
-        LobeShape::Ggx => Model::Ggx,
-        LobeShape::BlinnPhong => Model::BlinnPhong,
+    let (model, exponent) = match shape {
+        LobeShape::Ggx => (Model::Ggx, 0.0),
+        LobeShape::BlinnPhong => (Model::BlinnPhong, 2.0 / (alpha * alpha) - 2.0),
+        LobeShape::Phong => (Model::Phong, (2.0 / (alpha * alpha) - 2.0) / 4.0),
     };
     Brdf::from_material(&Material {
         model,
         albedo: [0.0; 3],
         roughness: alpha.sqrt(),
-        exponent: 2.0 / (alpha * alpha) - 2.0,
+        exponent,
         f0: 1.0,
         ..Material::default()
     })

@@ -4,8 +4,8 @@
 // with R = L*V the shadowed incident radiance (Gaunt product, precomputed per vertex), r the
 // mirror direction of the view, f_l the per-band factors of the material's Phong lobe. Once the
 // prefiltered light is bound (normal_map.wgsl ndf_prefiltered_highlight), each pixel draws the
-// material's true lobe from it instead, occluded by B_s's sum over the same of the unshadowed
-// light (ndf_highlight_open): the Phong lobe to a few bands spreads bright lights into dark
+// material's true lobe from it instead, times how open the vertex is to it (highlight_open,
+// from the transfer T): the Phong lobe to a few bands spreads bright lights into dark
 // reflections. Under a normal map each pixel corrects the highlight for its NDF
 // (ndf_vertex_glossy).
 
@@ -68,8 +68,8 @@ fn glossy_sum(r: vec3<f32>, bands: i32, ib: u32, material: u32) -> vec3<f32> {
 // How open a vertex is to its highlight about the mirror direction `r`: its cosine-weighted
 // visibility (the diffuse transfer T, over `bands`) seen through material m's Phong lobe,
 // sum_lm f_l T_lm Y_lm(r), over the same of the unoccluded clamped cosine about the normal `n`,
-// sum_l f_l c_l P_l(n.r) with c_l = (2l+1)/2 int_0^1 t P_l(t) dt (1/2, 1/3, 1/8, then 0 for odd
-// l and c_(l+2) = -c_l (l-1)/(l+4) (2l+5)/(2l+1) for even l): the same truncation in both, so an
+// sum_l f_l c_l P_l(n.r) with c_l = (2l+1)/2 a_l, a_l = int_0^1 t P_l(t) dt (1/2, 1/3, 1/8, then
+// 0 for odd l and a_(l+2) = -a_l (l-1)/(l+4) for even l): the same truncation in both, so an
 // unoccluded vertex is open 1 whatever the bands ring. In [0, 1]; 1 where the lobe looks below
 // the horizon.
 fn highlight_open(r: vec3<f32>, n: vec3<f32>, tb: u32, bands: i32, m: u32) -> f32 {

@@ -23,6 +23,6 @@ struct VertexOut {
     @location(9) @interpolate(flat) layer: i32,
     // In the SH modes drawing their highlight per pixel (normal_map.wgsl
     // ndf_prefiltered_highlight), how open the vertex is to the light the highlight reflects
-    // (ndf_highlight_open).
+    // (mesh_prt.wgsl highlight_open).
     @location(10) highlight_open: vec3<f32>,
 };

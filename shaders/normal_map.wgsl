@@ -585,16 +585,17 @@ fn ndf_highlight_sum(r: vec3<f32>, m: u32, kappa: f32) -> vec3<f32> {
 }
 
 // H of material m's lobe about the direction `r` through a vMF lobe of normals of concentration
-// kappa: from the prefiltered light where it is bound, the lobe as the GGX lobe of α `widened`
-// (the material's, widened by the normals' spread: ndf_view_highlight), scaled by the lobe's band-0 factor as the SH sum is; else the SH sum to
-// band 7, through kappa.
+// kappa, the lobe's weighted mean of the light (the albedo is E's, ndf_view_highlight): from the
+// prefiltered light where it is bound, the lobe as the GGX lobe of α `widened` (the material's,
+// widened by the normals' spread); else the SH sum to band 7, through kappa, over the lobe's
+// band-0 factor (its integral, (s + 2)/(s + 1) for Phong's cosˢ lobe: a uniform light's sum).
 fn ndf_highlight(r: vec3<f32>, m: u32, kappa: f32, widened: f32) -> vec3<f32> {
     let levels = normal_maps.highlight_cube_levels;
     if (levels == 0u) {
-        return ndf_highlight_sum(r, m, kappa);
+        return ndf_highlight_sum(r, m, kappa) / max(normal_maps.highlight_factors[2u * m].x, 1e-6);
     }
     let lod = clamp(sqrt(widened) * f32(levels - 1u), 0.0, f32(levels - 1u));
-    return normal_maps.highlight_factors[2u * m].x * textureSampleLevel(highlight_light, highlight_sampler, r, lod).rgb;
+    return textureSampleLevel(highlight_light, highlight_sampler, r, lod).rgb;
 }
 
 // (E, t, b) of the reflected lobe of `shape` (0 GGX, 1 Blinn-Phong, 2 Phong) at view cosine `mu` and

@@ -104,16 +104,22 @@ fn the_sh_modes_draw_the_true_lobe_of_the_prefiltered_light() {
         fov_y_deg: 45.0,
     };
     let size = (SIZE.0 as usize, SIZE.1 as usize);
-    let mut truth = None;
-    for mode in ["sh_prt", "sh_adaptive"] {
+    let mut truths: Vec<(f64, reference::HdrImage)> = Vec::new();
+    // Roughness 0.4 and 0.7 (the Phong lobe's band-0 factor, (s + 2)/(s + 1), grows with it:
+    // the prefiltered light is a mean, the albedo E's).
+    for (mode, roughness) in [("sh_prt", 0.4), ("sh_adaptive", 0.4), ("sh_prt", 0.7)] {
         let mut graph = project(dir.path(), mode);
         graph.set_param("output", "mode", ParamValue::Choice(mode.into())).unwrap();
+        graph.set_param("metal", "roughness", ParamValue::Float(roughness)).unwrap();
+        let mode = format!("{mode}, roughness {roughness}");
         let prefiltered = frame(&engine, &graph);
         let highlight = prefiltered.normal_maps.vertex_highlight.as_ref().expect("the SH modes' highlight light");
         assert!(highlight.cube.is_some(), "{mode}: the prefiltered light is requested with the frame");
-        let truth = truth.get_or_insert_with(|| {
-            prefiltered.render_reference(&pinhole, size, 1, &CancelToken::default(), &|_| {}).unwrap()
-        });
+        if !truths.iter().any(|(r, _)| *r == roughness) {
+            let image = prefiltered.render_reference(&pinhole, size, 1, &CancelToken::default(), &|_| {}).unwrap();
+            truths.push((roughness, image));
+        }
+        let truth = &truths.iter().find(|(r, _)| *r == roughness).unwrap().1;
         // The frame as it shows before the prefiltered light is ready: the Phong lobe in SH.
         let mut phong = prefiltered.clone();
         phong.normal_maps.vertex_highlight.as_mut().unwrap().cube = None;

@@ -247,7 +247,7 @@ pub(super) fn normal_detail(
                 "its normal map filters the highlight approximately: {why} (exact for Lambert, Blinn-Phong and GGX)"
             ));
         }
-        if model != Model::Lambert && mode != Mode::ShIrradiance {
+        if model != Model::Lambert && mode != Mode::ShIrradiance && !mode.prefilters_highlight() {
             note(format!(
                 "in {mode} the environment's highlight is shaded per vertex and corrected per pixel for the normal \
                  map by the ratio of the prefiltered light through the pixel's normals to that at its normal (the \

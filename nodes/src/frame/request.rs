@@ -91,7 +91,12 @@ pub fn frame_request_for(graph: &Graph, output: &str, needs: FrameNeeds) -> Requ
     // Modes that light the environment per vertex correct its highlight for a map through the
     // prefiltered light, which comes with the lobes; the SH modes draw their highlight from it.
     let mut normal_lobes = normal_lobes;
-    if mode.is_shadowed() && !normal_maps_empty || mode.prefilters_highlight() {
+    // (A model's own materials go without it: their highlight stays the vertices' Phong lobe.)
+    let glossy = graph.upstream_all(output, "material").iter().any(|m| match m.params.get("model") {
+        Some(crate::engine::spec::ParamValue::Choice(c)) => c != "lambert",
+        _ => false,
+    });
+    if mode.is_shadowed() && !normal_maps_empty || mode.prefilters_highlight() && glossy {
         normal_lobes
             .extend(linked.environment.as_deref().map(|e| super::environment::highlight_cube(e, linked.separate_sun)));
     }

@@ -125,8 +125,8 @@ pub fn spec() -> NodeKindSpec {
                 doc: "Bands of the SH projection (N bands = N² coefficients). The SH modes light with \
                       the fewer of these and the scene's transport bands (6 by default): on lights \
                       near the horizon, an up-facing surface's irradiance converges slowly in the \
-                      bands (a studio HDRI's floor: 1.22 times the truth to band 2, 1.10 to band 4, \
-                      1.07 to band 6).",
+                      bands (a studio HDRI's floor: 1.22 times the truth through band 2, 1.10 through \
+                      band 4, 1.07 through band 6; N bands reach band N - 1).",
             },
             ParamSpec {
                 name: "wavelet_terms",

@@ -714,7 +714,6 @@ fn each_mode_and_view_evaluates_exactly_the_stages_it_reads() {
                 "material.sh_lobe",
                 "output.blocked_transport",
                 "output.incident_residual_sh",
-                "sky.residual_highlight_cube",
             ]),
         ),
         (
@@ -729,7 +728,6 @@ fn each_mode_and_view_evaluates_exactly_the_stages_it_reads() {
                 "output.blocked_transport",
                 "output.adaptive_residual_incident",
                 "output.adaptive_residual_error",
-                "sky.residual_highlight_cube",
             ]),
         ),
         ("wavelet_vertex", "approximation", wavelet_vertex.clone()),

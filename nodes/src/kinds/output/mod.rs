@@ -154,8 +154,9 @@ pub fn spec() -> NodeKindSpec {
                 unit: "",
                 kind: ParamKind::Choice { options: Mode::NAMES, default: "sh_prt", labels: MODE_LABELS },
                 doc: "sh_irradiance: unshadowed diffuse lighting from the environment's SH, per pixel (Sun 2008 \
-                      eq. 2.20). sh_prt: shadowed diffuse transfer plus glossy lobes on the shadowed incident \
-                      radiance, per vertex. sh_adaptive: the same at high SH order, each vertex adding SH \
+                      eq. 2.20). sh_prt: shadowed diffuse transfer per vertex; glossy lobes on the shadowed \
+                      incident radiance per vertex, then, once the environment is prefiltered, the true lobe \
+                      per pixel, occluded by the vertex's transfer. sh_adaptive: the same at high SH order, each vertex adding SH \
                       levels only while they change its shading (Lee 2014). wavelet_vertex: all-frequency triple \
                       product in each vertex's local frame (Ma et al. eq. 7), 80 or 320 top-only coefficients. \
                       wavelet_pixel: the same, per pixel on objects with a \

@@ -231,10 +231,7 @@ pub(super) fn normal_detail(
         _ => None,
     };
     if let Some(node) = graph.node(material) {
-        let model = match node.params.get("model") {
-            Some(ParamValue::Choice(c)) => c.parse().unwrap_or(Model::Lambert),
-            _ => Model::Lambert,
-        };
+        let model = node_model(node);
         let anisotropic = matches!(node.params.get("anisotropy"), Some(ParamValue::Float(a)) if *a != 0.0);
         let lobe = match model {
             Model::Phong => Some("Phong's lobe is about the mirror direction, not the half vector"),
@@ -258,4 +255,12 @@ pub(super) fn normal_detail(
         }
     }
     Some(super::NormalDetail { settings, map, moments, lobes })
+}
+
+/// The BRDF model a material node's parameters name (Lambert, its default, when they name none).
+pub(super) fn node_model(node: &crate::engine::GraphNode) -> Model {
+    match node.params.get("model") {
+        Some(ParamValue::Choice(c)) => c.parse().unwrap_or(Model::Lambert),
+        _ => Model::Lambert,
+    }
 }

@@ -92,10 +92,10 @@ pub fn frame_request_for(graph: &Graph, output: &str, needs: FrameNeeds) -> Requ
     // prefiltered light, which comes with the lobes; the SH modes draw their highlight from it.
     let mut normal_lobes = normal_lobes;
     // (A model's own materials go without it: their highlight stays the vertices' Phong lobe.)
-    let glossy = graph.upstream_all(output, "material").iter().any(|m| match m.params.get("model") {
-        Some(crate::engine::spec::ParamValue::Choice(c)) => c != "lambert",
-        _ => false,
-    });
+    let glossy = graph
+        .upstream_all(output, "material")
+        .iter()
+        .any(|m| super::normal_maps::node_model(m) != crate::brdf::Model::Lambert);
     if mode.is_shadowed() && !normal_maps_empty || mode.prefilters_highlight() && glossy {
         normal_lobes
             .extend(linked.environment.as_deref().map(|e| super::environment::highlight_cube(e, linked.separate_sun)));
